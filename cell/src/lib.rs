@@ -1,0 +1,1 @@
+//! The windcell coordinator library.

@@ -1,0 +1,4 @@
+//! `windcell`: the filament-winding cell coordinator.
+fn main() {
+    println!("windcell");
+}

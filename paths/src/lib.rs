@@ -1,0 +1,1 @@
+//! Mandrel geometry and motion maths for windcell. No I/O.
