@@ -1,0 +1,46 @@
+//! The `windcell` command line: one module per subcommand.
+
+use clap::{Parser, Subcommand};
+
+/// Exit code for bad input: a file, a field or an argument the operator must fix.
+pub const EXIT_INPUT: u8 = 2;
+/// Exit code for a failure at run time: a device, a link, the file system.
+pub const EXIT_RUNTIME: u8 = 1;
+
+/// A failed command: one line for the operator and the process exit code.
+#[derive(Debug)]
+pub struct Failure {
+    /// The one-line message (file:line:col first where there is one).
+    pub message: String,
+    /// [`EXIT_INPUT`] or [`EXIT_RUNTIME`].
+    pub exit_code: u8,
+}
+
+impl Failure {
+    /// Bad input (exit code 2).
+    pub fn input(message: impl std::fmt::Display) -> Self {
+        Failure { message: message.to_string(), exit_code: EXIT_INPUT }
+    }
+
+    /// A run-time failure (exit code 1).
+    pub fn runtime(message: impl std::fmt::Display) -> Self {
+        Failure { message: message.to_string(), exit_code: EXIT_RUNTIME }
+    }
+}
+
+/// windcell: coordinator for robotic filament-winding cells.
+#[derive(Debug, Parser)]
+#[command(name = "windcell", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {}
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> Result<(), Failure> {
+    match cli.command {}
+}
