@@ -1,1 +1,26 @@
-//! Mandrel geometry and motion maths for windcell. No I/O.
+//! Mandrel geometry and motion maths for windcell: analytic mandrels, fibre paths, equal-length
+//! segmentation, the tangent angle (seed 001 eq 3.7), payout-eye poses (eqs 3.8–3.14), wrist
+//! quaternions (App. A), mandrel step planning and the robot's working range. No I/O.
+//!
+//! Millimetres and radians throughout; degrees appear only at file and command-line edges.
+
+pub mod error;
+pub mod eye;
+pub mod geodesic;
+pub mod mandrel;
+pub mod plan;
+pub mod robot;
+pub mod segment;
+pub mod spine;
+pub mod step;
+pub mod tangent;
+pub mod wrist;
+
+pub use error::Error;
+pub use geodesic::{Direction, PathStart, SurfacePath};
+pub use mandrel::{Section, Tube};
+pub use plan::{PathPlan, Pose, Segment, Setup, Speeds};
+pub use robot::Robot;
+pub use segment::SurfacePoint;
+pub use spine::Spine;
+pub use step::Gearing;

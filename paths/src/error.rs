@@ -1,0 +1,83 @@
+//! The one error type of the `paths` crate.
+
+use thiserror::Error;
+
+/// Everything that can go wrong while building mandrel models and planning paths.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A length, radius, count or angle that must lie in a range does not.
+    #[error("{name} = {value} is out of range: {expected}")]
+    OutOfRange {
+        /// The quantity's name, with its unit (`radius_mm`, `wind_angle_deg`).
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What would have been accepted, in words (`must be > 0`).
+        expected: &'static str,
+    },
+    /// Spine knots must be at strictly increasing heights, at least two of them.
+    #[error("spine knot {index} at height {height_mm} mm does not rise above the previous one")]
+    SpineNotIncreasing {
+        /// Index of the offending knot.
+        index: usize,
+        /// Its height.
+        height_mm: f64,
+    },
+    /// The spine bends more tightly than the mandrel radius, so the tube would fold onto itself.
+    #[error(
+        "the spine bends with a radius of {bend_radius_mm:.1} mm at {height_mm:.1} mm, tighter than \
+         the mandrel radius {radius_mm} mm (smooth the spine more)"
+    )]
+    SpineTooTight {
+        /// Height of the tightest bend.
+        height_mm: f64,
+        /// Its radius of curvature.
+        bend_radius_mm: f64,
+        /// The mandrel radius.
+        radius_mm: f64,
+    },
+    /// Eq 3.7 has no solution: the robot is too close for the tangent line to reach the point.
+    #[error(
+        "robot distance b = {robot_distance_mm} mm makes eq 3.7 undefined at segment {segment} \
+         (|(-r - R cos Ψ)/b| = {argument:.4} > 1)"
+    )]
+    TangentUndefined {
+        /// b, the robot pedestal to rotation axis distance.
+        robot_distance_mm: f64,
+        /// The segment end point index (0 = start point).
+        segment: usize,
+        /// |argument of arccos| found.
+        argument: f64,
+    },
+    /// A geodesic left the surface's parameter range before reaching the mandrel's far end.
+    #[error(
+        "the fibre path turned back at {height_mm:.2} mm before reaching the end of the mandrel"
+    )]
+    PathTurnedBack {
+        /// Where along the spine it turned.
+        height_mm: f64,
+    },
+    /// A payout-eye position lies outside the robot's working range.
+    #[error(
+        "segment {segment}: payout eye at ({x_mm:.1}, {y_mm:.1}, {z_mm:.1}) mm is outside the robot's {limit}"
+    )]
+    OutOfReach {
+        /// The segment end point index (0 = start point).
+        segment: usize,
+        /// Eye x in the cell frame.
+        x_mm: f64,
+        /// Eye y in the cell frame.
+        y_mm: f64,
+        /// Eye z in the cell frame.
+        z_mm: f64,
+        /// Which limit (`horizontal reach`, `height range`, `wrist pitch range`).
+        limit: &'static str,
+    },
+    /// Two consecutive segment end points coincide, so the fibre direction is undefined.
+    #[error("segment {segment} has zero length")]
+    DegenerateSegment {
+        /// The segment index (1-based).
+        segment: usize,
+    },
+}

@@ -1,0 +1,349 @@
+//! Analytic mandrel models: a tube of constant radius swept along a planar spine (seed 001 §3.1).
+//!
+//! # Frames
+//! The **mandrel frame** is fixed to the mandrel and turns with it: `z` along the mandrel drive's
+//! rotation axis (the mandrel is held vertically, seed 001 §4.1.6), origin on the axis at the
+//! spine's first knot (distance 0 of Table 6.1), `x` toward the side the spine is offset to, `y`
+//! completing a right-handed frame. The spine lies in the plane `y = 0`.
+//!
+//! # Surface parameters
+//! A surface point is `X(u, v) = c(u) + r (cos v N(u) + sin v B)` where `u` is the height of the
+//! spine point `c(u) = (x(u), 0, u)`, `N` the unit spine normal in the `x–z` plane (`+x` where the
+//! spine is vertical), `B = +y` and `v` the angle around the spine, counter-clockwise seen from
+//! above. The four configurations of seed 001 §6.4 are all tubes: the cylinders have a straight
+//! spine (on the axis, offset by k radii, or tilted), the S-bend the spline through Table 6.1.
+
+use nalgebra::{Point3, Vector2, Vector3};
+
+use crate::{Error, Spine};
+
+/// A circular cross-section of the mandrel as the thesis describes it (seed 001 §3.2, Fig. 3.1):
+/// centroid offset from the rotation axis and radius, in the horizontal plane at one height.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Section {
+    /// Centroid `(x, y)` in the mandrel frame; its length is the thesis's `R`.
+    pub centroid_mm: Vector2<f64>,
+    /// The thesis's `r`.
+    pub radius_mm: f64,
+}
+
+impl Section {
+    /// `R`, the centroid's distance from the rotation axis.
+    pub fn centroid_offset_mm(&self) -> f64 {
+        self.centroid_mm.norm()
+    }
+
+    /// `Ψ` of eq 3.1: the angle of a point around the centroid, measured from `X'` (the direction of
+    /// `R`; the mandrel-frame `x` axis when `R = 0`).
+    pub fn psi_rad(&self, point: &Point3<f64>) -> f64 {
+        let rel = Vector2::new(point.x, point.y) - self.centroid_mm;
+        let reference = if self.centroid_offset_mm() > 1e-12 {
+            self.centroid_mm.y.atan2(self.centroid_mm.x)
+        } else {
+            0.0
+        };
+        rel.y.atan2(rel.x) - reference
+    }
+}
+
+/// The spine frame at one height: point, unit normal `N` and their derivatives in `u`.
+#[derive(Debug, Clone, Copy)]
+struct SpineFrame {
+    c: Vector3<f64>,
+    dc: Vector3<f64>,
+    ddc: Vector3<f64>,
+    n: Vector3<f64>,
+    dn: Vector3<f64>,
+    ddn: Vector3<f64>,
+}
+
+/// The surface derivatives the geodesic equation needs.
+#[derive(Debug, Clone, Copy)]
+pub struct SurfaceDerivatives {
+    /// ∂X/∂u.
+    pub xu: Vector3<f64>,
+    /// ∂X/∂v.
+    pub xv: Vector3<f64>,
+    /// ∂²X/∂u².
+    pub xuu: Vector3<f64>,
+    /// ∂²X/∂u∂v.
+    pub xuv: Vector3<f64>,
+    /// ∂²X/∂v².
+    pub xvv: Vector3<f64>,
+}
+
+/// A mandrel of constant radius swept along a planar spine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tube {
+    spine: Spine,
+    radius_mm: f64,
+}
+
+impl Tube {
+    /// A tube of `radius_mm` around `spine`. Rejects a radius that is not positive and a spine that
+    /// bends more tightly than the radius (the surface would fold onto itself).
+    pub fn new(spine: Spine, radius_mm: f64) -> Result<Self, Error> {
+        if !(radius_mm > 0.0 && radius_mm.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "radius_mm",
+                value: radius_mm,
+                expected: "must be > 0",
+            });
+        }
+        // The spline's curvature peaks at knots (f'' is piecewise linear); sample them and between.
+        let (mut worst, mut worst_z) = (0.0f64, 0.0);
+        let knots = spine.knot_heights_mm();
+        for pair in knots.windows(2) {
+            for i in 0..32 {
+                let z = pair[0] + (pair[1] - pair[0]) * i as f64 / 32.0;
+                let [_, g, dg, _] = spine.eval(z);
+                let curvature = dg.abs() / (1.0 + g * g).powf(1.5);
+                if curvature > worst {
+                    (worst, worst_z) = (curvature, z);
+                }
+            }
+        }
+        let [_, g, dg, _] = spine.eval(spine.z_max_mm());
+        if dg.abs() / (1.0 + g * g).powf(1.5) > worst {
+            (worst, worst_z) = (dg.abs() / (1.0 + g * g).powf(1.5), spine.z_max_mm());
+        }
+        if worst * radius_mm >= 1.0 {
+            return Err(Error::SpineTooTight {
+                height_mm: worst_z,
+                bend_radius_mm: 1.0 / worst,
+                radius_mm,
+            });
+        }
+        Ok(Tube { spine, radius_mm })
+    }
+
+    /// A straight cylinder of `diameter_mm` whose axis runs `length_mm` from an offset of
+    /// `bottom_offset_mm` at the bottom to `top_offset_mm` at the top (seed 001 §6.4, configurations
+    /// 1–3: on the axis, offset by k radii, tilted). `length_mm` is measured along the cylinder's axis.
+    pub fn cylinder(
+        diameter_mm: f64,
+        length_mm: f64,
+        bottom_offset_mm: f64,
+        top_offset_mm: f64,
+    ) -> Result<Self, Error> {
+        let tilt = top_offset_mm - bottom_offset_mm;
+        if !(length_mm > tilt.abs() && length_mm.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "length_mm",
+                value: length_mm,
+                expected: "must be > 0 and longer than the top/bottom offset difference",
+            });
+        }
+        let height = (length_mm * length_mm - tilt * tilt).sqrt();
+        Tube::new(
+            Spine::straight(height, bottom_offset_mm, top_offset_mm)?,
+            diameter_mm / 2.0,
+        )
+    }
+
+    /// The mandrel radius `r`.
+    pub fn radius_mm(&self) -> f64 {
+        self.radius_mm
+    }
+
+    /// The spine.
+    pub fn spine(&self) -> &Spine {
+        &self.spine
+    }
+
+    /// Height of the spine's first knot (the lower end of the winding surface).
+    pub fn u_min(&self) -> f64 {
+        self.spine.z_min_mm()
+    }
+
+    /// Height of the spine's last knot (the upper end of the winding surface).
+    pub fn u_max(&self) -> f64 {
+        self.spine.z_max_mm()
+    }
+
+    /// The thesis's circular cross-section at height `z_mm` (seed 001 §3.2): centroid on the spine,
+    /// radius `r`. (A horizontal cut through a tilted tube is slightly elliptical; the planner uses
+    /// the exact surface normal, see [`crate::tangent`].)
+    pub fn section(&self, z_mm: f64) -> Section {
+        Section {
+            centroid_mm: Vector2::new(self.spine.offset_mm(z_mm), 0.0),
+            radius_mm: self.radius_mm,
+        }
+    }
+
+    fn frame(&self, u: f64) -> SpineFrame {
+        let [x, g, dg, ddg] = self.spine.eval(u);
+        let w2 = 1.0 + g * g;
+        let w = w2.sqrt();
+        let w3 = w2 * w;
+        let w5 = w3 * w2;
+        let a = Vector3::new(-g, 0.0, -1.0);
+        SpineFrame {
+            c: Vector3::new(x, 0.0, u),
+            dc: Vector3::new(g, 0.0, 1.0),
+            ddc: Vector3::new(dg, 0.0, 0.0),
+            n: Vector3::new(1.0, 0.0, -g) / w,
+            dn: a * (dg / w3),
+            ddn: a * (ddg / w3)
+                + (Vector3::new(-1.0, 0.0, 0.0) / w3 + Vector3::new(g, 0.0, 1.0) * (3.0 * g / w5))
+                    * (dg * dg),
+        }
+    }
+
+    /// The surface point `X(u, v)`.
+    pub fn point(&self, u: f64, v: f64) -> Point3<f64> {
+        let f = self.frame(u);
+        let (s, c) = v.sin_cos();
+        Point3::from(f.c + (f.n * c + Vector3::y() * s) * self.radius_mm)
+    }
+
+    /// The outward unit normal at `(u, v)`.
+    pub fn normal(&self, u: f64, v: f64) -> Vector3<f64> {
+        let f = self.frame(u);
+        let (s, c) = v.sin_cos();
+        f.n * c + Vector3::y() * s
+    }
+
+    /// Point, normal and the derivatives the geodesic equation needs, at `(u, v)`.
+    pub fn derivatives(&self, u: f64, v: f64) -> SurfaceDerivatives {
+        let f = self.frame(u);
+        let (s, c) = v.sin_cos();
+        let r = self.radius_mm;
+        let b = Vector3::y();
+        SurfaceDerivatives {
+            xu: f.dc + f.dn * (r * c),
+            xv: (b * c - f.n * s) * r,
+            xuu: f.ddc + f.ddn * (r * c),
+            xuv: f.dn * (-r * s),
+            xvv: (f.n * c + b * s) * (-r),
+        }
+    }
+
+    /// The unit spine tangent at height `u`, pointing up.
+    pub fn spine_tangent(&self, u: f64) -> Vector3<f64> {
+        self.frame(u).dc.normalize()
+    }
+
+    /// Distance from `p` (mandrel frame) to the surface: the distance to the nearest spine point
+    /// minus `r`, negative inside. The ends are treated as hemispherical caps, so beyond the ends
+    /// the value is a lower bound (conservative for clearance checks).
+    pub fn distance_to_surface_mm(&self, p: &Point3<f64>) -> f64 {
+        let (u0, u1) = (self.u_min(), self.u_max());
+        let d2 = |u: f64| (self.frame(u).c - p.coords).norm_squared();
+        let samples = 64;
+        let step = (u1 - u0) / samples as f64;
+        let mut best = u0;
+        let mut best_d2 = d2(u0);
+        for i in 1..=samples {
+            let u = u0 + step * i as f64;
+            let d = d2(u);
+            if d < best_d2 {
+                best = u;
+                best_d2 = d;
+            }
+        }
+        // Golden-section refinement in the bracketing interval.
+        let (mut a, mut b) = ((best - step).max(u0), (best + step).min(u1));
+        let ratio = 0.5 * (5f64.sqrt() - 1.0);
+        let mut x1 = b - ratio * (b - a);
+        let mut x2 = a + ratio * (b - a);
+        let (mut f1, mut f2) = (d2(x1), d2(x2));
+        for _ in 0..60 {
+            if f1 < f2 {
+                b = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = b - ratio * (b - a);
+                f1 = d2(x1);
+            } else {
+                a = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = a + ratio * (b - a);
+                f2 = d2(x2);
+            }
+        }
+        best_d2 = best_d2.min(f1).min(f2);
+        best_d2.sqrt() - self.radius_mm
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
+    use approx::assert_abs_diff_eq;
+
+    fn sbend() -> Tube {
+        Tube::new(
+            Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
+            28.5,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn points_lie_at_radius_from_the_spine_and_normal_is_unit() {
+        let tube = sbend();
+        for &(u, v) in &[
+            (0.0, 0.0),
+            (75.0, 1.0),
+            (133.0, 2.5),
+            (250.0, -1.2),
+            (350.0, 3.0),
+        ] {
+            let p = tube.point(u, v);
+            assert_abs_diff_eq!(tube.distance_to_surface_mm(&p), 0.0, epsilon = 1e-6);
+            assert_abs_diff_eq!(tube.normal(u, v).norm(), 1.0, epsilon = 1e-12);
+            let d = tube.derivatives(u, v);
+            assert_abs_diff_eq!(d.xu.dot(&tube.normal(u, v)), 0.0, epsilon = 1e-9);
+            assert_abs_diff_eq!(d.xv.dot(&tube.normal(u, v)), 0.0, epsilon = 1e-9);
+        }
+    }
+
+    #[test]
+    fn analytic_derivatives_match_finite_differences() {
+        let tube = sbend();
+        let (u, v, h) = (123.4, 0.7, 1e-4);
+        let d = tube.derivatives(u, v);
+        let fd_u = (tube.point(u + h, v) - tube.point(u - h, v)) / (2.0 * h);
+        let fd_v = (tube.point(u, v + h) - tube.point(u, v - h)) / (2.0 * h);
+        let fd_uu = (tube.derivatives(u + h, v).xu - tube.derivatives(u - h, v).xu) / (2.0 * h);
+        let fd_uv = (tube.derivatives(u, v + h).xu - tube.derivatives(u, v - h).xu) / (2.0 * h);
+        assert_abs_diff_eq!(d.xu, fd_u, epsilon = 1e-6);
+        assert_abs_diff_eq!(d.xv, fd_v, epsilon = 1e-6);
+        assert_abs_diff_eq!(d.xuu, fd_uu, epsilon = 1e-5);
+        assert_abs_diff_eq!(d.xuv, fd_uv, epsilon = 1e-6);
+    }
+
+    #[test]
+    fn tilted_cylinder_keeps_its_axial_length() {
+        let r = 31.75;
+        let tube = Tube::cylinder(63.5, 178.0, r, 3.0 * r).unwrap();
+        let bottom = Vector3::new(r, 0.0, 0.0);
+        let top = Vector3::new(3.0 * r, 0.0, tube.u_max());
+        assert_abs_diff_eq!((top - bottom).norm(), 178.0, epsilon = 1e-9);
+    }
+
+    #[test]
+    fn section_psi_is_measured_from_the_offset_direction() {
+        let tube = Tube::cylinder(63.5, 178.0, 63.5, 63.5).unwrap();
+        let section = tube.section(50.0);
+        assert_abs_diff_eq!(section.centroid_offset_mm(), 63.5, epsilon = 1e-12);
+        let p = Point3::new(63.5, 31.75, 50.0);
+        assert_abs_diff_eq!(
+            section.psi_rad(&p),
+            std::f64::consts::FRAC_PI_2,
+            epsilon = 1e-12
+        );
+    }
+
+    #[test]
+    fn rejects_bad_radius_and_folding_spine() {
+        let spine = Spine::straight(100.0, 0.0, 0.0).unwrap();
+        assert!(Tube::new(spine.clone(), 0.0).is_err());
+        assert!(Tube::new(spine, -1.0).is_err());
+        let kinked = Spine::new(&[(0.0, 0.0), (10.0, 20.0), (20.0, 0.0)]).unwrap();
+        assert!(Tube::new(kinked, 28.5).is_err());
+    }
+}

@@ -1,0 +1,105 @@
+//! Wrist orientation as the robot's quaternion Q1..Q4 (seed 001 App. A).
+//!
+//! The ASEA wrist has pitch and roll but no yaw. App. A composes a pitch θ about Y with a roll Φ
+//! about the rotated X (eqs A.2–A.16): `Q1 = cos(θ/2)cos(Φ/2)`, `Q2 = cos(θ/2)sin(Φ/2)`,
+//! `Q3 = sin(θ/2)cos(Φ/2)`, `Q4 = −sin(θ/2)sin(Φ/2)`, scalar first. We point the tool's `z` axis
+//! (the payout eye's bore) along the free fibre, from the eye to the tangent point: any direction
+//! is reachable with pitch and roll alone, and the eye does not care about the turn about its bore.
+
+use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
+
+/// The App. A quaternion for `pitch_rad` (about Y) then `roll_rad` (about the new X).
+pub fn from_pitch_roll(pitch_rad: f64, roll_rad: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_axis_angle(&Vector3::y_axis(), pitch_rad)
+        * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), roll_rad)
+}
+
+/// Pitch and roll that point the tool `z` axis along `direction`: with `R = R_y(θ) R_x(Φ)`,
+/// `R ẑ = (cos Φ sin θ, −sin Φ, cos Φ cos θ)`.
+pub fn pitch_roll_toward(direction: &Unit<Vector3<f64>>) -> (f64, f64) {
+    let d = direction.as_ref();
+    let roll = (-d.y).clamp(-1.0, 1.0).asin();
+    let pitch = d.x.atan2(d.z);
+    (pitch, roll)
+}
+
+/// Scalar-first components `[q1, q2, q3, q4]` as the robot takes them.
+pub fn components(q: &UnitQuaternion<f64>) -> [f64; 4] {
+    [q.w, q.i, q.j, q.k]
+}
+
+/// `q` or `−q` (the same rotation), whichever keeps `q·previous ≥ 0`, so consecutive poses never
+/// flip sign and the controller never sees a 360° wrist turn.
+pub fn continuous(q: UnitQuaternion<f64>, previous: &UnitQuaternion<f64>) -> UnitQuaternion<f64> {
+    if q.coords.dot(&previous.coords) < 0.0 {
+        UnitQuaternion::new_unchecked(-q.into_inner())
+    } else {
+        q
+    }
+}
+
+/// The quaternion from scalar-first components, normalised.
+pub fn from_components(q: [f64; 4]) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+    use std::f64::consts::FRAC_PI_2;
+
+    #[test]
+    fn app_a_vectors() {
+        let q = components(&from_pitch_roll(FRAC_PI_2, FRAC_PI_2));
+        assert_abs_diff_eq!(
+            q.as_slice(),
+            [0.5, 0.5, 0.5, -0.5].as_slice(),
+            epsilon = 1e-12
+        );
+        let q = components(&from_pitch_roll(0.0, 0.0));
+        assert_abs_diff_eq!(
+            q.as_slice(),
+            [1.0, 0.0, 0.0, 0.0].as_slice(),
+            epsilon = 1e-12
+        );
+    }
+
+    #[test]
+    fn matches_the_closed_form_of_eqs_a13_to_a16() {
+        for &(t, f) in &[(0.3, -1.1), (2.0, 0.4), (-0.7, 2.9)] {
+            let q = components(&from_pitch_roll(t, f));
+            let (h, g) = (t / 2.0, f / 2.0);
+            let expected = [
+                h.cos() * g.cos(),
+                h.cos() * g.sin(),
+                h.sin() * g.cos(),
+                -h.sin() * g.sin(),
+            ];
+            assert_abs_diff_eq!(q.as_slice(), expected.as_slice(), epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn pitch_roll_points_the_tool_axis_along_the_direction() {
+        for d in [
+            Vector3::new(1.0, 0.2, 0.5),
+            Vector3::new(-0.3, -0.9, -0.1),
+            Vector3::z(),
+        ] {
+            let dir = Unit::new_normalize(d);
+            let (pitch, roll) = pitch_roll_toward(&dir);
+            let axis = from_pitch_roll(pitch, roll) * Vector3::z();
+            assert_abs_diff_eq!(axis, dir.into_inner(), epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn continuity_removes_sign_flips() {
+        let prev = from_pitch_roll(0.1, 0.2);
+        let flipped = UnitQuaternion::new_unchecked(-from_pitch_roll(0.12, 0.2).into_inner());
+        let q = continuous(flipped, &prev);
+        assert!(q.coords.dot(&prev.coords) > 0.0);
+        assert_abs_diff_eq!(q.angle_to(&flipped), 0.0, epsilon = 1e-12);
+    }
+}
