@@ -199,7 +199,7 @@ fn rk4_step(tube: &Tube, y: [f64; 4], h: f64) -> [f64; 4] {
 /// `step_mm` of arc length (0.25 mm keeps the error far below a micrometre on the S-bend).
 pub fn trace(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath, Error> {
     start.validate()?;
-    if !(step_mm > 0.0) {
+    if step_mm.is_nan() || step_mm <= 0.0 {
         return Err(Error::OutOfRange {
             name: "step_mm",
             value: step_mm,

@@ -1,1 +1,20 @@
-//! The operator's files for windcell.
+//! The operator's files for windcell: the job file (TOML) and the control files of seed 001 §5.6:
+//! robot control files (.ROB), mandrel control files (.IND), sequence and run files.
+//!
+//! Parsing takes `&str` and reports line and column; loading adds the path; writing then parsing
+//! gives the same value. The formats are documented in `docs/file-formats.md`.
+
+pub mod error;
+pub mod ind;
+pub mod job;
+pub mod rob;
+pub mod run;
+pub mod sequence;
+pub mod syntax;
+
+pub use error::Error;
+pub use ind::{MandrelFile, MandrelMove};
+pub use job::Job;
+pub use rob::{Movement, RobotFile};
+pub use run::RunFile;
+pub use sequence::SequenceFile;

@@ -1,0 +1,102 @@
+//! The one error type of the `sequences` crate.
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+/// A file that could not be read, parsed or written.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The text is malformed or a value is out of range. `file` is set once the text came from a
+    /// file (see [`Error::in_file`]); `line` and `column` are 1-based, the column counted in
+    /// characters.
+    #[error("{}{line}:{column}: {message}", file.as_ref().map(|f| format!("{}:", f.display())).unwrap_or_default())]
+    Parse {
+        /// The file, when known.
+        file: Option<PathBuf>,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong, in lower case.
+        message: String,
+    },
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", file.display())]
+    Io {
+        /// The file.
+        file: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+}
+
+impl Error {
+    /// A parse error at a 1-based line and column.
+    pub fn at(line: usize, column: usize, message: impl Into<String>) -> Self {
+        Error::Parse {
+            file: None,
+            line,
+            column,
+            message: message.into(),
+        }
+    }
+
+    /// A parse error at byte offset `offset` of `text`.
+    pub fn at_offset(text: &str, offset: usize, message: impl Into<String>) -> Self {
+        let (line, column) = line_column(text, offset);
+        Error::at(line, column, message)
+    }
+
+    /// The same error, naming the file it came from.
+    pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
+        match self {
+            Error::Parse {
+                line,
+                column,
+                message,
+                ..
+            } => Error::Parse {
+                file: Some(path.into()),
+                line,
+                column,
+                message,
+            },
+            other => other,
+        }
+    }
+}
+
+/// 1-based line and character column of byte `offset` in `text`.
+pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let mut offset = offset.min(text.len());
+    while !text.is_char_boundary(offset) {
+        offset -= 1;
+    }
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    (line, before[line_start..].chars().count() + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_map_to_lines_and_columns() {
+        let text = "a = 1\nbé = 2\n";
+        assert_eq!(line_column(text, 0), (1, 1));
+        assert_eq!(line_column(text, 6), (2, 1));
+        assert_eq!(line_column(text, 9), (2, 3));
+        assert_eq!(line_column(text, 1000), (3, 1));
+    }
+
+    #[test]
+    fn display_names_file_line_and_column() {
+        let e = Error::at(3, 7, "bad value").in_file("jobs/cyl.toml");
+        assert_eq!(e.to_string(), "jobs/cyl.toml:3:7: bad value");
+        assert_eq!(Error::at(1, 2, "x").to_string(), "1:2: x");
+    }
+}

@@ -1,0 +1,523 @@
+//! The job file (TOML): the cell (robot distance, heights, speeds, drive, ports) and what to wind
+//! (the mandrel and its paths). `docs/file-formats.md` lists every field.
+//!
+//! Fields that are checked after parsing keep their place in the text ([`Spanned`]) so that every
+//! error names the line and column of the offending value.
+
+use std::ops::Range;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use toml::Spanned;
+
+use crate::{Error, Movement};
+
+/// A whole job file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Job {
+    /// Base name of the control files: `NAME_<prog>.ROB`.
+    pub name: Spanned<String>,
+    /// The cell.
+    pub cell: Cell,
+    /// The mandrel.
+    pub mandrel: Mandrel,
+    /// The fibre paths, `[[path]]` tables.
+    #[serde(rename = "path")]
+    pub paths: Vec<PathSpec>,
+}
+
+/// The cell: where the robot stands, how fast things move, the drive and the serial ports.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Cell {
+    /// `b`: robot pedestal to the mandrel drive's rotation axis, mm (seed 001 §5.6 c).
+    pub robot_distance_mm: Spanned<f64>,
+    /// Height of the mandrel's lower end (spine distance 0) above the robot base, mm (§5.6 d).
+    pub start_height_mm: Spanned<f64>,
+    /// Mandrel speed, rev/s (§5.6 e).
+    pub mandrel_speed_rps: Spanned<f64>,
+    /// Length of the payout-eye mechanism, mm (§5.6 f).
+    pub eye_mechanism_length_mm: Spanned<f64>,
+    /// Tow distance from the mandrel surface to the eye, mm (§5.6 g).
+    pub offset_mm: Spanned<f64>,
+    /// Robot base speed, mm/s (§5.4.1).
+    pub base_speed_mm_s: Spanned<f64>,
+    /// Robot maximum speed, mm/s.
+    pub max_speed_mm_s: Spanned<f64>,
+    /// Movement type: `discrete`, `fine` or `medium`.
+    pub movement: Spanned<Movement>,
+    /// The mandrel drive.
+    pub drive: Drive,
+    /// The robot's working range; absent means the IRB 6/2-class defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<RobotLimits>,
+    /// Serial ports; absent means the built-in simulated cell.
+    #[serde(default, skip_serializing_if = "Ports::is_empty")]
+    pub ports: Ports,
+}
+
+/// The mandrel drive (seed 001 §4.1.4–4.1.6).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Drive {
+    /// Motor steps per motor revolution (400 half-steps).
+    pub steps_per_rev: Spanned<u32>,
+    /// Timing belt: `[motor pulley teeth, mandrel pulley teeth]` (`[13, 60]`).
+    pub gear_ratio: Spanned<[u32; 2]>,
+    /// Mandrel acceleration, rev/s².
+    pub accel_rps2: Spanned<f64>,
+    /// Mandrel start/stop velocity, rev/s.
+    pub start_stop_rps: Spanned<f64>,
+}
+
+/// The robot's working range in the cell frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotLimits {
+    /// Least horizontal distance from the pedestal axis, mm.
+    pub reach_min_mm: Spanned<f64>,
+    /// Greatest horizontal distance from the pedestal axis, mm.
+    pub reach_max_mm: Spanned<f64>,
+    /// Lowest height, mm.
+    pub z_min_mm: Spanned<f64>,
+    /// Highest height, mm.
+    pub z_max_mm: Spanned<f64>,
+    /// Fastest tool speed, mm/s.
+    pub max_speed_mm_s: Spanned<f64>,
+}
+
+/// Serial ports of the real cell.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ports {
+    /// The robot computer's link (`/dev/ttyS0`, `COM1`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<String>,
+    /// The indexer's link.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indexer: Option<String>,
+    /// The port whose modem-control lines carry the sync signals.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sync: Option<String>,
+}
+
+impl Ports {
+    /// True when no port is named (the simulated cell).
+    pub fn is_empty(&self) -> bool {
+        self.robot.is_none() && self.indexer.is_none() && self.sync.is_none()
+    }
+}
+
+/// The mandrel's kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MandrelKind {
+    /// A straight cylinder, on the axis, offset or tilted (seed 001 §6.4 configurations 1–3).
+    Cylinder,
+    /// A tube swept along a measured spine (the S-bend, configuration 4).
+    Tube,
+}
+
+/// The mandrel. Which fields apply depends on `kind`; [`Job::parse`] checks them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mandrel {
+    /// `cylinder` or `tube`.
+    pub kind: Spanned<MandrelKind>,
+    /// Diameter, mm.
+    pub diameter_mm: Spanned<f64>,
+    /// Cylinder: length along its axis, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length_mm: Option<Spanned<f64>>,
+    /// Cylinder: axis offset from the rotation axis at the bottom, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bottom_offset_mm: Option<Spanned<f64>>,
+    /// Cylinder: axis offset at the top, mm (differs from the bottom for a tilted mandrel).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub top_offset_mm: Option<Spanned<f64>>,
+    /// Tube: spine knots `[[height_mm, offset_mm], …]` (Table 6.1 for the S-bend).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spine_mm: Option<Spanned<Vec<[f64; 2]>>>,
+    /// Tube: how far the smoothed spine may depart from the knots, mm (0 interpolates).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spine_smoothing_mm: Option<Spanned<f64>>,
+}
+
+/// Winding direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Direction {
+    /// From the top down.
+    Down,
+    /// From the bottom up.
+    Up,
+}
+
+/// One fibre path.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathSpec {
+    /// Program number 1–255; also the file suffix `NAME_<prog>`.
+    pub program: Spanned<u8>,
+    /// `down` or `up`.
+    pub direction: Spanned<Direction>,
+    /// Angle between fibre and spine, degrees, in (0, 90).
+    pub wind_angle_deg: Spanned<f64>,
+    /// Angle around the spine at the start, degrees (0 = toward the spine's offset side).
+    pub start_angle_deg: Spanned<f64>,
+    /// Number of equal-length segments (50 in the thesis).
+    pub segments: Spanned<u32>,
+}
+
+/// Where `span` starts, as a located error.
+pub fn error_at(text: &str, span: Range<usize>, message: impl Into<String>) -> Error {
+    Error::at_offset(text, span.start, message)
+}
+
+fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), Error> {
+    if ok && value.get_ref().is_finite() {
+        Ok(())
+    } else {
+        Err(error_at(
+            text,
+            value.span(),
+            format!("{} {what}", value.get_ref()),
+        ))
+    }
+}
+
+fn positive(text: &str, value: &Spanned<f64>, name: &str) -> Result<(), Error> {
+    check(
+        text,
+        value,
+        *value.get_ref() > 0.0,
+        &format!("is not a valid {name}: must be > 0"),
+    )
+}
+
+fn finite(text: &str, value: &Spanned<f64>, name: &str) -> Result<(), Error> {
+    check(
+        text,
+        value,
+        true,
+        &format!("is not a valid {name}: must be finite"),
+    )
+}
+
+impl Job {
+    /// Parses and checks the text of a job file.
+    pub fn parse(text: &str) -> Result<Job, Error> {
+        let job: Job = toml::from_str(text).map_err(|e| {
+            let offset = e.span().map_or(0, |s| s.start);
+            Error::at_offset(text, offset, e.message().trim().to_string())
+        })?;
+        job.validate(text)?;
+        Ok(job)
+    }
+
+    /// Reads and parses a job file; errors name the file.
+    pub fn load(path: &Path) -> Result<(Job, String), Error> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        let job = Job::parse(&text).map_err(|e| e.in_file(path))?;
+        Ok((job, text))
+    }
+
+    /// Writes the job as TOML (parsing it again gives the same job).
+    pub fn write(&self) -> String {
+        toml::to_string(self).unwrap_or_default()
+    }
+
+    fn validate(&self, text: &str) -> Result<(), Error> {
+        if !crate::sequence::is_valid_name(self.name.get_ref()) {
+            return Err(error_at(
+                text,
+                self.name.span(),
+                "name must be letters, digits, `_` or `-` (it names the control files)",
+            ));
+        }
+        let c = &self.cell;
+        positive(text, &c.robot_distance_mm, "robot distance")?;
+        finite(text, &c.start_height_mm, "start height")?;
+        positive(text, &c.mandrel_speed_rps, "mandrel speed")?;
+        check(
+            text,
+            &c.eye_mechanism_length_mm,
+            *c.eye_mechanism_length_mm.get_ref() >= 0.0,
+            "is not a valid eye mechanism length: must be ≥ 0",
+        )?;
+        positive(text, &c.offset_mm, "offset")?;
+        positive(text, &c.base_speed_mm_s, "base speed")?;
+        positive(text, &c.max_speed_mm_s, "maximum speed")?;
+        if c.max_speed_mm_s.get_ref() < c.base_speed_mm_s.get_ref() {
+            return Err(error_at(
+                text,
+                c.max_speed_mm_s.span(),
+                "max_speed_mm_s is below base_speed_mm_s",
+            ));
+        }
+        let d = &c.drive;
+        if *d.steps_per_rev.get_ref() == 0 {
+            return Err(error_at(
+                text,
+                d.steps_per_rev.span(),
+                "steps_per_rev must be > 0",
+            ));
+        }
+        if d.gear_ratio.get_ref().contains(&0) {
+            return Err(error_at(
+                text,
+                d.gear_ratio.span(),
+                "gear_ratio teeth must be > 0",
+            ));
+        }
+        positive(text, &d.accel_rps2, "acceleration")?;
+        check(
+            text,
+            &d.start_stop_rps,
+            *d.start_stop_rps.get_ref() >= 0.0,
+            "is not a valid start/stop velocity: must be ≥ 0",
+        )?;
+        if d.start_stop_rps.get_ref() > c.mandrel_speed_rps.get_ref() {
+            return Err(error_at(
+                text,
+                d.start_stop_rps.span(),
+                "start_stop_rps exceeds mandrel_speed_rps",
+            ));
+        }
+        if let Some(r) = &c.robot {
+            positive(text, &r.reach_max_mm, "reach")?;
+            check(
+                text,
+                &r.reach_min_mm,
+                (0.0..*r.reach_max_mm.get_ref()).contains(r.reach_min_mm.get_ref()),
+                "is not a valid reach_min_mm: must be ≥ 0 and below reach_max_mm",
+            )?;
+            finite(text, &r.z_min_mm, "height")?;
+            check(
+                text,
+                &r.z_max_mm,
+                r.z_max_mm.get_ref() > r.z_min_mm.get_ref(),
+                "is not a valid z_max_mm: must be above z_min_mm",
+            )?;
+            positive(text, &r.max_speed_mm_s, "speed")?;
+        }
+        self.validate_mandrel(text)?;
+        if self.paths.is_empty() {
+            return Err(Error::at_offset(
+                text,
+                text.len(),
+                "the job has no [[path]]",
+            ));
+        }
+        let mut programs = Vec::new();
+        for p in &self.paths {
+            if *p.program.get_ref() == 0 {
+                return Err(error_at(
+                    text,
+                    p.program.span(),
+                    "program numbers run from 1 to 255",
+                ));
+            }
+            if programs.contains(p.program.get_ref()) {
+                return Err(error_at(
+                    text,
+                    p.program.span(),
+                    format!("program {} is used twice", p.program.get_ref()),
+                ));
+            }
+            programs.push(*p.program.get_ref());
+            let angle = *p.wind_angle_deg.get_ref();
+            check(
+                text,
+                &p.wind_angle_deg,
+                angle > 0.0 && angle < 90.0,
+                "is not a valid wind angle: must lie in (0°, 90°)",
+            )?;
+            finite(text, &p.start_angle_deg, "start angle")?;
+            if *p.segments.get_ref() == 0 {
+                return Err(error_at(
+                    text,
+                    p.segments.span(),
+                    "segments must be at least 1",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_mandrel(&self, text: &str) -> Result<(), Error> {
+        let m = &self.mandrel;
+        positive(text, &m.diameter_mm, "diameter")?;
+        let kind_span = m.kind.span();
+        let require = |field: bool, name: &str| {
+            if field {
+                Ok(())
+            } else {
+                Err(error_at(
+                    text,
+                    kind_span.clone(),
+                    format!("missing field `{name}` for this mandrel kind"),
+                ))
+            }
+        };
+        let forbid = |span: Option<Range<usize>>, name: &str| match span {
+            Some(span) => Err(error_at(
+                text,
+                span,
+                format!("`{name}` does not apply to this mandrel kind"),
+            )),
+            None => Ok(()),
+        };
+        match m.kind.get_ref() {
+            MandrelKind::Cylinder => {
+                require(m.length_mm.is_some(), "length_mm")?;
+                forbid(m.spine_mm.as_ref().map(Spanned::span), "spine_mm")?;
+                forbid(
+                    m.spine_smoothing_mm.as_ref().map(Spanned::span),
+                    "spine_smoothing_mm",
+                )?;
+                if let Some(length) = &m.length_mm {
+                    positive(text, length, "length")?;
+                }
+                for offset in [&m.bottom_offset_mm, &m.top_offset_mm]
+                    .into_iter()
+                    .flatten()
+                {
+                    finite(text, offset, "offset")?;
+                }
+            }
+            MandrelKind::Tube => {
+                require(m.spine_mm.is_some(), "spine_mm")?;
+                forbid(m.length_mm.as_ref().map(Spanned::span), "length_mm")?;
+                forbid(
+                    m.bottom_offset_mm.as_ref().map(Spanned::span),
+                    "bottom_offset_mm",
+                )?;
+                forbid(m.top_offset_mm.as_ref().map(Spanned::span), "top_offset_mm")?;
+                if let Some(spine) = &m.spine_mm {
+                    let knots = spine.get_ref();
+                    if knots.len() < 2 {
+                        return Err(error_at(
+                            text,
+                            spine.span(),
+                            "spine_mm needs at least 2 knots",
+                        ));
+                    }
+                    for (i, k) in knots.iter().enumerate() {
+                        if !k[0].is_finite()
+                            || !k[1].is_finite()
+                            || (i > 0 && k[0] <= knots[i - 1][0])
+                        {
+                            return Err(error_at(
+                                text,
+                                spine.span(),
+                                format!(
+                                    "spine_mm knot {} must be finite and higher than the one before",
+                                    i + 1
+                                ),
+                            ));
+                        }
+                    }
+                }
+                if let Some(s) = &m.spine_smoothing_mm {
+                    check(
+                        text,
+                        s,
+                        *s.get_ref() >= 0.0,
+                        "is not a valid spine smoothing: must be ≥ 0",
+                    )?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) const CYLINDER: &str = r#"name = "CYL"
+
+[cell]
+robot_distance_mm = 800.0
+start_height_mm = 300.0
+mandrel_speed_rps = 0.1
+eye_mechanism_length_mm = 150.0
+offset_mm = 100.0
+base_speed_mm_s = 1000.0
+max_speed_mm_s = 2000.0
+movement = "fine"
+
+[cell.drive]
+steps_per_rev = 400
+gear_ratio = [13, 60]
+accel_rps2 = 1.0
+start_stop_rps = 0.05
+
+[mandrel]
+kind = "cylinder"
+diameter_mm = 63.5
+length_mm = 178.0
+
+[[path]]
+program = 1
+direction = "down"
+wind_angle_deg = 48.3
+start_angle_deg = 0.0
+segments = 50
+"#;
+
+    #[test]
+    fn parses_and_round_trips() {
+        let job = Job::parse(CYLINDER).unwrap();
+        assert_eq!(job.name.get_ref(), "CYL");
+        assert_eq!(*job.cell.movement.get_ref(), Movement::Fine);
+        assert_eq!(*job.paths[0].direction.get_ref(), Direction::Down);
+        let again = Job::parse(&job.write()).unwrap();
+        assert_eq!(again, job);
+        assert_eq!(Job::parse(&again.write()).unwrap().write(), job.write());
+    }
+
+    fn error_for(from: &str, to: &str) -> String {
+        let text = CYLINDER.replacen(from, to, 1);
+        assert_ne!(text, CYLINDER, "{from} not found");
+        Job::parse(&text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn bad_values_are_located() {
+        let cases = [
+            ("diameter_mm = 63.5", "diameter_mm = -63.5", "21:15:"),
+            ("wind_angle_deg = 48.3", "wind_angle_deg = 90.0", "27:18:"),
+            ("offset_mm = 100.0", "offset_mm = 0.0", "8:13:"),
+            ("segments = 50", "segments = 0", "29:12:"),
+            (
+                "robot_distance_mm = 800.0",
+                "robot_distance_mm = \"far\"",
+                "4:21:",
+            ),
+            ("movement = \"fine\"", "movement = \"coarse\"", "11:12:"),
+            (
+                "length_mm = 178.0",
+                "length_mm = 178.0\ncolour = 1",
+                "23:1:",
+            ),
+            ("offset_mm = 100.0\n", "", "missing field `offset_mm`"),
+            (
+                "length_mm = 178.0",
+                "spine_mm = [[0.0, 0.0], [1.0, 0.0]]",
+                "missing field `length_mm`",
+            ),
+            ("gear_ratio = [13, 60]", "gear_ratio = [0, 60]", "15:14:"),
+        ];
+        for (from, to, expected) in cases {
+            let err = error_for(from, to);
+            assert!(err.contains(expected), "{err} should contain {expected}");
+        }
+    }
+}
