@@ -1,1 +1,9 @@
-//! The windcell coordinator library.
+//! The windcell coordinator library: the TOOL step that turns a job into control files, and the
+//! pieces the `windcell` command line is built from.
+
+pub mod error;
+pub mod output;
+pub mod report;
+pub mod tool;
+
+pub use error::Error;

@@ -2,6 +2,8 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod plan;
+
 /// Exit code for bad input: a file, a field or an argument the operator must fix.
 pub const EXIT_INPUT: u8 = 2;
 /// Exit code for a failure at run time: a device, a link, the file system.
@@ -19,12 +21,27 @@ pub struct Failure {
 impl Failure {
     /// Bad input (exit code 2).
     pub fn input(message: impl std::fmt::Display) -> Self {
-        Failure { message: message.to_string(), exit_code: EXIT_INPUT }
+        Failure {
+            message: message.to_string(),
+            exit_code: EXIT_INPUT,
+        }
     }
 
     /// A run-time failure (exit code 1).
     pub fn runtime(message: impl std::fmt::Display) -> Self {
-        Failure { message: message.to_string(), exit_code: EXIT_RUNTIME }
+        Failure {
+            message: message.to_string(),
+            exit_code: EXIT_RUNTIME,
+        }
+    }
+
+    /// A coordinator error, input or run time as it says.
+    pub fn from_cell(error: cell::Error) -> Self {
+        if error.is_input() {
+            Failure::input(error)
+        } else {
+            Failure::runtime(error)
+        }
     }
 }
 
@@ -38,9 +55,27 @@ pub struct Cli {
 
 /// The subcommands.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Plan a job: write .ROB, .IND, sequence and run files (the TOOL step).
+    Plan(plan::PlanArgs),
+}
+
+/// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
+pub fn print(text: &str) -> Result<(), Failure> {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    match stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush())
+    {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Failure::runtime(e)),
+        _ => Ok(()),
+    }
+}
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> Result<(), Failure> {
-    match cli.command {}
+    match cli.command {
+        Command::Plan(args) => plan::run(args),
+    }
 }

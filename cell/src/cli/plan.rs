@@ -1,0 +1,56 @@
+//! `windcell plan JOB.toml -o DIR [--json]`: the TOOL step (seed 001 §5.6).
+
+use std::path::PathBuf;
+
+use cell::report::PlanReport;
+use cell::{output, tool};
+use clap::Args;
+use sequences::Job;
+
+use super::Failure;
+
+/// Turn a job file into robot (.ROB) and mandrel (.IND) control files, a sequence file and a run file.
+#[derive(Debug, Args)]
+pub struct PlanArgs {
+    /// The job file (TOML).
+    pub job: PathBuf,
+    /// Where to write the control files (created if missing; written all or nothing).
+    #[arg(short = 'o', long = "out", value_name = "DIR")]
+    pub out: PathBuf,
+    /// Print the plan as one JSON document on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `windcell plan`.
+pub fn run(args: PlanArgs) -> Result<(), Failure> {
+    let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
+    let files = tool::control_files(&job, &plan);
+    output::write_all(&args.out, &files).map_err(Failure::from_cell)?;
+    let mut out = String::new();
+    if args.json {
+        let report = PlanReport::new(&plan);
+        out = serde_json::to_string_pretty(&report).map_err(Failure::runtime)?;
+        out.push('\n');
+    } else {
+        for p in &plan.paths {
+            let limited = p.plan.segments.iter().filter(|s| s.speed_limited).count();
+            out += &format!(
+                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm{}\n",
+                p.name,
+                p.plan.segments.len(),
+                p.plan.segments.iter().map(|s| s.steps).sum::<i64>(),
+                p.plan.max_drift_rad.to_degrees(),
+                p.plan.min_eye_clearance_mm,
+                if limited > 0 {
+                    format!(", {limited} segments capped at the maximum speed")
+                } else {
+                    String::new()
+                }
+            );
+        }
+        out += &format!("wrote {} files to {}\n", files.len(), args.out.display());
+    }
+    super::print(&out)
+}

@@ -1,0 +1,243 @@
+//! The TOOL step (seed 001 §5.6): from a job file to robot and mandrel control files.
+//!
+//! For each path of the job: build the mandrel model, trace the fibre path, cut it into equal-length
+//! segments, plan poses, steps and speeds ([`paths::plan`]), then write `NAME_<prog>.ROB`,
+//! `NAME_<prog>.IND`, the sequence file and the run file.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use paths::geodesic::{self, PathStart};
+use paths::{PathPlan, Robot, Setup, Speeds, Spine, Tube};
+use sequences::job::{Direction, Job, MandrelKind};
+use sequences::rob::{Header, Instruction, Interpolation, Reference};
+use sequences::{MandrelFile, MandrelMove, RobotFile, RunFile, SequenceFile};
+
+use crate::Error;
+
+/// Speed of the first instruction, which brings the eye to the start pose, in % of base speed.
+pub const APPROACH_SPEED_PCT: f64 = 10.0;
+/// Arc-length step of the geodesic integrator, mm (see `paths::geodesic::trace`).
+pub const GEODESIC_STEP_MM: f64 = 0.25;
+/// Arc-length sample spacing of the exact helix, mm (its interpolation is exact).
+pub const HELIX_STEP_MM: f64 = 1.0;
+
+/// One planned path.
+#[derive(Debug, Clone)]
+pub struct PlannedPath {
+    /// `NAME_<prog>`, the control files' stem.
+    pub name: String,
+    /// Program number.
+    pub program: u8,
+    /// The plan.
+    pub plan: PathPlan,
+}
+
+/// Every path of a job, planned.
+#[derive(Debug, Clone)]
+pub struct JobPlan {
+    /// In the job's order.
+    pub paths: Vec<PlannedPath>,
+}
+
+/// The mandrel model a job describes.
+pub fn mandrel(job: &Job) -> Result<Tube, (paths::Error, Range<usize>)> {
+    let m = &job.mandrel;
+    let diameter = *m.diameter_mm.get_ref();
+    match m.kind.get_ref() {
+        MandrelKind::Cylinder => {
+            let length = m.length_mm.as_ref().map_or(0.0, |l| *l.get_ref());
+            let bottom = m.bottom_offset_mm.as_ref().map_or(0.0, |o| *o.get_ref());
+            let top = m.top_offset_mm.as_ref().map_or(bottom, |o| *o.get_ref());
+            Tube::cylinder(diameter, length, bottom, top)
+                .map_err(|e| (e, m.length_mm.as_ref().map_or(m.kind.span(), |l| l.span())))
+        }
+        MandrelKind::Tube => {
+            let spine_field = m.spine_mm.as_ref();
+            let span = spine_field.map_or(m.kind.span(), |s| s.span());
+            let knots: Vec<(f64, f64)> = spine_field.map_or_else(Vec::new, |s| {
+                s.get_ref().iter().map(|k| (k[0], k[1])).collect()
+            });
+            let smoothing = m.spine_smoothing_mm.as_ref().map_or(0.0, |s| *s.get_ref());
+            let spine = Spine::smoothing(&knots, smoothing).map_err(|e| (e, span.clone()))?;
+            Tube::new(spine, diameter / 2.0).map_err(|e| (e, span))
+        }
+    }
+}
+
+/// The cell setup and speeds a job describes.
+pub fn setup(job: &Job) -> (Setup, Speeds) {
+    let c = &job.cell;
+    let [motor_teeth, mandrel_teeth] = *c.drive.gear_ratio.get_ref();
+    let robot = c.robot.as_ref().map_or_else(Robot::default, |r| Robot {
+        reach_min_mm: *r.reach_min_mm.get_ref(),
+        reach_max_mm: *r.reach_max_mm.get_ref(),
+        z_min_mm: *r.z_min_mm.get_ref(),
+        z_max_mm: *r.z_max_mm.get_ref(),
+        max_speed_mm_s: *r.max_speed_mm_s.get_ref(),
+    });
+    (
+        Setup {
+            robot_distance_mm: *c.robot_distance_mm.get_ref(),
+            mandrel_height_mm: *c.start_height_mm.get_ref(),
+            offset_mm: *c.offset_mm.get_ref(),
+            eye_mechanism_length_mm: *c.eye_mechanism_length_mm.get_ref(),
+            robot,
+            gearing: paths::Gearing {
+                steps_per_motor_rev: *c.drive.steps_per_rev.get_ref(),
+                motor_teeth,
+                mandrel_teeth,
+            },
+        },
+        Speeds {
+            mandrel_rps: *c.mandrel_speed_rps.get_ref(),
+            base_speed_mm_s: *c.base_speed_mm_s.get_ref(),
+            max_speed_mm_s: *c.max_speed_mm_s.get_ref(),
+        },
+    )
+}
+
+/// Plans every path of `job`. `text` and `file` locate errors in the job file.
+pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
+    let located = |source: paths::Error, span: Range<usize>| {
+        let (line, column) = sequences::error::line_column(text, span.start);
+        Error::Plan {
+            file: file.to_path_buf(),
+            line,
+            column,
+            source,
+        }
+    };
+    let tube = mandrel(job).map_err(|(e, span)| located(e, span))?;
+    let (setup, speeds) = setup(job);
+    let mut planned = Vec::with_capacity(job.paths.len());
+    for spec in &job.paths {
+        let start = PathStart {
+            angle_rad: spec.start_angle_deg.get_ref().to_radians(),
+            wind_angle_rad: spec.wind_angle_deg.get_ref().to_radians(),
+            direction: match spec.direction.get_ref() {
+                Direction::Down => paths::Direction::Down,
+                Direction::Up => paths::Direction::Up,
+            },
+        };
+        let path = if tube.spine().is_straight() {
+            geodesic::helix(&tube, &start, HELIX_STEP_MM)
+        } else {
+            geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
+        }
+        .map_err(|e| located(e, spec.wind_angle_deg.span()))?;
+        let points = paths::segment::equal_length(&tube, &path, *spec.segments.get_ref() as usize)
+            .map_err(|e| located(e, spec.segments.span()))?;
+        let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
+            .map_err(|e| {
+                let span = match &e {
+                    paths::Error::TangentUndefined { .. } => job.cell.robot_distance_mm.span(),
+                    paths::Error::OutOfReach { .. } => job.cell.robot_distance_mm.span(),
+                    _ => spec.program.span(),
+                };
+                located(e, span)
+            })?;
+        planned.push(PlannedPath {
+            name: format!("{}_{}", job.name.get_ref(), spec.program.get_ref()),
+            program: *spec.program.get_ref(),
+            plan,
+        });
+    }
+    Ok(JobPlan { paths: planned })
+}
+
+/// `value` rounded to `decimals` decimal places, as the nearest `f64` to that decimal (so it
+/// prints short), with no negative zero.
+fn round_to(value: f64, decimals: usize) -> f64 {
+    let r: f64 = format!("{value:.decimals$}").parse().unwrap_or(value);
+    if r == 0.0 { 0.0 } else { r }
+}
+
+/// The robot control file for one planned path.
+pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
+    let c = &job.cell;
+    let base = *c.base_speed_mm_s.get_ref();
+    let max_pct = 100.0 * c.max_speed_mm_s.get_ref() / base;
+    let mandrel = |steps: i64| MandrelMove {
+        accel_rps2: *c.drive.accel_rps2.get_ref(),
+        start_stop_rps: *c.drive.start_stop_rps.get_ref(),
+        max_rps: *c.mandrel_speed_rps.get_ref(),
+        steps,
+    };
+    let instruction = |number: usize, speed_pct: f64, pose: &paths::Pose, steps: i64| {
+        let e = pose.eye_mm;
+        let q = paths::wrist::components(&pose.wrist_q);
+        Instruction {
+            number: number as u16,
+            speed_pct: round_to(speed_pct, 4).clamp(1e-4, max_pct),
+            position_mm: [round_to(e.x, 4), round_to(e.y, 4), round_to(e.z, 4)],
+            q: q.map(|c| round_to(c, 9)),
+            interpolation: Interpolation::Rectangular,
+            reference: Reference::Absolute,
+            mandrel: mandrel(steps),
+        }
+    };
+    let plan = &path.plan;
+    let mut instructions = vec![instruction(
+        1,
+        APPROACH_SPEED_PCT.min(max_pct),
+        &plan.start,
+        0,
+    )];
+    for (k, s) in plan.segments.iter().enumerate() {
+        instructions.push(instruction(k + 2, s.speed_pct, &s.pose, s.steps));
+    }
+    RobotFile {
+        header: Header {
+            program: path.program,
+            base_speed_mm_s: base,
+            max_speed_mm_s: *c.max_speed_mm_s.get_ref(),
+            movement: *c.movement.get_ref(),
+            sync_mandrel_deg: round_to(plan.start.mandrel_rad.to_degrees(), 6),
+        },
+        instructions,
+    }
+}
+
+/// The mandrel control file for one planned path: one move of the path's total steps.
+pub fn mandrel_file(job: &Job, path: &PlannedPath) -> MandrelFile {
+    let c = &job.cell;
+    MandrelFile {
+        path_move: MandrelMove {
+            accel_rps2: *c.drive.accel_rps2.get_ref(),
+            start_stop_rps: *c.drive.start_stop_rps.get_ref(),
+            max_rps: *c.mandrel_speed_rps.get_ref(),
+            steps: path.plan.segments.iter().map(|s| s.steps).sum(),
+        },
+    }
+}
+
+/// Every output file of a planned job: `(file name, contents)`.
+pub fn control_files(job: &Job, plan: &JobPlan) -> Vec<(PathBuf, String)> {
+    let mut files = Vec::new();
+    for path in &plan.paths {
+        files.push((
+            PathBuf::from(format!("{}.ROB", path.name)),
+            robot_file(job, path).write(),
+        ));
+        files.push((
+            PathBuf::from(format!("{}.IND", path.name)),
+            mandrel_file(job, path).write(),
+        ));
+    }
+    let sequence = SequenceFile {
+        names: plan.paths.iter().map(|p| p.name.clone()).collect(),
+    };
+    let run = RunFile {
+        programs: plan.paths.iter().map(|p| p.program).collect(),
+    };
+    files.push((
+        PathBuf::from(format!("{}.SEQ", job.name.get_ref())),
+        sequence.write(),
+    ));
+    files.push((
+        PathBuf::from(format!("{}.RUN", job.name.get_ref())),
+        run.write(),
+    ));
+    files
+}
