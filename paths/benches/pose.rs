@@ -1,1 +1,55 @@
-fn main() {}
+//! Eye-pose throughput: eq 3.7, the eye (eqs 3.8–3.14), the cell-frame transform, the App. A
+//! quaternion, steps and speed for every segment end of a planned path (issue target: at least
+//! 5 million poses per second on one core). Run with `cargo bench -p paths --bench pose`.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use paths::geodesic::{self, Direction, PathStart};
+use paths::segment::equal_length;
+use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
+use paths::{Gearing, Robot, Setup, Speeds, Spine, Tube};
+use std::hint::black_box;
+
+fn poses(c: &mut Criterion) {
+    let setup = Setup {
+        robot_distance_mm: 800.0,
+        mandrel_height_mm: 300.0,
+        offset_mm: 100.0,
+        eye_mechanism_length_mm: 150.0,
+        robot: Robot::default(),
+        gearing: Gearing::default(),
+    };
+    let speeds = Speeds {
+        mandrel_rps: 0.1,
+        base_speed_mm_s: 1000.0,
+        max_speed_mm_s: 2000.0,
+    };
+    let tube = Tube::new(
+        Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
+        28.5,
+    )
+    .unwrap();
+    let start = PathStart {
+        angle_rad: std::f64::consts::FRAC_PI_2,
+        wind_angle_rad: std::f64::consts::FRAC_PI_4,
+        direction: Direction::Up,
+    };
+    let path = geodesic::trace(&tube, &start, 0.25).unwrap();
+    let segments = 10_000;
+    let points = equal_length(&tube, &path, segments).unwrap();
+    let mut group = c.benchmark_group("pose");
+    group.throughput(Throughput::Elements(points.len() as u64));
+    // Clearance is a separate query (a distance to the spine); measure the pose pipeline alone.
+    group.bench_function("plan_10000_segments", |b| {
+        b.iter(|| paths::plan::plan(black_box(&points), |_| 1.0, &setup, &speeds).unwrap())
+    });
+    group.finish();
+
+    let mut group = c.benchmark_group("path");
+    group.bench_function("sbend_geodesic_trace", |b| {
+        b.iter(|| geodesic::trace(black_box(&tube), &start, 0.25).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, poses);
+criterion_main!(benches);

@@ -1,0 +1,35 @@
+//! The whole TOOL step for each example job: parse, trace, segment, plan, write the control files
+//! (issue target: under 50 ms each). Run with `cargo bench -p cell --bench plan`.
+
+use std::path::Path;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+
+fn plan_examples(c: &mut Criterion) {
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    let mut group = c.benchmark_group("plan");
+    for name in [
+        "cylinder",
+        "offset-1r",
+        "offset-2r",
+        "offset-3r",
+        "tilted-1r",
+        "tilted-2r",
+        "sbend",
+    ] {
+        let job_path = examples.join(format!("{name}.toml"));
+        let out = tempfile::tempdir().unwrap();
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let (job, text) = sequences::Job::load(&job_path).unwrap();
+                let plan = cell::tool::plan(&job, &text, &job_path).unwrap();
+                let files = cell::tool::control_files(&job, &plan);
+                cell::output::write_all(&out.path().join("plan"), &files).unwrap();
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, plan_examples);
+criterion_main!(benches);

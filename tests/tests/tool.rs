@@ -1,0 +1,93 @@
+//! The TOOL step end to end on the seven example jobs: plan, write, read back, and check the
+//! control files against the plan and against the geometry.
+
+use std::path::{Path, PathBuf};
+
+use approx::assert_abs_diff_eq;
+use nalgebra::{Rotation3, Vector3};
+use sequences::{Job, MandrelFile, RobotFile};
+
+fn examples() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    let mut jobs: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    jobs.sort();
+    jobs
+}
+
+#[test]
+fn the_seven_configurations_of_seed_001_are_shipped() {
+    let names: Vec<String> = examples()
+        .iter()
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    for expected in [
+        "cylinder",
+        "offset-1r",
+        "offset-2r",
+        "offset-3r",
+        "tilted-1r",
+        "tilted-2r",
+        "sbend",
+    ] {
+        assert!(
+            names.iter().any(|n| n == expected),
+            "{expected} missing from {names:?}"
+        );
+    }
+}
+
+#[test]
+fn control_files_round_trip_and_agree_with_the_plan() {
+    for job_path in examples() {
+        let (job, text) = Job::load(&job_path).unwrap();
+        assert_eq!(
+            Job::parse(&job.write()).unwrap(),
+            job,
+            "{}",
+            job_path.display()
+        );
+        let plan = cell::tool::plan(&job, &text, &job_path).unwrap();
+        assert_eq!(plan.paths.len(), job.paths.len());
+        let b = *job.cell.robot_distance_mm.get_ref();
+        let h = *job.cell.start_height_mm.get_ref();
+        for path in &plan.paths {
+            let rob_text = cell::tool::robot_file(&job, path).write();
+            let rob = RobotFile::parse(&rob_text).unwrap();
+            assert_eq!(rob.write(), rob_text);
+            let ind = MandrelFile::parse(&cell::tool::mandrel_file(&job, path).write()).unwrap();
+            // One robot instruction per segment end plus the start pose; the mandrel file's single
+            // move is the sum of the per-segment moves.
+            assert_eq!(rob.instructions.len(), path.plan.segments.len() + 1);
+            let total: i64 = rob.instructions.iter().map(|i| i.mandrel.steps).sum();
+            assert_eq!(total, ind.path_move.steps);
+            // Drift stays within half a step (seed 001 §6.2.1 item 8, carried remainder).
+            let half_step = 0.5 * 13.0 / 60.0 / 400.0 * std::f64::consts::TAU;
+            assert!(path.plan.max_drift_rad <= half_step + 1e-12);
+            for (instr, seg) in rob.instructions[1..].iter().zip(&path.plan.segments) {
+                let e = seg.pose.eye_mm;
+                for (a, b) in instr.position_mm.iter().zip([e.x, e.y, e.z]) {
+                    assert!((a - b).abs() <= 0.5e-4 + 1e-9);
+                }
+                // The frames: eye_cell = (b, 0, h) + R_z(commanded mandrel angle) eye_mandrel.
+                let expected = Rotation3::from_axis_angle(&Vector3::z_axis(), seg.pose.mandrel_rad)
+                    * seg.pose.eye_mandrel_mm
+                    + Vector3::new(b, 0.0, h);
+                assert_abs_diff_eq!(seg.pose.eye_mm, expected, epsilon = 1e-9);
+                // The wrist points the eye's bore at the tangent point.
+                let tangent = Rotation3::from_axis_angle(&Vector3::z_axis(), seg.pose.mandrel_rad)
+                    * seg.pose.tangent_point_mm
+                    + Vector3::new(b, 0.0, h);
+                let bore = seg.pose.wrist_q * Vector3::z();
+                assert_abs_diff_eq!(
+                    bore,
+                    (tangent - seg.pose.eye_mm).normalize(),
+                    epsilon = 1e-9
+                );
+            }
+        }
+    }
+}
