@@ -15,10 +15,10 @@
 
 use std::f64::consts::TAU;
 
-use nalgebra::{Point3, Rotation3, Unit, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Point3, Unit, UnitQuaternion, Vector2, Vector3};
 
 use crate::segment::SurfacePoint;
-use crate::step::{self, Gearing};
+use crate::step::{Gearing, RemainderCarrier};
 use crate::tangent::{self, Flank};
 use crate::{Error, Robot, eye, wrist};
 
@@ -117,12 +117,9 @@ pub struct Pose {
     pub eye_mandrel_mm: Point3<f64>,
     /// The eye, cell frame (at the commanded mandrel angle).
     pub eye_mm: Point3<f64>,
-    /// Wrist orientation (tool `z` from the eye to the tangent point), sign-continuous.
+    /// Wrist orientation (tool `z` from the eye to the tangent point), sign-continuous; its pitch
+    /// and roll are [`wrist::pitch_roll`].
     pub wrist_q: UnitQuaternion<f64>,
-    /// Wrist pitch (App. A θ).
-    pub pitch_rad: f64,
-    /// Wrist roll (App. A Φ).
-    pub roll_rad: f64,
     /// Eq 3.7 mandrel angle, unwrapped along the path.
     pub ideal_mandrel_rad: f64,
     /// Commanded mandrel angle: the start angle plus the commanded steps.
@@ -176,19 +173,6 @@ pub fn plan(
     }
     let b = setup.robot_distance_mm;
 
-    // Eyes in the mandrel frame (eqs 3.8–3.14); the start eye lies along the first chord.
-    let mut eyes = Vec::with_capacity(points.len());
-    for k in 0..points.len() {
-        let (from, to) = if k == 0 { (0, 1) } else { (k - 1, k) };
-        let eye = eye::position(&points[from].point, &points[to].point, setup.offset_mm)
-            .ok_or(Error::DegenerateSegment { segment: k.max(1) })?;
-        eyes.push(if k == 0 {
-            points[0].point + (eye - points[1].point)
-        } else {
-            eye
-        });
-    }
-
     // The flank that keeps the eye between the robot and the mandrel: the fibre must travel toward
     // the robot, i.e. along the counter-clockwise horizontal tangent on the left flank.
     let n0 = points[0].normal;
@@ -199,100 +183,124 @@ pub fn plan(
         Flank::Right
     };
 
-    // Eq 3.7 at every point, unwrapped so the mandrel turns continuously.
-    let mut ideal: Vec<f64> = Vec::with_capacity(points.len());
+    // Pass 1: the eye in the mandrel frame (eqs 3.8–3.14; the start eye lies along the first
+    // chord) and eq 3.7's angle at every point, unwrapped so the mandrel turns continuously.
+    let mut prepared: Vec<Prepared> = Vec::with_capacity(points.len());
     for (k, p) in points.iter().enumerate() {
+        let (from, to) = if k == 0 { (0, 1) } else { (k - 1, k) };
+        let eye = eye::position(&points[from].point, &points[to].point, setup.offset_mm)
+            .ok_or(Error::DegenerateSegment { segment: k.max(1) })?;
+        let eye = if k == 0 {
+            points[0].point + (eye - points[1].point)
+        } else {
+            eye
+        };
         let point_xy = Vector2::new(p.point.x, p.point.y);
         let normal_xy = Vector2::new(p.normal.x, p.normal.y);
-        let mut phi =
-            tangent::mandrel_angle_rad(point_xy, normal_xy, b, flank).map_err(|argument| {
-                Error::TangentUndefined {
-                    robot_distance_mm: b,
-                    segment: k,
-                    argument: argument.abs(),
-                }
-            })?;
-        if let Some(&previous) = ideal.last() {
-            phi += TAU * ((previous - phi) / TAU).round();
+        let angle = tangent::solve(point_xy, normal_xy, b, flank).map_err(|argument| {
+            Error::TangentUndefined {
+                robot_distance_mm: b,
+                segment: k,
+                argument: argument.abs(),
+            }
+        })?;
+        let mut ideal = angle.rad;
+        if let Some(previous) = prepared.last() {
+            ideal += TAU * ((previous.ideal - ideal) / TAU).round();
         }
-        ideal.push(phi);
+        prepared.push(Prepared {
+            eye,
+            cos: angle.cos,
+            sin: angle.sin,
+            ideal,
+        });
     }
-    let phi0 = ideal[0];
-    let relative: Vec<f64> = ideal[1..].iter().map(|a| a - phi0).collect();
-    let steps = step::carrying_remainder(&relative, &setup.gearing);
-    let step_angle = setup.gearing.step_angle_rad();
-    let commanded: Vec<f64> = std::iter::once(phi0)
-        .chain(
-            steps
-                .cumulative()
-                .iter()
-                .map(|&c| phi0 + c as f64 * step_angle),
-        )
-        .collect();
 
+    // Pass 2: steps (remainder carried), the commanded angle, the cell-frame pose, the speed.
     let origin = Vector3::new(b, 0.0, setup.mandrel_height_mm);
-    let mut previous_q: Option<UnitQuaternion<f64>> = None;
-    let mut poses = Vec::with_capacity(points.len());
+    let step_angle = setup.gearing.step_angle_rad();
+    let max_speed = speeds.max_speed_mm_s.min(setup.robot.max_speed_mm_s);
+    let phi0 = prepared[0].ideal;
     let mut min_clearance = f64::INFINITY;
-    for k in 0..points.len() {
-        let rotation = Rotation3::from_axis_angle(&Vector3::z_axis(), commanded[k]);
-        let eye_mm = rotation * eyes[k] + origin;
-        let tangent_mm = rotation * points[k].point + origin;
-        let tow = Unit::new_normalize(tangent_mm - eye_mm);
-        let (pitch_rad, roll_rad) = wrist::pitch_roll_toward(&tow);
-        let mut q = wrist::from_pitch_roll(pitch_rad, roll_rad);
-        if let Some(prev) = &previous_q {
-            q = wrist::continuous(q, prev);
-        }
-        previous_q = Some(q);
+    let mut pose_at = |k: usize, commanded: f64, previous_q: Option<&UnitQuaternion<f64>>| {
+        let prep = &prepared[k];
+        // R_z(commanded) = R_z(ideal) R_z(δ), |δ| ≤ half a step: sin δ, cos δ by their series
+        // (the next terms are below 1e-17 for a step of 0.2°).
+        let delta = commanded - prep.ideal;
+        let d2 = delta * delta;
+        let (sin_d, cos_d) = (delta * (1.0 - d2 / 6.0), 1.0 - d2 / 2.0 + d2 * d2 / 24.0);
+        let (c, s) = (
+            prep.cos * cos_d - prep.sin * sin_d,
+            prep.sin * cos_d + prep.cos * sin_d,
+        );
+        let rotate =
+            |p: &Point3<f64>| Point3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z) + origin;
+        let eye_mm = rotate(&prep.eye);
+        let tow = Unit::new_normalize(rotate(&points[k].point) - eye_mm);
+        let wrist_q = match previous_q {
+            Some(prev) => wrist::continuous(wrist::toward(&tow), prev),
+            None => wrist::toward(&tow),
+        };
         setup.robot.check(&eye_mm, k)?;
         setup.robot.check(
             &(eye_mm - tow.into_inner() * setup.eye_mechanism_length_mm),
             k,
         )?;
-        min_clearance = min_clearance.min(clearance_mm(&eyes[k]));
-        poses.push(Pose {
+        min_clearance = min_clearance.min(clearance_mm(&prep.eye));
+        Ok::<Pose, Error>(Pose {
             tangent_point_mm: points[k].point,
             normal: points[k].normal,
-            eye_mandrel_mm: eyes[k],
+            eye_mandrel_mm: prep.eye,
             eye_mm,
-            wrist_q: q,
-            pitch_rad,
-            roll_rad,
-            ideal_mandrel_rad: ideal[k],
-            mandrel_rad: commanded[k],
+            wrist_q,
+            ideal_mandrel_rad: prep.ideal,
+            mandrel_rad: commanded,
+        })
+    };
+    let start = pose_at(0, phi0, None)?;
+    let mut carrier = RemainderCarrier::default();
+    let mut max_drift_rad = 0.0f64;
+    let mut segments: Vec<Segment> = Vec::with_capacity(points.len() - 1);
+    for (k, prep) in prepared.iter().enumerate().skip(1) {
+        let steps = carrier.next(setup.gearing.steps(prep.ideal - phi0));
+        let commanded = phi0 + carrier.commanded as f64 * step_angle;
+        max_drift_rad = max_drift_rad.max((commanded - prep.ideal).abs());
+        let prev = segments.last().map_or(&start, |s| &s.pose);
+        let pose = pose_at(k, commanded, Some(&prev.wrist_q))?;
+        let travel = (pose.eye_mm - prev.eye_mm).norm();
+        let duration_s = (commanded - prev.mandrel_rad).abs() / (TAU * speeds.mandrel_rps);
+        let wanted = if travel < 1e-9 {
+            // Nothing to travel: any speed arrives at once; ask for the base speed.
+            speeds.base_speed_mm_s
+        } else if duration_s > 0.0 {
+            travel / duration_s
+        } else {
+            f64::INFINITY
+        };
+        let speed = wanted.min(max_speed);
+        segments.push(Segment {
+            pose,
+            steps,
+            duration_s,
+            speed_pct: 100.0 * speed / speeds.base_speed_mm_s,
+            speed_limited: wanted > max_speed,
         });
     }
-
-    let max_speed = speeds.max_speed_mm_s.min(setup.robot.max_speed_mm_s);
-    let segments = (1..points.len())
-        .map(|k| {
-            let travel = (poses[k].eye_mm - poses[k - 1].eye_mm).norm();
-            let duration_s = (commanded[k] - commanded[k - 1]).abs() / (TAU * speeds.mandrel_rps);
-            let wanted = if travel < 1e-9 {
-                // Nothing to travel: any speed arrives at once; ask for the base speed.
-                speeds.base_speed_mm_s
-            } else if duration_s > 0.0 {
-                travel / duration_s
-            } else {
-                f64::INFINITY
-            };
-            let speed = wanted.min(max_speed);
-            Segment {
-                pose: poses[k],
-                steps: steps.steps[k - 1],
-                duration_s,
-                speed_pct: 100.0 * speed / speeds.base_speed_mm_s,
-                speed_limited: wanted > max_speed,
-            }
-        })
-        .collect();
     Ok(PathPlan {
-        start: poses[0],
+        start,
         segments,
-        max_drift_rad: steps.max_drift_steps * step_angle,
+        max_drift_rad,
         min_eye_clearance_mm: min_clearance,
     })
+}
+
+/// Per-point results of the first pass.
+#[derive(Debug, Clone, Copy)]
+struct Prepared {
+    eye: Point3<f64>,
+    cos: f64,
+    sin: f64,
+    ideal: f64,
 }
 
 #[cfg(test)]
@@ -303,6 +311,7 @@ mod tests {
     use crate::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
     use crate::{Spine, Tube};
     use approx::assert_abs_diff_eq;
+    use nalgebra::Rotation3;
     use std::f64::consts::PI;
 
     fn setup() -> Setup {

@@ -39,7 +39,7 @@ impl Default for Robot {
 impl Robot {
     /// Checks that a point lies in the working range; `segment` is for the error.
     pub fn check(&self, p: &Point3<f64>, segment: usize) -> Result<(), Error> {
-        let horizontal = p.x.hypot(p.y);
+        let horizontal = (p.x * p.x + p.y * p.y).sqrt();
         let limit = if horizontal < self.reach_min_mm || horizontal > self.reach_max_mm {
             "horizontal reach"
         } else if p.z < self.z_min_mm || p.z > self.z_max_mm {

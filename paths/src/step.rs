@@ -99,19 +99,32 @@ fn drift(ideal_steps: &[f64], steps: &[i64]) -> f64 {
     worst
 }
 
+/// The remainder-carrying rule, one segment at a time: round the cumulative ideal step count and
+/// command the difference from the last commanded count.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RemainderCarrier {
+    /// Commanded cumulative steps so far.
+    pub commanded: i64,
+}
+
+impl RemainderCarrier {
+    /// Steps for the segment ending at `ideal_steps` (cumulative, relative to the start).
+    pub fn next(&mut self, ideal_steps: f64) -> i64 {
+        let rounded = ideal_steps.round() as i64;
+        let steps = rounded - self.commanded;
+        self.commanded = rounded;
+        steps
+    }
+}
+
 /// Steps that carry each segment's remainder: round the cumulative ideal, command the difference.
 /// `ideal_rad` holds the ideal cumulative rotation at each segment end, relative to the start.
 pub fn carrying_remainder(ideal_rad: &[f64], gearing: &Gearing) -> StepPlan {
     let ideal: Vec<f64> = ideal_rad.iter().map(|&a| gearing.steps(a)).collect();
-    let mut previous = 0i64;
+    let mut carrier = RemainderCarrier::default();
     let steps = ideal
         .iter()
-        .map(|&cumulative| {
-            let rounded = cumulative.round() as i64;
-            let s = rounded - previous;
-            previous = rounded;
-            s
-        })
+        .map(|&cumulative| carrier.next(cumulative))
         .collect::<Vec<_>>();
     let max_drift_steps = drift(&ideal, &steps);
     StepPlan {

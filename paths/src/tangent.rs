@@ -47,16 +47,45 @@ pub fn mandrel_angle_rad(
     robot_distance_mm: f64,
     flank: Flank,
 ) -> Result<f64, f64> {
+    solve(point_xy, normal_xy, robot_distance_mm, flank).map(|a| a.rad)
+}
+
+/// A mandrel angle with its cosine and sine.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Angle {
+    /// The angle in (−π, π].
+    pub rad: f64,
+    /// Its cosine.
+    pub cos: f64,
+    /// Its sine.
+    pub sin: f64,
+}
+
+/// [`mandrel_angle_rad`] with the angle's cosine and sine, found without trigonometric calls but
+/// one `atan2`: `φ = β − α` with `cos β = −p·n/b`, `sin β = ±√(1 − cos² β)` and `(cos α, sin α)`
+/// the unit normal.
+pub fn solve(
+    point_xy: Vector2<f64>,
+    normal_xy: Vector2<f64>,
+    robot_distance_mm: f64,
+    flank: Flank,
+) -> Result<Angle, f64> {
     let n = normal_xy.normalize();
-    let argument = -point_xy.dot(&n) / robot_distance_mm;
-    if argument.abs() > 1.0 || !argument.is_finite() {
-        return Err(argument);
+    let cos_b = -point_xy.dot(&n) / robot_distance_mm;
+    if cos_b.abs() > 1.0 || !cos_b.is_finite() {
+        return Err(cos_b);
     }
-    let beta = match flank {
-        Flank::Left => argument.acos(),
-        Flank::Right => -argument.acos(),
+    let sin_b = match flank {
+        Flank::Left => (1.0 - cos_b * cos_b).sqrt(),
+        Flank::Right => -(1.0 - cos_b * cos_b).sqrt(),
     };
-    Ok(beta - n.y.atan2(n.x))
+    let cos = cos_b * n.x + sin_b * n.y;
+    let sin = sin_b * n.x - cos_b * n.y;
+    Ok(Angle {
+        rad: sin.atan2(cos),
+        cos,
+        sin,
+    })
 }
 
 #[cfg(test)]

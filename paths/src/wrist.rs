@@ -23,6 +23,34 @@ pub fn pitch_roll_toward(direction: &Unit<Vector3<f64>>) -> (f64, f64) {
     (pitch, roll)
 }
 
+/// The App. A quaternion whose tool `z` axis points along `direction`: the same rotation as
+/// `from_pitch_roll(pitch_roll_toward(direction))`, from half-angle identities instead of
+/// trigonometric calls (pitch in (−π, π], roll in [−π/2, π/2]).
+pub fn toward(direction: &Unit<Vector3<f64>>) -> UnitQuaternion<f64> {
+    let d = direction.as_ref();
+    let cos_roll = (d.x * d.x + d.z * d.z).sqrt();
+    let sin_roll = -d.y;
+    let (cos_pitch, sin_pitch) = if cos_roll > 1e-15 {
+        (d.z / cos_roll, d.x / cos_roll)
+    } else {
+        (1.0, 0.0)
+    };
+    let half = |c: f64, s: f64| {
+        let ch = (0.5 * (1.0 + c)).max(0.0).sqrt();
+        let sh = (0.5 * (1.0 - c)).max(0.0).sqrt();
+        (ch, if s < 0.0 { -sh } else { sh })
+    };
+    let (ct, st) = half(cos_pitch, sin_pitch);
+    let (cf, sf) = half(cos_roll, sin_roll);
+    // Eqs A.13–A.16.
+    UnitQuaternion::new_unchecked(Quaternion::new(ct * cf, ct * sf, st * cf, -st * sf))
+}
+
+/// Pitch and roll of an App. A quaternion (the inverse of [`from_pitch_roll`]).
+pub fn pitch_roll(q: &UnitQuaternion<f64>) -> (f64, f64) {
+    pitch_roll_toward(&Unit::new_normalize(q * Vector3::z()))
+}
+
 /// Scalar-first components `[q1, q2, q3, q4]` as the robot takes them.
 pub fn components(q: &UnitQuaternion<f64>) -> [f64; 4] {
     [q.w, q.i, q.j, q.k]
@@ -91,6 +119,26 @@ mod tests {
             let (pitch, roll) = pitch_roll_toward(&dir);
             let axis = from_pitch_roll(pitch, roll) * Vector3::z();
             assert_abs_diff_eq!(axis, dir.into_inner(), epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn toward_equals_pitch_then_roll() {
+        for d in [
+            Vector3::new(1.0, 0.2, 0.5),
+            Vector3::new(-0.3, -0.9, -0.1),
+            Vector3::new(0.4, 0.1, -0.9),
+            Vector3::new(-0.4, 0.3, -0.9),
+            Vector3::z(),
+        ] {
+            let dir = Unit::new_normalize(d);
+            let (pitch, roll) = pitch_roll_toward(&dir);
+            let expected = from_pitch_roll(pitch, roll);
+            let q = toward(&dir);
+            assert_abs_diff_eq!(q.coords, expected.coords, epsilon = 1e-12);
+            let (p2, r2) = pitch_roll(&q);
+            assert_abs_diff_eq!(p2, pitch, epsilon = 1e-12);
+            assert_abs_diff_eq!(r2, roll, epsilon = 1e-12);
         }
     }
 
