@@ -219,6 +219,9 @@ impl<L: Link> XClient<L> {
         let mut wire = text.clone().into_bytes();
         wire.push(b'\r');
         self.link.write_all(&wire)?;
+        // A refusal of an earlier buffered command may arrive first; the exchange is finished
+        // before it is reported, so that the stream stays in step.
+        let mut earlier: Option<Error> = None;
         if self.echo {
             loop {
                 let line = self.line(&text)?;
@@ -227,7 +230,7 @@ impl<L: Link> XClient<L> {
                 } else if line == text.as_bytes() {
                     break;
                 } else if let Some(reason) = line.strip_prefix(b"?") {
-                    return Err(refused(&text, reason));
+                    earlier = Some(refused("G", reason));
                 } else {
                     return Err(Error::Echo {
                         command: text,
@@ -242,7 +245,7 @@ impl<L: Link> XClient<L> {
             _ => {}
         }
         if !cmd.expects_reply() {
-            return Ok(None);
+            return earlier.map_or(Ok(None), Err);
         }
         let id = self.device_id.then_some(self.cfg.address);
         loop {
@@ -250,6 +253,13 @@ impl<L: Link> XClient<L> {
             if line.is_empty() {
                 self.completions += 1;
                 continue;
+            }
+            if let Some(reason) = line.strip_prefix(b"?") {
+                earlier = Some(refused("G", reason));
+                continue;
+            }
+            if let Some(e) = earlier {
+                return Err(e);
             }
             return match xlang::parse_reply(cmd, &line, id) {
                 Ok(r) => Ok(Some(r)),
@@ -503,9 +513,12 @@ impl<L: Link> GrblClient<L> {
     }
 
     fn line(&mut self, command: &str, timeout: Duration) -> Result<grbl::Line> {
-        let raw = self
-            .reader
-            .next_line(&mut self.link, b'\n', b'\r', timeout, command)?;
+        let mut raw = Vec::new();
+        while raw.is_empty() {
+            raw = self
+                .reader
+                .next_line(&mut self.link, b'\n', b'\r', timeout, command)?;
+        }
         grbl::parse_line(&raw).map_err(|e| Error::BadReply {
             command: command.to_string(),
             reply: String::from_utf8_lossy(&raw).into_owned(),
