@@ -24,7 +24,13 @@ fn serial_read<P: serialport::SerialPort + ?Sized>(
         .map_err(io::Error::from)?;
     match port.read(buf) {
         Ok(n) => Ok(n),
-        Err(e) if e.kind() == io::ErrorKind::TimedOut || e.kind() == io::ErrorKind::WouldBlock => {
+        // A signal arriving during the wait is a short read, not a failure.
+        Err(e)
+            if matches!(
+                e.kind(),
+                io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+            ) =>
+        {
             Ok(0)
         }
         Err(e) => Err(e),
