@@ -328,3 +328,115 @@ impl Frontend for Card {
         &self.machine
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::machine::PULL_IN_SPS;
+    use crate::sim::{Clock, VirtualClock};
+    use crate::sync::{SyncOutput, Wire};
+    use crate::units::Drive;
+    use std::sync::Arc;
+
+    fn card() -> Card {
+        Card::new(Machine::new(Drive::default(), PULL_IN_SPS), 1)
+    }
+
+    fn say(c: &mut Card, text: &str, t: f64) -> String {
+        c.receive(text.as_bytes(), t);
+        String::from_utf8_lossy(&c.take_output()).into_owned()
+    }
+
+    #[test]
+    fn echo_reply_and_completion() {
+        let mut c = card();
+        // echo of "1R" CR, then "*R" CR
+        assert_eq!(say(&mut c, "1R\r", 0.0), "1R\r*R\r");
+        assert_eq!(say(&mut c, "1SSA1\r", 0.0), "1SSA1\r");
+        assert_eq!(say(&mut c, "1SSD1\r1R\r", 0.0), "*001R\r");
+        say(&mut c, "1A10 1V2 1MPI 1D400 1G 1CR 1PR\r", 0.0);
+        assert_eq!(say(&mut c, "1R\r", 0.1), "*001B\r");
+        c.poll(5.0);
+        // CR LF at completion, then the buffered PR
+        assert_eq!(
+            String::from_utf8_lossy(&c.take_output()),
+            "\r\n*001+0000000400\r"
+        );
+        assert_eq!(say(&mut c, "1W3\r", 5.0), "*00100000190\r");
+        // another device's command is ignored
+        assert_eq!(say(&mut c, "2R\r", 5.0), "");
+    }
+
+    #[test]
+    fn reset_is_busy_for_one_second() {
+        let mut c = card();
+        say(&mut c, "1MPI 1D100 1G\r", 0.0);
+        say(&mut c, "1Z\r", 0.05);
+        assert_eq!(say(&mut c, "1R\r", 0.5), "1R\r*B\r");
+        assert_eq!(say(&mut c, "1R\r", 1.06), "1R\r*R\r");
+        assert_eq!(c.machine.counter_steps(), 0);
+    }
+
+    #[test]
+    fn loops_alternate_between_two_positions() {
+        let mut c = card();
+        say(
+            &mut c,
+            "1SSA1\r1A50 1V5 1MN 1MPA 1L3 1D300 1G 1D-300 1G 1N 1PR\r",
+            0.0,
+        );
+        let mut t = 0.0;
+        let mut seen_positive = 0;
+        while t < 20.0 {
+            t += 0.01;
+            c.poll(t);
+            if c.machine.counter_steps() == 300 {
+                seen_positive += 1;
+            }
+        }
+        assert!(seen_positive > 0);
+        assert_eq!(String::from_utf8_lossy(&c.take_output()), "*-0000000300\r");
+    }
+
+    #[test]
+    fn over_the_limit_is_refused_with_the_limit_named() {
+        let mut c = card();
+        say(&mut c, "1SSA1\r", 0.0);
+        let out = say(&mut c, "1V30 1D100 1G\r", 0.0); // 30 rev/s × 400 = 12 000 pulses/s
+        assert!(
+            out.contains("exceeds the translator limit of 10000 pulses/s"),
+            "{out}"
+        );
+        assert_eq!(say(&mut c, "1R\r", 0.0), "*S\r");
+        assert_eq!(c.machine.counter_steps(), 0);
+    }
+
+    #[test]
+    fn trigger_waits_for_the_start_wire() {
+        let clock = VirtualClock::new();
+        let start = Wire::new(Arc::new(clock.clone()), 0.001);
+        let mut pc = start.clone();
+        let mut c = card().with_trigger(Box::new(start));
+        say(&mut c, "1SSA1\r1MPI 1D50 1TR1 1G\r", 0.0);
+        c.poll(0.5);
+        assert_eq!(c.machine.counter_steps(), 0);
+        clock.advance(0.5);
+        pc.set(true).unwrap();
+        clock.advance(0.002);
+        c.poll(clock.now_s());
+        c.poll(2.0);
+        assert_eq!(c.machine.counter_steps(), 50);
+    }
+
+    #[test]
+    fn continuous_runs_until_stopped() {
+        let mut c = card();
+        say(&mut c, "1SSA1\r1A20 1MC 1H- 1V2 1G\r", 0.0);
+        c.poll(3.0);
+        assert!(c.machine.is_moving());
+        assert!(c.machine.counter_steps() < -1000);
+        say(&mut c, "1S\r", 3.0);
+        c.poll(4.0);
+        assert!(!c.machine.is_moving());
+    }
+}
