@@ -270,3 +270,59 @@ impl Frontend for Controller {
         &self.machine
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::machine::PULL_IN_SPS;
+    use crate::units::Drive;
+
+    fn say(c: &mut Controller, text: &[u8], t: f64) -> String {
+        c.receive(text, t);
+        String::from_utf8_lossy(&c.take_output()).into_owned()
+    }
+
+    #[test]
+    fn move_status_and_reset() {
+        let mut c = Controller::new(Machine::new(Drive::default(), PULL_IN_SPS));
+        assert_eq!(say(&mut c, b"$123=720\n", 0.0), "ok\r\n");
+        assert_eq!(say(&mut c, b"G90 G1 A360 F21600\n", 0.0), "ok\r\n");
+        assert!(say(&mut c, b"?", 0.2).starts_with("<Run|MPos:0.000,0.000,0.000,"));
+        c.poll(5.0);
+        assert_eq!(
+            say(&mut c, b"?", 5.0),
+            "<Idle|MPos:0.000,0.000,0.000,359.970|FS:0,0>\r\n" // 1846 steps at 5.1282 steps/deg
+        );
+        assert_eq!(c.machine.counter_steps(), 1846);
+        assert_eq!(say(&mut c, b"G1 X5\n", 5.0), "error:20\r\n");
+        assert_eq!(
+            say(&mut c, &[SOFT_RESET], 5.0),
+            "\r\nGrbl 1.1h ['$' for help]\r\n"
+        );
+    }
+
+    #[test]
+    fn jog_and_cancel() {
+        let mut c = Controller::new(Machine::new(Drive::default(), PULL_IN_SPS));
+        assert_eq!(say(&mut c, b"$J=G91 A100000 F10800\n", 0.0), "ok\r\n");
+        c.poll(2.0);
+        assert!(say(&mut c, b"?", 2.0).starts_with("<Jog|"));
+        say(&mut c, &[JOG_CANCEL], 2.0);
+        c.poll(4.0);
+        assert!(say(&mut c, b"?", 4.0).starts_with("<Idle|"));
+        assert!(c.machine.counter_steps() > 1000); // about 1.5 s at 923 steps/s
+    }
+
+    #[test]
+    fn max_rate_over_the_translator_limit_is_refused() {
+        let mut c = Controller::new(Machine::new(Drive::default(), PULL_IN_SPS));
+        let out = say(&mut c, b"$113=130000\n", 0.0); // 11 111 pulses/s
+        assert!(
+            out.contains("exceeds the translator limit of 10000 pulses/s"),
+            "{out}"
+        );
+        assert!(out.ends_with("error:20\r\n"));
+        assert_eq!(say(&mut c, &[b'x'; 200], 0.0), "");
+        assert_eq!(say(&mut c, b"\n", 0.0), "error:14\r\n");
+    }
+}
