@@ -325,4 +325,18 @@ mod tests {
         assert_eq!(say(&mut c, &[b'x'; 200], 0.0), "");
         assert_eq!(say(&mut c, b"\n", 0.0), "error:14\r\n");
     }
+
+    proptest::proptest! {
+        #[test]
+        fn arbitrary_input_never_panics(chunks in proptest::collection::vec(proptest::collection::vec(proptest::prelude::any::<u8>(), 0..40), 0..8)) {
+            let mut c = Controller::new(Machine::new(Drive::default(), PULL_IN_SPS));
+            let mut t = 0.0;
+            for chunk in &chunks {
+                t += 0.05;
+                c.receive(chunk, t);
+                c.poll(t);
+                let _ = c.take_output();
+            }
+        }
+    }
 }

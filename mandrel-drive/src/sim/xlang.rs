@@ -439,4 +439,18 @@ mod tests {
         c.poll(4.0);
         assert!(!c.machine.is_moving());
     }
+
+    proptest::proptest! {
+        #[test]
+        fn arbitrary_input_never_panics(chunks in proptest::collection::vec(proptest::collection::vec(proptest::prelude::any::<u8>(), 0..40), 0..8)) {
+            let mut c = card();
+            let mut t = 0.0;
+            for chunk in &chunks {
+                t += 0.05;
+                c.receive(chunk, t);
+                c.poll(t);
+                let _ = c.take_output();
+            }
+        }
+    }
 }
