@@ -183,7 +183,7 @@ impl Controller {
                 let target = if absolute {
                     (a_deg * self.steps_per_deg).round() as i64
                 } else {
-                    base + (a_deg * self.steps_per_deg).round() as i64
+                    base.saturating_add((a_deg * self.steps_per_deg).round() as i64)
                 };
                 self.queue.push_back(Block {
                     target_steps: target,
@@ -225,7 +225,9 @@ impl Controller {
             vmax_sps: feed / 60.0 * self.steps_per_deg,
             accel_sps2: self.accel_deg_s2 * self.steps_per_deg,
         };
-        let steps = block.target_steps - self.machine.counter_steps();
+        let steps = block
+            .target_steps
+            .saturating_sub(self.machine.counter_steps());
         match self.machine.start_preset(steps) {
             Ok(()) => self.running = Some(block),
             Err(e) => {

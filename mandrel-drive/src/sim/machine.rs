@@ -100,10 +100,10 @@ impl Machine {
         }
         self.now_s = t_s;
         if let Some((m, dir)) = self.motion.as_mut() {
-            let n = m.advance(t_s) as i64 * *dir;
-            self.counter_steps += n;
+            let n = (m.advance(t_s) as i64).saturating_mul(*dir);
+            self.counter_steps = self.counter_steps.saturating_add(n);
             if !self.stalled {
-                self.motor_steps += n;
+                self.motor_steps = self.motor_steps.saturating_add(n);
             }
             if m.is_done() {
                 self.completed_s = Some(m.last_step_s());
@@ -214,7 +214,7 @@ impl Machine {
 
     /// Steps since the start of the last move (`W3`).
     pub fn steps_since_move_start(&self) -> i64 {
-        self.counter_steps - self.move_start_steps
+        self.counter_steps.saturating_sub(self.move_start_steps)
     }
 
     /// Motor steps actually turned (the mandrel position in steps).

@@ -224,15 +224,16 @@ impl Card {
 
     fn execute(&mut self, cmd: Command) {
         match cmd {
-            Command::Accel(v) => {
+            // Values outside the guide's ranges are ignored, as the unit does.
+            Command::Accel(v) if (0.01..=999.0).contains(&v) => {
                 self.accel_rps2 = v;
                 self.apply_profile();
             }
-            Command::Velocity(v) => {
+            Command::Velocity(v) if (0.0..=50.0).contains(&v) => {
                 self.velocity_rps = v;
                 self.apply_profile();
             }
-            Command::StartVelocity(v) => {
+            Command::StartVelocity(v) if (0.0..=50.0).contains(&v) => {
                 self.start_rps = v;
                 self.apply_profile();
             }
@@ -283,7 +284,7 @@ impl Card {
             }
         } else {
             let steps = if self.absolute {
-                self.distance - self.machine.counter_steps()
+                self.distance.saturating_sub(self.machine.counter_steps())
             } else {
                 self.distance
             };
