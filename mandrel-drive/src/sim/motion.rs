@@ -113,10 +113,77 @@ impl Motion {
                 let ramp = (v * v - floor * floor) / (2.0 * a);
                 ((v - floor) / a + (1.0 - ramp) / floor, floor)
             } else {
-                // From rest the last step cannot be decelerated into: finish it at the current rate.
-                (1.0 / v, v)
+                // Stopping to rest: the last step ends at (numerically about) zero rate.
+                let vn = v2.max(0.0).sqrt();
+                (2.0 / (v + vn), vn)
             }
         }
+    }
+
+    /// Skips whole ramp steps in closed form: under constant acceleration the step durations
+    /// `2/(v + v')` telescope, so `n` steps from rate `v` end at `sqrt(v² ± 2an)` after
+    /// `|v_n − v| / a`. Stops a step short of any boundary (target rate, start of braking, end of
+    /// the move, `until_s`), which the step-by-step loop then handles. Returns the steps skipped.
+    fn skip_ramp(&mut self, until_s: f64) -> u64 {
+        let (v, a, v0) = (self.v_sps, self.profile.accel_sps2, self.profile.v0_sps);
+        let dt = until_s - self.t_s;
+        if !(a > 0.0 && dt > 0.0 && v.is_finite()) {
+            return 0;
+        }
+        let stopping = self.braking
+            || self
+                .remaining
+                .is_some_and(|r| (r as f64) <= self.stop_steps() + 1e-9 && v > v0);
+        let n = if stopping || v > self.target_sps {
+            let floor = if stopping {
+                v0
+            } else {
+                self.target_sps.max(v0)
+            };
+            let by_floor = (v * v - floor * floor) / (2.0 * a);
+            let v_t = v - a * dt;
+            let by_time = if v_t <= floor {
+                by_floor
+            } else {
+                (v * v - v_t * v_t) / (2.0 * a)
+            };
+            let mut n = by_time.min(by_floor).floor();
+            if let Some(r) = self.remaining {
+                n = n.min(r as f64);
+            }
+            n
+        } else if v < self.target_sps {
+            let target = self.target_sps;
+            let v_t = v + a * dt;
+            let mut n = ((target * target - v * v) / (2.0 * a))
+                .min((v_t * v_t - v * v) / (2.0 * a))
+                .floor();
+            if let Some(r) = self.remaining {
+                n = n.min(((r as f64 - self.stop_steps()) / 2.0).floor());
+            }
+            n
+        } else {
+            return 0;
+        } - 1.0;
+        if !(n >= 2.0) {
+            return 0;
+        }
+        let steps = n as u64;
+        let decelerating = stopping || v > self.target_sps;
+        let vn = if decelerating {
+            (v * v - 2.0 * a * n).max(0.0).sqrt()
+        } else {
+            (v * v + 2.0 * a * n).sqrt()
+        };
+        self.t_s += (vn - v).abs() / a;
+        self.v_sps = vn;
+        if stopping {
+            self.braking = true;
+        }
+        if let Some(r) = self.remaining.as_mut() {
+            *r -= steps;
+        }
+        steps
     }
 
     /// Emits every step whose end lies at or before `until_s`; returns how many.
@@ -126,6 +193,7 @@ impl Motion {
             if self.remaining == Some(0) {
                 return emitted;
             }
+            emitted += self.skip_ramp(until_s);
             // Cruise: count whole steps in closed form.
             if self.v_sps == self.target_sps && self.v_sps > 0.0 {
                 let by_time = ((until_s - self.t_s) * self.v_sps).floor();
