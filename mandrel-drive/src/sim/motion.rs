@@ -165,7 +165,7 @@ impl Motion {
         } else {
             return 0;
         } - 1.0;
-        if !(n >= 2.0) {
+        if n.is_nan() || n < 2.0 {
             return 0;
         }
         let steps = n as u64;
