@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod plan;
+pub mod sim_indexer;
 
 /// Exit code for bad input: a file, a field or an argument the operator must fix.
 pub const EXIT_INPUT: u8 = 2;
@@ -58,6 +59,8 @@ pub struct Cli {
 pub enum Command {
     /// Plan a job: write .ROB, .IND, sequence and run files (the TOOL step).
     Plan(plan::PlanArgs),
+    /// Run the mandrel indexer simulator on a pseudo-terminal.
+    SimIndexer(sim_indexer::SimIndexerArgs),
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
@@ -77,5 +80,6 @@ pub fn print(text: &str) -> Result<(), Failure> {
 pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
+        Command::SimIndexer(args) => sim_indexer::run(args),
     }
 }

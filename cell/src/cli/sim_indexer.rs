@@ -1,0 +1,87 @@
+//! `windcell sim-indexer --pty [--dialect x|grbl]`: the mandrel indexer simulator on a
+//! pseudo-terminal (issue 5; spec/protocols.md §6 "Simulator").
+//!
+//! Prints the slave device path on one line, serves the simulated indexer on the master side in
+//! real time until SIGINT or SIGTERM, then exits 0.
+
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+
+use clap::{Args, ValueEnum};
+use mandrel_drive::Drive;
+use mandrel_drive::sim::machine::PULL_IN_SPS;
+use mandrel_drive::sim::{Machine, RealClock, grbl::Controller, serve, xlang::Card};
+use serialport::{SerialPort, TTYPort};
+
+use super::{Failure, print};
+
+/// The command language the simulator speaks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Dialect {
+    /// Compumotor X-language (2100 / PC21 / OEM family).
+    X,
+    /// GRBL 1.1, the mandrel on the A axis.
+    Grbl,
+}
+
+/// Arguments of `windcell sim-indexer`.
+#[derive(Debug, Args)]
+pub struct SimIndexerArgs {
+    /// Serve on a new pseudo-terminal and print its device path.
+    #[arg(long)]
+    pub pty: bool,
+    /// Command language.
+    #[arg(long, value_enum, default_value = "x")]
+    pub dialect: Dialect,
+    /// X-language device address (1–255).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..))]
+    pub address: u8,
+    /// Motor pull-in rate, steps/s: a start velocity above it stalls the motor.
+    #[arg(long, default_value_t = PULL_IN_SPS)]
+    pub pull_in_sps: f64,
+}
+
+/// Runs the simulator until SIGINT or SIGTERM.
+pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
+    if !args.pty {
+        return Err(Failure::input(
+            "sim-indexer: --pty is required (the simulator serves on a pseudo-terminal)",
+        ));
+    }
+    if !(args.pull_in_sps.is_finite() && args.pull_in_sps > 0.0) {
+        return Err(Failure::input(format!(
+            "sim-indexer: --pull-in-sps {} must be a positive number",
+            args.pull_in_sps
+        )));
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone())
+            .map_err(|e| Failure::runtime(format!("sim-indexer: signal handler: {e}")))?;
+    }
+    let (master, slave) = TTYPort::pair()
+        .map_err(|e| Failure::runtime(format!("sim-indexer: pseudo-terminal: {e}")))?;
+    let path = slave
+        .name()
+        .ok_or_else(|| Failure::runtime("sim-indexer: the pseudo-terminal has no device path"))?;
+    print(&format!("{path}\n"))?;
+    let machine = Machine::new(Drive::default(), args.pull_in_sps);
+    let clock = RealClock::new();
+    let served = match args.dialect {
+        Dialect::X => serve(
+            master,
+            &Arc::new(Mutex::new(Card::new(machine, args.address))),
+            &clock,
+            &stop,
+        ),
+        Dialect::Grbl => serve(
+            master,
+            &Arc::new(Mutex::new(Controller::new(machine))),
+            &clock,
+            &stop,
+        ),
+    };
+    // The slave end stays open until here so that the master never sees a hang-up.
+    drop(slave);
+    served.map_err(|e| Failure::runtime(format!("sim-indexer: {e}")))
+}

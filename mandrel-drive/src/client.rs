@@ -1,0 +1,694 @@
+//! The indexer seam the coordinator drives (spec/protocols.md §6), for both dialects over a
+//! [`Link`]: commands built from physical units at the mandrel through [`Drive`], replies checked,
+//! timeouts and typed errors.
+
+use std::time::{Duration, Instant};
+
+use crate::error::{Error, Result};
+use crate::grbl;
+use crate::link::Link;
+use crate::profile::Profile;
+use crate::units::Drive;
+use crate::xlang::{self, Command, Reply, ReplyError};
+
+/// How `move_to` reads its step count.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PosMode {
+    /// Absolute position since init (X `MPA`, GRBL `G90`).
+    Absolute,
+    /// Relative to the current position (X `MPI`, GRBL `G91`).
+    Incremental,
+}
+
+/// Direction of a constant-velocity run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Direction {
+    /// Positive step count (X `H+`).
+    Positive,
+    /// Negative step count (X `H-`).
+    Negative,
+}
+
+/// How to stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopKind {
+    /// Decelerate at the profile's acceleration (X `S`, GRBL feed hold / jog cancel).
+    Decelerate,
+    /// Stop at once (X `K`, GRBL soft reset).
+    Kill,
+}
+
+/// Set-up of an indexer client.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IndexerConfig {
+    /// Motor, belt and translator.
+    pub drive: Drive,
+    /// X-language device address (1–255).
+    pub address: u8,
+    /// Wait after a reset (X `Z`: 1000 ms; GRBL: until the banner).
+    pub reset_wait: Duration,
+    /// Longest wait for one reply line.
+    pub reply_timeout: Duration,
+    /// X-language: the backend has a start/stop velocity command (`VS`, our simulator). Without
+    /// it a profile with a start velocity is refused as [`Error::Unsupported`].
+    pub start_velocity_command: bool,
+    /// X-language: ask for the device-ID prefix on replies (`SSD1`) and check it.
+    pub device_id: bool,
+    /// X-language: no limit switches fitted (`LD3`).
+    pub no_limit_switches: bool,
+    /// GRBL: grblHAL rotary-axis mask to send as `$376` (`None` for classic GRBL).
+    pub rotary_mask: Option<u8>,
+}
+
+impl Default for IndexerConfig {
+    fn default() -> Self {
+        IndexerConfig {
+            drive: Drive::default(),
+            address: 1,
+            reset_wait: Duration::from_millis(1000),
+            reply_timeout: Duration::from_millis(500),
+            start_velocity_command: false,
+            device_id: true,
+            no_limit_switches: true,
+            rotary_mask: None,
+        }
+    }
+}
+
+/// What `status` reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IndexerStatus {
+    /// Moving or resetting.
+    pub busy: bool,
+    /// A fault: our simulator's stall flag or a refused move (X attention), GRBL alarm.
+    pub fault: bool,
+    /// Absolute position in motor steps, where the dialect reports it while in this state.
+    pub position_steps: Option<i64>,
+}
+
+/// The device-level seam the coordinator drives (spec/protocols.md §6).
+pub trait Indexer {
+    /// Resets the controller and sets resolution, limits and reply format.
+    fn init(&mut self) -> Result<()>;
+    /// Sets acceleration, start/stop velocity and maximum velocity (seed 001 §5.3.2).
+    fn set_profile(&mut self, profile: Profile) -> Result<()>;
+    /// Starts a preset move and returns once it is accepted.
+    fn move_to(&mut self, steps: i64, mode: PosMode) -> Result<()>;
+    /// Turns at constant velocity (mandrel rev/s) until stopped or re-speeded.
+    fn run_constant(&mut self, mandrel_rps: f64, dir: Direction) -> Result<()>;
+    /// Alternates between absolute positions `a` and `b`, `cycles` times (`None` = until stopped).
+    fn alternate(&mut self, a: i64, b: i64, cycles: Option<u16>) -> Result<()>;
+    /// Stops.
+    fn stop(&mut self, kind: StopKind) -> Result<()>;
+    /// Reads busy, fault and position.
+    fn status(&mut self) -> Result<IndexerStatus>;
+
+    /// Polls [`Indexer::status`] until the drive is at rest; a fault is [`Error::Stalled`].
+    fn wait_idle(&mut self, timeout: Duration) -> Result<IndexerStatus> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let s = self.status()?;
+            if s.fault {
+                return Err(Error::Stalled);
+            }
+            if !s.busy {
+                return Ok(s);
+            }
+            if Instant::now() >= deadline {
+                return Err(Error::MoveTimeout {
+                    waited_ms: timeout.as_millis() as u64,
+                });
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+}
+
+/// Reads lines ending in `end` (other line-end bytes dropped) from a link with a deadline.
+#[derive(Debug, Default)]
+struct LineReader {
+    pending: Vec<u8>,
+}
+
+/// Longest line we accept before calling it garbage.
+const MAX_LINE: usize = 256;
+
+impl LineReader {
+    fn next_line<L: Link>(
+        &mut self,
+        link: &mut L,
+        end: u8,
+        drop: u8,
+        timeout: Duration,
+        command: &str,
+    ) -> Result<Vec<u8>> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(i) = self.pending.iter().position(|b| *b == end) {
+                let mut line: Vec<u8> = self.pending.drain(..=i).collect();
+                line.pop();
+                line.retain(|b| *b != drop);
+                return Ok(line);
+            }
+            if self.pending.len() > MAX_LINE {
+                let junk = std::mem::take(&mut self.pending);
+                return Err(Error::BadReply {
+                    command: command.to_string(),
+                    reply: String::from_utf8_lossy(&junk).into_owned(),
+                    reason: "line too long",
+                });
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(Error::Timeout {
+                    command: command.to_string(),
+                    waited_ms: timeout.as_millis() as u64,
+                });
+            }
+            let mut buf = [0u8; 128];
+            let n = link.read_timeout(&mut buf, deadline - now)?;
+            self.pending.extend_from_slice(buf.get(..n).unwrap_or(&[]));
+        }
+    }
+}
+
+/// An X-language indexer (Compumotor 2100 / PC21 / OEM family) over a serial link.
+#[derive(Debug)]
+pub struct XClient<L: Link> {
+    link: L,
+    cfg: IndexerConfig,
+    reader: LineReader,
+    echo: bool,
+    device_id: bool,
+    profile: Option<Profile>,
+    completions: u32,
+}
+
+impl<L: Link> XClient<L> {
+    /// A client on `link`; call [`Indexer::init`] before anything else.
+    pub fn new(link: L, cfg: IndexerConfig) -> Self {
+        XClient {
+            link,
+            cfg,
+            reader: LineReader::default(),
+            echo: true,
+            device_id: false,
+            profile: None,
+            completions: 0,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &IndexerConfig {
+        &self.cfg
+    }
+
+    fn line(&mut self, command: &str) -> Result<Vec<u8>> {
+        self.reader.next_line(
+            &mut self.link,
+            b'\r',
+            b'\n',
+            self.cfg.reply_timeout,
+            command,
+        )
+    }
+
+    /// Sends one command, swallows and checks its echo, and returns its reply if it has one.
+    pub fn send(&mut self, cmd: &Command) -> Result<Option<Reply>> {
+        let text = xlang::encode(Some(self.cfg.address), cmd);
+        let mut wire = text.clone().into_bytes();
+        wire.push(b'\r');
+        self.link.write_all(&wire)?;
+        // A refusal of an earlier buffered command may arrive first; the exchange is finished
+        // before it is reported, so that the stream stays in step.
+        let mut earlier: Option<Error> = None;
+        if self.echo {
+            loop {
+                let line = self.line(&text)?;
+                if line.is_empty() {
+                    self.completions += 1;
+                } else if line == text.as_bytes() {
+                    break;
+                } else if let Some(reason) = line.strip_prefix(b"?") {
+                    earlier = Some(refused("G", reason));
+                } else {
+                    return Err(Error::Echo {
+                        command: text,
+                        echo: String::from_utf8_lossy(&line).into_owned(),
+                    });
+                }
+            }
+        }
+        match cmd {
+            Command::Echo(on) => self.echo = *on,
+            Command::DeviceId(on) => self.device_id = *on,
+            _ => {}
+        }
+        if !cmd.expects_reply() {
+            return earlier.map_or(Ok(None), Err);
+        }
+        let id = self.device_id.then_some(self.cfg.address);
+        loop {
+            let line = self.line(&text)?;
+            if line.is_empty() {
+                self.completions += 1;
+                continue;
+            }
+            if let Some(reason) = line.strip_prefix(b"?") {
+                earlier = Some(refused("G", reason));
+                continue;
+            }
+            if let Some(e) = earlier {
+                return Err(e);
+            }
+            return match xlang::parse_reply(cmd, &line, id) {
+                Ok(r) => Ok(Some(r)),
+                Err(ReplyError::WrongAddress { expected, got }) => {
+                    Err(Error::WrongAddress { expected, got })
+                }
+                Err(ReplyError::Refused(reason)) => Err(refused(&text, reason.as_bytes())),
+                Err(ReplyError::Malformed(reason)) => Err(Error::BadReply {
+                    command: text,
+                    reply: String::from_utf8_lossy(&line).into_owned(),
+                    reason,
+                }),
+            };
+        }
+    }
+
+    fn ready_status(&mut self) -> Result<(bool, bool)> {
+        match self.send(&Command::Status)? {
+            Some(Reply::Status { busy, attention }) => Ok((busy, attention)),
+            _ => Err(Error::BadReply {
+                command: "R".into(),
+                reply: String::new(),
+                reason: "no status",
+            }),
+        }
+    }
+
+    /// Waits for the `CR` move-complete notification of the last preset move.
+    pub fn wait_complete(&mut self, timeout: Duration) -> Result<()> {
+        let deadline = Instant::now() + timeout;
+        while self.completions == 0 {
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(Error::MoveTimeout {
+                    waited_ms: timeout.as_millis() as u64,
+                });
+            }
+            match self
+                .reader
+                .next_line(&mut self.link, b'\r', b'\n', deadline - now, "CR")
+            {
+                Ok(line) if line.is_empty() => self.completions += 1,
+                Ok(line) if line.starts_with(b"?") => {
+                    return Err(refused("G", line.get(1..).unwrap_or(&[])));
+                }
+                Ok(_) => {}
+                Err(Error::Timeout { .. }) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        self.completions -= 1;
+        let (_, attention) = self.ready_status()?;
+        if attention {
+            return Err(Error::Stalled);
+        }
+        Ok(())
+    }
+
+    /// Reads `W3`: steps since the start of the current or last move.
+    pub fn move_steps(&mut self) -> Result<i64> {
+        match self.send(&Command::MoveSteps)? {
+            Some(Reply::MoveSteps(n)) => Ok(n),
+            _ => Err(Error::BadReply {
+                command: "W3".into(),
+                reply: String::new(),
+                reason: "no step count",
+            }),
+        }
+    }
+
+    /// Sends `G` and surfaces a refusal of the move at once.
+    fn go(&mut self) -> Result<()> {
+        self.send(&Command::Go)?;
+        let (_, attention) = self.ready_status()?;
+        if attention {
+            return Err(Error::Stalled);
+        }
+        Ok(())
+    }
+}
+
+fn refused(command: &str, reason: &[u8]) -> Error {
+    Error::Refused {
+        command: command.to_string(),
+        message: String::from_utf8_lossy(reason).into_owned(),
+    }
+}
+
+fn range(name: &'static str, value: f64, lo: f64, hi: f64, expected: &'static str) -> Result<f64> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(Error::OutOfRange {
+            name,
+            value,
+            expected,
+        })
+    }
+}
+
+impl<L: Link> Indexer for XClient<L> {
+    fn init(&mut self) -> Result<()> {
+        self.link.discard_input()?;
+        let z = xlang::encode(Some(self.cfg.address), &Command::Reset);
+        self.link.write_all(format!("{z}\r").as_bytes())?;
+        std::thread::sleep(self.cfg.reset_wait);
+        self.link.discard_input()?;
+        self.reader = LineReader::default();
+        self.echo = true;
+        self.device_id = false;
+        self.completions = 0;
+        self.profile = None;
+        if self.cfg.device_id {
+            self.send(&Command::DeviceId(true))?;
+        }
+        let res = self.cfg.drive.gearing.steps_per_motor_rev;
+        self.send(&Command::Resolution(res))?;
+        if self.cfg.no_limit_switches {
+            self.send(&Command::LimitDisable(3))?;
+        }
+        self.send(&Command::Zero)?;
+        let deadline = Instant::now() + self.cfg.reset_wait + self.cfg.reply_timeout;
+        while self.ready_status()?.0 {
+            if Instant::now() > deadline {
+                return Err(Error::MoveTimeout {
+                    waited_ms: (self.cfg.reset_wait + self.cfg.reply_timeout).as_millis() as u64,
+                });
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        Ok(())
+    }
+
+    fn set_profile(&mut self, p: Profile) -> Result<()> {
+        let drive = self.cfg.drive;
+        p.validate(&drive)?;
+        let a = range(
+            "accel (motor rev/s²)",
+            drive.motor_rps(p.accel_rps2),
+            0.01,
+            999.0,
+            "0.01–999.00",
+        )?;
+        let v = range(
+            "velocity (motor rev/s)",
+            drive.motor_rps(p.max_rps),
+            0.01,
+            50.0,
+            "0.01–50.00",
+        )?;
+        if p.start_rps > 0.0 && !self.cfg.start_velocity_command {
+            return Err(Error::Unsupported {
+                dialect: "the X-language",
+                feature: "start/stop velocity command",
+            });
+        }
+        self.send(&Command::Accel(a))?;
+        self.send(&Command::Velocity(v))?;
+        if self.cfg.start_velocity_command {
+            self.send(&Command::StartVelocity(drive.motor_rps(p.start_rps)))?;
+        }
+        self.profile = Some(p);
+        Ok(())
+    }
+
+    fn move_to(&mut self, steps: i64, mode: PosMode) -> Result<()> {
+        self.completions = 0;
+        self.send(&Command::Preset)?;
+        self.send(&match mode {
+            PosMode::Absolute => Command::Absolute,
+            PosMode::Incremental => Command::Incremental,
+        })?;
+        self.send(&Command::Distance(steps))?;
+        self.go()?;
+        self.send(&Command::Notify)?;
+        Ok(())
+    }
+
+    fn run_constant(&mut self, mandrel_rps: f64, dir: Direction) -> Result<()> {
+        let drive = self.cfg.drive;
+        drive.check_pulse_rate(mandrel_rps)?;
+        let v = range(
+            "velocity (motor rev/s)",
+            drive.motor_rps(mandrel_rps),
+            0.0,
+            50.0,
+            "0–50.00",
+        )?;
+        self.send(&Command::Continuous)?;
+        self.send(&Command::Direction(Some(dir == Direction::Positive)))?;
+        self.send(&Command::Velocity(v))?;
+        self.go()
+    }
+
+    fn alternate(&mut self, a: i64, b: i64, cycles: Option<u16>) -> Result<()> {
+        self.send(&Command::Preset)?;
+        self.send(&Command::Absolute)?;
+        self.send(&Command::Loop(cycles.unwrap_or(0)))?;
+        self.send(&Command::Distance(a))?;
+        self.send(&Command::Go)?;
+        self.send(&Command::Distance(b))?;
+        self.send(&Command::Go)?;
+        self.send(&Command::EndLoop)?;
+        Ok(())
+    }
+
+    fn stop(&mut self, kind: StopKind) -> Result<()> {
+        self.send(&match kind {
+            StopKind::Decelerate => Command::Stop,
+            StopKind::Kill => Command::Kill,
+        })?;
+        Ok(())
+    }
+
+    fn status(&mut self) -> Result<IndexerStatus> {
+        let (busy, attention) = self.ready_status()?;
+        let position_steps = if busy {
+            None
+        } else {
+            match self.send(&Command::Position)? {
+                Some(Reply::Position(n)) => Some(n),
+                _ => None,
+            }
+        };
+        Ok(IndexerStatus {
+            busy,
+            fault: attention,
+            position_steps,
+        })
+    }
+}
+
+/// A GRBL 1.1 / grblHAL controller turning the mandrel as its A axis.
+#[derive(Debug)]
+pub struct GrblClient<L: Link> {
+    link: L,
+    cfg: IndexerConfig,
+    reader: LineReader,
+    feed_deg_per_min: f64,
+}
+
+impl<L: Link> GrblClient<L> {
+    /// A client on `link`; call [`Indexer::init`] before anything else.
+    pub fn new(link: L, cfg: IndexerConfig) -> Self {
+        GrblClient {
+            link,
+            cfg,
+            reader: LineReader::default(),
+            feed_deg_per_min: 360.0,
+        }
+    }
+
+    fn line(&mut self, command: &str, timeout: Duration) -> Result<grbl::Line> {
+        let mut raw = Vec::new();
+        while raw.is_empty() {
+            raw = self
+                .reader
+                .next_line(&mut self.link, b'\n', b'\r', timeout, command)?;
+        }
+        grbl::parse_line(&raw).map_err(|e| Error::BadReply {
+            command: command.to_string(),
+            reply: String::from_utf8_lossy(&raw).into_owned(),
+            reason: match e {
+                grbl::LineError::Malformed(r) => r,
+            },
+        })
+    }
+
+    /// Sends one line and waits for its `ok`.
+    pub fn send(&mut self, cmd: &grbl::Command) -> Result<()> {
+        let text = cmd.to_string();
+        self.link.write_all(format!("{text}\n").as_bytes())?;
+        let mut messages = Vec::new();
+        loop {
+            match self.line(&text, self.cfg.reply_timeout)? {
+                grbl::Line::Ok => return Ok(()),
+                grbl::Line::Error(code) => {
+                    messages.push(format!("error:{code}"));
+                    return Err(Error::Refused {
+                        command: text,
+                        message: messages.join(" "),
+                    });
+                }
+                grbl::Line::Alarm(code) => return Err(Error::Alarm(format!("ALARM:{code}"))),
+                grbl::Line::Message(m) => messages.push(m),
+                _ => {}
+            }
+        }
+    }
+
+    fn reset(&mut self) -> Result<()> {
+        self.link.write_all(&[grbl::SOFT_RESET])?;
+        let wait = self.cfg.reset_wait.max(self.cfg.reply_timeout);
+        loop {
+            match self.line("0x18", wait)? {
+                grbl::Line::Banner => break,
+                _ => continue,
+            }
+        }
+        self.link.discard_input()?;
+        self.reader = LineReader::default();
+        Ok(())
+    }
+
+    fn report(&mut self) -> Result<(grbl::State, f64)> {
+        self.link.write_all(&[grbl::STATUS])?;
+        loop {
+            match self.line("?", self.cfg.reply_timeout)? {
+                grbl::Line::Status { state, a_deg } => return Ok((state, a_deg)),
+                grbl::Line::Alarm(code) => return Err(Error::Alarm(format!("ALARM:{code}"))),
+                _ => continue,
+            }
+        }
+    }
+
+    fn feed_for(&self, mandrel_rps: f64) -> f64 {
+        mandrel_rps * 21_600.0
+    }
+}
+
+impl<L: Link> Indexer for GrblClient<L> {
+    fn init(&mut self) -> Result<()> {
+        self.link.discard_input()?;
+        self.reader = LineReader::default();
+        self.reset()?;
+        let spd = self.cfg.drive.steps_per_deg();
+        self.send(&grbl::Command::StepsPerDeg(spd))?;
+        if let Some(mask) = self.cfg.rotary_mask {
+            self.send(&grbl::Command::RotaryMask(mask))?;
+            self.send(&grbl::Command::MaxTravel(0.0))?;
+        }
+        self.send(&grbl::Command::ZeroA)
+    }
+
+    fn set_profile(&mut self, p: Profile) -> Result<()> {
+        p.validate(&self.cfg.drive)?;
+        if p.start_rps > 0.0 {
+            return Err(Error::Unsupported {
+                dialect: "GRBL",
+                feature: "start/stop velocity (it always starts from rest)",
+            });
+        }
+        let feed = self.feed_for(p.max_rps);
+        self.send(&grbl::Command::MaxRate(feed))?;
+        self.send(&grbl::Command::Accel(p.accel_rps2 * 360.0))?;
+        self.feed_deg_per_min = feed;
+        Ok(())
+    }
+
+    fn move_to(&mut self, steps: i64, mode: PosMode) -> Result<()> {
+        let a_deg = steps as f64 / self.cfg.drive.steps_per_deg();
+        self.send(&grbl::Command::Move {
+            absolute: mode == PosMode::Absolute,
+            a_deg,
+            feed_deg_per_min: self.feed_deg_per_min,
+        })
+    }
+
+    fn run_constant(&mut self, mandrel_rps: f64, dir: Direction) -> Result<()> {
+        self.cfg.drive.check_pulse_rate(mandrel_rps)?;
+        let (state, _) = self.report()?;
+        if state == grbl::State::Jog {
+            self.link.write_all(&[grbl::JOG_CANCEL])?;
+            self.wait_idle(Duration::from_secs(60))?;
+        }
+        let feed = self.feed_for(mandrel_rps);
+        // A day of turning: the jog is cancelled long before.
+        let span = mandrel_rps * 360.0 * 86_400.0;
+        self.send(&grbl::Command::Jog {
+            a_deg: if dir == Direction::Positive {
+                span
+            } else {
+                -span
+            },
+            feed_deg_per_min: feed,
+        })
+    }
+
+    fn alternate(&mut self, a: i64, b: i64, cycles: Option<u16>) -> Result<()> {
+        let Some(n) = cycles else {
+            return Err(Error::Unsupported {
+                dialect: "GRBL",
+                feature: "endless alternating mode (the host drives a counted one)",
+            });
+        };
+        for _ in 0..n {
+            self.move_to(a, PosMode::Absolute)?;
+            self.move_to(b, PosMode::Absolute)?;
+        }
+        Ok(())
+    }
+
+    fn stop(&mut self, kind: StopKind) -> Result<()> {
+        if kind == StopKind::Decelerate {
+            let (state, _) = self.report()?;
+            if state == grbl::State::Jog {
+                self.link.write_all(&[grbl::JOG_CANCEL])?;
+                self.wait_idle(Duration::from_secs(60))?;
+                return Ok(());
+            }
+            self.link.write_all(&[grbl::FEED_HOLD])?;
+            let deadline = Instant::now() + Duration::from_secs(60);
+            loop {
+                self.link.write_all(&[grbl::STATUS])?;
+                let raw = self.reader.next_line(
+                    &mut self.link,
+                    b'\n',
+                    b'\r',
+                    self.cfg.reply_timeout,
+                    "?",
+                )?;
+                if raw.starts_with(b"<Hold:0") && raw.windows(5).any(|w| w == b"|FS:0") {
+                    break;
+                }
+                if raw.starts_with(b"<Idle") || Instant::now() > deadline {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+        self.reset()
+    }
+
+    fn status(&mut self) -> Result<IndexerStatus> {
+        let (state, a_deg) = self.report()?;
+        Ok(IndexerStatus {
+            busy: !matches!(state, grbl::State::Idle),
+            fault: state == grbl::State::Alarm,
+            position_steps: Some((a_deg * self.cfg.drive.steps_per_deg()).round() as i64),
+        })
+    }
+}

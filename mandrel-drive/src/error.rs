@@ -1,0 +1,99 @@
+//! The crate's error type.
+
+/// Everything that can go wrong talking to, or simulating, an indexer.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The byte link failed.
+    #[error("link i/o: {0}")]
+    Io(#[from] std::io::Error),
+    /// The serial port could not be opened or configured.
+    #[error("serial port: {0}")]
+    Serial(#[from] serialport::Error),
+    /// No complete reply within the timeout.
+    #[error("no reply to {command:?} within {waited_ms} ms")]
+    Timeout {
+        /// The command that went unanswered.
+        command: String,
+        /// How long the client waited.
+        waited_ms: u64,
+    },
+    /// A reply that does not follow the dialect's grammar.
+    #[error("bad reply to {command:?}: {reply:?} ({reason})")]
+    BadReply {
+        /// The command that was answered.
+        command: String,
+        /// The reply text as received (lossy UTF-8).
+        reply: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// A reply from another device on the daisy chain.
+    #[error("reply from device {got}, expected device {expected}")]
+    WrongAddress {
+        /// The address the command went to.
+        expected: u8,
+        /// The address in the reply.
+        got: u16,
+    },
+    /// The echo did not match the command sent.
+    #[error("echo {echo:?} does not match command {command:?}")]
+    Echo {
+        /// The command sent.
+        command: String,
+        /// What came back.
+        echo: String,
+    },
+    /// The controller answered with an error (GRBL `error:N`, simulator `?`).
+    #[error("controller refused {command:?}: {message}")]
+    Refused {
+        /// The refused command.
+        command: String,
+        /// The controller's code or message.
+        message: String,
+    },
+    /// A step rate above the translator's pulse limit (seed 001 §4.1.5).
+    #[error("{requested_pps:.0} pulses/s exceeds the translator limit of {limit_pps:.0} pulses/s")]
+    PulseRate {
+        /// The requested pulse rate.
+        requested_pps: f64,
+        /// The translator's limit.
+        limit_pps: f64,
+    },
+    /// The motor stalled: the start velocity exceeded the pull-in limit (seed 001 §5.3.2).
+    #[error("the mandrel motor stalled (start velocity above the pull-in limit); move failed")]
+    Stalled,
+    /// The controller raised an alarm.
+    #[error("controller alarm: {0}")]
+    Alarm(String),
+    /// A function the dialect does not have.
+    #[error("{dialect} has no {feature}")]
+    Unsupported {
+        /// The dialect.
+        dialect: &'static str,
+        /// The missing function.
+        feature: &'static str,
+    },
+    /// A value outside what the dialect or the drive accepts.
+    #[error("{name} = {value} out of range ({expected})")]
+    OutOfRange {
+        /// The parameter.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// The accepted range.
+        expected: &'static str,
+    },
+    /// The move did not finish in time.
+    #[error("move not finished within {waited_ms} ms")]
+    MoveTimeout {
+        /// How long the client waited.
+        waited_ms: u64,
+    },
+    /// The gearing is invalid.
+    #[error("gearing: {0}")]
+    Gearing(#[from] paths::Error),
+}
+
+/// Result with this crate's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,327 @@
+//! The simulated drive: indexer card, translator, motor and belt (seed 001 §4.1.4–4.1.8).
+//!
+//! The indexer holds the profile, mode, direction and distance, and emits pulses through
+//! [`Motion`]. The translator refuses a rate above its pulse limit (seed 001 §4.1.5: 10 000
+//! pulses/s). The motor follows the pulses unless the start velocity exceeds its pull-in rate, in
+//! which case it stalls: the indexer still counts steps, the mandrel does not turn, and the move
+//! is reported as failed. The belt turns motor steps into the mandrel angle.
+
+use std::f64::consts::TAU;
+
+use crate::profile::StepProfile;
+use crate::sim::motion::Motion;
+use crate::units::Drive;
+
+/// Default pull-in rate of the motor (steps/s) above which a start from rest stalls.
+///
+/// Our figure for the SLO-SYN M112 in half-step mode at the mandrel's inertia; the thesis only
+/// says that too high a start velocity stalls the motor (§5.3.2). Configurable per simulator.
+pub const PULL_IN_SPS: f64 = 1_000.0;
+
+/// Reasons the simulated hardware refuses to start a motion.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Refusal {
+    /// The step rate exceeds the translator's pulse limit.
+    PulseRate {
+        /// Requested steps/s.
+        requested_pps: f64,
+        /// The limit.
+        limit_pps: f64,
+    },
+    /// The controller is still resetting.
+    Busy,
+}
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Refusal::PulseRate {
+                requested_pps,
+                limit_pps,
+            } => write!(
+                f,
+                "{requested_pps:.0} pulses/s exceeds the translator limit of {limit_pps:.0} pulses/s"
+            ),
+            Refusal::Busy => write!(f, "busy resetting"),
+        }
+    }
+}
+
+/// The simulated indexer + translator + motor + gear.
+#[derive(Debug, Clone)]
+pub struct Machine {
+    /// Gearing and pulse limit.
+    pub drive: Drive,
+    /// Motor pull-in rate (steps/s).
+    pub pull_in_sps: f64,
+    /// The current profile in steps.
+    pub profile: StepProfile,
+    /// Busy after a reset until this clock time (s).
+    pub reset_until_s: f64,
+    /// Indexer position counter (steps, absolute since reset or `PZ`).
+    counter_steps: i64,
+    /// Counter at the start of the last move (for `W3`).
+    move_start_steps: i64,
+    /// Motor position (steps); differs from the counter after a stall.
+    motor_steps: i64,
+    motion: Option<(Motion, i64)>,
+    stalled: bool,
+    now_s: f64,
+    completed_s: Option<f64>,
+}
+
+impl Machine {
+    /// A machine at rest at 0 with a gentle default profile.
+    pub fn new(drive: Drive, pull_in_sps: f64) -> Self {
+        Machine {
+            drive,
+            pull_in_sps,
+            profile: StepProfile {
+                v0_sps: 0.0,
+                vmax_sps: drive.gearing.steps_per_motor_rev as f64,
+                accel_sps2: 100.0 * drive.gearing.steps_per_motor_rev as f64,
+            },
+            reset_until_s: 0.0,
+            counter_steps: 0,
+            move_start_steps: 0,
+            motor_steps: 0,
+            motion: None,
+            stalled: false,
+            now_s: 0.0,
+            completed_s: None,
+        }
+    }
+
+    /// Runs the motion up to clock time `t_s`.
+    pub fn advance(&mut self, t_s: f64) {
+        if t_s <= self.now_s {
+            return;
+        }
+        self.now_s = t_s;
+        if let Some((m, dir)) = self.motion.as_mut() {
+            let n = (m.advance(t_s) as i64).saturating_mul(*dir);
+            self.counter_steps = self.counter_steps.saturating_add(n);
+            if !self.stalled {
+                self.motor_steps = self.motor_steps.saturating_add(n);
+            }
+            if m.is_done() {
+                self.completed_s = Some(m.last_step_s());
+                self.motion = None;
+            }
+        }
+    }
+
+    fn check(&self, rate_sps: f64) -> Result<(), Refusal> {
+        if self.now_s < self.reset_until_s {
+            return Err(Refusal::Busy);
+        }
+        if rate_sps > self.drive.pulse_limit_pps {
+            return Err(Refusal::PulseRate {
+                requested_pps: rate_sps,
+                limit_pps: self.drive.pulse_limit_pps,
+            });
+        }
+        Ok(())
+    }
+
+    /// Clock time of the last step of the last finished preset move (its completion).
+    pub fn completed_s(&self) -> Option<f64> {
+        self.completed_s
+    }
+
+    /// Starts a preset move of `steps` (signed) at the current clock time.
+    pub fn start_preset(&mut self, steps: i64) -> Result<(), Refusal> {
+        self.check(self.profile.vmax_sps.max(self.profile.v0_sps))?;
+        self.completed_s = None;
+        self.move_start_steps = self.counter_steps;
+        self.stalled = self.profile.v0_sps > self.pull_in_sps;
+        if steps != 0 {
+            let m = Motion::preset(self.profile, steps.unsigned_abs(), self.now_s);
+            self.motion = Some((m, steps.signum()));
+        }
+        Ok(())
+    }
+
+    /// Starts (or re-speeds) a continuous run in direction `dir` (±1).
+    pub fn start_continuous(&mut self, dir: i64) -> Result<(), Refusal> {
+        self.check(self.profile.vmax_sps)?;
+        if let Some((m, d)) = self.motion.as_mut()
+            && *d == dir
+        {
+            m.retarget(self.profile.vmax_sps);
+            return Ok(());
+        }
+        self.move_start_steps = self.counter_steps;
+        self.stalled = self.profile.v0_sps > self.pull_in_sps;
+        if self.profile.vmax_sps > 0.0 {
+            let m = Motion::continuous(self.profile, self.now_s);
+            self.motion = Some((m, dir.signum()));
+        } else {
+            self.motion = None;
+        }
+        Ok(())
+    }
+
+    /// Decelerates to the stop velocity and stops.
+    pub fn stop(&mut self) {
+        if let Some((m, _)) = self.motion.as_mut() {
+            m.decelerate();
+        }
+    }
+
+    /// Stops at once (no deceleration).
+    pub fn kill(&mut self) {
+        self.motion = None;
+    }
+
+    /// Power-up reset: stops, zeroes the counters, clears the stall, busy for `busy_s`.
+    pub fn reset(&mut self, busy_s: f64) {
+        self.motion = None;
+        self.counter_steps = 0;
+        self.move_start_steps = 0;
+        self.motor_steps = 0;
+        self.stalled = false;
+        self.reset_until_s = self.now_s + busy_s;
+    }
+
+    /// Zeroes the absolute position counter (`PZ`).
+    pub fn zero(&mut self) {
+        self.counter_steps = 0;
+        self.motor_steps = 0;
+        self.move_start_steps = 0;
+    }
+
+    /// True while pulses are being emitted or a reset is under way.
+    pub fn is_busy(&self) -> bool {
+        self.motion.is_some() || self.now_s < self.reset_until_s
+    }
+
+    /// True while pulses are being emitted.
+    pub fn is_moving(&self) -> bool {
+        self.motion.is_some()
+    }
+
+    /// True when the last motion stalled the motor.
+    pub fn is_stalled(&self) -> bool {
+        self.stalled
+    }
+
+    /// The indexer's absolute step counter.
+    pub fn counter_steps(&self) -> i64 {
+        self.counter_steps
+    }
+
+    /// Steps since the start of the last move (`W3`).
+    pub fn steps_since_move_start(&self) -> i64 {
+        self.counter_steps.saturating_sub(self.move_start_steps)
+    }
+
+    /// Motor steps actually turned (the mandrel position in steps).
+    pub fn motor_steps(&self) -> i64 {
+        self.motor_steps
+    }
+
+    /// Current step rate (steps/s, unsigned).
+    pub fn rate_sps(&self) -> f64 {
+        self.motion.as_ref().map_or(0.0, |(m, _)| m.rate_sps())
+    }
+
+    /// Direction of the current motion (±1, 0 at rest).
+    pub fn direction(&self) -> i64 {
+        self.motion.as_ref().map_or(0, |(_, d)| *d)
+    }
+
+    /// Clock time of the last emitted step of the current or last motion.
+    pub fn now_s(&self) -> f64 {
+        self.now_s
+    }
+
+    /// The mandrel angle (rad) from the motor position through the belt.
+    pub fn mandrel_angle_rad(&self) -> f64 {
+        self.motor_steps as f64 / self.drive.steps_per_mandrel_rev() * TAU
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::{Profile, trapezoid_duration_s};
+    use approx::assert_abs_diff_eq;
+
+    fn run(m: &mut Machine) {
+        let mut t = m.now_s();
+        while m.is_moving() {
+            t += 0.001;
+            m.advance(t);
+        }
+    }
+
+    #[test]
+    fn full_mandrel_turn_at_thesis_gearing() {
+        let drive = Drive::default();
+        let mut m = Machine::new(drive, PULL_IN_SPS);
+        let p = Profile {
+            accel_rps2: 2.0,
+            start_rps: 0.2,
+            max_rps: 1.0,
+        };
+        m.profile = p.in_steps(&drive);
+        let steps = drive.steps_from_deg(360.0);
+        assert_eq!(steps, 1846);
+        m.advance(0.5);
+        m.start_preset(steps).unwrap();
+        assert!(m.is_busy());
+        run(&mut m);
+        assert_eq!(m.counter_steps(), 1846);
+        assert_eq!(m.motor_steps(), 1846);
+        let took = m.completed_s().unwrap() - 0.5;
+        assert_abs_diff_eq!(
+            took,
+            trapezoid_duration_s(1846.0, m.profile),
+            epsilon = 1e-3
+        );
+        assert_abs_diff_eq!(
+            m.mandrel_angle_rad(),
+            1846.0 / drive.steps_per_mandrel_rev() * TAU
+        );
+    }
+
+    #[test]
+    fn over_pulse_limit_is_refused() {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile.vmax_sps = 12_000.0;
+        let e = m.start_preset(100).unwrap_err();
+        assert!(e.to_string().contains("10000 pulses/s"), "{e}");
+        assert!(!m.is_moving());
+    }
+
+    #[test]
+    fn start_above_pull_in_stalls() {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = StepProfile {
+            v0_sps: 1500.0,
+            vmax_sps: 3000.0,
+            accel_sps2: 5000.0,
+        };
+        m.start_preset(1000).unwrap();
+        run(&mut m);
+        assert!(m.is_stalled());
+        assert_eq!(m.counter_steps(), 1000);
+        assert_eq!(m.motor_steps(), 0);
+    }
+
+    #[test]
+    fn reset_is_busy_then_zeroed() {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.start_preset(500).unwrap();
+        m.advance(0.2);
+        m.reset(1.0);
+        assert!(m.is_busy() && !m.is_moving());
+        assert_eq!(m.counter_steps(), 0);
+        assert!(m.start_preset(10).is_err());
+        m.advance(1.3);
+        assert!(!m.is_busy());
+        m.start_preset(10).unwrap();
+    }
+}

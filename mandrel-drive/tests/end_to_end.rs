@@ -1,0 +1,255 @@
+//! Client ↔ simulator over a pseudo-terminal for both dialects, and scripted bad replies over the
+//! in-memory pipe.
+
+use std::f64::consts::TAU;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::Duration;
+
+use mandrel_drive::sim::machine::PULL_IN_SPS;
+use mandrel_drive::sim::{Frontend, Machine, RealClock, grbl::Controller, serve, xlang::Card};
+use mandrel_drive::xlang::Command;
+use mandrel_drive::{
+    Direction, Drive, Error, GrblClient, Indexer, IndexerConfig, Link, Pipe, PosMode, Profile,
+    StopKind, XClient,
+};
+use serialport::TTYPort;
+
+/// Pseudo-terminal tests run one at a time.
+static PTY: Mutex<()> = Mutex::new(());
+
+struct Served<F: Frontend + 'static> {
+    front: Arc<Mutex<F>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<thread::JoinHandle<()>>,
+}
+
+impl<F: Frontend + 'static> Served<F> {
+    fn start(front: F, link: TTYPort) -> Self {
+        let front = Arc::new(Mutex::new(front));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (f, s) = (front.clone(), stop.clone());
+        let thread = thread::spawn(move || {
+            let clock = RealClock::new();
+            serve(link, &f, &clock, &s).unwrap();
+        });
+        Served {
+            front,
+            stop,
+            thread: Some(thread),
+        }
+    }
+}
+
+impl<F: Frontend + 'static> Drop for Served<F> {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn config() -> IndexerConfig {
+    IndexerConfig {
+        reset_wait: Duration::from_millis(300),
+        start_velocity_command: true,
+        ..IndexerConfig::default()
+    }
+}
+
+#[test]
+fn xlang_over_pty() {
+    let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
+    let (master, slave) = TTYPort::pair().expect("pty pair");
+    let drive = Drive::default();
+    let mut card = Card::new(Machine::new(drive, PULL_IN_SPS), 1);
+    card.reset_busy_s = 0.25;
+    let sim = Served::start(card, master);
+    let mut client = XClient::new(slave, config());
+
+    client.init().unwrap();
+    let profile = Profile {
+        accel_rps2: 4.0,
+        start_rps: 0.1,
+        max_rps: 2.0,
+    };
+    client.set_profile(profile).unwrap();
+    let steps = drive.steps_from_deg(360.0);
+    client.move_to(steps, PosMode::Incremental).unwrap();
+    assert!(client.status().unwrap().busy);
+    client.wait_complete(Duration::from_secs(5)).unwrap();
+    let s = client.wait_idle(Duration::from_secs(5)).unwrap();
+    assert_eq!(s.position_steps, Some(1846));
+    assert_eq!(client.move_steps().unwrap(), 1846);
+    {
+        let f = sim.front.lock().unwrap();
+        assert_eq!(f.machine().motor_steps(), 1846);
+        let angle = f.machine().mandrel_angle_rad();
+        assert!((angle - 1846.0 / drive.steps_per_mandrel_rev() * TAU).abs() < 1e-9);
+    }
+
+    // Absolute move back to 0.
+    client.move_to(0, PosMode::Absolute).unwrap();
+    client.wait_complete(Duration::from_secs(5)).unwrap();
+    assert_eq!(client.status().unwrap().position_steps, Some(0));
+
+    // Constant velocity, then a decelerating stop.
+    client.run_constant(0.5, Direction::Negative).unwrap();
+    thread::sleep(Duration::from_millis(300));
+    assert!(client.status().unwrap().busy);
+    client.stop(StopKind::Decelerate).unwrap();
+    let s = client.wait_idle(Duration::from_secs(5)).unwrap();
+    assert!(s.position_steps.unwrap() < -100, "{s:?}");
+
+    // Alternating twice between two positions ends on the second.
+    client.alternate(200, -200, Some(2)).unwrap();
+    let s = client.wait_idle(Duration::from_secs(10)).unwrap();
+    assert_eq!(s.position_steps, Some(-200));
+
+    // The pulse limit: refused by the client, and by the simulator for a raw command.
+    let over = Profile {
+        max_rps: 6.0,
+        ..profile
+    };
+    let e = client.set_profile(over).unwrap_err();
+    assert!(matches!(e, Error::PulseRate { .. }), "{e}");
+    client.send(&Command::Velocity(30.0)).unwrap(); // 12 000 pulses/s at MR400
+    let e = client.move_to(100, PosMode::Incremental).unwrap_err();
+    assert!(e.to_string().contains("10000 pulses/s"), "{e}");
+
+    // A start velocity above the pull-in rate stalls the motor and the move fails.
+    let stalling = Profile {
+        accel_rps2: 4.0,
+        start_rps: 0.8, // 1477 steps/s > 1000
+        max_rps: 2.0,
+    };
+    client.set_profile(stalling).unwrap();
+    let e = client.move_to(500, PosMode::Incremental).unwrap_err();
+    assert!(matches!(e, Error::Stalled), "{e}");
+
+    // Reset clears everything.
+    client.init().unwrap();
+    let s = client.status().unwrap();
+    assert!(!s.busy && !s.fault);
+    assert_eq!(s.position_steps, Some(0));
+}
+
+#[test]
+fn grbl_over_pty() {
+    let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
+    let (master, slave) = TTYPort::pair().expect("pty pair");
+    let drive = Drive::default();
+    let sim = Served::start(Controller::new(Machine::new(drive, PULL_IN_SPS)), master);
+    let mut client = GrblClient::new(slave, config());
+
+    client.init().unwrap();
+    let with_start = Profile {
+        accel_rps2: 4.0,
+        start_rps: 0.1,
+        max_rps: 2.0,
+    };
+    assert!(matches!(
+        client.set_profile(with_start),
+        Err(Error::Unsupported { .. })
+    ));
+    client
+        .set_profile(Profile {
+            start_rps: 0.0,
+            ..with_start
+        })
+        .unwrap();
+    client.move_to(1846, PosMode::Absolute).unwrap();
+    assert!(client.status().unwrap().busy);
+    let s = client.wait_idle(Duration::from_secs(5)).unwrap();
+    assert_eq!(s.position_steps, Some(1846));
+    assert_eq!(sim.front.lock().unwrap().machine().motor_steps(), 1846);
+
+    client.run_constant(0.5, Direction::Positive).unwrap();
+    thread::sleep(Duration::from_millis(300));
+    assert!(client.status().unwrap().busy);
+    client.stop(StopKind::Decelerate).unwrap();
+    let s = client.wait_idle(Duration::from_secs(5)).unwrap();
+    assert!(s.position_steps.unwrap() > 1846 + 100, "{s:?}");
+
+    client.alternate(100, 300, Some(2)).unwrap();
+    let s = client.wait_idle(Duration::from_secs(10)).unwrap();
+    assert_eq!(s.position_steps, Some(300));
+
+    assert!(matches!(
+        client.set_profile(Profile {
+            start_rps: 0.0,
+            ..Profile {
+                max_rps: 6.0,
+                ..with_start
+            }
+        }),
+        Err(Error::PulseRate { .. })
+    ));
+    let e = client
+        .send(&mandrel_drive::grbl::Command::MaxRate(6.0 * 21_600.0))
+        .unwrap_err();
+    assert!(e.to_string().contains("10000 pulses/s"), "{e}");
+
+    client.init().unwrap();
+    assert!(!client.status().unwrap().busy);
+}
+
+fn scripted(reply: &[u8]) -> XClient<Pipe> {
+    let (near, mut far) = Pipe::pair();
+    far.write_all(reply).unwrap();
+    // Keep the far end alive inside a leaked clone so the pipe stays open for the test.
+    std::mem::forget(far);
+    XClient::new(
+        near,
+        IndexerConfig {
+            reply_timeout: Duration::from_millis(50),
+            ..IndexerConfig::default()
+        },
+    )
+}
+
+#[test]
+fn bad_replies_are_typed_errors() {
+    // echo "1R" CR, then garbage CR
+    let mut c = scripted(b"1R\r#?!\r");
+    assert!(matches!(
+        c.send(&Command::Status),
+        Err(Error::BadReply { .. })
+    ));
+    // echo, then a reply without its CR: truncated, times out
+    let mut c = scripted(b"1PR\r*+00000");
+    assert!(matches!(
+        c.send(&Command::Position),
+        Err(Error::Timeout { .. })
+    ));
+    // nothing at all
+    let mut c = scripted(b"");
+    assert!(matches!(
+        c.send(&Command::Status),
+        Err(Error::Timeout { .. })
+    ));
+    // wrong echo
+    let mut c = scripted(b"2R\r");
+    assert!(matches!(c.send(&Command::Status), Err(Error::Echo { .. })));
+    // SSD1 echo, then R echo and a reply from device 002
+    let mut c = scripted(b"1SSD1\r1R\r*002R\r");
+    c.send(&Command::DeviceId(true)).unwrap();
+    assert!(matches!(
+        c.send(&Command::Status),
+        Err(Error::WrongAddress {
+            expected: 1,
+            got: 2
+        })
+    ));
+    // a good exchange, with a move-complete notification in front of the reply
+    let mut c = scripted(b"\r\n1W3\r*FFFF9E58\r");
+    assert_eq!(c.move_steps().unwrap(), -25_000);
+    // endless noise without a CR
+    let mut c = scripted(&[b'x'; 600]);
+    assert!(matches!(
+        c.send(&Command::Status),
+        Err(Error::BadReply { .. })
+    ));
+}
