@@ -355,8 +355,9 @@ impl<const D: usize> BSpline<D> {
 
     /// The closest point of the curve to `point`: its parameter and distance. Spans are visited
     /// nearest first by the distance to the box around their control points (the convex-hull
-    /// property bounds the curve), each is sampled and the best bracket refined by golden-section
-    /// search.
+    /// property bounds the curve), each is sampled at 8 points, the best bracket narrowed by
+    /// golden-section search to 1e-6 of the span and the result polished by Newton steps on
+    /// `C'(t)·(C(t) − q) = 0`.
     pub fn project(&self, point: &SVector<f64, D>) -> (f64, f64) {
         let boxes = self.span_boxes();
         self.project_with(point, &boxes)
@@ -405,8 +406,8 @@ impl<const D: usize> BSpline<D> {
         let mut f1 = dist(x1);
         let mut f2 = dist(x2);
         let width = (b - a).abs().max(f64::MIN_POSITIVE);
-        for _ in 0..80 {
-            if hi - lo <= 1e-12 * width {
+        for _ in 0..40 {
+            if hi - lo <= 1e-6 * width {
                 break;
             }
             if f1 < f2 {
