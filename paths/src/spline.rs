@@ -355,9 +355,8 @@ impl<const D: usize> BSpline<D> {
 
     /// The closest point of the curve to `point`: its parameter and distance. Spans are visited
     /// nearest first by the distance to the box around their control points (the convex-hull
-    /// property bounds the curve), each is sampled at 8 points, the best bracket narrowed by
-    /// golden-section search to 1e-6 of the span and the result polished by Newton steps on
-    /// `C'(t)·(C(t) − q) = 0`.
+    /// property bounds the curve), and in each the local minima of the distance are found as the
+    /// sign changes of `C'(t)·(C(t) − q)` over 16 samples, solved by safeguarded Newton steps.
     pub fn project(&self, point: &SVector<f64, D>) -> (f64, f64) {
         let boxes = self.span_boxes();
         self.project_with(point, &boxes)
@@ -384,69 +383,89 @@ impl<const D: usize> BSpline<D> {
         best
     }
 
+    /// The closest point within span `[a, b]`. The distance has a local minimum where
+    /// `g(t) = C'(t)·(C(t) − q)` changes sign from − to +; `g` is sampled at 16 intervals (halved
+    /// further where the tangent turns by more than 45°) and every such sign change is solved by
+    /// safeguarded Newton iteration (bisection when a step leaves the bracket). The span's ends
+    /// and the samples themselves are candidates too.
     fn project_in(&self, point: &SVector<f64, D>, a: f64, b: f64) -> (f64, f64) {
-        const SAMPLES: usize = 8;
-        let dist = |t: f64| (self.eval(t) - point).norm();
-        let mut best_j = 0;
-        let mut best_d = f64::INFINITY;
-        for j in 0..=SAMPLES {
-            let t = a + (b - a) * j as f64 / SAMPLES as f64;
-            let d = dist(t);
-            if d < best_d {
-                best_d = d;
-                best_j = j;
-            }
-        }
+        const SAMPLES: usize = 16;
         let at = |j: usize| a + (b - a) * j as f64 / SAMPLES as f64;
-        let mut lo = at(best_j.saturating_sub(1));
-        let mut hi = at((best_j + 1).min(SAMPLES));
-        let ratio = 0.5 * (5f64.sqrt() - 1.0);
-        let mut x1 = hi - ratio * (hi - lo);
-        let mut x2 = lo + ratio * (hi - lo);
-        let mut f1 = dist(x1);
-        let mut f2 = dist(x2);
-        let width = (b - a).abs().max(f64::MIN_POSITIVE);
-        for _ in 0..40 {
-            if hi - lo <= 1e-6 * width {
-                break;
-            }
-            if f1 < f2 {
-                hi = x2;
-                x2 = x1;
-                f2 = f1;
-                x1 = hi - ratio * (hi - lo);
-                f1 = dist(x1);
-            } else {
-                lo = x1;
-                x1 = x2;
-                f1 = f2;
-                x2 = lo + ratio * (hi - lo);
-                f2 = dist(x2);
-            }
+        let mut best = (a, (self.eval(a) - point).norm());
+        let mut previous = self.probe(point, a);
+        for j in 1..=SAMPLES {
+            let current = self.probe(point, at(j));
+            self.scan(point, previous, current, 0, &mut best);
+            previous = current;
         }
-        // Newton steps on g(t) = C'(t)·(C(t) − q) = 0 polish the bracket's centre to full
-        // precision (golden section alone stalls near √ε because the distance is flat there).
+        best
+    }
+
+    /// `(t, C'(t), g(t))` at `t`.
+    fn probe(&self, point: &SVector<f64, D>, t: f64) -> (f64, SVector<f64, D>, f64) {
+        let tangent = self.derivative(t);
+        (t, tangent, tangent.dot(&(self.eval(t) - point)))
+    }
+
+    /// Looks for a minimum between two probes; an interval over which the tangent turns by more
+    /// than 45° (where `g` may change sign twice) is halved, up to 10 times.
+    fn scan(
+        &self,
+        point: &SVector<f64, D>,
+        left: (f64, SVector<f64, D>, f64),
+        right: (f64, SVector<f64, D>, f64),
+        depth: usize,
+        best: &mut (f64, f64),
+    ) {
+        let turn_cos = left.1.dot(&right.1) / (left.1.norm() * right.1.norm());
+        if depth < 10 && !(turn_cos >= std::f64::consts::FRAC_1_SQRT_2) {
+            let mid = self.probe(point, 0.5 * (left.0 + right.0));
+            self.scan(point, left, mid, depth + 1, best);
+            self.scan(point, mid, right, depth + 1, best);
+            return;
+        }
+        let mut consider = |t: f64| {
+            let d = (self.eval(t) - point).norm();
+            if d < best.1 {
+                *best = (t, d);
+            }
+        };
+        consider(right.0);
+        if left.2 < 0.0 && right.2 >= 0.0 {
+            consider(self.root(point, left.0, right.0));
+        }
+    }
+
+    /// The root of `g(t) = C'(t)·(C(t) − q)` in `[lo, hi]`, where `g(lo) < 0 ≤ g(hi)`.
+    fn root(&self, point: &SVector<f64, D>, mut lo: f64, mut hi: f64) -> f64 {
         let mut t = 0.5 * (lo + hi);
-        let mut d = dist(t);
-        for _ in 0..4 {
+        for _ in 0..60 {
             let offset = self.eval(t) - point;
             let first = self.derivative(t);
-            let slope = self.second_derivative(t).dot(&offset) + first.norm_squared();
-            if slope <= 0.0 {
-                break;
+            let value = first.dot(&offset);
+            if value == 0.0 {
+                return t;
             }
-            let next = (t - first.dot(&offset) / slope).clamp(a.min(b), a.max(b));
-            let next_d = dist(next);
-            if next_d > d {
-                break;
+            if value < 0.0 {
+                lo = t;
+            } else {
+                hi = t;
+            }
+            let slope = self.second_derivative(t).dot(&offset) + first.norm_squared();
+            let newton = t - value / slope;
+            let next = if slope > 0.0 && newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            if (next - t).abs() <= 1e-15 * (1.0 + t.abs())
+                || hi - lo <= f64::EPSILON * (1.0 + t.abs())
+            {
+                return next;
             }
             t = next;
-            d = next_d;
         }
-        [(t, d), (at(best_j), best_d)]
-            .into_iter()
-            .min_by(|x, y| x.1.total_cmp(&y.1))
-            .unwrap_or((t, d))
+        t
     }
 
     /// The largest distance from any of `points` to the curve, each point projected onto the
@@ -1376,6 +1395,27 @@ mod tests {
             prop_assert_eq!(eq.len(), 8);
             prop_assert!((eq[0] - pts[0]).norm() < 1e-12);
             prop_assert!((eq[7] - pts[pts.len() - 1]).norm() < 1e-9);
+        }
+
+        #[test]
+        fn arbitrary_points_give_a_curve_or_an_error(
+            grid in prop::collection::vec((-5i32..5, -5i32..5), 0..25),
+            tolerance_mm in 0.01f64..2.0,
+        ) {
+            // Coarse grid points: repeats, back-tracking and collinear runs are common.
+            let pts: Vec<Vector2<f64>> = grid
+                .iter()
+                .map(|&(x, y)| Vector2::new(f64::from(x) * 3.0, f64::from(y) * 3.0))
+                .collect();
+            if let Ok(s) = BSpline::interpolate(&pts) {
+                prop_assert!(s.max_deviation(&pts) < 1e-6);
+                prop_assert!(s.length().is_finite());
+            }
+            if let Ok(s) = BSpline::fit(&pts, tolerance_mm) {
+                prop_assert!(s.max_deviation(&pts) <= tolerance_mm);
+                let eq = s.equal_length(5).unwrap();
+                prop_assert_eq!(eq.len(), 6);
+            }
         }
 
         #[test]
