@@ -418,7 +418,9 @@ impl<const D: usize> BSpline<D> {
         best: &mut (f64, f64),
     ) {
         let turn_cos = left.1.dot(&right.1) / (left.1.norm() * right.1.norm());
-        if depth < 10 && !(turn_cos >= std::f64::consts::FRAC_1_SQRT_2) {
+        // False for a NaN (a zero tangent), which also splits.
+        let gentle = turn_cos >= std::f64::consts::FRAC_1_SQRT_2;
+        if depth < 10 && !gentle {
             let mid = self.probe(point, 0.5 * (left.0 + right.0));
             self.scan(point, left, mid, depth + 1, best);
             self.scan(point, mid, right, depth + 1, best);
