@@ -80,4 +80,42 @@ pub enum Error {
         /// The segment index (1-based).
         segment: usize,
     },
+    /// A spline needs more points than were given.
+    #[error("{count} points given, a {what} needs at least {needed}")]
+    TooFewPoints {
+        /// What was being built (`cubic interpolant`, `b-spline`).
+        what: &'static str,
+        /// Points given.
+        count: usize,
+        /// Points needed.
+        needed: usize,
+    },
+    /// A point has a NaN or infinite coordinate.
+    #[error("point {index} has a coordinate that is not finite")]
+    NonFinitePoint {
+        /// Index of the offending point.
+        index: usize,
+    },
+    /// Two consecutive points coincide, so chord-length parameters are not strictly increasing.
+    #[error("points {} and {index} coincide", index - 1)]
+    CoincidentPoints {
+        /// Index of the second of the two points.
+        index: usize,
+    },
+    /// A knot vector is not a clamped, non-decreasing vector of the right length.
+    #[error("knot {index}: {reason}")]
+    BadKnots {
+        /// Index of the offending knot (or the knot count for a length mismatch).
+        index: usize,
+        /// What is wrong, in words.
+        reason: &'static str,
+    },
+    /// A spline's linear system has a zero pivot (the points do not determine the curve).
+    #[error("the {system} system is singular at row {row}")]
+    SingularSystem {
+        /// Which system (`interpolation`, `least-squares`).
+        system: &'static str,
+        /// The row where elimination met a zero pivot.
+        row: usize,
+    },
 }

@@ -22,6 +22,15 @@ pub enum Error {
         /// What is wrong, in lower case.
         message: String,
     },
+    /// The file parsed but does not hold what is asked of it (a DXF drawing without a path, a
+    /// drawing that cannot be written). `file` is set as for [`Error::Parse`].
+    #[error("{}{message}", file.as_ref().map(|f| format!("{}: ", f.display())).unwrap_or_default())]
+    Content {
+        /// The file, when known.
+        file: Option<PathBuf>,
+        /// What is wrong, in lower case.
+        message: String,
+    },
     /// Reading or writing a file failed.
     #[error("{}: {source}", file.display())]
     Io {
@@ -49,6 +58,14 @@ impl Error {
         Error::at(line, column, message)
     }
 
+    /// A content error (see [`Error::Content`]).
+    pub fn content(message: impl Into<String>) -> Self {
+        Error::Content {
+            file: None,
+            message: message.into(),
+        }
+    }
+
     /// The same error, naming the file it came from.
     pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
@@ -61,6 +78,10 @@ impl Error {
                 file: Some(path.into()),
                 line,
                 column,
+                message,
+            },
+            Error::Content { message, .. } => Error::Content {
+                file: Some(path.into()),
                 message,
             },
             other => other,

@@ -1,9 +1,11 @@
 //! The operator's files for windcell: the job file (TOML) and the control files of seed 001 §5.6:
-//! robot control files (.ROB), mandrel control files (.IND), sequence and run files.
+//! robot control files (.ROB), mandrel control files (.IND), sequence and run files; and the
+//! AutoCAD DXF drawings that paths and spine profiles arrive in (§5.5).
 //!
 //! Parsing takes `&str` and reports line and column; loading adds the path; writing then parsing
 //! gives the same value. The formats are documented in `docs/file-formats.md`.
 
+pub mod dxf;
 pub mod error;
 pub mod ind;
 pub mod job;
@@ -12,6 +14,7 @@ pub mod run;
 pub mod sequence;
 pub mod syntax;
 
+pub use dxf::Drawing;
 pub use error::Error;
 pub use ind::{MandrelFile, MandrelMove};
 pub use job::Job;
