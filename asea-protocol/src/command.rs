@@ -799,3 +799,67 @@ impl Reply {
         }
     }
 }
+
+/// The robot's `last_error` codes (spec/protocols.md §5.7, plus 8: memory full).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum RobotError {
+    /// 1: unknown CMD.
+    UnknownCommand = 1,
+    /// 2: LEN does not match CMD.
+    Length = 2,
+    /// 3: value out of range, reserved bits set, bad quaternion.
+    Range = 3,
+    /// 4: not in OPERATE (a move was asked for in STANDBY).
+    NotOperate = 4,
+    /// 5: program empty or unknown.
+    NoProgram = 5,
+    /// 6: not homed.
+    NotHomed = 6,
+    /// 7: busy (program running).
+    Busy = 7,
+    /// 8: memory full (seed 001 §4.1.2: 470 positioning, or 300 positioning + 200 control).
+    MemoryFull = 8,
+}
+
+impl RobotError {
+    /// Every code.
+    pub const ALL: [RobotError; 8] = [
+        RobotError::UnknownCommand,
+        RobotError::Length,
+        RobotError::Range,
+        RobotError::NotOperate,
+        RobotError::NoProgram,
+        RobotError::NotHomed,
+        RobotError::Busy,
+        RobotError::MemoryFull,
+    ];
+    /// The wire code.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+    /// The error of a wire code (0 = none).
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL.into_iter().find(|e| e.code() == code)
+    }
+    /// A short description.
+    pub fn message(self) -> &'static str {
+        match self {
+            RobotError::UnknownCommand => "unknown command",
+            RobotError::Length => "telegram length does not match the command",
+            RobotError::Range => "value out of range or bad quaternion",
+            RobotError::NotOperate => "not in operate mode",
+            RobotError::NoProgram => "program empty or unknown",
+            RobotError::NotHomed => "not synchronised to home",
+            RobotError::Busy => "busy: a program or move is running",
+            RobotError::MemoryFull => "program memory full",
+        }
+    }
+    /// The error a parse failure maps to.
+    pub fn from_parse(e: &ParseError) -> Self {
+        match e {
+            ParseError::UnknownCode(_) => RobotError::UnknownCommand,
+            ParseError::Length { .. } => RobotError::Length,
+            ParseError::Field(_) => RobotError::Range,
+        }
+    }
+}

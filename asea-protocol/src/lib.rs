@@ -8,6 +8,7 @@
 //! - [`client`]: the blocking client with its retry policy.
 //! - [`sim`]: the robot computer: memory, programs, modes, motion model, output and input lines.
 
+pub mod client;
 pub mod clock;
 pub mod command;
 pub mod decoder;
@@ -15,7 +16,10 @@ pub mod error;
 pub mod frame;
 pub mod link;
 pub mod session;
+pub mod sim;
 
+pub use client::{Client, ClientConfig, RetryPolicy};
+pub use command::RobotError;
 pub use command::{
     Command, Control, Flags, Instruction, Interpolation, Length, Mode, Pose, Positioning,
     Quaternion, Reference, Reply, Selector, Speed, State, Status, Zone,
@@ -25,3 +29,4 @@ pub use error::{EncodeError, Error, FrameError, LinkError, ParseError, Result};
 pub use frame::{Checksum, ChecksumSpan, Frame, FrameConfig};
 pub use link::Link;
 pub use session::{Host, RobotSession, Timers};
+pub use sim::Robot;
