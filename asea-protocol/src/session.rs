@@ -710,3 +710,235 @@ impl RobotSession {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{STX, encode};
+
+    fn ms(n: u64) -> Duration {
+        Duration::from_millis(n)
+    }
+
+    fn cfg() -> FrameConfig {
+        FrameConfig::default()
+    }
+
+    /// RUN_PROGRAM 3 (spec §5.3 golden vector).
+    const RUN3: [u8; 6] = [0x02, 0x02, 0x01, 0x03, 0x03, 0x09];
+
+    fn host() -> Host {
+        Host::new(cfg(), Timers::default())
+    }
+
+    #[test]
+    fn happy_path_bytes() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        assert_eq!(h.deadline(), Some(T_ENQ));
+        h.on_bytes(&[ACK], ms(5));
+        assert_eq!(h.take_output(), RUN3);
+        assert_eq!(h.deadline(), Some(ms(5) + T_ACK));
+        h.on_bytes(&[ACK], ms(20));
+        assert_eq!(h.take_output(), [EOT]);
+        assert_eq!(h.take_outcome(), Some(Ok(None)));
+        // The next session waits T_GAP.
+        h.start(RUN3.to_vec(), false, ms(25));
+        assert!(h.take_output().is_empty());
+        assert_eq!(h.deadline(), Some(ms(20) + T_GAP));
+        h.on_time(ms(40));
+        assert_eq!(h.take_output(), [ENQ]);
+    }
+
+    #[test]
+    fn nak_twice_then_ack_is_three_transmissions() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        h.on_bytes(&[ACK], ms(1));
+        for _ in 0..2 {
+            assert_eq!(h.take_output(), RUN3);
+            h.on_bytes(&[NAK], ms(2));
+        }
+        assert_eq!(h.take_output(), RUN3);
+        h.on_bytes(&[ACK], ms(3));
+        assert_eq!(h.take_output(), [EOT]);
+        assert_eq!(h.take_outcome(), Some(Ok(None)));
+        assert_eq!(h.stats().frames_sent, 3);
+    }
+
+    #[test]
+    fn nak_storm_is_retries_error() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        h.on_bytes(&[ACK], ms(1));
+        let mut sent = 0;
+        for k in 0..20 {
+            let out = h.take_output();
+            if out == RUN3 {
+                sent += 1;
+            }
+            if let Some(o) = h.take_outcome() {
+                assert_eq!(out, [EOT]);
+                assert_eq!(o, Err(LinkError::Retries { attempts: N_TX }));
+                assert_eq!(sent, N_TX);
+                return;
+            }
+            h.on_bytes(&[NAK], ms(2 + k));
+        }
+        panic!("no outcome");
+    }
+
+    #[test]
+    fn silence_is_no_response_after_n_enq() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        let mut enqs = 0;
+        let mut now = ms(0);
+        loop {
+            for b in h.take_output() {
+                if b == ENQ {
+                    enqs += 1;
+                }
+            }
+            if let Some(o) = h.take_outcome() {
+                assert_eq!(o, Err(LinkError::NoResponse { attempts: N_ENQ }));
+                break;
+            }
+            now = h.deadline().expect("a deadline while active");
+            h.on_time(now);
+        }
+        assert_eq!(enqs, N_ENQ);
+        assert_eq!(now, T_ENQ * N_ENQ);
+    }
+
+    #[test]
+    fn busy_nak_backs_off() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.take_output();
+        h.on_bytes(&[NAK], ms(3));
+        assert!(h.take_output().is_empty());
+        assert_eq!(h.deadline(), Some(ms(3) + T_BUSY));
+        h.on_time(ms(3) + T_BUSY);
+        assert_eq!(h.take_output(), [ENQ]);
+    }
+
+    #[test]
+    fn noise_stx_cannot_swallow_the_ack() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.take_output();
+        h.on_bytes(&[STX, 0x40, ACK], ms(1));
+        assert_eq!(h.take_output(), RUN3);
+    }
+
+    fn robot() -> RobotSession {
+        RobotSession::new(cfg(), Timers::default())
+    }
+
+    #[test]
+    fn robot_reacks_identical_retransmission_once_executed() {
+        let mut r = robot();
+        assert!(r.on_bytes(&[ENQ], ms(0)).is_empty());
+        assert_eq!(r.take_output(), [ACK]);
+        let got = r.on_bytes(&RUN3, ms(10));
+        assert_eq!(got.len(), 1);
+        assert_eq!(r.take_output(), [ACK]);
+        // The ACK was lost; the host sends the same telegram again.
+        assert!(r.on_bytes(&RUN3, ms(2100)).is_empty());
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.stats().duplicates, 1);
+        // A different telegram in the same session is refused.
+        let other = encode(&cfg(), 0x02, &[4]).unwrap();
+        assert!(r.on_bytes(&other, ms(2200)).is_empty());
+        assert_eq!(r.take_output(), [NAK]);
+        // EOT ends the session; a new session delivers the same telegram again.
+        r.on_bytes(&[EOT], ms(2300));
+        r.on_bytes(&[ENQ], ms(2400));
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.on_bytes(&RUN3, ms(2410)).len(), 1);
+    }
+
+    #[test]
+    fn robot_naks_bad_checksum_after_flush_and_char_gap() {
+        let mut r = robot();
+        r.on_bytes(&[ENQ], ms(0));
+        r.take_output();
+        let mut bad = RUN3;
+        bad[5] ^= 0x10;
+        assert!(r.on_bytes(&bad, ms(5)).is_empty());
+        assert!(r.take_output().is_empty());
+        assert_eq!(r.deadline(), Some(ms(5) + T_FLUSH));
+        r.on_time(ms(5) + T_FLUSH);
+        assert_eq!(r.take_output(), [NAK]);
+        // Half a telegram, then silence beyond T_CHAR.
+        r.on_bytes(&RUN3[..3], ms(100));
+        assert_eq!(r.deadline(), Some(ms(100) + T_CHAR));
+        r.on_time(ms(100) + T_CHAR);
+        assert_eq!(r.take_output(), [NAK]);
+        // The retransmission goes through.
+        assert_eq!(r.on_bytes(&RUN3, ms(400)).len(), 1);
+        assert_eq!(r.take_output(), [ACK]);
+    }
+
+    #[test]
+    fn busy_robot_naks_enq() {
+        let mut r = robot();
+        r.busy = true;
+        r.on_bytes(&[ENQ], ms(0));
+        assert_eq!(r.take_output(), [NAK]);
+    }
+
+    /// Host and robot wired back to back with no delay; the robot answers ENQUIRE with `reply`.
+    fn converse(frame: Vec<u8>, reply: Option<Vec<u8>>) -> (Outcome, usize) {
+        let mut h = host();
+        let mut r = robot();
+        let mut now = ms(0);
+        let mut delivered = 0;
+        h.start(frame, reply.is_some(), now);
+        for _ in 0..1000 {
+            let to_robot = h.take_output();
+            for f in r.on_bytes(&to_robot, now) {
+                delivered += 1;
+                let _ = f;
+                if let Some(rep) = &reply {
+                    r.queue_reply(rep.clone());
+                }
+            }
+            let to_host = r.take_output();
+            h.on_bytes(&to_host, now);
+            if let Some(o) = h.take_outcome() {
+                // Let the robot see the final EOT.
+                r.on_bytes(&h.take_output(), now);
+                return (o, delivered);
+            }
+            if to_robot.is_empty() && to_host.is_empty() {
+                now = [h.deadline(), r.deadline()]
+                    .into_iter()
+                    .flatten()
+                    .min()
+                    .expect("someone waits");
+                h.on_time(now);
+                r.on_time(now);
+            }
+        }
+        panic!("no outcome");
+    }
+
+    #[test]
+    fn enquire_reply_in_reverse_session() {
+        // ENQUIRE status (spec §5.3: 02 06 01 00 03 0A).
+        let enquire = vec![0x02, 0x06, 0x01, 0x00, 0x03, 0x0A];
+        let reply = encode(&cfg(), 0x86, &[0, 1, 0, 0, 0, 0, 0, 1]).unwrap();
+        let (o, n) = converse(enquire, Some(reply));
+        assert_eq!(n, 1);
+        let f = o.unwrap().unwrap();
+        assert_eq!(f.code, 0x86);
+        assert_eq!(f.data, [0, 1, 0, 0, 0, 0, 0, 1]);
+        let (o, n) = converse(RUN3.to_vec(), None);
+        assert_eq!((o, n), (Ok(None), 1));
+    }
+}
