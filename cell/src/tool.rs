@@ -17,7 +17,8 @@ use crate::Error;
 
 /// Speed of the first instruction, which brings the eye to the start pose, in % of base speed.
 pub const APPROACH_SPEED_PCT: f64 = 10.0;
-/// Arc-length step of the geodesic integrator, mm (see `paths::geodesic::trace`).
+/// Arc-length step of the geodesic integrator, mm (see `paths::geodesic::trace`: at this step the
+/// S-bend paths lie within a micrometre of the converged solution).
 pub const GEODESIC_STEP_MM: f64 = 0.25;
 /// Arc-length sample spacing of the exact helix, mm (its interpolation is exact).
 pub const HELIX_STEP_MM: f64 = 1.0;

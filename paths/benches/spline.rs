@@ -1,6 +1,6 @@
 //! Spline throughput: evaluation, interpolation, least-squares fitting, arc length, equal-length
 //! division and the lathe winder's uniform cubic sampling. Targets and figures are in
-//! `docs/benchmarks-spline.md`. Run with
+//! `docs/benchmarks.md` (section "Splines"). Run with
 //! `cargo bench -p paths --bench spline -- --warm-up-time 1 --measurement-time 3`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

@@ -158,45 +158,75 @@ pub fn helix(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath
     Ok(SurfacePath { samples })
 }
 
-fn geodesic_rhs(tube: &Tube, y: [f64; 4]) -> [f64; 4] {
-    let [u, v, du, dv] = y;
-    let d = tube.derivatives(u, v);
+/// The geodesic equation with the spine height `u` as the parameter, for a path `v(u)` that keeps
+/// moving along the spine: `v'' = −Γ^v(x', x') + Γ^u(x', x') v'` with `x' = (1, v')`, and arc
+/// length `s' = |X_u + X_v v'|`. State `[v, v', s]`.
+///
+/// Height is the natural parameter here because the spine is a cubic spline: the tube's second
+/// derivatives contain the spine's third derivative, which jumps at every knot. Stepping in height
+/// lets every Runge–Kutta step lie inside one polynomial piece, where the right-hand side is smooth,
+/// so the integrator keeps its fourth order (stepping in arc length across the jumps loses it).
+fn geodesic_rhs(tube: &Tube, piece: usize, u: f64, y: [f64; 3]) -> [f64; 3] {
+    let [v, dv, _] = y;
+    let d = tube.derivatives_on_piece(piece, u, v);
     let e = d.xu.dot(&d.xu);
     let f = d.xu.dot(&d.xv);
     let g = d.xv.dot(&d.xv);
-    let acc = d.xuu * (du * du) + d.xuv * (2.0 * du * dv) + d.xvv * (dv * dv);
+    let acc = d.xuu + d.xuv * (2.0 * dv) + d.xvv * (dv * dv);
     let (pu, pv) = (d.xu.dot(&acc), d.xv.dot(&acc));
     let det = e * g - f * f;
-    [du, dv, -(g * pu - f * pv) / det, -(e * pv - f * pu) / det]
+    let gamma_u = (g * pu - f * pv) / det;
+    let gamma_v = (e * pv - f * pu) / det;
+    let speed = (e + 2.0 * f * dv + g * dv * dv).sqrt();
+    [dv, -gamma_v + gamma_u * dv, speed]
 }
 
-fn rk4_step(tube: &Tube, y: [f64; 4], h: f64) -> [f64; 4] {
-    let add = |a: [f64; 4], k: [f64; 4], s: f64| {
-        [
-            a[0] + k[0] * s,
-            a[1] + k[1] * s,
-            a[2] + k[2] * s,
-            a[3] + k[3] * s,
-        ]
-    };
-    let k1 = geodesic_rhs(tube, y);
-    let k2 = geodesic_rhs(tube, add(y, k1, h / 2.0));
-    let k3 = geodesic_rhs(tube, add(y, k2, h / 2.0));
-    let k4 = geodesic_rhs(tube, add(y, k3, h));
+fn rk4_step(tube: &Tube, piece: usize, u: f64, y: [f64; 3], h: f64) -> [f64; 3] {
+    let add =
+        |a: [f64; 3], k: [f64; 3], s: f64| [a[0] + k[0] * s, a[1] + k[1] * s, a[2] + k[2] * s];
+    let k1 = geodesic_rhs(tube, piece, u, y);
+    let k2 = geodesic_rhs(tube, piece, u + h / 2.0, add(y, k1, h / 2.0));
+    let k3 = geodesic_rhs(tube, piece, u + h / 2.0, add(y, k2, h / 2.0));
+    let k4 = geodesic_rhs(tube, piece, u + h, add(y, k3, h));
     let mut out = y;
-    for i in 0..4 {
+    for i in 0..3 {
         out[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
     }
-    // Keep unit speed: rescale (du, dv) so that |X_u du + X_v dv| = 1.
-    let d = tube.derivatives(out[0], out[1]);
-    let speed = (d.xu * out[2] + d.xv * out[3]).norm();
-    out[2] /= speed;
-    out[3] /= speed;
     out
 }
 
-/// Traces the geodesic from `start` until it reaches the mandrel's far end, with RK4 steps of
-/// `step_mm` of arc length (0.25 mm keeps the error far below a micrometre on the S-bend).
+/// The steepest a path may wind before the tracer calls it turned back: the fibre within 0.5° of
+/// a circumferential circle.
+const MAX_WIND_ANGLE_RAD: f64 = 89.5 * std::f64::consts::PI / 180.0;
+
+/// Converts the height-parameter state at `u` into an arc-length sample. `y[2]` is `∫ s' du`,
+/// negative on a downward path, hence the `sign`.
+fn sample(tube: &Tube, u: f64, y: [f64; 3], sign: f64) -> Result<Sample, Error> {
+    let [v, dv_du, s] = y;
+    let d = tube.derivatives(u, v);
+    let speed = (d.xu + d.xv * dv_du).norm();
+    // cos of the angle between the fibre and the spine direction X_u.
+    let cos_wind = d.xu.norm() / speed;
+    if !(cos_wind.is_finite() && cos_wind.acos() < MAX_WIND_ANGLE_RAD) {
+        return Err(Error::PathTurnedBack { height_mm: u });
+    }
+    Ok(Sample {
+        s_mm: sign * s,
+        u,
+        v,
+        du: sign / speed,
+        dv: sign * dv_du / speed,
+    })
+}
+
+/// Traces the geodesic from `start` until it reaches the mandrel's far end, with classical RK4
+/// steps of at most about `step_mm` of arc length.
+///
+/// The path is integrated with the height `u` as the parameter, one spine interval at a time with
+/// steps that end exactly on every knot (see `geodesic_rhs`), so the error falls as `step⁴`: on
+/// the S-bend at 45° the far end moves by less than 1 µm between 0.25 mm and 0.05 mm steps (test
+/// `sbend_geodesic_converges_at_fourth_order`). A path that turns back along the spine (winds within
+/// 0.5° of a circle) is an error.
 pub fn trace(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath, Error> {
     start.validate()?;
     if step_mm.is_nan() || step_mm <= 0.0 {
@@ -207,57 +237,35 @@ pub fn trace(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath
         });
     }
     let sign = start.direction.sign();
-    let end = match start.direction {
-        Direction::Down => tube.u_min(),
-        Direction::Up => tube.u_max(),
+    let [u0, v0, du0, dv0] = start_state(tube, start);
+    let mut y = [v0, dv0 / du0, 0.0];
+    let mut u = u0;
+    let mut samples = vec![sample(tube, u, y, sign)?];
+    let knots = tube.spine().knot_heights_mm();
+    let pieces = knots.len() - 1;
+    // Spine intervals in travel order: (piece index, height at its far end).
+    let intervals: Vec<(usize, f64)> = match start.direction {
+        Direction::Up => (0..pieces).map(|i| (i, knots[i + 1])).collect(),
+        Direction::Down => (0..pieces).rev().map(|i| (i, knots[i])).collect(),
     };
-    let mut y = start_state(tube, start);
-    let mut s = 0.0;
-    let mut samples = vec![Sample {
-        s_mm: 0.0,
-        u: y[0],
-        v: y[1],
-        du: y[2],
-        dv: y[3],
-    }];
-    let max_length = 50.0 * (tube.u_max() - tube.u_min());
-    loop {
-        let next = rk4_step(tube, y, step_mm);
-        if (next[0] - end) * sign >= 0.0 {
-            // Land exactly on the end height: secant iterations on the step length.
-            let mut h = step_mm * (end - y[0]) / (next[0] - y[0]);
-            let mut last = rk4_step(tube, y, h);
-            for _ in 0..8 {
-                let miss = last[0] - end;
-                if miss.abs() < 1e-12 {
-                    break;
-                }
-                h -= miss / last[2];
-                last = rk4_step(tube, y, h);
-            }
-            s += h;
-            samples.push(Sample {
-                s_mm: s,
-                u: end,
-                v: last[1],
-                du: last[2],
-                dv: last[3],
-            });
-            return Ok(SurfacePath { samples });
+    for (piece, end) in intervals {
+        // Arc length per unit height at the interval's start sets the number of steps.
+        let ds_du = geodesic_rhs(tube, piece, u, y)[2];
+        let span = end - u;
+        let n = ((span.abs() * ds_du / step_mm).ceil() as usize).max(1);
+        let interval_start = u;
+        for k in 1..=n {
+            let next_u = if k == n {
+                end
+            } else {
+                interval_start + span * k as f64 / n as f64
+            };
+            y = rk4_step(tube, piece, u, y, next_u - u);
+            u = next_u;
+            samples.push(sample(tube, u, y, sign)?);
         }
-        if next[2] * sign <= 0.0 || s > max_length {
-            return Err(Error::PathTurnedBack { height_mm: next[0] });
-        }
-        y = next;
-        s += step_mm;
-        samples.push(Sample {
-            s_mm: s,
-            u: y[0],
-            v: y[1],
-            du: y[2],
-            dv: y[3],
-        });
     }
+    Ok(SurfacePath { samples })
 }
 
 #[cfg(test)]
@@ -329,19 +337,51 @@ mod tests {
                 assert_abs_diff_eq!((d.xu * s.du + d.xv * s.dv).norm(), 1.0, epsilon = 1e-9);
             }
             // Geodesic: the path's curvature vector is normal to the surface (no geodesic curvature).
-            let mid = path.samples.len() / 2;
+            let mid = path.length_mm() / 2.0;
             let h = 0.25;
-            let p = |i: usize| {
-                let s = &path.samples[i];
-                tube.point(s.u, s.v)
+            let p = |s: f64| {
+                let (u, v) = path.at(s);
+                tube.point(u, v)
             };
-            let acc = (p(mid + 1).coords - p(mid).coords * 2.0 + p(mid - 1).coords) / (h * h);
-            let n = tube.normal(path.samples[mid].u, path.samples[mid].v);
+            let acc = (p(mid + h).coords - p(mid).coords * 2.0 + p(mid - h).coords) / (h * h);
+            let (u, v) = path.at(mid);
+            let n = tube.normal(u, v);
             let tangential = (acc - n * acc.dot(&n)).norm();
             assert!(
                 tangential < 1e-3 * acc.norm().max(1e-3),
                 "kg residual {tangential}"
             );
+        }
+    }
+
+    #[test]
+    fn sbend_geodesic_converges_at_fourth_order() {
+        // Steps end on every spine knot, where the tube's X_uu jumps; the far end then moves by
+        // far less than a micrometre from 1 mm to 0.05 mm steps. (Stepping across the knots in arc
+        // length left millimetres of error at 0.25 mm steps.)
+        let tube = Tube::new(
+            Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
+            28.5,
+        )
+        .unwrap();
+        for dir in [Direction::Down, Direction::Up] {
+            let st = PathStart {
+                angle_rad: PI / 2.0,
+                wind_angle_rad: PI / 4.0,
+                direction: dir,
+            };
+            let end = |step: f64| {
+                let path = trace(&tube, &st, step).unwrap();
+                let last = *path.samples.last().unwrap();
+                (tube.point(last.u, last.v), path.length_mm())
+            };
+            let (fine, fine_len) = end(0.05);
+            for step in [1.0, 0.25] {
+                let (coarse, coarse_len) = end(step);
+                let gap = (coarse - fine).norm();
+                assert!(gap < 1e-4, "step {step}: far end moves {gap} mm");
+                assert_abs_diff_eq!(coarse_len, fine_len, epsilon = 1e-4);
+            }
         }
     }
 

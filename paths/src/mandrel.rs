@@ -172,7 +172,10 @@ impl Tube {
     }
 
     fn frame(&self, u: f64) -> SpineFrame {
-        let [x, g, dg, ddg] = self.spine.eval(u);
+        Self::frame_of(u, self.spine.eval(u))
+    }
+
+    fn frame_of(u: f64, [x, g, dg, ddg]: [f64; 4]) -> SpineFrame {
         let w2 = 1.0 + g * g;
         let w = w2.sqrt();
         let w3 = w2 * w;
@@ -206,7 +209,16 @@ impl Tube {
 
     /// Point, normal and the derivatives the geodesic equation needs, at `(u, v)`.
     pub fn derivatives(&self, u: f64, v: f64) -> SurfaceDerivatives {
-        let f = self.frame(u);
+        self.derivatives_of(self.frame(u), v)
+    }
+
+    /// [`Tube::derivatives`] on the spine polynomial of interval `piece` (see
+    /// [`Spine::eval_piece`]): `X_uu` holds the spine's third derivative, which jumps at knots.
+    pub fn derivatives_on_piece(&self, piece: usize, u: f64, v: f64) -> SurfaceDerivatives {
+        self.derivatives_of(Self::frame_of(u, self.spine.eval_piece(piece, u)), v)
+    }
+
+    fn derivatives_of(&self, f: SpineFrame, v: f64) -> SurfaceDerivatives {
         let (s, c) = v.sin_cos();
         let r = self.radius_mm;
         let b = Vector3::y();

@@ -156,6 +156,14 @@ impl Spine {
             Err(0) => 0,
             Err(i) => (i - 1).min(self.coefficients.len() - 1),
         };
+        self.eval_piece(i, z_mm)
+    }
+
+    /// Like [`Spine::eval`], but on the polynomial of interval `piece` (between knots `piece` and
+    /// `piece + 1`; clamped to the valid range) wherever `z_mm` lies. At a knot the third
+    /// derivative jumps, so a caller integrating across one says which side it means.
+    pub fn eval_piece(&self, piece: usize, z_mm: f64) -> [f64; 4] {
+        let i = piece.min(self.coefficients.len() - 1);
         let [a, b, c, d] = self.coefficients[i];
         let t = z_mm - self.z_mm[i];
         [
