@@ -125,13 +125,11 @@ impl TraceOptions {
         if let Some((lo, hi)) = self.height_range_mm
             && (lo.is_nan() || hi.is_nan() || lo > hi)
         {
-            {
-                return Err(Error::OutOfRange {
-                    name: "height_range_mm",
-                    value: lo,
-                    expected: "must be an increasing pair",
-                });
-            }
+            return Err(Error::OutOfRange {
+                name: "height_range_mm",
+                value: lo,
+                expected: "must be an increasing pair",
+            });
         }
         if !self.lambda.is_finite() {
             return Err(Error::OutOfRange {
@@ -376,7 +374,8 @@ impl Tracer {
     }
 
     /// Traces from `start` (within `tolerance_mm` of the surface) along `direction` (projected
-    /// into the tangent plane).
+    /// into the tangent plane). The start triangle is the one nearest to a point a micrometre
+    /// ahead, so a start on an edge or a cap's rim picks the triangle the path runs into.
     pub fn trace_direction(
         &self,
         start: &Point3<f64>,
@@ -385,7 +384,8 @@ impl Tracer {
         options: &TraceOptions,
     ) -> Result<MeshPath, Error> {
         options.validate()?;
-        let at = self.locate_start(start, tolerance_mm)?;
+        let ahead = direction.try_normalize(0.0).unwrap_or_default() * 1e-3;
+        let at = self.locate_start(&(start + ahead), tolerance_mm)?;
         let n = at.normal;
         let t = (direction - n * direction.dot(&n))
             .try_normalize(1e-12)
@@ -446,33 +446,20 @@ impl Tracer {
                 return finish(points, faces, s, crossings, Stop::Stuck);
             }
             d /= dn2.sqrt();
-            let mut best = 3usize;
-            let mut best_t = f64::INFINITY;
-            let mut near = 3usize;
-            let mut near_dist = f64::INFINITY;
-            for i in 0..3 {
-                if i == e_in {
-                    continue;
+            let (mut best, mut best_t) = exit(face, &p, &d, e_in);
+            if !exact && best_t > 0.0 {
+                // Midpoint rule: run along the tangent carried half way to the exit's normal.
+                let q = p + d * best_t;
+                let nq = edge_normal(face, best, &q);
+                let nh = nprev + nq;
+                let nh = nh / nh.norm();
+                let th = rotate(&t, &nprev, &nh);
+                let dm = th - nf * th.dot(&nf);
+                let dm2 = dm.norm_squared();
+                if dm2 > 1e-24 {
+                    d = dm / dm2.sqrt();
+                    (best, best_t) = exit(face, &p, &d, e_in);
                 }
-                let e = &face.edges[i];
-                let rate = d.dot(&e.m);
-                let dist = (p.dot(&e.m) - e.w).max(0.0);
-                if rate < 0.0 {
-                    let ti = dist / -rate;
-                    if ti < best_t {
-                        best_t = ti;
-                        best = i;
-                    }
-                }
-                if dist < near_dist {
-                    near_dist = dist;
-                    near = i;
-                }
-            }
-            if best == 3 {
-                // Leaving through the corner we entered by: walk around that vertex.
-                best = near;
-                best_t = 0.0;
             }
             // Stops inside this triangle.
             let mut step = best_t;
@@ -511,23 +498,14 @@ impl Tracer {
             let nq = if exact {
                 self.faces[g].n
             } else {
-                let e = &face.edges[best];
-                let u = (q.dot(&e.e) - e.o).clamp(0.0, 1.0);
-                let cn = &face.corner_normals;
-                let n = cn[best] * (1.0 - u) + cn[(best + 1) % 3] * u;
-                n / n.norm()
+                edge_normal(face, best, &q)
             };
-            // Smallest rotation taking nprev to nq, applied to t (Rodrigues, no trigonometry).
-            let c = nprev.dot(&nq);
-            if c > -0.9 {
-                let k = nprev.cross(&nq);
-                let t_old = t;
-                t = t * c + k.cross(&t) + k * (k.dot(&t) / (1.0 + c));
-                if o.lambda != 0.0 {
-                    let theta = o.lambda * (nq - nprev).dot(&t_old).abs();
-                    let (sn, cs) = theta.sin_cos();
-                    t = t * cs + nq.cross(&t) * sn;
-                }
+            let t_old = t;
+            t = rotate(&t, &nprev, &nq);
+            if o.lambda != 0.0 {
+                let theta = o.lambda * (nq - nprev).dot(&t_old).abs();
+                let (sn, cs) = theta.sin_cos();
+                t = t * cs + nq.cross(&t) * sn;
             }
             // Keep t tangent and of unit length (one Newton step for 1/|t|, no square root).
             t -= nq * t.dot(&nq);
@@ -552,6 +530,63 @@ impl Tracer {
             e_in = (next & 3) as usize;
         }
     }
+}
+
+/// The exit edge of a straight run from `p` along `d` in `face` (never the entry edge `e_in`) and
+/// the distance to it. When the direction leaves through the corner the path entered by, the edge
+/// nearest to `p` at distance 0, so the path walks around that vertex.
+#[inline(always)]
+fn exit(face: &Face, p: &Vector3<f64>, d: &Vector3<f64>, e_in: usize) -> (usize, f64) {
+    let mut best = 3usize;
+    let mut best_t = f64::INFINITY;
+    let mut near = 3usize;
+    let mut near_dist = f64::INFINITY;
+    for i in 0..3 {
+        if i == e_in {
+            continue;
+        }
+        let e = &face.edges[i];
+        let rate = d.dot(&e.m);
+        let dist = (p.dot(&e.m) - e.w).max(0.0);
+        if rate < 0.0 {
+            let ti = dist / -rate;
+            if ti < best_t {
+                best_t = ti;
+                best = i;
+            }
+        }
+        if dist < near_dist {
+            near_dist = dist;
+            near = i;
+        }
+    }
+    if best == 3 {
+        (near, 0.0)
+    } else {
+        (best, best_t)
+    }
+}
+
+/// The smooth unit normal at `q` on edge `i` of `face` (interpolated between its corners).
+#[inline(always)]
+fn edge_normal(face: &Face, i: usize, q: &Vector3<f64>) -> Vector3<f64> {
+    let e = &face.edges[i];
+    let u = (q.dot(&e.e) - e.o).clamp(0.0, 1.0);
+    let cn = &face.corner_normals;
+    let n = cn[i] * (1.0 - u) + cn[(i + 1) % 3] * u;
+    n / n.norm()
+}
+
+/// `v` turned by the smallest rotation taking unit `a` to unit `b` (Rodrigues, no trigonometry;
+/// `v` unchanged when `a` and `b` are nearly opposite).
+#[inline(always)]
+fn rotate(v: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Vector3<f64> {
+    let c = a.dot(b);
+    if c <= -0.9 {
+        return *v;
+    }
+    let k = a.cross(b);
+    v * c + k.cross(v) + k * (k.dot(v) / (1.0 + c))
 }
 
 /// The point of triangle `abc` nearest to `p`, with its barycentric coordinates (Ericson,
