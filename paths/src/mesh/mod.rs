@@ -6,6 +6,7 @@
 //! edge once in each direction.
 
 pub mod obj;
+pub mod resegment;
 pub mod stl;
 pub mod trace;
 pub mod triasym;

@@ -446,21 +446,7 @@ impl Tracer {
                 return finish(points, faces, s, crossings, Stop::Stuck);
             }
             d /= dn2.sqrt();
-            let (mut best, mut best_t) = exit(face, &p, &d, e_in);
-            if !exact && best_t > 0.0 {
-                // Midpoint rule: run along the tangent carried half way to the exit's normal.
-                let q = p + d * best_t;
-                let nq = edge_normal(face, best, &q);
-                let nh = nprev + nq;
-                let nh = nh / nh.norm();
-                let th = rotate(&t, &nprev, &nh);
-                let dm = th - nf * th.dot(&nf);
-                let dm2 = dm.norm_squared();
-                if dm2 > 1e-24 {
-                    d = dm / dm2.sqrt();
-                    (best, best_t) = exit(face, &p, &d, e_in);
-                }
-            }
+            let (best, best_t) = exit(face, &p, &d, e_in);
             // Stops inside this triangle.
             let mut step = best_t;
             let mut stop = None;
