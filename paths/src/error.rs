@@ -118,4 +118,38 @@ pub enum Error {
         /// The row where elimination met a zero pivot.
         row: usize,
     },
+    /// A mesh file could not be read: the line (ASCII STL, OBJ) where known, and what is wrong.
+    #[error("{}{message}", line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    MeshSyntax {
+        /// 1-based line of a text format, `None` for binary STL.
+        line: Option<usize>,
+        /// What is wrong, in lower case.
+        message: String,
+    },
+    /// A mesh parsed but is not a surface the tracer can use.
+    #[error("{}{reason}", triangle.map(|t| format!("triangle {t}: ")).unwrap_or_default())]
+    MeshInvalid {
+        /// 0-based index of the offending triangle (in file order), where one is at fault.
+        triangle: Option<usize>,
+        /// What is wrong, in lower case.
+        reason: String,
+    },
+    /// A slip ratio the friction cannot hold (seed 000 §2.9: the slippage tendency must not exceed μ).
+    #[error(
+        "slip ratio λ = {lambda} exceeds the friction coefficient μ = {mu}: the fibre would slip"
+    )]
+    SlipExceedsFriction {
+        /// The requested |λ| = |k_g / k_n|.
+        lambda: f64,
+        /// The friction coefficient.
+        mu: f64,
+    },
+    /// A start point too far from the mesh surface.
+    #[error("start point is {distance_mm:.3} mm from the mesh surface (more than {limit_mm} mm)")]
+    OffSurface {
+        /// Distance to the nearest surface point.
+        distance_mm: f64,
+        /// The largest accepted distance.
+        limit_mm: f64,
+    },
 }

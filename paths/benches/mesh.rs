@@ -1,0 +1,111 @@
+//! Mesh benchmarks: tracing speed (crossings per second), loading a 1 000 000-triangle binary STL,
+//! and planning a full S-bend coverage set on a 200 000-triangle mesh. Figures in
+//! docs/benchmarks-mesh.md.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use nalgebra::{Point3, Vector3};
+use paths::geodesic::{Direction, PathStart};
+use paths::mesh::trace::{DEFAULT_CREASE_DEG, Mode, TraceOptions, Tracer};
+use paths::mesh::{Closure, DEFAULT_WELD_MM, Mesh, prepare, resegment, stl, triasym};
+use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
+use paths::{Gearing, Robot, Setup, Speeds, Spine, Tube};
+
+fn tracer(mesh: &Mesh) -> Tracer {
+    let (m, adj) = prepare(mesh, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+    Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap()
+}
+
+fn trace(c: &mut Criterion) {
+    let tr = tracer(&triasym::icosphere(50.0, 6).unwrap());
+    let start = Point3::new(30.0, 20.0, (2500.0f64 - 900.0 - 400.0).sqrt());
+    let mut group = c.benchmark_group("mesh");
+    for (name, mode) in [("smooth", Mode::Smooth), ("exact", Mode::Exact)] {
+        let o = TraceOptions {
+            max_length_mm: 10.0 * std::f64::consts::TAU * 50.0,
+            axis: Vector3::new(0.1, 0.2, 1.0),
+            mode,
+            ..TraceOptions::default()
+        };
+        let crossings = tr.trace_heading(&start, 0.7, 1.0, &o).unwrap().crossings;
+        group.throughput(Throughput::Elements(crossings as u64));
+        group.bench_function(format!("trace_{name}_sphere_81920_10_turns"), |b| {
+            b.iter(|| black_box(tr.trace_heading(&start, 0.7, 1.0, &o).unwrap()))
+        });
+    }
+    group.finish();
+}
+
+fn load(c: &mut Criterion) {
+    // 1000 facets × 500 intervals × 2 = 1 000 000 triangles, plus 2000 cap triangles.
+    let profile: Vec<(f64, f64)> = (0..=500).map(|i| (i as f64 * 0.7, 28.5)).collect();
+    let mesh = triasym::revolution(&profile, 1000, true).unwrap();
+    let bytes = stl::write_binary(&mesh, "bench");
+    let mut group = c.benchmark_group("mesh");
+    group.sample_size(10);
+    group.bench_function("load_weld_validate_1m_binary_stl", |b| {
+        b.iter(|| {
+            let soup = stl::parse(black_box(&bytes)).unwrap();
+            let m = Mesh::from_soup(&soup).unwrap();
+            black_box(prepare(&m, DEFAULT_WELD_MM, Closure::Closed).unwrap())
+        })
+    });
+    group.finish();
+}
+
+fn coverage(c: &mut Criterion) {
+    let tube = Tube::new(
+        Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
+        28.5,
+    )
+    .unwrap();
+    let mesh = triasym::tube(&tube, 384, 350.0 / 260.0, true).unwrap();
+    let tr = tracer(&mesh);
+    let setup = Setup {
+        robot_distance_mm: 800.0,
+        mandrel_height_mm: 300.0,
+        offset_mm: 100.0,
+        eye_mechanism_length_mm: 150.0,
+        robot: Robot::default(),
+        gearing: Gearing::default(),
+    };
+    let speeds = Speeds {
+        mandrel_rps: 0.1,
+        base_speed_mm_s: 1000.0,
+        max_speed_mm_s: 2000.0,
+    };
+    let mut group = c.benchmark_group("mesh");
+    group.sample_size(10);
+    group.bench_function(
+        format!(
+            "coverage_sbend_40x50_{}_triangles",
+            tr.mesh().triangles().len()
+        ),
+        |b| {
+            b.iter(|| {
+                for k in 0..40 {
+                    let start = PathStart {
+                        angle_rad: (9.0 * k as f64).to_radians(),
+                        wind_angle_rad: 45f64.to_radians(),
+                        direction: Direction::Down,
+                    };
+                    let (_, cut) =
+                        resegment::wind(&tr, &tube, &start, 50, &TraceOptions::default()).unwrap();
+                    let plan = paths::plan::plan(
+                        &cut.points,
+                        |p| tube.distance_to_surface_mm(p),
+                        &setup,
+                        &speeds,
+                    )
+                    .unwrap();
+                    black_box(plan);
+                }
+            })
+        },
+    );
+    group.finish();
+}
+
+criterion_group!(benches, trace, load, coverage);
+criterion_main!(benches);

@@ -1,0 +1,527 @@
+//! Triangulated mandrels: an indexed triangle mesh, vertex welding, validation, face normals and
+//! edge adjacency (seed 001 §3.1: the mandrel surface as triangles, TRIASYM).
+//!
+//! Edge `i` of triangle `[a, b, c]` runs from corner `i` to corner `(i + 1) % 3`: edge 0 is
+//! `a → b`, edge 1 `b → c`, edge 2 `c → a`. A consistently oriented surface crosses each interior
+//! edge once in each direction.
+
+pub mod obj;
+pub mod resegment;
+pub mod stl;
+pub mod trace;
+pub mod triasym;
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+use nalgebra::{Point3, Vector3};
+
+use crate::Error;
+
+/// Default welding tolerance, mm: vertices closer than this become one (0.1 µm, well below the
+/// 32-bit float resolution of an STL file at mandrel sizes, so only true duplicates merge).
+pub const DEFAULT_WELD_MM: f64 = 1e-4;
+
+/// No neighbour across an edge (a boundary).
+pub const NO_NEIGHBOUR: u32 = u32::MAX;
+
+/// An indexed triangle mesh, mm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    vertices: Vec<Point3<f64>>,
+    triangles: Vec<[u32; 3]>,
+}
+
+/// Whether a mesh must be a closed surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Closure {
+    /// Every edge must have two triangles (a watertight mandrel).
+    Closed,
+    /// Boundary edges are allowed (an open tube, a patch).
+    Open,
+}
+
+/// Edge adjacency of a valid mesh: for each triangle and edge, the neighbouring triangle and its
+/// local edge index packed as `4 · triangle + edge`, or [`NO_NEIGHBOUR`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Adjacency {
+    /// Per triangle, per edge.
+    pub across: Vec<[u32; 3]>,
+    /// Number of boundary edges.
+    pub boundary_edges: usize,
+}
+
+/// A small fast hasher for integer cell and edge keys (FNV-style multiply-xor).
+#[derive(Debug, Default, Clone, Copy)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_i64(&mut self, i: i64) {
+        self.write_u64(i as u64);
+    }
+}
+
+type CellMap<K, V> = HashMap<K, V, BuildHasherDefault<CellHasher>>;
+
+impl Mesh {
+    /// A mesh from vertices and triangles. Rejects an empty mesh, a corner index out of range and a
+    /// non-finite coordinate (naming the first triangle that uses it).
+    pub fn new(vertices: Vec<Point3<f64>>, triangles: Vec<[u32; 3]>) -> Result<Self, Error> {
+        if triangles.is_empty() {
+            return Err(invalid(None, "the mesh has no triangles"));
+        }
+        for (t, tri) in triangles.iter().enumerate() {
+            for &i in tri {
+                let Some(v) = vertices.get(i as usize) else {
+                    return Err(invalid(
+                        Some(t),
+                        format!(
+                            "vertex index {i} is out of range ({} vertices)",
+                            vertices.len()
+                        ),
+                    ));
+                };
+                if !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite()) {
+                    return Err(invalid(Some(t), "a coordinate is not finite"));
+                }
+            }
+        }
+        Ok(Mesh {
+            vertices,
+            triangles,
+        })
+    }
+
+    /// A mesh from a triangle soup (three corners per triangle, as STL stores them), unwelded.
+    pub fn from_soup(soup: &[[Point3<f64>; 3]]) -> Result<Self, Error> {
+        let vertices: Vec<Point3<f64>> = soup.iter().flatten().copied().collect();
+        let triangles = (0..soup.len() as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        Mesh::new(vertices, triangles)
+    }
+
+    /// The vertices.
+    pub fn vertices(&self) -> &[Point3<f64>] {
+        &self.vertices
+    }
+
+    /// The triangles (vertex indices, counter-clockwise seen from outside).
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// The three corners of triangle `t`.
+    pub fn corners(&self, t: usize) -> [Point3<f64>; 3] {
+        self.triangles[t].map(|i| self.vertices[i as usize])
+    }
+
+    /// Merges vertices closer than `tolerance_mm` (each to the first of its cluster in file order,
+    /// by a hashed grid of cells 32 tolerances wide, so a vertex meets every vertex within the
+    /// tolerance). Unused vertices are dropped. The triangles keep their order.
+    pub fn weld(&self, tolerance_mm: f64) -> Result<Mesh, Error> {
+        if !(tolerance_mm > 0.0 && tolerance_mm.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "weld_mm",
+                value: tolerance_mm,
+                expected: "must be > 0",
+            });
+        }
+        let cell = 32.0 * tolerance_mm;
+        let inv = 1.0 / cell;
+        let tol2 = tolerance_mm * tolerance_mm;
+        let mut heads: CellMap<[i64; 3], u32> = CellMap::default();
+        heads.reserve(self.vertices.len() / 2);
+        let mut next: Vec<u32> = Vec::with_capacity(self.vertices.len() / 2);
+        let mut kept: Vec<Point3<f64>> = Vec::with_capacity(self.vertices.len() / 2);
+        let mut remap = vec![u32::MAX; self.vertices.len()];
+        let mut used = vec![false; self.vertices.len()];
+        for tri in &self.triangles {
+            for &i in tri {
+                used[i as usize] = true;
+            }
+        }
+        for (i, p) in self.vertices.iter().enumerate() {
+            if !used[i] {
+                continue;
+            }
+            let f = [p.x * inv, p.y * inv, p.z * inv];
+            let home = f.map(|c| c.floor() as i64);
+            let find = |key: &[i64; 3], kept: &[Point3<f64>]| -> Option<u32> {
+                let mut at = *heads.get(key)?;
+                loop {
+                    if (kept[at as usize] - p).norm_squared() <= tol2 {
+                        return Some(at);
+                    }
+                    at = next[at as usize];
+                    if at == u32::MAX {
+                        return None;
+                    }
+                }
+            };
+            let mut found = find(&home, &kept);
+            if found.is_none() {
+                // Neighbour cells only along axes where the point lies within the tolerance of a face.
+                let mut side = [0i64; 3];
+                for k in 0..3 {
+                    let frac = f[k] - home[k] as f64;
+                    side[k] = if frac * cell <= tolerance_mm {
+                        -1
+                    } else if (1.0 - frac) * cell <= tolerance_mm {
+                        1
+                    } else {
+                        0
+                    };
+                }
+                if side != [0, 0, 0] {
+                    'cells: for dx in 0..=side[0].abs() {
+                        for dy in 0..=side[1].abs() {
+                            for dz in 0..=side[2].abs() {
+                                if dx + dy + dz == 0 {
+                                    continue;
+                                }
+                                let key = [
+                                    home[0] + dx * side[0],
+                                    home[1] + dy * side[1],
+                                    home[2] + dz * side[2],
+                                ];
+                                if let Some(at) = find(&key, &kept) {
+                                    found = Some(at);
+                                    break 'cells;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            remap[i] = match found {
+                Some(at) => at,
+                None => {
+                    let at = kept.len() as u32;
+                    kept.push(*p);
+                    let head = heads.entry(home).or_insert(u32::MAX);
+                    next.push(*head);
+                    *head = at;
+                    at
+                }
+            };
+        }
+        let triangles = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| remap[i as usize]))
+            .collect();
+        Ok(Mesh {
+            vertices: kept,
+            triangles,
+        })
+    }
+
+    /// Unit face normals (right-handed around the corners). A degenerate triangle gets a zero vector.
+    pub fn face_normals(&self) -> Vec<Vector3<f64>> {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+                (b - a)
+                    .cross(&(c - a))
+                    .try_normalize(0.0)
+                    .unwrap_or_default()
+            })
+            .collect()
+    }
+
+    /// Signed enclosed volume, mm³ (positive when the normals point outward on a closed mesh).
+    pub fn signed_volume_mm3(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize].coords);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Reverses every triangle (turns the normals inside out).
+    pub fn flip(&mut self) {
+        for t in &mut self.triangles {
+            t.swap(1, 2);
+        }
+    }
+
+    /// Checks that the mesh is a surface the tracer can use and returns its edge adjacency:
+    /// no degenerate triangle (a repeated corner or zero area), every edge shared by at most two
+    /// triangles that cross it in opposite directions, and no boundary edge when `closure` is
+    /// [`Closure::Closed`]. Errors name the first offending triangle (0-based, file order).
+    pub fn validate(&self, closure: Closure) -> Result<Adjacency, Error> {
+        if self.triangles.is_empty() {
+            return Err(invalid(None, "the mesh has no triangles"));
+        }
+        for (t, tri) in self.triangles.iter().enumerate() {
+            let [a, b, c] = *tri;
+            if a == b || b == c || c == a {
+                return Err(invalid(
+                    Some(t),
+                    "degenerate triangle (two corners coincide after welding)",
+                ));
+            }
+            let [pa, pb, pc] = tri.map(|i| self.vertices[i as usize]);
+            let (e1, e2) = (pb - pa, pc - pa);
+            let area2 = e1.cross(&e2).norm();
+            let scale = e1.norm_squared().max(e2.norm_squared());
+            if area2 <= 1e-12 * scale {
+                return Err(invalid(
+                    Some(t),
+                    "degenerate triangle (zero area: its corners are collinear)",
+                ));
+            }
+        }
+        // Half-edges keyed by their undirected edge, sorted so both sides of an edge are adjacent.
+        let mut half: Vec<(u64, u32)> = Vec::with_capacity(3 * self.triangles.len());
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                let key = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
+                half.push((key, (t as u32) << 2 | e as u32));
+            }
+        }
+        half.sort_unstable();
+        let mut across = vec![[NO_NEIGHBOUR; 3]; self.triangles.len()];
+        let mut boundary_edges = 0;
+        let mut i = 0;
+        while i < half.len() {
+            let mut j = i + 1;
+            while j < half.len() && half[j].0 == half[i].0 {
+                j += 1;
+            }
+            let group = &half[i..j];
+            let worst = group.iter().map(|h| h.1 >> 2).max().unwrap_or(0) as usize;
+            let (a, b) = ((half[i].0 >> 32) as u32, half[i].0 as u32);
+            match group.len() {
+                1 => {
+                    if closure == Closure::Closed {
+                        return Err(invalid(
+                            Some(worst),
+                            format!(
+                                "open boundary at the edge between vertices {a} and {b} where a \
+                                 closed surface is required"
+                            ),
+                        ));
+                    }
+                    boundary_edges += 1;
+                }
+                2 => {
+                    let (h0, h1) = (group[0].1, group[1].1);
+                    let dir = |h: u32| {
+                        let tri = &self.triangles[(h >> 2) as usize];
+                        tri[(h & 3) as usize]
+                    };
+                    if dir(h0) == dir(h1) {
+                        return Err(invalid(
+                            Some(worst),
+                            format!(
+                                "inconsistent orientation: it runs the edge between vertices {a} \
+                                 and {b} the same way as triangle {}",
+                                (h0 >> 2).min(h1 >> 2)
+                            ),
+                        ));
+                    }
+                    across[(h0 >> 2) as usize][(h0 & 3) as usize] = h1;
+                    across[(h1 >> 2) as usize][(h1 & 3) as usize] = h0;
+                }
+                n => {
+                    return Err(invalid(
+                        Some(worst),
+                        format!(
+                            "non-manifold edge between vertices {a} and {b}, shared by {n} triangles"
+                        ),
+                    ));
+                }
+            }
+            i = j;
+        }
+        Ok(Adjacency {
+            across,
+            boundary_edges,
+        })
+    }
+
+    /// Axis-aligned bounds `(min, max)`.
+    pub fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
+        let mut lo = Point3::from([f64::INFINITY; 3]);
+        let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
+        for v in &self.vertices {
+            lo = lo.inf(v);
+            hi = hi.sup(v);
+        }
+        (lo, hi)
+    }
+}
+
+/// Loads a mesh the way the tracer wants it: welded at `weld_mm`, validated, and turned so the
+/// normals point outward when it is closed (negative enclosed volume). Returns the mesh and its
+/// adjacency.
+pub fn prepare(mesh: &Mesh, weld_mm: f64, closure: Closure) -> Result<(Mesh, Adjacency), Error> {
+    let mut welded = mesh.weld(weld_mm)?;
+    let adjacency = welded.validate(closure)?;
+    if adjacency.boundary_edges == 0 && welded.signed_volume_mm3() < 0.0 {
+        welded.flip();
+        let adjacency = welded.validate(closure)?;
+        return Ok((welded, adjacency));
+    }
+    Ok((welded, adjacency))
+}
+
+pub(crate) fn invalid(triangle: Option<usize>, reason: impl Into<String>) -> Error {
+    Error::MeshInvalid {
+        triangle,
+        reason: reason.into(),
+    }
+}
+
+pub(crate) fn syntax(line: Option<usize>, message: impl Into<String>) -> Error {
+    Error::MeshSyntax {
+        line,
+        message: message.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra() -> Mesh {
+        let v = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        ];
+        Mesh::new(v, vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]]).unwrap()
+    }
+
+    #[test]
+    fn tetrahedron_is_closed_with_outward_normals_and_full_adjacency() {
+        let m = tetra();
+        let adj = m.validate(Closure::Closed).unwrap();
+        assert_eq!(adj.boundary_edges, 0);
+        assert!(m.signed_volume_mm3() > 0.0);
+        for (t, row) in adj.across.iter().enumerate() {
+            for (e, &h) in row.iter().enumerate() {
+                assert_ne!(h, NO_NEIGHBOUR);
+                assert_eq!(
+                    adj.across[(h >> 2) as usize][(h & 3) as usize],
+                    (t as u32) << 2 | e as u32
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn weld_merges_soup_corners_within_tolerance_only() {
+        let m = tetra();
+        let mut soup: Vec<[Point3<f64>; 3]> = (0..4).map(|t| m.corners(t)).collect();
+        soup[1][0].x += 4e-5; // within 1e-4
+        let welded = Mesh::from_soup(&soup)
+            .unwrap()
+            .weld(DEFAULT_WELD_MM)
+            .unwrap();
+        assert_eq!(welded.vertices().len(), 4);
+        welded.validate(Closure::Closed).unwrap();
+        soup[1][0].x += 1e-3; // now apart
+        let apart = Mesh::from_soup(&soup)
+            .unwrap()
+            .weld(DEFAULT_WELD_MM)
+            .unwrap();
+        assert_eq!(apart.vertices().len(), 5);
+        assert!(apart.validate(Closure::Closed).is_err());
+    }
+
+    #[test]
+    fn weld_finds_neighbours_across_cell_faces() {
+        // Points straddling a grid cell face at every scale.
+        for base in [0.0, 3.2e-3, -3.2e-3, 1.0, 123.456] {
+            let a = Point3::new(base - 2e-5, base + 1e-5, base);
+            let b = Point3::new(base + 2e-5, base - 1e-5, base + 3e-5);
+            let m = Mesh::new(
+                vec![a, Point3::new(5.0, 0.0, 0.0), Point3::new(0.0, 5.0, 0.0), b],
+                vec![[0, 1, 2], [3, 1, 2]],
+            )
+            .unwrap()
+            .weld(DEFAULT_WELD_MM)
+            .unwrap();
+            assert_eq!(m.vertices().len(), 3, "base {base}");
+        }
+    }
+
+    #[test]
+    fn validation_names_the_offending_triangle() {
+        let m = tetra();
+        // Degenerate (collinear) triangle.
+        let mut v = m.vertices().to_vec();
+        v.push(Point3::new(2.0, 0.0, 0.0));
+        let bad = Mesh::new(v, vec![[0, 1, 4]]).unwrap();
+        assert!(matches!(
+            bad.validate(Closure::Open),
+            Err(Error::MeshInvalid {
+                triangle: Some(0),
+                ..
+            })
+        ));
+        // Flipped triangle: inconsistent orientation.
+        let mut t = m.triangles().to_vec();
+        t[2].swap(1, 2);
+        let e = Mesh::new(m.vertices().to_vec(), t)
+            .unwrap()
+            .validate(Closure::Closed);
+        assert!(
+            matches!(e, Err(Error::MeshInvalid { triangle: Some(2), ref reason }) if reason.contains("orientation")),
+            "{e:?}"
+        );
+        // Open where closed is required.
+        let open = Mesh::new(m.vertices().to_vec(), m.triangles()[..3].to_vec()).unwrap();
+        assert!(open.validate(Closure::Open).is_ok());
+        let e = open.validate(Closure::Closed).unwrap_err();
+        assert!(e.to_string().contains("open boundary"), "{e}");
+        // Non-manifold: a fifth triangle on edge 0–1.
+        let mut v = m.vertices().to_vec();
+        v.push(Point3::new(0.5, -1.0, 0.5));
+        let mut t = m.triangles().to_vec();
+        t.push([0, 1, 4]);
+        let e = Mesh::new(v, t)
+            .unwrap()
+            .validate(Closure::Open)
+            .unwrap_err();
+        assert!(e.to_string().contains("non-manifold"), "{e}");
+        // Empty, out of range, non-finite.
+        assert!(Mesh::new(vec![], vec![]).is_err());
+        assert!(Mesh::new(m.vertices().to_vec(), vec![[0, 1, 9]]).is_err());
+        let mut v = m.vertices().to_vec();
+        v[3].z = f64::NAN;
+        let e = Mesh::new(v, m.triangles().to_vec()).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("triangle 1: a coordinate is not finite"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn prepare_turns_an_inside_out_mesh() {
+        let mut m = tetra();
+        m.flip();
+        let (p, _) = prepare(&m, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        assert!(p.signed_volume_mm3() > 0.0);
+    }
+}

@@ -1,0 +1,126 @@
+//! Wavefront OBJ: `v` vertices and `f` faces (polygons fanned into triangles, `v`, `v/vt`,
+//! `v/vt/vn` and `v//vn` corners, negative indices counted back from the last vertex). Every other
+//! statement (`vn`, `vt`, `o`, `g`, `s`, `usemtl`, `mtllib`, comments) is skipped.
+
+use std::fmt::Write as _;
+
+use nalgebra::Point3;
+
+use super::{Mesh, syntax};
+use crate::Error;
+
+/// Reads OBJ text into an indexed mesh (not yet welded or validated).
+pub fn parse(text: &str) -> Result<Mesh, Error> {
+    let mut vertices: Vec<Point3<f64>> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    let mut corners: Vec<u32> = Vec::with_capacity(8);
+    for (i, line) in text.lines().enumerate() {
+        let n = i + 1;
+        let line = line.split('#').next().unwrap_or("");
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let mut c = [0.0; 3];
+                for (k, slot) in c.iter_mut().enumerate() {
+                    let w = words.next().ok_or_else(|| {
+                        syntax(Some(n), format!("vertex has {k} coordinates, needs 3"))
+                    })?;
+                    let v: f64 = w
+                        .parse()
+                        .map_err(|_| syntax(Some(n), format!("`{w}` is not a number")))?;
+                    if !v.is_finite() {
+                        return Err(syntax(Some(n), format!("coordinate `{w}` is not finite")));
+                    }
+                    *slot = v;
+                }
+                vertices.push(Point3::from(c));
+            }
+            Some("f") => {
+                corners.clear();
+                for w in words {
+                    let first = w.split('/').next().unwrap_or("");
+                    let index: i64 = first
+                        .parse()
+                        .map_err(|_| syntax(Some(n), format!("`{w}` is not a vertex reference")))?;
+                    let count = vertices.len() as i64;
+                    let resolved = if index > 0 { index - 1 } else { count + index };
+                    if index == 0 || resolved < 0 || resolved >= count {
+                        return Err(syntax(
+                            Some(n),
+                            format!("vertex {index} does not exist ({count} vertices so far)"),
+                        ));
+                    }
+                    corners.push(resolved as u32);
+                }
+                if corners.len() < 3 {
+                    return Err(syntax(
+                        Some(n),
+                        format!("a face needs 3 vertices, this one has {}", corners.len()),
+                    ));
+                }
+                for k in 1..corners.len() - 1 {
+                    triangles.push([corners[0], corners[k], corners[k + 1]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    if triangles.is_empty() {
+        return Err(syntax(None, "the OBJ file holds no faces"));
+    }
+    Mesh::new(vertices, triangles)
+}
+
+/// OBJ text of `mesh`.
+pub fn write(mesh: &Mesh) -> String {
+    let mut out = String::with_capacity(40 * (mesh.vertices().len() + mesh.triangles().len()));
+    for v in mesh.vertices() {
+        let _ = writeln!(out, "v {} {} {}", v.x, v.y, v.z);
+    }
+    for t in mesh.triangles() {
+        let _ = writeln!(out, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Closure;
+
+    #[test]
+    fn reads_polygons_and_index_forms_and_round_trips() {
+        let text = "# a cube\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+                    vn 0 0 1\nf 1 4 3 2\nf 5/1 6/2 7/3 8/4\nf 1//1 2//1 6//1 5//1\nf 2 3 7 6\n\
+                    f -5 -1 -2 -6\nf 4 1 5 8\n";
+        let m = parse(text).unwrap();
+        assert_eq!(m.triangles().len(), 12);
+        m.validate(Closure::Closed).unwrap();
+        assert!((m.signed_volume_mm3() - 1.0).abs() < 1e-12);
+        assert_eq!(parse(&write(&m)).unwrap(), m);
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let e = parse("v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "line 3: vertex 3 does not exist (2 vertices so far)"
+        );
+        let e = parse("v 0 0\n").unwrap_err();
+        assert_eq!(e.to_string(), "line 1: vertex has 2 coordinates, needs 3");
+        let e = parse("v 0 0 0\nv 1 nan 0\n").unwrap_err();
+        assert_eq!(e.to_string(), "line 2: coordinate `nan` is not finite");
+        let e = parse("v 0 0 0\nf 1 1\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "line 2: a face needs 3 vertices, this one has 2"
+        );
+        assert_eq!(
+            parse("").unwrap_err().to_string(),
+            "the OBJ file holds no faces"
+        );
+        let e = parse("v 0 0 0\nf 1 x 1\n").unwrap_err();
+        assert_eq!(e.to_string(), "line 2: `x` is not a vertex reference");
+    }
+}

@@ -1,0 +1,232 @@
+//! Smoothing and resegmentation of a traced or imported path (seed 001 §5.5: the path is fitted by
+//! a spline and divided into equal-length segments whose end points lie on the surface).
+//!
+//! The raw path (edge crossings, or DXF points) is resampled at equal arc length every
+//! `spacing_mm` or less, a cubic B-spline ([`crate::spline::BSpline::interpolate`], the spline core
+//! shared with the lathe winder) is passed through the samples, cut into `segments` pieces of equal
+//! arc length, and each end point is projected back onto the mesh (nearest surface point, with the
+//! smooth normal there). The largest distance between the raw and the smoothed path is measured at
+//! every raw point between two samples and at the midpoint of every sample interval.
+
+use nalgebra::{Point3, Vector3};
+
+use super::trace::{MeshPath, Stop, TraceOptions, Tracer};
+use crate::geodesic::{Direction, PathStart};
+use crate::spline::BSpline;
+use crate::{Error, SurfacePoint, Tube};
+
+/// Default resampling spacing, mm.
+pub const DEFAULT_SPACING_MM: f64 = 2.0;
+
+/// A path cut into equal-length segments on the mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Resegmented {
+    /// `segments + 1` end points on the surface, with their smooth normals.
+    pub points: Vec<SurfacePoint>,
+    /// The triangle of each end point.
+    pub faces: Vec<u32>,
+    /// Largest distance between the raw path and the smoothed one, mm.
+    pub max_deviation_mm: f64,
+    /// Arc length of the smoothed path, mm.
+    pub length_mm: f64,
+}
+
+/// Points at equal arc length along a polyline (both ends kept), at most `spacing_mm` apart, and
+/// their arc lengths.
+fn resample(raw: &[Point3<f64>], spacing_mm: f64) -> (Vec<Point3<f64>>, Vec<f64>, Vec<f64>) {
+    let mut cum = Vec::with_capacity(raw.len());
+    let mut total = 0.0;
+    cum.push(0.0);
+    for w in raw.windows(2) {
+        total += (w[1] - w[0]).norm();
+        cum.push(total);
+    }
+    let n = ((total / spacing_mm).ceil() as usize).max(3);
+    let mut out = Vec::with_capacity(n + 1);
+    let mut at = Vec::with_capacity(n + 1);
+    let mut k = 0;
+    for i in 0..=n {
+        let s = total * i as f64 / n as f64;
+        while k + 2 < cum.len() && cum[k + 1] < s {
+            k += 1;
+        }
+        let span = cum[k + 1] - cum[k];
+        let f = if span > 0.0 {
+            ((s - cum[k]) / span).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        out.push(raw[k] + (raw[k + 1] - raw[k]) * f);
+        at.push(s);
+    }
+    (out, at, cum)
+}
+
+/// Smooths `raw` and cuts it into `segments` equal-length pieces with end points on `tracer`'s
+/// mesh (see the module documentation).
+pub fn smooth_and_cut(
+    tracer: &Tracer,
+    raw: &[Point3<f64>],
+    segments: usize,
+    spacing_mm: f64,
+) -> Result<Resegmented, Error> {
+    if segments == 0 {
+        return Err(Error::OutOfRange {
+            name: "segments",
+            value: 0.0,
+            expected: "must be at least 1",
+        });
+    }
+    if !(spacing_mm > 0.0 && spacing_mm.is_finite()) {
+        return Err(Error::OutOfRange {
+            name: "spacing_mm",
+            value: spacing_mm,
+            expected: "must be > 0",
+        });
+    }
+    // Drop repeated points; a path needs some length.
+    let mut clean: Vec<Point3<f64>> = Vec::with_capacity(raw.len());
+    for (index, p) in raw.iter().enumerate() {
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(Error::NonFinitePoint { index });
+        }
+        if clean.last().is_none_or(|q| (p - q).norm() > 1e-9) {
+            clean.push(*p);
+        }
+    }
+    if clean.len() < 2 {
+        return Err(Error::TooFewPoints {
+            what: "path to smooth",
+            count: clean.len(),
+            needed: 2,
+        });
+    }
+    let (samples, at, cum) = resample(&clean, spacing_mm);
+    let coords: Vec<Vector3<f64>> = samples.iter().map(|p| p.coords).collect();
+    let spline = BSpline::<3>::interpolate(&coords)?;
+    // Chord-length parameters of the samples (the interpolant's own).
+    let mut params = Vec::with_capacity(coords.len());
+    let mut chord = 0.0;
+    params.push(0.0);
+    for w in coords.windows(2) {
+        chord += (w[1] - w[0]).norm();
+        params.push(chord);
+    }
+    for p in &mut params {
+        *p /= chord.max(f64::MIN_POSITIVE);
+    }
+    // Deviation: each raw point against the spline at its interpolated parameter, and the
+    // interval midpoints.
+    let mut max_dev = 0.0f64;
+    let mut j = 0;
+    for (i, p) in clean.iter().enumerate() {
+        let s = cum[i];
+        while j + 2 < at.len() && at[j + 1] < s {
+            j += 1;
+        }
+        let span = at[j + 1] - at[j];
+        let f = if span > 0.0 {
+            ((s - at[j]) / span).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let t = params[j] + (params[j + 1] - params[j]) * f;
+        max_dev = max_dev.max((spline.eval(t) - p.coords).norm());
+    }
+    let cut = spline.equal_length(segments)?;
+    let mut points = Vec::with_capacity(cut.len());
+    let mut faces = Vec::with_capacity(cut.len());
+    for (index, c) in cut.iter().enumerate() {
+        let at = tracer
+            .locate(&Point3::from(*c))
+            .ok_or(Error::NonFinitePoint { index })?;
+        points.push(SurfacePoint {
+            point: at.point,
+            normal: at.normal,
+        });
+        faces.push(at.face as u32);
+    }
+    Ok(Resegmented {
+        points,
+        faces,
+        max_deviation_mm: max_dev,
+        length_mm: spline.length(),
+    })
+}
+
+/// Where and in which direction a path of `start` begins on the analytic `tube` the mesh models:
+/// the spine end it starts from, at `start.angle_rad` around the spine, at the wind angle to the
+/// spine (the same start as [`crate::geodesic::trace`]).
+pub fn tube_start(tube: &Tube, start: &PathStart) -> (Point3<f64>, Vector3<f64>) {
+    let (u0, sign) = match start.direction {
+        Direction::Down => (tube.u_max(), -1.0),
+        Direction::Up => (tube.u_min(), 1.0),
+    };
+    let d = tube.derivatives(u0, start.angle_rad);
+    let (s, c) = start.wind_angle_rad.sin_cos();
+    let t = d.xu.normalize() * (sign * c) + d.xv.normalize() * s;
+    (tube.point(u0, start.angle_rad), t.normalize())
+}
+
+/// One fibre path on a mesh mandrel: traced from the start `tube` gives (its spine is the mesh's)
+/// until the far end cap's rim, smoothed and cut into `segments` equal-length pieces on the mesh.
+pub fn wind(
+    tracer: &Tracer,
+    tube: &Tube,
+    start: &PathStart,
+    segments: usize,
+    options: &TraceOptions,
+) -> Result<(MeshPath, Resegmented), Error> {
+    let (p0, t0) = tube_start(tube, start);
+    let path = tracer.trace_direction(&p0, &t0, 0.5, options)?;
+    if path.stop == Stop::Length || path.stop == Stop::Stuck {
+        let last = path.points.last().copied().unwrap_or(p0);
+        return Err(Error::PathTurnedBack { height_mm: last.z });
+    }
+    let cut = smooth_and_cut(tracer, &path.points, segments, DEFAULT_SPACING_MM)?;
+    Ok((path, cut))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::trace::{DEFAULT_CREASE_DEG, TraceOptions};
+    use crate::mesh::{Closure, DEFAULT_WELD_MM, prepare, triasym};
+
+    #[test]
+    fn helix_on_a_meshed_cylinder_is_cut_into_equal_chords_on_the_surface() {
+        let profile: Vec<(f64, f64)> = (0..=45).map(|i| (4.0 * i as f64, 31.75)).collect();
+        let (m, adj) = prepare(
+            &triasym::revolution(&profile, 128, true).unwrap(),
+            DEFAULT_WELD_MM,
+            Closure::Closed,
+        )
+        .unwrap();
+        let tr = Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap();
+        let o = TraceOptions {
+            height_range_mm: Some((0.0, 178.0)),
+            ..TraceOptions::default()
+        };
+        let path = tr
+            .trace_heading(&Point3::new(31.75, 0.0, 1.0), 0.843, 0.1, &o)
+            .unwrap();
+        let r = smooth_and_cut(&tr, &path.points, 50, DEFAULT_SPACING_MM).unwrap();
+        assert_eq!(r.points.len(), 51);
+        assert!(r.max_deviation_mm < 0.01, "{}", r.max_deviation_mm);
+        let chords: Vec<f64> = r
+            .points
+            .windows(2)
+            .map(|w| (w[1].point - w[0].point).norm())
+            .collect();
+        let mean = chords.iter().sum::<f64>() / 50.0;
+        for c in &chords {
+            assert!((c / mean - 1.0).abs() < 1e-3, "{c} vs {mean}");
+        }
+        for p in &r.points {
+            assert!((p.point.x.hypot(p.point.y) - 31.75).abs() < 0.02);
+            assert!((p.normal.norm() - 1.0).abs() < 1e-12);
+        }
+        assert!(smooth_and_cut(&tr, &path.points, 0, 2.0).is_err());
+        assert!(smooth_and_cut(&tr, &path.points[..1], 5, 2.0).is_err());
+    }
+}
