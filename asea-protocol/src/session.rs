@@ -74,6 +74,13 @@ pub struct Timers {
     pub t_gap: Duration,
     /// [`T_FLUSH`].
     pub t_flush: Duration,
+    /// If set, the host takes an ACK to its telegram only within this time after the telegram
+    /// has left the line; a later "ACK" is treated as NAK (retransmit, which the robot
+    /// re-acknowledges without executing again). A robot answers a good telegram at once and a
+    /// bad one only after `T_FLUSH` of silence, so a NAK corrupted into ACK arrives too late to
+    /// count. Must exceed the robot's turnaround; off by default because a real controller's
+    /// turnaround is unknown.
+    pub t_ack_window: Option<Duration>,
 }
 
 impl Default for Timers {
@@ -89,6 +96,7 @@ impl Default for Timers {
             t_idle: T_IDLE,
             t_gap: T_GAP,
             t_flush: T_FLUSH,
+            t_ack_window: None,
         }
     }
 }
@@ -215,6 +223,7 @@ pub struct Host {
     reply: Option<Frame>,
     outcome: Option<Outcome>,
     ready_at: Duration,
+    line_free: Duration,
     stats: Stats,
 }
 
@@ -236,6 +245,7 @@ impl Host {
             reply: None,
             outcome: None,
             ready_at: Duration::ZERO,
+            line_free: Duration::ZERO,
             stats: Stats::default(),
         }
     }
@@ -273,6 +283,15 @@ impl Host {
     /// Bytes to send now.
     pub fn take_output(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.out)
+    }
+
+    /// Tells the host that what [`Host::take_output`] returned has left the line at `now`, so
+    /// that `T_GAP` is counted from the end of the EOT.
+    pub fn on_sent(&mut self, now: Duration) {
+        self.line_free = now;
+        if self.state == HostState::Idle {
+            self.ready_at = self.ready_at.max(now + self.timers.t_gap);
+        }
     }
 
     /// The session's result, once it has one.
@@ -357,7 +376,14 @@ impl Host {
                     self.rx.decoder.clear();
                     return;
                 }
-                HostState::WaitFrameAck if b == ACK && !self.clean => {
+                HostState::WaitFrameAck
+                    if b == ACK
+                        && (!self.clean
+                            || self
+                                .timers
+                                .t_ack_window
+                                .is_some_and(|w| now > self.line_free + w)) =>
+                {
                     // An ACK behind noise may be a corrupted NAK: ask again (a retransmission is
                     // re-acknowledged, never executed twice).
                     self.rx.last_rx = now;
@@ -491,7 +517,7 @@ impl Host {
             S::Confirm => {
                 // The gap before the next session has been served here.
                 self.finish(Ok(None), now);
-                self.ready_at = now;
+                self.ready_at = now.max(self.line_free + self.timers.t_gap);
             }
             S::WaitReplyEnq | S::ReceiveReply => self.finish(Err(LinkError::NoReply), now),
             S::WaitReplyEot => {
@@ -811,12 +837,18 @@ mod tests {
         assert_eq!(h.deadline(), Some(ms(5) + T_ACK));
         h.on_bytes(&[ACK], ms(20));
         assert_eq!(h.take_output(), [EOT]);
-        // Confirmed once T_GAP has passed without a NAK; the next ENQ may follow at once.
+        // The EOT has left the line one millisecond later.
+        h.on_sent(ms(21));
+        // Confirmed once T_GAP has passed without a NAK; the next ENQ follows T_GAP after the
+        // end of the EOT.
         assert_eq!(h.take_outcome(), None);
         assert_eq!(h.deadline(), Some(ms(20) + T_GAP));
         h.on_time(ms(20) + T_GAP);
         assert_eq!(h.take_outcome(), Some(Ok(None)));
         h.start(RUN3.to_vec(), false, ms(20) + T_GAP);
+        assert!(h.take_output().is_empty());
+        assert_eq!(h.deadline(), Some(ms(21) + T_GAP));
+        h.on_time(ms(21) + T_GAP);
         assert_eq!(h.take_output(), [ENQ]);
     }
 
