@@ -114,6 +114,13 @@ impl<L: Link, C: Clock> Client<L, C> {
             let out = self.host.take_output();
             if !out.is_empty() {
                 self.link.write_all(&out)?;
+                self.host.on_sent(self.clock.now());
+                // Half duplex: nothing the robot sent while we were sending an ENQ or a telegram
+                // answers it (a duplicated or stale ACK must not acknowledge a telegram the
+                // robot never saw).
+                if matches!(out.first(), Some(&crate::frame::ENQ | &crate::frame::STX)) {
+                    self.link.discard_input()?;
+                }
             }
             if let Some(outcome) = self.host.take_outcome() {
                 return outcome.map_err(Error::from);

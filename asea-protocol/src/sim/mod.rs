@@ -564,6 +564,23 @@ impl Machine {
     }
 }
 
+/// What the robot does with a well-framed telegram that does not parse (unknown code, LEN not
+/// matching the code, reserved flag bits or zone, program or instruction 0, quaternion norm off
+/// by more than 0.01).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Malformed {
+    /// Acknowledge it and set `last_error` (spec/protocols.md §5.5: NAK only for link errors).
+    #[default]
+    AckWithError,
+    /// Treat it as a transmission error: NAK, so that the host retransmits. Most corruptions
+    /// that a one-byte sum misses are caught this way; a host that really sends such a telegram
+    /// gets a retries error instead of an error code.
+    Nak,
+}
+
+/// The robot's policy unless configured otherwise.
+pub const DEFAULT_MALFORMED: Malformed = Malformed::AckWithError;
+
 /// The simulated robot computer on a link: session + machine.
 #[derive(Debug)]
 pub struct Robot {
@@ -582,6 +599,16 @@ impl Robot {
             machine: Machine::new(params),
             frame,
         }
+        .with_malformed(DEFAULT_MALFORMED)
+    }
+
+    /// Sets the policy for telegrams that do not parse.
+    pub fn with_malformed(mut self, policy: Malformed) -> Self {
+        self.session.validate = match policy {
+            Malformed::AckWithError => None,
+            Malformed::Nak => Some(crate::command::well_formed),
+        };
+        self
     }
 }
 
@@ -619,6 +646,9 @@ impl Peer for Robot {
 
 /// How long [`serve`] waits for host bytes before letting the clock run.
 pub const POLL_PERIOD: Duration = Duration::from_millis(2);
+/// The simulator's turnaround in real time: it answers no sooner than this after the byte that
+/// prompts the answer, as a UART robot computer would (spec §5.4: under 50 ms).
+pub const TURNAROUND: Duration = Duration::from_millis(3);
 
 /// Serves `robot` over `link` in real time until `stop` is set.
 pub fn serve<L: Link>(
@@ -644,6 +674,9 @@ pub fn serve<L: Link>(
             r.take_output()
         };
         if !out.is_empty() {
+            if n > 0 {
+                std::thread::sleep(TURNAROUND);
+            }
             link.write_all(&out)?;
         }
     }

@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 
 pub mod plan;
 pub mod sim_indexer;
+pub mod sim_robot;
 
 /// Exit code for bad input: a file, a field or an argument the operator must fix.
 pub const EXIT_INPUT: u8 = 2;
@@ -61,6 +62,8 @@ pub enum Command {
     Plan(plan::PlanArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
+    /// Run the ASEA robot-computer simulator on a pseudo-terminal.
+    SimRobot(sim_robot::SimRobotArgs),
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
@@ -81,5 +84,6 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
+        Command::SimRobot(args) => sim_robot::run(args),
     }
 }
