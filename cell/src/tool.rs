@@ -32,6 +32,8 @@ pub struct PlannedPath {
     pub program: u8,
     /// The plan.
     pub plan: PathPlan,
+    /// Mesh mandrels: the largest distance between the traced and the smoothed path, mm.
+    pub smoothing_deviation_mm: Option<f64>,
 }
 
 /// Every path of a job, planned.
@@ -53,7 +55,7 @@ pub fn mandrel(job: &Job) -> Result<Tube, (paths::Error, Range<usize>)> {
             Tube::cylinder(diameter, length, bottom, top)
                 .map_err(|e| (e, m.length_mm.as_ref().map_or(m.kind.span(), |l| l.span())))
         }
-        MandrelKind::Tube => {
+        MandrelKind::Tube | MandrelKind::Mesh => {
             let spine_field = m.spine_mm.as_ref();
             let span = spine_field.map_or(m.kind.span(), |s| s.span());
             let knots: Vec<(f64, f64)> = spine_field.map_or_else(Vec::new, |s| {
@@ -110,6 +112,23 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         }
     };
     let tube = mandrel(job).map_err(|(e, span)| located(e, span))?;
+    let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
+        (MandrelKind::Mesh, Some(mesh)) => {
+            let dir = file.parent().unwrap_or(Path::new(""));
+            let weld = job
+                .mandrel
+                .weld_mm
+                .as_ref()
+                .map_or(paths::mesh::DEFAULT_WELD_MM, |w| *w.get_ref());
+            Some(crate::mesh::load(
+                &dir.join(mesh.get_ref()),
+                weld,
+                paths::mesh::Closure::Closed,
+                paths::mesh::trace::DEFAULT_CREASE_DEG,
+            )?)
+        }
+        _ => None,
+    };
     let (setup, speeds) = setup(job);
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
@@ -121,14 +140,29 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 Direction::Up => paths::Direction::Up,
             },
         };
-        let path = if tube.spine().is_straight() {
-            geodesic::helix(&tube, &start, HELIX_STEP_MM)
+        let segments = *spec.segments.get_ref() as usize;
+        let (points, smoothing_deviation_mm) = if let Some(tracer) = &tracer {
+            // Mesh mandrel: trace on the mesh, smooth, cut into equal lengths on the surface.
+            let (_, cut) = paths::mesh::resegment::wind(
+                tracer,
+                &tube,
+                &start,
+                segments,
+                &paths::mesh::trace::TraceOptions::default(),
+            )
+            .map_err(|e| located(e, spec.wind_angle_deg.span()))?;
+            (cut.points, Some(cut.max_deviation_mm))
         } else {
-            geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
-        }
-        .map_err(|e| located(e, spec.wind_angle_deg.span()))?;
-        let points = paths::segment::equal_length(&tube, &path, *spec.segments.get_ref() as usize)
-            .map_err(|e| located(e, spec.segments.span()))?;
+            let path = if tube.spine().is_straight() {
+                geodesic::helix(&tube, &start, HELIX_STEP_MM)
+            } else {
+                geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
+            }
+            .map_err(|e| located(e, spec.wind_angle_deg.span()))?;
+            let points = paths::segment::equal_length(&tube, &path, segments)
+                .map_err(|e| located(e, spec.segments.span()))?;
+            (points, None)
+        };
         let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
             .map_err(|e| {
                 let span = match &e {
@@ -142,6 +176,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             name: format!("{}_{}", job.name.get_ref(), spec.program.get_ref()),
             program: *spec.program.get_ref(),
             plan,
+            smoothing_deviation_mm,
         });
     }
     Ok(JobPlan { paths: planned })

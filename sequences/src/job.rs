@@ -117,6 +117,8 @@ pub enum MandrelKind {
     Cylinder,
     /// A tube swept along a measured spine (the S-bend, configuration 4).
     Tube,
+    /// A triangulated mandrel (STL or OBJ file) with the spine of its sections (eq 3.7).
+    Mesh,
 }
 
 /// The mandrel. Which fields apply depends on `kind`; [`Job::parse`] checks them.
@@ -142,6 +144,12 @@ pub struct Mandrel {
     /// Tube: how far the smoothed spine may depart from the knots, mm (0 interpolates).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spine_smoothing_mm: Option<Spanned<f64>>,
+    /// Mesh: the STL or OBJ file, relative to the job file's folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<Spanned<String>>,
+    /// Mesh: vertex welding tolerance, mm (default 1e-4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weld_mm: Option<Spanned<f64>>,
 }
 
 /// Winding direction.
@@ -372,6 +380,10 @@ impl Job {
             )),
             None => Ok(()),
         };
+        if *m.kind.get_ref() != MandrelKind::Mesh {
+            forbid(m.mesh.as_ref().map(Spanned::span), "mesh")?;
+            forbid(m.weld_mm.as_ref().map(Spanned::span), "weld_mm")?;
+        }
         match m.kind.get_ref() {
             MandrelKind::Cylinder => {
                 require(m.length_mm.is_some(), "length_mm")?;
@@ -390,8 +402,14 @@ impl Job {
                     finite(text, offset, "offset")?;
                 }
             }
-            MandrelKind::Tube => {
+            MandrelKind::Tube | MandrelKind::Mesh => {
                 require(m.spine_mm.is_some(), "spine_mm")?;
+                if *m.kind.get_ref() == MandrelKind::Mesh {
+                    require(m.mesh.is_some(), "mesh")?;
+                    if let Some(w) = &m.weld_mm {
+                        positive(text, w, "weld tolerance")?;
+                    }
+                }
                 forbid(m.length_mm.as_ref().map(Spanned::span), "length_mm")?;
                 forbid(
                     m.bottom_offset_mm.as_ref().map(Spanned::span),

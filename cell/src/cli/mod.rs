@@ -2,8 +2,10 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod geodesic;
 pub mod plan;
 pub mod sim_indexer;
+pub mod triasym;
 
 /// Exit code for bad input: a file, a field or an argument the operator must fix.
 pub const EXIT_INPUT: u8 = 2;
@@ -61,6 +63,10 @@ pub enum Command {
     Plan(plan::PlanArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
+    /// Trace a geodesic on a triangulated mandrel (STL or OBJ).
+    Geodesic(geodesic::GeodesicArgs),
+    /// Mesh a job's tube mandrel (TRIASYM) and write it as STL.
+    Triasym(triasym::TriasymArgs),
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
@@ -81,5 +87,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
+        Command::Geodesic(args) => geodesic::run(args),
+        Command::Triasym(args) => triasym::run(args),
     }
 }
