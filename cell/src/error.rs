@@ -55,6 +55,7 @@ impl Error {
         matches!(
             self,
             Error::File(sequences::Error::Parse { .. })
+                | Error::File(sequences::Error::Content { .. })
                 | Error::Plan { .. }
                 | Error::Mesh { .. }
                 | Error::Read { .. }

@@ -22,6 +22,10 @@ pub const APPROACH_SPEED_PCT: f64 = 10.0;
 pub const GEODESIC_STEP_MM: f64 = 0.25;
 /// Arc-length sample spacing of the exact helix, mm (its interpolation is exact).
 pub const HELIX_STEP_MM: f64 = 1.0;
+/// Facets per circumference of the mesh that imported paths are projected onto (analytic mandrels).
+pub const PROJECTION_FACETS: usize = 256;
+/// Section spacing of that mesh, mm.
+pub const PROJECTION_SPACING_MM: f64 = 1.0;
 
 /// One planned path.
 #[derive(Debug, Clone)]
@@ -130,38 +134,112 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         _ => None,
     };
     let (setup, speeds) = setup(job);
+    let dir = file.parent().unwrap_or(Path::new(""));
+    // Imported (DXF) paths on an analytic mandrel are projected onto its TRIASYM mesh.
+    let mut projection: Option<paths::mesh::trace::Tracer> = None;
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
-        let start = PathStart {
-            angle_rad: spec.start_angle_deg.get_ref().to_radians(),
-            wind_angle_rad: spec.wind_angle_deg.get_ref().to_radians(),
-            direction: match spec.direction.get_ref() {
-                Direction::Down => paths::Direction::Down,
-                Direction::Up => paths::Direction::Up,
-            },
-        };
         let segments = *spec.segments.get_ref() as usize;
-        let (points, smoothing_deviation_mm) = if let Some(tracer) = &tracer {
-            // Mesh mandrel: trace on the mesh, smooth, cut into equal lengths on the surface.
-            let (_, cut) = paths::mesh::resegment::wind(
-                tracer,
-                &tube,
-                &start,
+        let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
+            let dxf_file = dir.join(dxf.get_ref());
+            let drawing = sequences::dxf::Drawing::load(&dxf_file).map_err(|e| match e {
+                sequences::Error::Io { file, source } => Error::Read { file, source },
+                other => Error::File(other),
+            })?;
+            let raw: Vec<nalgebra::Point3<f64>> = drawing
+                .path(spec.layer.as_ref().map(|l| l.get_ref().as_str()))
+                .map_err(|e| e.in_file(&dxf_file))?
+                .into_iter()
+                .map(nalgebra::Point3::from)
+                .collect();
+            let surface = match &tracer {
+                Some(t) => t,
+                None => {
+                    if projection.is_none() {
+                        let mesh = paths::mesh::triasym::tube(
+                            &tube,
+                            PROJECTION_FACETS,
+                            PROJECTION_SPACING_MM,
+                            true,
+                        )
+                        .map_err(|e| located(e, job.mandrel.kind.span()))?;
+                        let adjacency = mesh
+                            .validate(paths::mesh::Closure::Closed)
+                            .map_err(|e| located(e, job.mandrel.kind.span()))?;
+                        projection = Some(
+                            paths::mesh::trace::Tracer::new(
+                                mesh,
+                                &adjacency,
+                                paths::mesh::trace::DEFAULT_CREASE_DEG,
+                            )
+                            .map_err(|e| located(e, job.mandrel.kind.span()))?,
+                        );
+                    }
+                    projection.as_ref().ok_or_else(|| {
+                        located(
+                            paths::Error::TooFewPoints {
+                                what: "mandrel mesh",
+                                count: 0,
+                                needed: 1,
+                            },
+                            job.mandrel.kind.span(),
+                        )
+                    })?
+                }
+            };
+            let cut = paths::mesh::resegment::smooth_and_cut(
+                surface,
+                &raw,
                 segments,
-                &paths::mesh::trace::TraceOptions::default(),
+                paths::mesh::resegment::DEFAULT_SPACING_MM,
             )
-            .map_err(|e| located(e, spec.wind_angle_deg.span()))?;
+            .map_err(|e| located(e, dxf.span()))?;
             (cut.points, Some(cut.max_deviation_mm))
         } else {
-            let path = if tube.spine().is_straight() {
-                geodesic::helix(&tube, &start, HELIX_STEP_MM)
+            let (Some(angle), Some(wind), Some(direction)) = (
+                spec.start_angle_deg.as_ref(),
+                spec.wind_angle_deg.as_ref(),
+                spec.direction.as_ref(),
+            ) else {
+                return Err(located(
+                    paths::Error::OutOfRange {
+                        name: "path",
+                        value: 0.0,
+                        expected: "needs direction, wind_angle_deg and start_angle_deg, or dxf",
+                    },
+                    spec.program.span(),
+                ));
+            };
+            let start = PathStart {
+                angle_rad: angle.get_ref().to_radians(),
+                wind_angle_rad: wind.get_ref().to_radians(),
+                direction: match direction.get_ref() {
+                    Direction::Down => paths::Direction::Down,
+                    Direction::Up => paths::Direction::Up,
+                },
+            };
+            if let Some(tracer) = &tracer {
+                // Mesh mandrel: trace on the mesh, smooth, cut into equal lengths on the surface.
+                let (_, cut) = paths::mesh::resegment::wind(
+                    tracer,
+                    &tube,
+                    &start,
+                    segments,
+                    &paths::mesh::trace::TraceOptions::default(),
+                )
+                .map_err(|e| located(e, wind.span()))?;
+                (cut.points, Some(cut.max_deviation_mm))
             } else {
-                geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
+                let path = if tube.spine().is_straight() {
+                    geodesic::helix(&tube, &start, HELIX_STEP_MM)
+                } else {
+                    geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
+                }
+                .map_err(|e| located(e, wind.span()))?;
+                let points = paths::segment::equal_length(&tube, &path, segments)
+                    .map_err(|e| located(e, spec.segments.span()))?;
+                (points, None)
             }
-            .map_err(|e| located(e, spec.wind_angle_deg.span()))?;
-            let points = paths::segment::equal_length(&tube, &path, segments)
-                .map_err(|e| located(e, spec.segments.span()))?;
-            (points, None)
         };
         let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
             .map_err(|e| {

@@ -196,3 +196,82 @@ fn plan_runs_the_tool_step_from_the_sbend_stl_like_the_analytic_tube() {
             .exists()
     );
 }
+
+/// The geodesic of the S-bend, written to a DXF POLYLINE, planned as an imported path on the mesh
+/// mandrel and on the analytic tube: the same steps as the traced path within a few.
+#[test]
+fn plan_takes_a_dxf_path_on_mesh_and_tube_mandrels() {
+    use paths::geodesic::{Direction, PathStart};
+    use sequences::dxf::{Drawing, Entity, Kind};
+    let dir = tempfile::tempdir().unwrap();
+    let tube = paths::Tube::new(
+        paths::Spine::smoothing(
+            &paths::spine::SBEND_TABLE_6_1_MM,
+            paths::spine::SBEND_SMOOTHING_MM,
+        )
+        .unwrap(),
+        28.5,
+    )
+    .unwrap();
+    let start = PathStart {
+        angle_rad: 90f64.to_radians(),
+        wind_angle_rad: 45f64.to_radians(),
+        direction: Direction::Down,
+    };
+    let path = paths::geodesic::trace(&tube, &start, 1.0).unwrap();
+    let points: Vec<[f64; 3]> = path
+        .samples
+        .iter()
+        .map(|s| {
+            let p = tube.point(s.u, s.v);
+            [p.x, p.y, p.z]
+        })
+        .collect();
+    let drawing = Drawing {
+        entities: vec![Entity {
+            kind: Kind::Polyline,
+            layer: "FIBRE".into(),
+            points,
+            closed: false,
+        }],
+    };
+    std::fs::write(dir.path().join("path.dxf"), drawing.write().unwrap()).unwrap();
+    std::fs::copy(example("sbend.stl"), dir.path().join("sbend.stl")).unwrap();
+    let imported = "[[path]]\nprogram = 3\ndxf = \"path.dxf\"\nlayer = \"FIBRE\"\nsegments = 50\n";
+    for name in ["sbend-mesh.toml", "sbend.toml"] {
+        let job = std::fs::read_to_string(example(name)).unwrap() + "\n" + imported;
+        let job_file = dir.path().join(name);
+        std::fs::write(&job_file, job).unwrap();
+        let r = windcell(&[
+            "plan",
+            job_file.to_str().unwrap(),
+            "-o",
+            dir.path().join(format!("out-{name}")).to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(r.status.success(), "{name}: {}", stderr(&r));
+        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        let steps: Vec<i64> = v["paths"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["total_steps"].as_i64().unwrap())
+            .collect();
+        assert!((steps[2] - steps[0]).abs() <= 5, "{name}: {steps:?}");
+    }
+    // A DXF error names the file; exit 2.
+    std::fs::write(
+        dir.path().join("path.dxf"),
+        "0\nSECTION\n2\nENTITIES\n0\nPOINT\n10\nx\n",
+    )
+    .unwrap();
+    let r = windcell(&[
+        "plan",
+        dir.path().join("sbend.toml").to_str().unwrap(),
+        "-o",
+        dir.path().join("bad-out").to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+    assert!(stderr(&r).contains("path.dxf:"), "{}", stderr(&r));
+    assert!(!dir.path().join("bad-out").exists());
+}
