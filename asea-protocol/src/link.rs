@@ -1,0 +1,769 @@
+//! The byte link: a serial port, an in-memory pipe, a fault injector, a tap, and a paced
+//! virtual-time wire that connects a client to a simulated robot without threads.
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
+use std::io::{self, Write};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use crate::clock::{Clock, VirtualClock};
+
+/// A byte link: write, read with a timeout, discard stale input.
+pub trait Link: Send {
+    /// Writes all of `bytes` and waits until they are handed to the line.
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()>;
+    /// Reads at least one byte into `buf` within `timeout`; `Ok(0)` on timeout.
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize>;
+    /// Drops any input received and not yet read.
+    fn discard_input(&mut self) -> io::Result<()>;
+}
+
+impl<L: Link + ?Sized> Link for Box<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        (**self).write_all(bytes)
+    }
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        (**self).read_timeout(buf, timeout)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        (**self).discard_input()
+    }
+}
+
+/// Character format on the serial line (spec/protocols.md §5.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CharFormat {
+    /// 8 data bits, no parity, 1 stop bit (the default).
+    #[default]
+    EightN1,
+    /// 7 data bits, even parity, 1 stop bit, in case the real controller needs it. Telegram
+    /// bytes at or above 0x80 cannot pass such a line.
+    SevenE1,
+}
+
+/// The serial character format used unless configured otherwise.
+pub const DEFAULT_CHAR_FORMAT: CharFormat = CharFormat::EightN1;
+/// The baud rate used unless configured otherwise (spec §5.1).
+pub const DEFAULT_BAUD: u32 = 9600;
+
+/// Bits on the line per character (start + data + parity + stop).
+pub fn bits_per_char(format: CharFormat) -> u32 {
+    match format {
+        CharFormat::EightN1 => 10,
+        CharFormat::SevenE1 => 10,
+    }
+}
+
+/// Opens a real serial port at `baud` with `format`.
+pub fn open_serial(
+    path: &str,
+    baud: u32,
+    format: CharFormat,
+) -> Result<Box<dyn serialport::SerialPort>, serialport::Error> {
+    let (bits, parity) = match format {
+        CharFormat::EightN1 => (serialport::DataBits::Eight, serialport::Parity::None),
+        CharFormat::SevenE1 => (serialport::DataBits::Seven, serialport::Parity::Even),
+    };
+    serialport::new(path, baud)
+        .data_bits(bits)
+        .parity(parity)
+        .stop_bits(serialport::StopBits::One)
+        .flow_control(serialport::FlowControl::None)
+        .timeout(Duration::from_millis(100))
+        .open()
+}
+
+fn serial_read<P: serialport::SerialPort + ?Sized>(
+    port: &mut P,
+    buf: &mut [u8],
+    timeout: Duration,
+) -> io::Result<usize> {
+    port.set_timeout(timeout.max(Duration::from_millis(1)))
+        .map_err(io::Error::from)?;
+    match port.read(buf) {
+        Ok(n) => Ok(n),
+        // A signal arriving during the wait is a short read, not a failure.
+        Err(e)
+            if matches!(
+                e.kind(),
+                io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+            ) =>
+        {
+            Ok(0)
+        }
+        Err(e) => Err(e),
+    }
+}
+
+impl Link for Box<dyn serialport::SerialPort> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        Write::write_all(self, bytes)?;
+        self.flush()
+    }
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        serial_read(self.as_mut(), buf, timeout)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.clear(serialport::ClearBuffer::Input)
+            .map_err(io::Error::from)
+    }
+}
+
+#[cfg(unix)]
+impl Link for serialport::TTYPort {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        Write::write_all(self, bytes)?;
+        self.flush()
+    }
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        serial_read(self, buf, timeout)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        // Drain what has arrived; tcflush is not reliable on every pty implementation.
+        let mut scratch = [0u8; 256];
+        while serial_read(self, &mut scratch, Duration::from_millis(1))? > 0 {}
+        Ok(())
+    }
+}
+
+#[derive(Debug, Default)]
+struct Queue {
+    bytes: Mutex<VecDeque<u8>>,
+    ready: Condvar,
+}
+
+/// One end of an in-memory duplex byte pipe (real time, for threads).
+#[derive(Debug, Clone)]
+pub struct Pipe {
+    rx: Arc<Queue>,
+    tx: Arc<Queue>,
+}
+
+impl Pipe {
+    /// Two connected ends.
+    pub fn pair() -> (Pipe, Pipe) {
+        let a = Arc::new(Queue::default());
+        let b = Arc::new(Queue::default());
+        (
+            Pipe {
+                rx: a.clone(),
+                tx: b.clone(),
+            },
+            Pipe { rx: b, tx: a },
+        )
+    }
+}
+
+fn poisoned() -> io::Error {
+    io::Error::other("pipe lock poisoned")
+}
+
+impl Link for Pipe {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.tx
+            .bytes
+            .lock()
+            .map_err(|_| poisoned())?
+            .extend(bytes.iter().copied());
+        self.tx.ready.notify_all();
+        Ok(())
+    }
+
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        let deadline = Instant::now() + timeout;
+        let mut q = self.rx.bytes.lock().map_err(|_| poisoned())?;
+        while q.is_empty() {
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(0);
+            }
+            q = self
+                .rx
+                .ready
+                .wait_timeout(q, deadline - now)
+                .map_err(|_| poisoned())?
+                .0;
+        }
+        let n = buf.len().min(q.len());
+        for (slot, byte) in buf.iter_mut().zip(q.drain(..n)) {
+            *slot = byte;
+        }
+        Ok(n)
+    }
+
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.rx.bytes.lock().map_err(|_| poisoned())?.clear();
+        Ok(())
+    }
+}
+
+/// A small seeded generator (SplitMix64): reproducible faults without a dependency.
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from `seed`.
+    pub fn new(seed: u64) -> Self {
+        Rng(seed)
+    }
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Byte fault rates (each a probability per byte) and a seed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaultRates {
+    /// The byte is lost.
+    pub drop: f64,
+    /// The byte arrives with one to eight bits flipped.
+    pub corrupt: f64,
+    /// The line stalls before the byte for up to `max_delay`.
+    pub delay: f64,
+    /// The byte arrives twice.
+    pub duplicate: f64,
+    /// Longest stall.
+    pub max_delay: Duration,
+}
+
+impl FaultRates {
+    /// `rate` split evenly over drop, corrupt, delay and duplicate; stalls up to 300 ms (beyond
+    /// `T_CHAR`).
+    pub fn uniform(rate: f64) -> Self {
+        FaultRates {
+            drop: rate / 4.0,
+            corrupt: rate / 4.0,
+            delay: rate / 4.0,
+            duplicate: rate / 4.0,
+            max_delay: Duration::from_millis(300),
+        }
+    }
+}
+
+/// Counts of injected faults.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FaultCounts {
+    /// Bytes seen.
+    pub bytes: u64,
+    /// Dropped.
+    pub dropped: u64,
+    /// Corrupted.
+    pub corrupted: u64,
+    /// Delayed.
+    pub delayed: u64,
+    /// Duplicated.
+    pub duplicated: u64,
+}
+
+/// A seeded fault injector.
+#[derive(Debug, Clone)]
+pub struct Faults {
+    rates: FaultRates,
+    rng: Rng,
+    counts: FaultCounts,
+}
+
+/// What happens to one byte.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Fate {
+    /// Stall before it.
+    pub delay: Duration,
+    /// Copies that arrive (0, 1 or 2) and the value they carry.
+    pub copies: u8,
+    /// The value.
+    pub byte: u8,
+}
+
+impl Faults {
+    /// An injector with `rates`, seeded.
+    pub fn new(rates: FaultRates, seed: u64) -> Self {
+        Faults {
+            rates,
+            rng: Rng::new(seed),
+            counts: FaultCounts::default(),
+        }
+    }
+    /// Counts so far.
+    pub fn counts(&self) -> FaultCounts {
+        self.counts
+    }
+    /// Decides the fate of `byte`.
+    pub fn apply(&mut self, byte: u8) -> Fate {
+        self.counts.bytes += 1;
+        let r = self.rates;
+        let u = self.rng.unit();
+        let mut fate = Fate {
+            delay: Duration::ZERO,
+            copies: 1,
+            byte,
+        };
+        if u < r.drop {
+            self.counts.dropped += 1;
+            fate.copies = 0;
+        } else if u < r.drop + r.corrupt {
+            self.counts.corrupted += 1;
+            let mask = (self.rng.next_u64() % 255 + 1) as u8;
+            fate.byte = byte ^ mask;
+        } else if u < r.drop + r.corrupt + r.delay {
+            self.counts.delayed += 1;
+            fate.delay = r.max_delay.mul_f64(self.rng.unit());
+        } else if u < r.drop + r.corrupt + r.delay + r.duplicate {
+            self.counts.duplicated += 1;
+            fate.copies = 2;
+        }
+        fate
+    }
+}
+
+/// A real-time link wrapper that drops, corrupts and duplicates the bytes it writes (stalls are
+/// slept). For threads and pseudo-terminals; the paced wire models faults in virtual time.
+#[derive(Debug)]
+pub struct Faulty<L> {
+    inner: L,
+    faults: Faults,
+}
+
+impl<L: Link> Faulty<L> {
+    /// Wraps `inner`.
+    pub fn new(inner: L, faults: Faults) -> Self {
+        Faulty { inner, faults }
+    }
+    /// Counts so far.
+    pub fn counts(&self) -> FaultCounts {
+        self.faults.counts()
+    }
+}
+
+impl<L: Link> Link for Faulty<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        for &b in bytes {
+            let fate = self.faults.apply(b);
+            if !fate.delay.is_zero() {
+                std::thread::sleep(fate.delay);
+            }
+            for _ in 0..fate.copies {
+                self.inner.write_all(&[fate.byte])?;
+            }
+        }
+        Ok(())
+    }
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        self.inner.read_timeout(buf, timeout)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.inner.discard_input()
+    }
+}
+
+/// Direction of a recorded chunk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Direction {
+    /// Written by this side.
+    Tx,
+    /// Read by this side.
+    Rx,
+}
+
+/// One recorded chunk of traffic.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TapRecord {
+    /// Wall time since the tap was made.
+    pub at: Duration,
+    /// Direction.
+    pub dir: Direction,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// A link wrapper that records all traffic (for `/link/trace` and debugging).
+#[derive(Debug)]
+pub struct Tap<L> {
+    inner: L,
+    epoch: Instant,
+    log: Arc<Mutex<Vec<TapRecord>>>,
+}
+
+impl<L: Link> Tap<L> {
+    /// Wraps `inner`; the returned log fills as traffic passes.
+    pub fn new(inner: L) -> (Self, Arc<Mutex<Vec<TapRecord>>>) {
+        let log = Arc::new(Mutex::new(Vec::new()));
+        (
+            Tap {
+                inner,
+                epoch: Instant::now(),
+                log: log.clone(),
+            },
+            log,
+        )
+    }
+    fn record(&self, dir: Direction, bytes: &[u8]) {
+        if let Ok(mut log) = self.log.lock() {
+            log.push(TapRecord {
+                at: self.epoch.elapsed(),
+                dir,
+                bytes: bytes.to_vec(),
+            });
+        }
+    }
+}
+
+impl<L: Link> Link for Tap<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.record(Direction::Tx, bytes);
+        self.inner.write_all(bytes)
+    }
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        let n = self.inner.read_timeout(buf, timeout)?;
+        if n > 0 {
+            self.record(Direction::Rx, buf.get(..n).unwrap_or_default());
+        }
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.inner.discard_input()
+    }
+}
+
+/// The far end of a [`Paced`] wire: a device driven by bytes and time (the robot simulator).
+pub trait Peer {
+    /// Bytes arriving at `now`.
+    fn receive(&mut self, bytes: &[u8], now: Duration);
+    /// Time passes to `now`.
+    fn poll(&mut self, now: Duration);
+    /// Bytes the device sends.
+    fn take_output(&mut self) -> Vec<u8>;
+    /// When the device next needs [`Peer::poll`].
+    fn deadline(&self) -> Option<Duration>;
+}
+
+impl<P: Peer + ?Sized> Peer for &mut P {
+    fn receive(&mut self, bytes: &[u8], now: Duration) {
+        (**self).receive(bytes, now)
+    }
+    fn poll(&mut self, now: Duration) {
+        (**self).poll(now)
+    }
+    fn take_output(&mut self) -> Vec<u8> {
+        (**self).take_output()
+    }
+    fn deadline(&self) -> Option<Duration> {
+        (**self).deadline()
+    }
+}
+
+type Arrivals = BinaryHeap<Reverse<(Duration, u64, u8)>>;
+
+/// A serial line in virtual time between this end (the host) and a [`Peer`], paced at a baud
+/// rate, with optional faults on both directions. Writing blocks (in virtual time) until the last
+/// byte has left, like `tcdrain`; reading advances the clock to the next arriving byte or the
+/// timeout. Single-threaded and deterministic.
+#[derive(Debug)]
+pub struct Paced<P> {
+    clock: VirtualClock,
+    byte_time: Duration,
+    /// The device.
+    pub peer: P,
+    to_peer: Arrivals,
+    to_host: Arrivals,
+    host_free: Duration,
+    peer_free: Duration,
+    seq: u64,
+    faults_to_peer: Option<Faults>,
+    faults_to_host: Option<Faults>,
+    busy_line: Duration,
+}
+
+impl<P: Peer> Paced<P> {
+    /// A wire at `baud` (10 bits per byte) on `clock` to `peer`.
+    pub fn new(clock: VirtualClock, baud: u32, peer: P) -> Self {
+        let byte_time = Duration::from_secs_f64(10.0 / f64::from(baud.max(1)));
+        Paced {
+            clock,
+            byte_time,
+            peer,
+            to_peer: BinaryHeap::new(),
+            to_host: BinaryHeap::new(),
+            host_free: Duration::ZERO,
+            peer_free: Duration::ZERO,
+            seq: 0,
+            faults_to_peer: None,
+            faults_to_host: None,
+            busy_line: Duration::ZERO,
+        }
+    }
+
+    /// Injects faults: `to_peer` on host→device bytes, `to_host` on device→host bytes.
+    pub fn with_faults(mut self, to_peer: Faults, to_host: Faults) -> Self {
+        self.faults_to_peer = Some(to_peer);
+        self.faults_to_host = Some(to_host);
+        self
+    }
+
+    /// Time one byte takes on the line.
+    pub fn byte_time(&self) -> Duration {
+        self.byte_time
+    }
+
+    /// Total time the host→device line carried bytes.
+    pub fn host_line_busy(&self) -> Duration {
+        self.busy_line
+    }
+
+    /// Injected fault counts (host→device, device→host).
+    pub fn fault_counts(&self) -> (FaultCounts, FaultCounts) {
+        (
+            self.faults_to_peer
+                .as_ref()
+                .map(Faults::counts)
+                .unwrap_or_default(),
+            self.faults_to_host
+                .as_ref()
+                .map(Faults::counts)
+                .unwrap_or_default(),
+        )
+    }
+
+    /// The shared clock.
+    pub fn clock(&self) -> &VirtualClock {
+        &self.clock
+    }
+
+    fn schedule(
+        heap: &mut Arrivals,
+        faults: &mut Option<Faults>,
+        free: &mut Duration,
+        seq: &mut u64,
+        byte_time: Duration,
+        now: Duration,
+        bytes: &[u8],
+    ) {
+        let mut t = (*free).max(now);
+        for &b in bytes {
+            let fate = match faults {
+                Some(f) => f.apply(b),
+                None => Fate {
+                    delay: Duration::ZERO,
+                    copies: 1,
+                    byte: b,
+                },
+            };
+            t += fate.delay;
+            for _ in 0..fate.copies {
+                t += byte_time;
+                *seq += 1;
+                heap.push(Reverse((t, *seq, fate.byte)));
+            }
+            if fate.copies == 0 {
+                // The byte used the line but never arrived.
+                t += byte_time;
+            }
+        }
+        *free = t;
+    }
+
+    fn peer_output(&mut self, now: Duration) {
+        let out = self.peer.take_output();
+        if !out.is_empty() {
+            Self::schedule(
+                &mut self.to_host,
+                &mut self.faults_to_host,
+                &mut self.peer_free,
+                &mut self.seq,
+                self.byte_time,
+                now,
+                &out,
+            );
+        }
+    }
+
+    /// The next device-side event time.
+    fn next_peer_event(&self) -> Option<Duration> {
+        let arrival = self.to_peer.peek().map(|Reverse((t, _, _))| *t);
+        match (arrival, self.peer.deadline()) {
+            (Some(a), Some(d)) => Some(a.min(d)),
+            (a, d) => a.or(d),
+        }
+    }
+
+    /// Runs the device side up to and including `t_end`.
+    fn run_peer_until(&mut self, t_end: Duration) {
+        let mut guard = 0u32;
+        while let Some(t) = self.next_peer_event() {
+            if t > t_end {
+                break;
+            }
+            let t = t.max(self.clock.now());
+            self.clock.advance_to(t);
+            if let Some(Reverse((ta, _, b))) = self.to_peer.peek().copied()
+                && ta <= t
+            {
+                self.to_peer.pop();
+                self.peer.receive(&[b], t);
+            } else {
+                self.peer.poll(t);
+                guard += 1;
+                if guard > 1_000_000 {
+                    break;
+                }
+            }
+            self.peer_output(t);
+        }
+    }
+}
+
+impl<P: Peer + Send> Link for Paced<P> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        let now = self.clock.now();
+        let start = self.host_free.max(now);
+        Self::schedule(
+            &mut self.to_peer,
+            &mut self.faults_to_peer,
+            &mut self.host_free,
+            &mut self.seq,
+            self.byte_time,
+            now,
+            bytes,
+        );
+        self.busy_line += self.host_free.saturating_sub(start);
+        let done = self.host_free;
+        self.run_peer_until(done);
+        self.clock.advance_to(done);
+        Ok(())
+    }
+
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        let deadline = self.clock.now() + timeout;
+        loop {
+            let host_next = self.to_host.peek().map(|Reverse((t, _, _))| *t);
+            match host_next {
+                Some(t) if t <= deadline => {
+                    self.run_peer_until(t);
+                    // The device may have produced earlier output meanwhile.
+                    let Some(Reverse((t, _, _))) = self.to_host.peek().copied() else {
+                        continue;
+                    };
+                    self.clock.advance_to(t);
+                    let mut n = 0;
+                    while let (Some(slot), Some(Reverse((ta, _, b)))) =
+                        (buf.get_mut(n), self.to_host.peek().copied())
+                    {
+                        if ta > t {
+                            break;
+                        }
+                        *slot = b;
+                        self.to_host.pop();
+                        n += 1;
+                    }
+                    return Ok(n);
+                }
+                _ => {
+                    let before = self.to_host.len();
+                    self.run_peer_until(deadline);
+                    if self.to_host.len() == before {
+                        self.clock.advance_to(deadline);
+                        return Ok(0);
+                    }
+                }
+            }
+        }
+    }
+
+    fn discard_input(&mut self) -> io::Result<()> {
+        let now = self.clock.now();
+        while let Some(Reverse((t, _, _))) = self.to_host.peek() {
+            if *t > now {
+                break;
+            }
+            self.to_host.pop();
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pipe_carries_bytes_both_ways() {
+        let (mut a, mut b) = Pipe::pair();
+        a.write_all(&[5, 6]).unwrap();
+        let mut buf = [0u8; 8];
+        assert_eq!(
+            b.read_timeout(&mut buf, Duration::from_millis(10)).unwrap(),
+            2
+        );
+        assert_eq!(
+            a.read_timeout(&mut buf, Duration::from_millis(1)).unwrap(),
+            0
+        );
+        b.write_all(b"junk").unwrap();
+        a.discard_input().unwrap();
+        assert_eq!(
+            a.read_timeout(&mut buf, Duration::from_millis(1)).unwrap(),
+            0
+        );
+    }
+
+    #[test]
+    fn faults_are_seeded_and_near_their_rates() {
+        let mut a = Faults::new(FaultRates::uniform(0.1), 7);
+        let mut b = Faults::new(FaultRates::uniform(0.1), 7);
+        for i in 0..10_000u32 {
+            assert_eq!(a.apply(i as u8), b.apply(i as u8));
+        }
+        let c = a.counts();
+        let hit = c.dropped + c.corrupted + c.delayed + c.duplicated;
+        assert!((800..1200).contains(&hit), "{c:?}");
+    }
+
+    /// Echoes every byte back.
+    #[derive(Debug, Default)]
+    struct Echo(Vec<u8>);
+    impl Peer for Echo {
+        fn receive(&mut self, bytes: &[u8], _now: Duration) {
+            self.0.extend_from_slice(bytes);
+        }
+        fn poll(&mut self, _now: Duration) {}
+        fn take_output(&mut self) -> Vec<u8> {
+            std::mem::take(&mut self.0)
+        }
+        fn deadline(&self) -> Option<Duration> {
+            None
+        }
+    }
+
+    #[test]
+    fn paced_wire_takes_wire_time() {
+        let clock = VirtualClock::new();
+        let mut w = Paced::new(clock.clone(), 9600, Echo::default());
+        w.write_all(&[1, 2, 3]).unwrap();
+        // Three bytes at 10 bits / 9600 baud.
+        assert_eq!(clock.now(), w.byte_time() * 3);
+        let mut buf = [0u8; 8];
+        let mut got = Vec::new();
+        while got.len() < 3 {
+            let n = w.read_timeout(&mut buf, Duration::from_millis(50)).unwrap();
+            assert!(n > 0);
+            got.extend_from_slice(&buf[..n]);
+        }
+        assert_eq!(got, [1, 2, 3]);
+        // The echo of the last byte arrives one byte time after the last byte was received.
+        assert_eq!(clock.now(), w.byte_time() * 4);
+        assert_eq!(
+            w.read_timeout(&mut buf, Duration::from_millis(5)).unwrap(),
+            0
+        );
+        assert_eq!(clock.now(), w.byte_time() * 4 + Duration::from_millis(5));
+    }
+}

@@ -1,0 +1,944 @@
+//! The session state machines, without I/O: bytes and the time come in, bytes and a deadline come
+//! out (spec/protocols.md §5.4–5.5; seed 001 §5.2's four phases: establish, transfer, verify,
+//! terminate).
+//!
+//! ```text
+//! host: ENQ            robot: ACK | NAK (busy) | silence
+//! host: STX…ETX CS     robot: ACK | NAK
+//! host: EOT
+//! ```
+//!
+//! ENQUIRE and READ_BACK are answered in a reverse session with the roles swapped. Time is a
+//! [`Duration`] since any epoch the caller likes; the caller feeds received bytes with
+//! `on_bytes`, calls `on_time` when [`Host::deadline`] passes, and sends what `take_output`
+//! returns.
+//!
+//! **Exactly once** (spec §5.5): inside one session, a telegram byte-identical to the one already
+//! acknowledged is a retransmission after a lost ACK: the robot acknowledges it again and does not
+//! deliver it. A different telegram in the same session is refused with NAK. EOT, a new ENQ or
+//! `T_IDLE` of silence ends the session.
+
+use std::time::Duration;
+
+use crate::decoder::{Decoder, Token};
+use crate::frame::{ACK, ENQ, EOT, Frame, FrameConfig, NAK};
+
+/// Wait for an answer to ENQ (3964R acknowledgement delay).
+pub const T_ENQ: Duration = Duration::from_millis(2000);
+/// ENQ attempts before `NoResponse` (3964R, ASTM: 6).
+pub const N_ENQ: u32 = 6;
+/// Pause after NAK to ENQ before asking again.
+pub const T_BUSY: Duration = Duration::from_millis(500);
+/// Longest gap between two bytes of one telegram (3964R character delay).
+pub const T_CHAR: Duration = Duration::from_millis(220);
+/// Wait for ACK or NAK after the check value.
+pub const T_ACK: Duration = Duration::from_millis(2000);
+/// Transmissions of one telegram before `Retries` (ASTM, 3964R: 6).
+pub const N_TX: u32 = 6;
+/// Wait for the robot's ENQ after the EOT that closed an ENQUIRE or READ_BACK session.
+pub const T_REPLY: Duration = Duration::from_millis(3000);
+/// A session with no bytes for this long returns to neutral (ISO 1745 timer D).
+pub const T_IDLE: Duration = Duration::from_millis(10_000);
+/// Minimum gap between the end of one session and the next ENQ.
+pub const T_GAP: Duration = Duration::from_millis(20);
+/// After a bad frame the receiver waits for this much line silence before its NAK, so that the
+/// rest of the bad frame is not mistaken for the retransmission.
+pub const T_FLUSH: Duration = Duration::from_millis(20);
+
+/// The timers and retry counts of a link (defaults: the constants above).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Timers {
+    /// [`T_ENQ`].
+    pub t_enq: Duration,
+    /// [`N_ENQ`].
+    pub n_enq: u32,
+    /// [`T_BUSY`].
+    pub t_busy: Duration,
+    /// [`T_CHAR`].
+    pub t_char: Duration,
+    /// [`T_ACK`].
+    pub t_ack: Duration,
+    /// [`N_TX`].
+    pub n_tx: u32,
+    /// [`T_REPLY`].
+    pub t_reply: Duration,
+    /// [`T_IDLE`].
+    pub t_idle: Duration,
+    /// [`T_GAP`].
+    pub t_gap: Duration,
+    /// [`T_FLUSH`].
+    pub t_flush: Duration,
+}
+
+impl Default for Timers {
+    fn default() -> Self {
+        Timers {
+            t_enq: T_ENQ,
+            n_enq: N_ENQ,
+            t_busy: T_BUSY,
+            t_char: T_CHAR,
+            t_ack: T_ACK,
+            n_tx: N_TX,
+            t_reply: T_REPLY,
+            t_idle: T_IDLE,
+            t_gap: T_GAP,
+            t_flush: T_FLUSH,
+        }
+    }
+}
+
+/// Counters of one side of a link.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// ENQ sent.
+    pub enq_sent: u64,
+    /// Telegrams sent, first transmissions and retransmissions.
+    pub frames_sent: u64,
+    /// NAK received.
+    pub nak_received: u64,
+    /// NAK sent.
+    pub nak_sent: u64,
+    /// Timer expiries that led to a repeat.
+    pub timeouts: u64,
+    /// Identical retransmissions acknowledged and not delivered again (robot).
+    pub duplicates: u64,
+    /// Bad frames received.
+    pub bad_frames: u64,
+}
+
+use crate::error::LinkError;
+
+/// The outcome of one host session: the reply telegram, if the command has one.
+pub type Outcome = Result<Option<Frame>, LinkError>;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum HostState {
+    Idle,
+    Gap,
+    WaitEnqAck,
+    Backoff,
+    WaitFrameAck,
+    WaitReplyEnq,
+    ReceiveReply,
+    WaitReplyEot,
+}
+
+/// Receive-side helpers shared by both ends: the decoder, the `T_CHAR` gap, the flush before NAK.
+#[derive(Debug, Clone)]
+struct Rx {
+    decoder: Decoder,
+    last_rx: Duration,
+    flush_until: Option<Duration>,
+}
+
+impl Rx {
+    fn new(cfg: FrameConfig) -> Self {
+        Rx {
+            decoder: Decoder::new(cfg),
+            last_rx: Duration::ZERO,
+            flush_until: None,
+        }
+    }
+    /// Takes bytes; while flushing they are dropped and the flush extended.
+    fn push(&mut self, bytes: &[u8], now: Duration, t_flush: Duration) {
+        if bytes.is_empty() {
+            return;
+        }
+        self.last_rx = now;
+        if self.flush_until.is_some() {
+            self.flush_until = Some(now + t_flush);
+        } else {
+            self.decoder.push(bytes);
+        }
+    }
+    fn start_flush(&mut self, now: Duration, t_flush: Duration) {
+        self.decoder.clear();
+        self.flush_until = Some(now + t_flush);
+    }
+    fn char_deadline(&self, t_char: Duration) -> Option<Duration> {
+        self.decoder.in_frame().then_some(self.last_rx + t_char)
+    }
+    /// Earliest receive-side deadline.
+    fn deadline(&self, t_char: Duration) -> Option<Duration> {
+        match (self.flush_until, self.char_deadline(t_char)) {
+            (Some(a), _) => Some(a),
+            (None, b) => b,
+        }
+    }
+    /// True (once) when a flush or `T_CHAR` has expired at `now`: the caller answers NAK.
+    fn expired(&mut self, now: Duration, t_char: Duration) -> bool {
+        if let Some(t) = self.flush_until {
+            if now >= t {
+                self.flush_until = None;
+                return true;
+            }
+            return false;
+        }
+        if self.char_deadline(t_char).is_some_and(|t| now >= t) {
+            self.decoder.clear();
+            return true;
+        }
+        false
+    }
+}
+
+/// The host (PC) side: one session per telegram.
+#[derive(Debug, Clone)]
+pub struct Host {
+    timers: Timers,
+    rx: Rx,
+    state: HostState,
+    deadline: Option<Duration>,
+    out: Vec<u8>,
+    frame: Vec<u8>,
+    expects_reply: bool,
+    enq_attempts: u32,
+    nak_to_enq: bool,
+    tx: u32,
+    reply: Option<Frame>,
+    outcome: Option<Outcome>,
+    ready_at: Duration,
+    stats: Stats,
+}
+
+impl Host {
+    /// A host with framing `cfg` and `timers`.
+    pub fn new(cfg: FrameConfig, timers: Timers) -> Self {
+        Host {
+            timers,
+            rx: Rx::new(cfg),
+            state: HostState::Idle,
+            deadline: None,
+            out: Vec::new(),
+            frame: Vec::new(),
+            expects_reply: false,
+            enq_attempts: 0,
+            nak_to_enq: false,
+            tx: 0,
+            reply: None,
+            outcome: None,
+            ready_at: Duration::ZERO,
+            stats: Stats::default(),
+        }
+    }
+
+    /// Counters since creation.
+    pub fn stats(&self) -> Stats {
+        self.stats
+    }
+
+    /// True while a session is under way.
+    pub fn is_active(&self) -> bool {
+        self.state != HostState::Idle
+    }
+
+    /// Starts a session for the framed telegram `frame`; `expects_reply` waits for a reverse
+    /// session after EOT. The ENQ goes out at once, or when `T_GAP` after the last session ends.
+    pub fn start(&mut self, frame: Vec<u8>, expects_reply: bool, now: Duration) {
+        self.frame = frame;
+        self.expects_reply = expects_reply;
+        self.enq_attempts = 0;
+        self.nak_to_enq = false;
+        self.tx = 0;
+        self.reply = None;
+        self.outcome = None;
+        self.rx.decoder.clear();
+        self.rx.flush_until = None;
+        if now < self.ready_at {
+            self.state = HostState::Gap;
+            self.deadline = Some(self.ready_at);
+        } else {
+            self.send_enq(now);
+        }
+    }
+
+    /// Bytes to send now.
+    pub fn take_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.out)
+    }
+
+    /// The session's result, once it has one.
+    pub fn take_outcome(&mut self) -> Option<Outcome> {
+        self.outcome.take()
+    }
+
+    /// When [`Host::on_time`] must be called next.
+    pub fn deadline(&self) -> Option<Duration> {
+        let rx = match self.state {
+            HostState::ReceiveReply | HostState::WaitReplyEot => {
+                self.rx.deadline(self.timers.t_char)
+            }
+            _ => None,
+        };
+        match (self.deadline, rx) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    fn send_enq(&mut self, now: Duration) {
+        self.enq_attempts += 1;
+        self.stats.enq_sent += 1;
+        self.out.push(ENQ);
+        self.state = HostState::WaitEnqAck;
+        self.deadline = Some(now + self.timers.t_enq);
+    }
+
+    fn send_frame(&mut self, now: Duration) {
+        self.tx += 1;
+        self.stats.frames_sent += 1;
+        self.out.extend_from_slice(&self.frame);
+        self.state = HostState::WaitFrameAck;
+        self.deadline = Some(now + self.timers.t_ack);
+    }
+
+    fn finish(&mut self, outcome: Outcome, now: Duration) {
+        self.outcome = Some(outcome);
+        self.state = HostState::Idle;
+        self.deadline = None;
+        self.ready_at = now + self.timers.t_gap;
+    }
+
+    fn fail(&mut self, e: LinkError, now: Duration) {
+        self.out.push(EOT);
+        self.finish(Err(e), now);
+    }
+
+    fn retransmit_or_fail(&mut self, now: Duration) {
+        if self.tx >= self.timers.n_tx {
+            self.fail(LinkError::Retries { attempts: self.tx }, now);
+        } else {
+            self.send_frame(now);
+        }
+    }
+
+    fn uses_decoder(&self) -> bool {
+        matches!(
+            self.state,
+            HostState::ReceiveReply | HostState::WaitReplyEot
+        )
+    }
+
+    /// Takes received bytes. While waiting for a single control byte, bytes are read one by one
+    /// (noise that looks like STX cannot swallow an ACK); frames are decoded only where a reply
+    /// telegram is expected.
+    pub fn on_bytes(&mut self, bytes: &[u8], now: Duration) {
+        for (i, &b) in bytes.iter().enumerate() {
+            match self.state {
+                HostState::Idle | HostState::Gap | HostState::Backoff => return,
+                _ if self.uses_decoder() => {
+                    self.rx
+                        .push(bytes.get(i..).unwrap_or_default(), now, self.timers.t_flush);
+                    while self.uses_decoder() {
+                        let Some(token) = self.rx.decoder.next_token() else {
+                            return;
+                        };
+                        self.on_token(token, now);
+                    }
+                    self.rx.decoder.clear();
+                    return;
+                }
+                _ => {
+                    self.rx.last_rx = now;
+                    if matches!(b, ENQ | ACK | NAK | EOT) {
+                        self.on_token(Token::Control(b), now);
+                    }
+                }
+            }
+        }
+    }
+
+    fn on_token(&mut self, token: Token, now: Duration) {
+        use HostState as S;
+        match (self.state, token) {
+            (S::WaitEnqAck, Token::Control(ACK)) => self.send_frame(now),
+            (S::WaitEnqAck, Token::Control(NAK)) => {
+                self.stats.nak_received += 1;
+                self.nak_to_enq = true;
+                if self.enq_attempts >= self.timers.n_enq {
+                    self.fail(
+                        LinkError::Busy {
+                            attempts: self.enq_attempts,
+                        },
+                        now,
+                    );
+                } else {
+                    self.state = S::Backoff;
+                    self.deadline = Some(now + self.timers.t_busy);
+                }
+            }
+            (S::WaitFrameAck, Token::Control(ACK)) => {
+                self.out.push(EOT);
+                if self.expects_reply {
+                    self.state = S::WaitReplyEnq;
+                    self.deadline = Some(now + self.timers.t_reply);
+                } else {
+                    self.finish(Ok(None), now);
+                }
+            }
+            (S::WaitFrameAck, Token::Control(NAK)) => {
+                self.stats.nak_received += 1;
+                self.retransmit_or_fail(now);
+            }
+            (S::WaitFrameAck, Token::Control(EOT)) => self.finish(Err(LinkError::Interrupted), now),
+            (S::WaitReplyEnq | S::ReceiveReply, Token::Control(ENQ)) => {
+                // The robot opens (or, having lost our ACK, re-opens) its reply session.
+                self.out.push(ACK);
+                self.state = S::ReceiveReply;
+                self.deadline = Some(now + self.timers.t_ack);
+            }
+            (S::ReceiveReply, Token::Frame(f)) => {
+                self.out.push(ACK);
+                self.reply = Some(f);
+                self.state = S::WaitReplyEot;
+                self.deadline = Some(now + self.timers.t_ack + self.timers.t_flush);
+            }
+            (S::WaitReplyEot, Token::Frame(f)) => {
+                // Our ACK was lost: the robot repeats; the same reply is acknowledged again.
+                if self.reply.as_ref() == Some(&f) {
+                    self.stats.duplicates += 1;
+                    self.out.push(ACK);
+                } else {
+                    self.out.push(NAK);
+                    self.stats.nak_sent += 1;
+                }
+            }
+            (S::ReceiveReply | S::WaitReplyEot, Token::Bad(_)) => {
+                self.stats.bad_frames += 1;
+                self.rx.start_flush(now, self.timers.t_flush);
+            }
+            (S::ReceiveReply, Token::Control(EOT)) => self.finish(Err(LinkError::Interrupted), now),
+            (S::WaitReplyEot, Token::Control(EOT)) => {
+                let reply = self.reply.take();
+                self.finish(Ok(reply), now);
+            }
+            // Noise, stray bytes and the robot's ENQ while we hold the line (host wins).
+            _ => {}
+        }
+    }
+
+    /// Lets time run to `now`: expired timers act.
+    pub fn on_time(&mut self, now: Duration) {
+        use HostState as S;
+        if matches!(self.state, S::ReceiveReply | S::WaitReplyEot)
+            && self.rx.expired(now, self.timers.t_char)
+        {
+            self.stats.nak_sent += 1;
+            self.out.push(NAK);
+            self.deadline = Some(now + self.timers.t_ack);
+            return;
+        }
+        if self.deadline.is_none_or(|d| now < d) {
+            return;
+        }
+        match self.state {
+            S::Idle => self.deadline = None,
+            S::Gap | S::Backoff => self.send_enq(now),
+            S::WaitEnqAck => {
+                self.stats.timeouts += 1;
+                if self.enq_attempts >= self.timers.n_enq {
+                    let attempts = self.enq_attempts;
+                    let e = if self.nak_to_enq {
+                        LinkError::Busy { attempts }
+                    } else {
+                        LinkError::NoResponse { attempts }
+                    };
+                    self.fail(e, now);
+                } else {
+                    self.send_enq(now);
+                }
+            }
+            S::WaitFrameAck => {
+                self.stats.timeouts += 1;
+                self.retransmit_or_fail(now);
+            }
+            S::WaitReplyEnq | S::ReceiveReply => self.finish(Err(LinkError::NoReply), now),
+            S::WaitReplyEot => {
+                // The robot's EOT was lost; the reply was good and acknowledged.
+                let reply = self.reply.take();
+                self.finish(Ok(reply), now);
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum RobotState {
+    Idle,
+    InSession { last: Option<Frame> },
+    ReplyWaitEnqAck,
+    ReplyBackoff,
+    ReplyWaitAck,
+}
+
+/// The robot-computer side: acknowledges telegrams, delivers each once, sends replies.
+#[derive(Debug, Clone)]
+pub struct RobotSession {
+    timers: Timers,
+    rx: Rx,
+    state: RobotState,
+    deadline: Option<Duration>,
+    out: Vec<u8>,
+    pending_reply: Option<Vec<u8>>,
+    enq_attempts: u32,
+    tx: u32,
+    /// When true the robot answers ENQ with NAK (busy).
+    pub busy: bool,
+    stats: Stats,
+}
+
+impl RobotSession {
+    /// A robot side with framing `cfg` and `timers`.
+    pub fn new(cfg: FrameConfig, timers: Timers) -> Self {
+        RobotSession {
+            timers,
+            rx: Rx::new(cfg),
+            state: RobotState::Idle,
+            deadline: None,
+            out: Vec::new(),
+            pending_reply: None,
+            enq_attempts: 0,
+            tx: 0,
+            busy: false,
+            stats: Stats::default(),
+        }
+    }
+
+    /// Counters since creation.
+    pub fn stats(&self) -> Stats {
+        self.stats
+    }
+
+    /// Bytes to send now.
+    pub fn take_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.out)
+    }
+
+    /// The framed reply to send in a reverse session once the host's EOT ends this session.
+    pub fn queue_reply(&mut self, frame: Vec<u8>) {
+        self.pending_reply = Some(frame);
+    }
+
+    /// When [`RobotSession::on_time`] must be called next.
+    pub fn deadline(&self) -> Option<Duration> {
+        let rx = match self.state {
+            RobotState::InSession { .. } => self.rx.deadline(self.timers.t_char),
+            _ => None,
+        };
+        match (self.deadline, rx) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    fn open_session(&mut self, now: Duration) {
+        if self.busy {
+            self.out.push(NAK);
+            self.stats.nak_sent += 1;
+            self.state = RobotState::Idle;
+            self.deadline = None;
+        } else {
+            self.out.push(ACK);
+            self.pending_reply = None;
+            self.state = RobotState::InSession { last: None };
+            self.deadline = Some(now + self.timers.t_idle);
+        }
+    }
+
+    fn close_session(&mut self, now: Duration) {
+        self.rx.decoder.clear();
+        self.rx.flush_until = None;
+        if self.pending_reply.is_some() {
+            self.enq_attempts = 0;
+            self.send_enq(now);
+        } else {
+            self.state = RobotState::Idle;
+            self.deadline = None;
+        }
+    }
+
+    fn send_enq(&mut self, now: Duration) {
+        self.enq_attempts += 1;
+        self.stats.enq_sent += 1;
+        self.out.push(ENQ);
+        self.state = RobotState::ReplyWaitEnqAck;
+        self.deadline = Some(now + self.timers.t_enq);
+    }
+
+    fn send_reply(&mut self, now: Duration) {
+        self.tx += 1;
+        self.stats.frames_sent += 1;
+        if let Some(f) = &self.pending_reply {
+            self.out.extend_from_slice(f);
+        }
+        self.state = RobotState::ReplyWaitAck;
+        self.deadline = Some(now + self.timers.t_ack);
+    }
+
+    fn give_up_reply(&mut self) {
+        self.pending_reply = None;
+        self.state = RobotState::Idle;
+        self.deadline = None;
+    }
+
+    /// Takes received bytes; returns the telegrams to execute (each delivered exactly once).
+    /// Outside a session bytes are read one by one for ENQ, ACK, NAK and EOT; inside one the
+    /// decoder frames telegrams.
+    pub fn on_bytes(&mut self, bytes: &[u8], now: Duration) -> Vec<Frame> {
+        let mut delivered = Vec::new();
+        for (i, &b) in bytes.iter().enumerate() {
+            if let RobotState::InSession { .. } = self.state {
+                self.deadline = Some(now + self.timers.t_idle);
+                self.rx
+                    .push(bytes.get(i..).unwrap_or_default(), now, self.timers.t_flush);
+                while let RobotState::InSession { .. } = self.state {
+                    let Some(token) = self.rx.decoder.next_token() else {
+                        return delivered;
+                    };
+                    if let Some(f) = self.on_token(token, now) {
+                        delivered.push(f);
+                    }
+                }
+                // The session closed (its EOT ends the host's transmission).
+                self.rx.decoder.clear();
+                return delivered;
+            }
+            self.rx.last_rx = now;
+            if matches!(b, ENQ | ACK | NAK | EOT) {
+                self.on_token(Token::Control(b), now);
+            }
+        }
+        delivered
+    }
+
+    fn on_token(&mut self, token: Token, now: Duration) -> Option<Frame> {
+        use RobotState as S;
+        match (&mut self.state, token) {
+            // A new ENQ opens a session; from any state the host wins.
+            (_, Token::Control(ENQ)) => self.open_session(now),
+            (S::InSession { last }, Token::Frame(f)) => match last {
+                Some(prev) if *prev == f => {
+                    self.stats.duplicates += 1;
+                    self.out.push(ACK);
+                }
+                Some(_) => {
+                    // One telegram per session (spec §5.5): a different one is refused.
+                    self.stats.nak_sent += 1;
+                    self.out.push(NAK);
+                }
+                None => {
+                    *last = Some(f.clone());
+                    self.out.push(ACK);
+                    return Some(f);
+                }
+            },
+            (S::InSession { .. }, Token::Bad(_)) => {
+                self.stats.bad_frames += 1;
+                self.rx.start_flush(now, self.timers.t_flush);
+            }
+            (S::InSession { .. }, Token::Control(EOT)) => self.close_session(now),
+            (S::ReplyWaitEnqAck, Token::Control(ACK)) => {
+                self.tx = 0;
+                self.send_reply(now);
+            }
+            (S::ReplyWaitEnqAck, Token::Control(NAK)) => {
+                self.stats.nak_received += 1;
+                if self.enq_attempts >= self.timers.n_enq {
+                    self.give_up_reply();
+                } else {
+                    self.state = S::ReplyBackoff;
+                    self.deadline = Some(now + self.timers.t_busy);
+                }
+            }
+            (S::ReplyWaitAck, Token::Control(ACK)) => {
+                self.out.push(EOT);
+                self.give_up_reply();
+            }
+            (S::ReplyWaitAck, Token::Control(NAK)) => {
+                self.stats.nak_received += 1;
+                if self.tx >= self.timers.n_tx {
+                    self.out.push(EOT);
+                    self.give_up_reply();
+                } else {
+                    self.send_reply(now);
+                }
+            }
+            (S::ReplyWaitEnqAck | S::ReplyWaitAck, Token::Control(EOT)) => self.give_up_reply(),
+            _ => {}
+        }
+        None
+    }
+
+    /// Lets time run to `now`: expired timers act.
+    pub fn on_time(&mut self, now: Duration) {
+        use RobotState as S;
+        if matches!(self.state, S::InSession { .. }) && self.rx.expired(now, self.timers.t_char) {
+            self.stats.nak_sent += 1;
+            self.out.push(NAK);
+            return;
+        }
+        if self.deadline.is_none_or(|d| now < d) {
+            return;
+        }
+        match self.state {
+            S::Idle => self.deadline = None,
+            S::InSession { .. } => {
+                // T_IDLE: the host went away; back to neutral.
+                self.rx.decoder.clear();
+                self.pending_reply = None;
+                self.state = S::Idle;
+                self.deadline = None;
+            }
+            S::ReplyWaitEnqAck => {
+                self.stats.timeouts += 1;
+                if self.enq_attempts >= self.timers.n_enq {
+                    self.give_up_reply();
+                } else {
+                    self.send_enq(now);
+                }
+            }
+            S::ReplyBackoff => self.send_enq(now),
+            S::ReplyWaitAck => {
+                self.stats.timeouts += 1;
+                if self.tx >= self.timers.n_tx {
+                    self.out.push(EOT);
+                    self.give_up_reply();
+                } else {
+                    self.send_reply(now);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{STX, encode};
+
+    fn ms(n: u64) -> Duration {
+        Duration::from_millis(n)
+    }
+
+    fn cfg() -> FrameConfig {
+        FrameConfig::default()
+    }
+
+    /// RUN_PROGRAM 3 (spec §5.3 golden vector).
+    const RUN3: [u8; 6] = [0x02, 0x02, 0x01, 0x03, 0x03, 0x09];
+
+    fn host() -> Host {
+        Host::new(cfg(), Timers::default())
+    }
+
+    #[test]
+    fn happy_path_bytes() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        assert_eq!(h.deadline(), Some(T_ENQ));
+        h.on_bytes(&[ACK], ms(5));
+        assert_eq!(h.take_output(), RUN3);
+        assert_eq!(h.deadline(), Some(ms(5) + T_ACK));
+        h.on_bytes(&[ACK], ms(20));
+        assert_eq!(h.take_output(), [EOT]);
+        assert_eq!(h.take_outcome(), Some(Ok(None)));
+        // The next session waits T_GAP.
+        h.start(RUN3.to_vec(), false, ms(25));
+        assert!(h.take_output().is_empty());
+        assert_eq!(h.deadline(), Some(ms(20) + T_GAP));
+        h.on_time(ms(40));
+        assert_eq!(h.take_output(), [ENQ]);
+    }
+
+    #[test]
+    fn nak_twice_then_ack_is_three_transmissions() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        h.on_bytes(&[ACK], ms(1));
+        for _ in 0..2 {
+            assert_eq!(h.take_output(), RUN3);
+            h.on_bytes(&[NAK], ms(2));
+        }
+        assert_eq!(h.take_output(), RUN3);
+        h.on_bytes(&[ACK], ms(3));
+        assert_eq!(h.take_output(), [EOT]);
+        assert_eq!(h.take_outcome(), Some(Ok(None)));
+        assert_eq!(h.stats().frames_sent, 3);
+    }
+
+    #[test]
+    fn nak_storm_is_retries_error() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        h.on_bytes(&[ACK], ms(1));
+        let mut sent = 0;
+        for k in 0..20 {
+            let out = h.take_output();
+            if out == RUN3 {
+                sent += 1;
+            }
+            if let Some(o) = h.take_outcome() {
+                assert_eq!(out, [EOT]);
+                assert_eq!(o, Err(LinkError::Retries { attempts: N_TX }));
+                assert_eq!(sent, N_TX);
+                return;
+            }
+            h.on_bytes(&[NAK], ms(2 + k));
+        }
+        panic!("no outcome");
+    }
+
+    #[test]
+    fn silence_is_no_response_after_n_enq() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        let mut enqs = 0;
+        let mut now = ms(0);
+        loop {
+            for b in h.take_output() {
+                if b == ENQ {
+                    enqs += 1;
+                }
+            }
+            if let Some(o) = h.take_outcome() {
+                assert_eq!(o, Err(LinkError::NoResponse { attempts: N_ENQ }));
+                break;
+            }
+            now = h.deadline().expect("a deadline while active");
+            h.on_time(now);
+        }
+        assert_eq!(enqs, N_ENQ);
+        assert_eq!(now, T_ENQ * N_ENQ);
+    }
+
+    #[test]
+    fn busy_nak_backs_off() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.take_output();
+        h.on_bytes(&[NAK], ms(3));
+        assert!(h.take_output().is_empty());
+        assert_eq!(h.deadline(), Some(ms(3) + T_BUSY));
+        h.on_time(ms(3) + T_BUSY);
+        assert_eq!(h.take_output(), [ENQ]);
+    }
+
+    #[test]
+    fn noise_stx_cannot_swallow_the_ack() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.take_output();
+        h.on_bytes(&[STX, 0x40, ACK], ms(1));
+        assert_eq!(h.take_output(), RUN3);
+    }
+
+    fn robot() -> RobotSession {
+        RobotSession::new(cfg(), Timers::default())
+    }
+
+    #[test]
+    fn robot_reacks_identical_retransmission_once_executed() {
+        let mut r = robot();
+        assert!(r.on_bytes(&[ENQ], ms(0)).is_empty());
+        assert_eq!(r.take_output(), [ACK]);
+        let got = r.on_bytes(&RUN3, ms(10));
+        assert_eq!(got.len(), 1);
+        assert_eq!(r.take_output(), [ACK]);
+        // The ACK was lost; the host sends the same telegram again.
+        assert!(r.on_bytes(&RUN3, ms(2100)).is_empty());
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.stats().duplicates, 1);
+        // A different telegram in the same session is refused.
+        let other = encode(&cfg(), 0x02, &[4]).unwrap();
+        assert!(r.on_bytes(&other, ms(2200)).is_empty());
+        assert_eq!(r.take_output(), [NAK]);
+        // EOT ends the session; a new session delivers the same telegram again.
+        r.on_bytes(&[EOT], ms(2300));
+        r.on_bytes(&[ENQ], ms(2400));
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.on_bytes(&RUN3, ms(2410)).len(), 1);
+    }
+
+    #[test]
+    fn robot_naks_bad_checksum_after_flush_and_char_gap() {
+        let mut r = robot();
+        r.on_bytes(&[ENQ], ms(0));
+        r.take_output();
+        let mut bad = RUN3;
+        bad[5] ^= 0x10;
+        assert!(r.on_bytes(&bad, ms(5)).is_empty());
+        assert!(r.take_output().is_empty());
+        assert_eq!(r.deadline(), Some(ms(5) + T_FLUSH));
+        r.on_time(ms(5) + T_FLUSH);
+        assert_eq!(r.take_output(), [NAK]);
+        // Half a telegram, then silence beyond T_CHAR.
+        r.on_bytes(&RUN3[..3], ms(100));
+        assert_eq!(r.deadline(), Some(ms(100) + T_CHAR));
+        r.on_time(ms(100) + T_CHAR);
+        assert_eq!(r.take_output(), [NAK]);
+        // The retransmission goes through.
+        assert_eq!(r.on_bytes(&RUN3, ms(400)).len(), 1);
+        assert_eq!(r.take_output(), [ACK]);
+    }
+
+    #[test]
+    fn busy_robot_naks_enq() {
+        let mut r = robot();
+        r.busy = true;
+        r.on_bytes(&[ENQ], ms(0));
+        assert_eq!(r.take_output(), [NAK]);
+    }
+
+    /// Host and robot wired back to back with no delay; the robot answers ENQUIRE with `reply`.
+    fn converse(frame: Vec<u8>, reply: Option<Vec<u8>>) -> (Outcome, usize) {
+        let mut h = host();
+        let mut r = robot();
+        let mut now = ms(0);
+        let mut delivered = 0;
+        h.start(frame, reply.is_some(), now);
+        for _ in 0..1000 {
+            let to_robot = h.take_output();
+            for f in r.on_bytes(&to_robot, now) {
+                delivered += 1;
+                let _ = f;
+                if let Some(rep) = &reply {
+                    r.queue_reply(rep.clone());
+                }
+            }
+            let to_host = r.take_output();
+            h.on_bytes(&to_host, now);
+            if let Some(o) = h.take_outcome() {
+                // Let the robot see the final EOT.
+                r.on_bytes(&h.take_output(), now);
+                return (o, delivered);
+            }
+            if to_robot.is_empty() && to_host.is_empty() {
+                now = [h.deadline(), r.deadline()]
+                    .into_iter()
+                    .flatten()
+                    .min()
+                    .expect("someone waits");
+                h.on_time(now);
+                r.on_time(now);
+            }
+        }
+        panic!("no outcome");
+    }
+
+    #[test]
+    fn enquire_reply_in_reverse_session() {
+        // ENQUIRE status (spec §5.3: 02 06 01 00 03 0A).
+        let enquire = vec![0x02, 0x06, 0x01, 0x00, 0x03, 0x0A];
+        let reply = encode(&cfg(), 0x86, &[0, 1, 0, 0, 0, 0, 0, 1]).unwrap();
+        let (o, n) = converse(enquire, Some(reply));
+        assert_eq!(n, 1);
+        let f = o.unwrap().unwrap();
+        assert_eq!(f.code, 0x86);
+        assert_eq!(f.data, [0, 1, 0, 0, 0, 0, 0, 1]);
+        let (o, n) = converse(RUN3.to_vec(), None);
+        assert_eq!((o, n), (Ok(None), 1));
+    }
+}

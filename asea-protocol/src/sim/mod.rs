@@ -1,0 +1,656 @@
+//! The robot-computer simulator (seed 001 §4.1.2, §5.2–5.4, §6.7, App. D): the link's robot side,
+//! program memory with the thesis' limits, standby and operate modes, home synchronisation, the
+//! output and input lines, and the motion model of [`motion`].
+//!
+//! [`Robot`] is driven by bytes and time ([`Peer`]): over a [`crate::link::Paced`] wire in virtual
+//! time (a whole program in milliseconds), or by [`serve`] on any [`Link`] in real time.
+
+pub mod motion;
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::time::Duration;
+
+pub use motion::{EyePose, MotionParams, Move, Speeds, Trajectory};
+
+use crate::clock::Clock;
+use crate::command::{
+    Command, Control, IO_LINES, Instruction, Length, Mode, Pose, Positioning,
+    QUATERNION_NORM_TOLERANCE, Quaternion, Reply, RobotError, Selector, State, Status,
+};
+use crate::error::Result;
+use crate::frame::{Frame, FrameConfig};
+use crate::link::{Link, Peer};
+use crate::session::{RobotSession, Timers};
+
+/// Memory units of the robot computer's program store. With [`POSITION_UNITS`] and
+/// [`CONTROL_UNITS`] it holds exactly 470 positioning instructions, or 300 positioning and 200
+/// control instructions (seed 001 §4.1.2: 6 KB).
+pub const MEMORY_UNITS: u32 = 9400;
+/// Memory units of one positioning instruction.
+pub const POSITION_UNITS: u32 = 20;
+/// Memory units of one control instruction.
+pub const CONTROL_UNITS: u32 = 17;
+/// The output line that tells the PC "in position" after a discrete move (App. D).
+pub const IN_POSITION_OUTPUT: u8 = 1;
+
+fn units(i: &Instruction) -> u32 {
+    match i {
+        Instruction::Position(_) => POSITION_UNITS,
+        Instruction::Control(_) => CONTROL_UNITS,
+    }
+}
+
+/// The six output and six input lines, shared with whoever wires them (the cell's sync I/O).
+#[derive(Debug, Clone, Default)]
+pub struct IoLines {
+    outputs: Arc<AtomicU8>,
+    inputs: Arc<AtomicU8>,
+}
+
+fn bit(line: u8) -> u8 {
+    1u8.checked_shl(u32::from(line.saturating_sub(1)))
+        .unwrap_or(0)
+}
+
+impl IoLines {
+    /// Level of output `line` (1–6).
+    pub fn output(&self, line: u8) -> bool {
+        self.outputs.load(Ordering::Relaxed) & bit(line) != 0
+    }
+    /// Level of input `line` (1–6).
+    pub fn input(&self, line: u8) -> bool {
+        self.inputs.load(Ordering::Relaxed) & bit(line) != 0
+    }
+    /// Drives input `line` (the PC's side).
+    pub fn set_input(&self, line: u8, on: bool) {
+        if on {
+            self.inputs.fetch_or(bit(line), Ordering::Relaxed);
+        } else {
+            self.inputs.fetch_and(!bit(line), Ordering::Relaxed);
+        }
+    }
+    fn set_output(&self, line: u8, on: bool) {
+        if on {
+            self.outputs.fetch_or(bit(line), Ordering::Relaxed);
+        } else {
+            self.outputs.fetch_and(!bit(line), Ordering::Relaxed);
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Activity {
+    Idle,
+    Homing {
+        until: f64,
+    },
+    Moving {
+        traj: Trajectory,
+        next: usize,
+        discrete: bool,
+    },
+    Waiting {
+        line: u8,
+        on: bool,
+        next: usize,
+    },
+}
+
+/// The robot computer without its link: memory, modes, execution, motion.
+#[derive(Debug, Clone)]
+pub struct Machine {
+    /// Motion constants.
+    pub params: MotionParams,
+    programs: BTreeMap<u8, BTreeMap<u16, Instruction>>,
+    used_units: u32,
+    mode: Mode,
+    homed: bool,
+    last_error: u8,
+    error_state: bool,
+    speeds: Speeds,
+    pose: EyePose,
+    last_target: [f64; 3],
+    activity: Activity,
+    running: Option<(u8, Vec<(u16, Instruction)>)>,
+    current_instruction: u16,
+    io: IoLines,
+    now_s: f64,
+    /// Every telegram executed, in order (the link delivered it once).
+    pub executed: Vec<Frame>,
+    /// Eye poses sampled at every instruction boundary: (time s, pose).
+    pub trace: Vec<(f64, EyePose)>,
+}
+
+impl Default for Machine {
+    fn default() -> Self {
+        Machine::new(MotionParams::default())
+    }
+}
+
+impl Machine {
+    /// A powered-up robot computer: standby, not homed, empty memory, at the home pose.
+    pub fn new(params: MotionParams) -> Self {
+        Machine {
+            programs: BTreeMap::new(),
+            used_units: 0,
+            mode: Mode::Standby,
+            homed: false,
+            last_error: 0,
+            error_state: false,
+            speeds: Speeds::default(),
+            pose: params.home,
+            last_target: params.home.xyz_mm,
+            activity: Activity::Idle,
+            running: None,
+            current_instruction: 0,
+            io: IoLines::default(),
+            now_s: 0.0,
+            executed: Vec::new(),
+            trace: Vec::new(),
+            params,
+        }
+    }
+
+    /// The I/O lines (clone to wire them elsewhere).
+    pub fn io(&self) -> &IoLines {
+        &self.io
+    }
+
+    /// Memory units in use.
+    pub fn used_units(&self) -> u32 {
+        self.used_units
+    }
+
+    /// A stored instruction.
+    pub fn instruction(&self, program: u8, instruction: u16) -> Option<&Instruction> {
+        self.programs.get(&program)?.get(&instruction)
+    }
+
+    /// Instructions stored in `program`.
+    pub fn program_len(&self, program: u8) -> usize {
+        self.programs.get(&program).map_or(0, BTreeMap::len)
+    }
+
+    /// The mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// True once home synchronisation has completed.
+    pub fn homed(&self) -> bool {
+        self.homed
+    }
+
+    /// The last error code, without clearing it.
+    pub fn last_error(&self) -> u8 {
+        self.last_error
+    }
+
+    /// The eye pose now (after the last [`Machine::advance`]).
+    pub fn pose(&self) -> EyePose {
+        self.pose
+    }
+
+    /// The planned motion currently under way, if any.
+    pub fn trajectory(&self) -> Option<&Trajectory> {
+        match &self.activity {
+            Activity::Moving { traj, .. } => Some(traj),
+            _ => None,
+        }
+    }
+
+    /// The status as ENQUIRE reports it (without clearing the error).
+    pub fn status(&self) -> Status {
+        Status {
+            mode: self.mode,
+            state: match self.activity {
+                _ if self.error_state => State::Error,
+                Activity::Idle => State::Idle,
+                Activity::Homing { .. } => State::Homing,
+                Activity::Moving { .. } | Activity::Waiting { .. } => State::Running,
+            },
+            program: self.running.as_ref().map_or(0, |(p, _)| *p),
+            instruction: self.current_instruction,
+            last_error: self.last_error,
+            homed: self.homed,
+        }
+    }
+
+    fn fail(&mut self, e: RobotError) {
+        self.last_error = e.code();
+    }
+
+    fn busy(&self) -> bool {
+        self.activity != Activity::Idle
+    }
+
+    /// Checks a positioning instruction against the workspace (standby's "syntax and range
+    /// check", seed 001 §5.3.1).
+    fn check_positioning(
+        &self,
+        p: &Positioning,
+        prev: [f64; 3],
+    ) -> std::result::Result<[f64; 3], RobotError> {
+        if p.pose.q.norm_error() > QUATERNION_NORM_TOLERANCE {
+            return Err(RobotError::Range);
+        }
+        let t = motion::target_of(p, prev);
+        let radial = t[0].hypot(t[1]);
+        if !(radial <= self.params.reach_mm && t[2].abs() <= 2047.9375 && p.speed.0 > 0) {
+            return Err(RobotError::Range);
+        }
+        Ok(t)
+    }
+
+    /// Executes one delivered telegram at time `now_s`; the reply, if the command has one.
+    pub fn execute(&mut self, frame: &Frame, now_s: f64) -> Option<Reply> {
+        self.advance(now_s);
+        self.executed.push(frame.clone());
+        let cmd = match Command::from_frame(frame) {
+            Ok(c) => c,
+            Err(e) => {
+                self.fail(RobotError::from_parse(&e));
+                return None;
+            }
+        };
+        match cmd {
+            Command::StorePos {
+                program,
+                instruction,
+                positioning,
+            } => {
+                if positioning.pose.q.norm_error() > QUATERNION_NORM_TOLERANCE {
+                    self.fail(RobotError::Range);
+                } else {
+                    self.store(program, instruction, Instruction::Position(positioning));
+                }
+            }
+            Command::StoreControl {
+                program,
+                instruction,
+                control,
+            } => self.store(program, instruction, Instruction::Control(control)),
+            Command::RunProgram { program } => self.run(program, now_s),
+            Command::Standby => {
+                if self.busy() {
+                    self.fail(RobotError::Busy);
+                } else {
+                    self.mode = Mode::Standby;
+                }
+            }
+            Command::Operate => {
+                if self.busy() {
+                    self.fail(RobotError::Busy);
+                } else {
+                    self.mode = Mode::Operate;
+                }
+            }
+            Command::SyncHome => {
+                if self.busy() {
+                    self.fail(RobotError::Busy);
+                } else if self.mode != Mode::Operate {
+                    self.fail(RobotError::NotOperate);
+                } else {
+                    self.error_state = false;
+                    self.activity = Activity::Homing {
+                        until: now_s + self.params.home_s,
+                    };
+                }
+            }
+            Command::Enquire(Selector::Status) => {
+                let s = self.status();
+                self.last_error = 0;
+                return Some(Reply::Status(s));
+            }
+            Command::Enquire(Selector::Position) => return Some(Reply::Position(self.wire_pose())),
+            Command::DeleteProgram { program } => {
+                if self.running.as_ref().is_some_and(|(p, _)| *p == program) && self.busy() {
+                    self.fail(RobotError::Busy);
+                } else if let Some(prog) = self.programs.remove(&program) {
+                    self.used_units -= prog.values().map(units).sum::<u32>();
+                } else {
+                    self.fail(RobotError::NoProgram);
+                }
+            }
+            Command::MoveImmediate(p) => self.move_immediate(p, now_s),
+            Command::SetBaseSpeed(s) => {
+                if s.0 == 0 {
+                    self.fail(RobotError::Range);
+                } else {
+                    self.speeds.base_mm_s = s.value() * 1000.0;
+                }
+            }
+            Command::SetMaxSpeed(s) => {
+                if s.0 == 0 {
+                    self.fail(RobotError::Range);
+                } else {
+                    self.speeds.max_mm_s = s.value() * 1000.0;
+                }
+            }
+            Command::Stop => {
+                self.pose = self.pose_now(now_s);
+                self.last_target = self.pose.xyz_mm;
+                self.activity = Activity::Idle;
+                self.running = None;
+                self.io.set_output(IN_POSITION_OUTPUT, true);
+            }
+            Command::ReadBack {
+                program,
+                instruction,
+            } => {
+                return Some(Reply::ReadBack {
+                    program,
+                    instruction,
+                    stored: self.instruction(program, instruction).copied(),
+                });
+            }
+        }
+        None
+    }
+
+    fn wire_pose(&self) -> Pose {
+        let p = self.pose;
+        let l = |v: f64| Length(((v / 0.0625).round()).clamp(-32768.0, 32767.0) as i16);
+        Pose {
+            x: l(p.xyz_mm[0]),
+            y: l(p.xyz_mm[1]),
+            z: l(p.xyz_mm[2]),
+            q: Quaternion::from_wxyz(p.q[0], p.q[1], p.q[2], p.q[3]).unwrap_or_default(),
+        }
+    }
+
+    fn store(&mut self, program: u8, instruction: u16, i: Instruction) {
+        let old = self.instruction(program, instruction).map_or(0, units);
+        let new_used = self.used_units - old + units(&i);
+        if new_used > MEMORY_UNITS {
+            self.fail(RobotError::MemoryFull);
+            return;
+        }
+        self.used_units = new_used;
+        self.programs
+            .entry(program)
+            .or_default()
+            .insert(instruction, i);
+    }
+
+    fn move_immediate(&mut self, p: Positioning, now_s: f64) {
+        if self.busy() {
+            return self.fail(RobotError::Busy);
+        }
+        let target = match self.check_positioning(&p, self.last_target) {
+            Ok(t) => t,
+            Err(e) => return self.fail(e),
+        };
+        if self.mode == Mode::Standby {
+            // Checked, not moved.
+            self.last_target = target;
+            return;
+        }
+        if !self.homed {
+            return self.fail(RobotError::NotHomed);
+        }
+        let traj = motion::plan(self.pose, &[(0, p)], self.speeds, &self.params, now_s, true);
+        self.last_target = target;
+        self.io.set_output(IN_POSITION_OUTPUT, false);
+        self.running = None;
+        self.activity = Activity::Moving {
+            traj,
+            next: 0,
+            discrete: true,
+        };
+    }
+
+    fn run(&mut self, program: u8, now_s: f64) {
+        if self.busy() {
+            return self.fail(RobotError::Busy);
+        }
+        let Some(prog) = self.programs.get(&program).filter(|p| !p.is_empty()) else {
+            return self.fail(RobotError::NoProgram);
+        };
+        let list: Vec<(u16, Instruction)> = prog.iter().map(|(n, i)| (*n, *i)).collect();
+        if self.mode == Mode::Standby {
+            // Execute in memory only: check every instruction, stop at the first error.
+            let mut prev = self.last_target;
+            for (n, i) in &list {
+                if let Instruction::Position(p) = i {
+                    match self.check_positioning(p, prev) {
+                        Ok(t) => prev = t,
+                        Err(e) => {
+                            self.current_instruction = *n;
+                            self.error_state = true;
+                            return self.fail(e);
+                        }
+                    }
+                }
+            }
+            self.current_instruction = list.last().map_or(0, |(n, _)| *n);
+            return;
+        }
+        if !self.homed {
+            return self.fail(RobotError::NotHomed);
+        }
+        let mut prev = self.last_target;
+        for (n, i) in &list {
+            if let Instruction::Position(p) = i {
+                match self.check_positioning(p, prev) {
+                    Ok(t) => prev = t,
+                    Err(e) => {
+                        self.current_instruction = *n;
+                        self.error_state = true;
+                        return self.fail(e);
+                    }
+                }
+            }
+        }
+        self.error_state = false;
+        self.running = Some((program, list));
+        self.step_program(0, now_s);
+    }
+
+    /// Continues the running program at list index `next`, time `t`.
+    fn step_program(&mut self, mut next: usize, t: f64) {
+        let Some((_, list)) = self.running.as_ref() else {
+            self.activity = Activity::Idle;
+            return;
+        };
+        let list = list.clone();
+        let mut chunk: Vec<(u16, Positioning)> = Vec::new();
+        while let Some((n, i)) = list.get(next) {
+            match i {
+                Instruction::Position(p) => {
+                    chunk.push((*n, *p));
+                    next += 1;
+                }
+                Instruction::Control(_) if !chunk.is_empty() => break,
+                Instruction::Control(c) => {
+                    self.current_instruction = *n;
+                    match *c {
+                        Control::SetOutput { line, on } => {
+                            self.io.set_output(line, on);
+                            next += 1;
+                        }
+                        Control::WaitInput { line, on } => {
+                            if self.io.input(line) == on {
+                                next += 1;
+                            } else {
+                                self.activity = Activity::Waiting {
+                                    line,
+                                    on,
+                                    next: next + 1,
+                                };
+                                return;
+                            }
+                        }
+                        Control::End => {
+                            next = list.len();
+                        }
+                    }
+                }
+            }
+        }
+        if chunk.is_empty() {
+            self.running = None;
+            self.activity = Activity::Idle;
+            return;
+        }
+        let traj = motion::plan(self.pose, &chunk, self.speeds, &self.params, t, false);
+        if let Some(m) = traj.moves.last() {
+            self.last_target = m.target_mm;
+        }
+        self.activity = Activity::Moving {
+            traj,
+            next,
+            discrete: false,
+        };
+    }
+
+    fn pose_now(&self, t: f64) -> EyePose {
+        match &self.activity {
+            Activity::Moving { traj, .. } => traj.pose_at(t),
+            _ => self.pose,
+        }
+    }
+
+    /// Lets time run to `now_s`: moves progress, programs continue, homing completes.
+    pub fn advance(&mut self, now_s: f64) {
+        let now_s = now_s.max(self.now_s);
+        self.now_s = now_s;
+        for _ in 0..10_000 {
+            match &self.activity {
+                Activity::Idle => return,
+                Activity::Homing { until } => {
+                    if now_s < *until {
+                        return;
+                    }
+                    self.pose = self.params.home;
+                    self.last_target = self.pose.xyz_mm;
+                    self.homed = true;
+                    self.activity = Activity::Idle;
+                    return;
+                }
+                Activity::Waiting { line, on, next } => {
+                    if self.io.input(*line) != *on {
+                        return;
+                    }
+                    let next = *next;
+                    self.step_program(next, now_s);
+                }
+                Activity::Moving {
+                    traj,
+                    next,
+                    discrete,
+                } => {
+                    if let Some(m) = traj.move_at(now_s) {
+                        self.current_instruction = if *discrete { 0 } else { m.instruction };
+                        self.pose = traj.pose_at(now_s);
+                        return;
+                    }
+                    let (end, t1, next, discrete) = (traj.end_pose(), traj.t1(), *next, *discrete);
+                    for m in &traj.moves {
+                        self.trace.push((m.t1(), m.pose_at(m.t1())));
+                    }
+                    self.pose = end;
+                    if discrete {
+                        self.io.set_output(IN_POSITION_OUTPUT, true);
+                        self.activity = Activity::Idle;
+                    } else {
+                        self.step_program(next, t1);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The simulated robot computer on a link: session + machine.
+#[derive(Debug)]
+pub struct Robot {
+    /// The link's robot side.
+    pub session: RobotSession,
+    /// The robot computer.
+    pub machine: Machine,
+    frame: FrameConfig,
+}
+
+impl Robot {
+    /// A robot with framing `frame`, link `timers` and motion `params`.
+    pub fn new(frame: FrameConfig, timers: Timers, params: MotionParams) -> Self {
+        Robot {
+            session: RobotSession::new(frame, timers),
+            machine: Machine::new(params),
+            frame,
+        }
+    }
+}
+
+impl Default for Robot {
+    fn default() -> Self {
+        Robot::new(
+            FrameConfig::default(),
+            Timers::default(),
+            MotionParams::default(),
+        )
+    }
+}
+
+impl Peer for Robot {
+    fn receive(&mut self, bytes: &[u8], now: Duration) {
+        for f in self.session.on_bytes(bytes, now) {
+            if let Some(reply) = self.machine.execute(&f, now.as_secs_f64())
+                && let Ok(bytes) = reply.encode(&self.frame)
+            {
+                self.session.queue_reply(bytes);
+            }
+        }
+    }
+    fn poll(&mut self, now: Duration) {
+        self.session.on_time(now);
+        self.machine.advance(now.as_secs_f64());
+    }
+    fn take_output(&mut self) -> Vec<u8> {
+        self.session.take_output()
+    }
+    fn deadline(&self) -> Option<Duration> {
+        self.session.deadline()
+    }
+}
+
+/// How long [`serve`] waits for host bytes before letting the clock run.
+pub const POLL_PERIOD: Duration = Duration::from_millis(2);
+
+/// Serves `robot` over `link` in real time until `stop` is set.
+pub fn serve<L: Link>(
+    mut link: L,
+    robot: &std::sync::Mutex<Robot>,
+    clock: &dyn Clock,
+    stop: &AtomicBool,
+) -> Result<()> {
+    let mut buf = [0u8; 256];
+    while !stop.load(Ordering::Relaxed) {
+        let n = link.read_timeout(&mut buf, POLL_PERIOD)?;
+        let out = {
+            let mut r = robot
+                .lock()
+                .map_err(|_| std::io::Error::other("simulator lock poisoned"))?;
+            let now = clock.now();
+            if let Some(bytes) = buf.get(..n)
+                && n > 0
+            {
+                r.receive(bytes, now);
+            }
+            r.poll(now);
+            r.take_output()
+        };
+        if !out.is_empty() {
+            link.write_all(&out)?;
+        }
+    }
+    Ok(())
+}
+
+/// Lines 1..=6.
+pub fn io_lines() -> std::ops::RangeInclusive<u8> {
+    1..=IO_LINES
+}
