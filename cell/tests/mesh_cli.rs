@@ -275,3 +275,40 @@ fn plan_takes_a_dxf_path_on_mesh_and_tube_mandrels() {
     assert!(stderr(&r).contains("path.dxf:"), "{}", stderr(&r));
     assert!(!dir.path().join("bad-out").exists());
 }
+
+#[test]
+fn sweep_plans_a_coverage_set_with_readable_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cover");
+    let r = windcell(&[
+        "sweep",
+        example("sbend-mesh.toml").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--paths",
+        "4",
+        "--json",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert_eq!(v["paths"].as_array().unwrap().len(), 4);
+    for k in 1..=4 {
+        let file = out.join(format!("SBENDM_{k}.ROB"));
+        assert!(file.exists());
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&file).unwrap().permissions().mode();
+            assert_ne!(mode & 0o044, 0, "readable by others: {mode:o}");
+        }
+    }
+    let r = windcell(&[
+        "sweep",
+        example("sbend-mesh.toml").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--paths",
+        "0",
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+}

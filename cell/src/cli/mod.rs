@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 pub mod geodesic;
 pub mod plan;
 pub mod sim_indexer;
+pub mod sweep;
 pub mod triasym;
 
 /// Exit code for bad input: a file, a field or an argument the operator must fix.
@@ -65,6 +66,8 @@ pub enum Command {
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Trace a geodesic on a triangulated mandrel (STL or OBJ).
     Geodesic(geodesic::GeodesicArgs),
+    /// Plan a coverage set: the job's first path repeated around the mandrel.
+    Sweep(sweep::SweepArgs),
     /// Mesh a job's tube mandrel (TRIASYM) and write it as STL.
     Triasym(triasym::TriasymArgs),
 }
@@ -88,6 +91,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Plan(args) => plan::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::Geodesic(args) => geodesic::run(args),
+        Command::Sweep(args) => sweep::run(args),
         Command::Triasym(args) => triasym::run(args),
     }
 }
