@@ -47,8 +47,50 @@ pub struct JobPlan {
     pub paths: Vec<PlannedPath>,
 }
 
-/// The mandrel model a job describes.
+/// The mandrel model a job describes, with a `spine_dxf` profile read relative to the job `file`.
+/// `text` locates errors in the job file.
+pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
+    let located = |source: paths::Error, span: Range<usize>| {
+        let (line, column) = sequences::error::line_column(text, span.start);
+        Error::Plan {
+            file: file.to_path_buf(),
+            line,
+            column,
+            source,
+        }
+    };
+    let knots = match &job.mandrel.spine_dxf {
+        Some(dxf) => {
+            let dxf_file = file.parent().unwrap_or(Path::new("")).join(dxf.get_ref());
+            let drawing = load_dxf(&dxf_file)?;
+            let layer = job
+                .mandrel
+                .spine_layer
+                .as_ref()
+                .map(|l| l.get_ref().as_str());
+            Some(drawing.profile(layer).map_err(|e| e.in_file(&dxf_file))?)
+        }
+        None => None,
+    };
+    mandrel_with(job, knots).map_err(|(e, span)| located(e, span))
+}
+
+fn load_dxf(file: &Path) -> Result<sequences::dxf::Drawing, Error> {
+    sequences::dxf::Drawing::load(file).map_err(|e| match e {
+        sequences::Error::Io { file, source } => Error::Read { file, source },
+        other => Error::File(other),
+    })
+}
+
+/// The mandrel model a job describes (its spine from `spine_mm`).
 pub fn mandrel(job: &Job) -> Result<Tube, (paths::Error, Range<usize>)> {
+    mandrel_with(job, None)
+}
+
+fn mandrel_with(
+    job: &Job,
+    dxf_knots: Option<Vec<(f64, f64)>>,
+) -> Result<Tube, (paths::Error, Range<usize>)> {
     let m = &job.mandrel;
     let diameter = *m.diameter_mm.get_ref();
     match m.kind.get_ref() {
@@ -61,9 +103,16 @@ pub fn mandrel(job: &Job) -> Result<Tube, (paths::Error, Range<usize>)> {
         }
         MandrelKind::Tube | MandrelKind::Mesh => {
             let spine_field = m.spine_mm.as_ref();
-            let span = spine_field.map_or(m.kind.span(), |s| s.span());
-            let knots: Vec<(f64, f64)> = spine_field.map_or_else(Vec::new, |s| {
-                s.get_ref().iter().map(|k| (k[0], k[1])).collect()
+            let span = m
+                .spine_dxf
+                .as_ref()
+                .map(|d| d.span())
+                .or_else(|| spine_field.map(|s| s.span()))
+                .unwrap_or(m.kind.span());
+            let knots: Vec<(f64, f64)> = dxf_knots.unwrap_or_else(|| {
+                spine_field.map_or_else(Vec::new, |s| {
+                    s.get_ref().iter().map(|k| (k[0], k[1])).collect()
+                })
             });
             let smoothing = m.spine_smoothing_mm.as_ref().map_or(0.0, |s| *s.get_ref());
             let spine = Spine::smoothing(&knots, smoothing).map_err(|e| (e, span.clone()))?;
@@ -115,7 +164,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             source,
         }
     };
-    let tube = mandrel(job).map_err(|(e, span)| located(e, span))?;
+    let tube = mandrel_in(job, text, file)?;
     let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
         (MandrelKind::Mesh, Some(mesh)) => {
             let dir = file.parent().unwrap_or(Path::new(""));
@@ -142,10 +191,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         let segments = *spec.segments.get_ref() as usize;
         let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
             let dxf_file = dir.join(dxf.get_ref());
-            let drawing = sequences::dxf::Drawing::load(&dxf_file).map_err(|e| match e {
-                sequences::Error::Io { file, source } => Error::Read { file, source },
-                other => Error::File(other),
-            })?;
+            let drawing = load_dxf(&dxf_file)?;
             let raw: Vec<nalgebra::Point3<f64>> = drawing
                 .path(spec.layer.as_ref().map(|l| l.get_ref().as_str()))
                 .map_err(|e| e.in_file(&dxf_file))?

@@ -312,3 +312,61 @@ fn sweep_plans_a_coverage_set_with_readable_files() {
     ]);
     assert_eq!(r.status.code(), Some(2));
 }
+
+/// Table 6.1 as a DXF spine profile plans exactly like the same knots in `spine_mm`.
+#[test]
+fn spine_profile_from_dxf_plans_like_spine_mm() {
+    use sequences::dxf::{Drawing, Entity, Kind};
+    let dir = tempfile::tempdir().unwrap();
+    let drawing = Drawing {
+        entities: vec![Entity {
+            kind: Kind::LwPolyline,
+            layer: "SPINE".into(),
+            points: paths::spine::SBEND_TABLE_6_1_MM
+                .iter()
+                .map(|&(z, x)| [z, x, 0.0])
+                .collect(),
+            closed: false,
+        }],
+    };
+    std::fs::write(dir.path().join("spine.dxf"), drawing.write().unwrap()).unwrap();
+    let text = std::fs::read_to_string(example("sbend.toml")).unwrap();
+    let a = text.find("spine_mm = [").unwrap();
+    let b = a + text[a..].find("]\n\n").unwrap() + 2;
+    let job = format!(
+        "{}spine_dxf = \"spine.dxf\"\nspine_layer = \"SPINE\"\n{}",
+        &text[..a],
+        &text[b..]
+    );
+    std::fs::write(dir.path().join("job.toml"), job).unwrap();
+    let steps = |job: &Path, out: &str| -> Vec<i64> {
+        let r = windcell(&[
+            "plan",
+            job.to_str().unwrap(),
+            "-o",
+            dir.path().join(out).to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        v["paths"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["total_steps"].as_i64().unwrap())
+            .collect()
+    };
+    assert_eq!(
+        steps(&dir.path().join("job.toml"), "a"),
+        steps(&example("sbend.toml"), "b")
+    );
+    std::fs::remove_file(dir.path().join("spine.dxf")).unwrap();
+    let r = windcell(&[
+        "plan",
+        dir.path().join("job.toml").to_str().unwrap(),
+        "-o",
+        dir.path().join("c").to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+    assert!(stderr(&r).contains("spine.dxf"), "{}", stderr(&r));
+}

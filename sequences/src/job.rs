@@ -144,6 +144,13 @@ pub struct Mandrel {
     /// Tube: how far the smoothed spine may depart from the knots, mm (0 interpolates).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spine_smoothing_mm: Option<Spanned<f64>>,
+    /// Tube or mesh: the spine profile as a DXF drawing instead of `spine_mm` (its path read as
+    /// (height, offset) = (x, y), mm; seed 001 §5.6), relative to the job file's folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spine_dxf: Option<Spanned<String>>,
+    /// The DXF layer holding the spine profile (default: any).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spine_layer: Option<Spanned<String>>,
     /// Mesh: the STL or OBJ file, relative to the job file's folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<Spanned<String>>,
@@ -448,6 +455,8 @@ impl Job {
         match m.kind.get_ref() {
             MandrelKind::Cylinder => {
                 require(m.length_mm.is_some(), "length_mm")?;
+                forbid(m.spine_dxf.as_ref().map(Spanned::span), "spine_dxf")?;
+                forbid(m.spine_layer.as_ref().map(Spanned::span), "spine_layer")?;
                 forbid(m.spine_mm.as_ref().map(Spanned::span), "spine_mm")?;
                 forbid(
                     m.spine_smoothing_mm.as_ref().map(Spanned::span),
@@ -464,7 +473,17 @@ impl Job {
                 }
             }
             MandrelKind::Tube | MandrelKind::Mesh => {
-                require(m.spine_mm.is_some(), "spine_mm")?;
+                require(m.spine_mm.is_some() || m.spine_dxf.is_some(), "spine_mm")?;
+                if let (Some(_), Some(dxf)) = (&m.spine_mm, &m.spine_dxf) {
+                    return Err(error_at(
+                        text,
+                        dxf.span(),
+                        "give the spine as `spine_mm` or `spine_dxf`, not both",
+                    ));
+                }
+                if m.spine_dxf.is_none() {
+                    forbid(m.spine_layer.as_ref().map(Spanned::span), "spine_layer")?;
+                }
                 if *m.kind.get_ref() == MandrelKind::Mesh {
                     require(m.mesh.is_some(), "mesh")?;
                     if let Some(w) = &m.weld_mm {

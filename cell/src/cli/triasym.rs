@@ -32,10 +32,7 @@ pub struct TriasymArgs {
 /// Runs `windcell triasym`.
 pub fn run(args: TriasymArgs) -> Result<(), Failure> {
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
-    let tube = tool::mandrel(&job).map_err(|(e, span)| {
-        let (line, column) = sequences::error::line_column(&text, span.start);
-        Failure::input(format!("{}:{line}:{column}: {e}", args.job.display()))
-    })?;
+    let tube = tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(Failure::input)?;
     mesh.validate(Closure::Closed).map_err(Failure::runtime)?;
     let name = job.name.get_ref();
