@@ -23,6 +23,22 @@ pub enum Error {
         /// What the geometry said.
         source: paths::Error,
     },
+    /// A mesh file is malformed or not a usable surface (the source names the line or triangle).
+    #[error("{}: {source}", file.display())]
+    Mesh {
+        /// The mesh file.
+        file: PathBuf,
+        /// What the mesh reader said.
+        source: paths::Error,
+    },
+    /// An input file could not be read.
+    #[error("{}: {source}", file.display())]
+    Read {
+        /// The file.
+        file: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
     /// Writing output failed.
     #[error("{}: {source}", path.display())]
     Output {
@@ -38,7 +54,11 @@ impl Error {
     pub fn is_input(&self) -> bool {
         matches!(
             self,
-            Error::File(sequences::Error::Parse { .. }) | Error::Plan { .. }
+            Error::File(sequences::Error::Parse { .. })
+                | Error::File(sequences::Error::Content { .. })
+                | Error::Plan { .. }
+                | Error::Mesh { .. }
+                | Error::Read { .. }
         )
     }
 }

@@ -22,6 +22,10 @@ pub const APPROACH_SPEED_PCT: f64 = 10.0;
 pub const GEODESIC_STEP_MM: f64 = 0.25;
 /// Arc-length sample spacing of the exact helix, mm (its interpolation is exact).
 pub const HELIX_STEP_MM: f64 = 1.0;
+/// Facets per circumference of the mesh that imported paths are projected onto (analytic mandrels).
+pub const PROJECTION_FACETS: usize = 256;
+/// Section spacing of that mesh, mm.
+pub const PROJECTION_SPACING_MM: f64 = 1.0;
 
 /// One planned path.
 #[derive(Debug, Clone)]
@@ -32,6 +36,8 @@ pub struct PlannedPath {
     pub program: u8,
     /// The plan.
     pub plan: PathPlan,
+    /// Mesh mandrels: the largest distance between the traced and the smoothed path, mm.
+    pub smoothing_deviation_mm: Option<f64>,
 }
 
 /// Every path of a job, planned.
@@ -41,8 +47,50 @@ pub struct JobPlan {
     pub paths: Vec<PlannedPath>,
 }
 
-/// The mandrel model a job describes.
+/// The mandrel model a job describes, with a `spine_dxf` profile read relative to the job `file`.
+/// `text` locates errors in the job file.
+pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
+    let located = |source: paths::Error, span: Range<usize>| {
+        let (line, column) = sequences::error::line_column(text, span.start);
+        Error::Plan {
+            file: file.to_path_buf(),
+            line,
+            column,
+            source,
+        }
+    };
+    let knots = match &job.mandrel.spine_dxf {
+        Some(dxf) => {
+            let dxf_file = file.parent().unwrap_or(Path::new("")).join(dxf.get_ref());
+            let drawing = load_dxf(&dxf_file)?;
+            let layer = job
+                .mandrel
+                .spine_layer
+                .as_ref()
+                .map(|l| l.get_ref().as_str());
+            Some(drawing.profile(layer).map_err(|e| e.in_file(&dxf_file))?)
+        }
+        None => None,
+    };
+    mandrel_with(job, knots).map_err(|(e, span)| located(e, span))
+}
+
+fn load_dxf(file: &Path) -> Result<sequences::dxf::Drawing, Error> {
+    sequences::dxf::Drawing::load(file).map_err(|e| match e {
+        sequences::Error::Io { file, source } => Error::Read { file, source },
+        other => Error::File(other),
+    })
+}
+
+/// The mandrel model a job describes (its spine from `spine_mm`).
 pub fn mandrel(job: &Job) -> Result<Tube, (paths::Error, Range<usize>)> {
+    mandrel_with(job, None)
+}
+
+fn mandrel_with(
+    job: &Job,
+    dxf_knots: Option<Vec<(f64, f64)>>,
+) -> Result<Tube, (paths::Error, Range<usize>)> {
     let m = &job.mandrel;
     let diameter = *m.diameter_mm.get_ref();
     match m.kind.get_ref() {
@@ -53,11 +101,18 @@ pub fn mandrel(job: &Job) -> Result<Tube, (paths::Error, Range<usize>)> {
             Tube::cylinder(diameter, length, bottom, top)
                 .map_err(|e| (e, m.length_mm.as_ref().map_or(m.kind.span(), |l| l.span())))
         }
-        MandrelKind::Tube => {
+        MandrelKind::Tube | MandrelKind::Mesh => {
             let spine_field = m.spine_mm.as_ref();
-            let span = spine_field.map_or(m.kind.span(), |s| s.span());
-            let knots: Vec<(f64, f64)> = spine_field.map_or_else(Vec::new, |s| {
-                s.get_ref().iter().map(|k| (k[0], k[1])).collect()
+            let span = m
+                .spine_dxf
+                .as_ref()
+                .map(|d| d.span())
+                .or_else(|| spine_field.map(|s| s.span()))
+                .unwrap_or(m.kind.span());
+            let knots: Vec<(f64, f64)> = dxf_knots.unwrap_or_else(|| {
+                spine_field.map_or_else(Vec::new, |s| {
+                    s.get_ref().iter().map(|k| (k[0], k[1])).collect()
+                })
             });
             let smoothing = m.spine_smoothing_mm.as_ref().map_or(0.0, |s| *s.get_ref());
             let spine = Spine::smoothing(&knots, smoothing).map_err(|e| (e, span.clone()))?;
@@ -109,26 +164,129 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             source,
         }
     };
-    let tube = mandrel(job).map_err(|(e, span)| located(e, span))?;
+    let tube = mandrel_in(job, text, file)?;
+    let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
+        (MandrelKind::Mesh, Some(mesh)) => {
+            let dir = file.parent().unwrap_or(Path::new(""));
+            let weld = job
+                .mandrel
+                .weld_mm
+                .as_ref()
+                .map_or(paths::mesh::DEFAULT_WELD_MM, |w| *w.get_ref());
+            Some(crate::mesh::load(
+                &dir.join(mesh.get_ref()),
+                weld,
+                paths::mesh::Closure::Closed,
+                paths::mesh::trace::DEFAULT_CREASE_DEG,
+            )?)
+        }
+        _ => None,
+    };
     let (setup, speeds) = setup(job);
+    let dir = file.parent().unwrap_or(Path::new(""));
+    // Imported (DXF) paths on an analytic mandrel are projected onto its TRIASYM mesh.
+    let mut projection: Option<paths::mesh::trace::Tracer> = None;
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
-        let start = PathStart {
-            angle_rad: spec.start_angle_deg.get_ref().to_radians(),
-            wind_angle_rad: spec.wind_angle_deg.get_ref().to_radians(),
-            direction: match spec.direction.get_ref() {
-                Direction::Down => paths::Direction::Down,
-                Direction::Up => paths::Direction::Up,
-            },
-        };
-        let path = if tube.spine().is_straight() {
-            geodesic::helix(&tube, &start, HELIX_STEP_MM)
+        let segments = *spec.segments.get_ref() as usize;
+        let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
+            let dxf_file = dir.join(dxf.get_ref());
+            let drawing = load_dxf(&dxf_file)?;
+            let raw: Vec<nalgebra::Point3<f64>> = drawing
+                .path(spec.layer.as_ref().map(|l| l.get_ref().as_str()))
+                .map_err(|e| e.in_file(&dxf_file))?
+                .into_iter()
+                .map(nalgebra::Point3::from)
+                .collect();
+            let surface = match &tracer {
+                Some(t) => t,
+                None => {
+                    if projection.is_none() {
+                        let mesh = paths::mesh::triasym::tube(
+                            &tube,
+                            PROJECTION_FACETS,
+                            PROJECTION_SPACING_MM,
+                            true,
+                        )
+                        .map_err(|e| located(e, job.mandrel.kind.span()))?;
+                        let adjacency = mesh
+                            .validate(paths::mesh::Closure::Closed)
+                            .map_err(|e| located(e, job.mandrel.kind.span()))?;
+                        projection = Some(
+                            paths::mesh::trace::Tracer::new(
+                                mesh,
+                                &adjacency,
+                                paths::mesh::trace::DEFAULT_CREASE_DEG,
+                            )
+                            .map_err(|e| located(e, job.mandrel.kind.span()))?,
+                        );
+                    }
+                    projection.as_ref().ok_or_else(|| {
+                        located(
+                            paths::Error::TooFewPoints {
+                                what: "mandrel mesh",
+                                count: 0,
+                                needed: 1,
+                            },
+                            job.mandrel.kind.span(),
+                        )
+                    })?
+                }
+            };
+            let cut = paths::mesh::resegment::smooth_and_cut(
+                surface,
+                &raw,
+                segments,
+                paths::mesh::resegment::DEFAULT_SPACING_MM,
+            )
+            .map_err(|e| located(e, dxf.span()))?;
+            (cut.points, Some(cut.max_deviation_mm))
         } else {
-            geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
-        }
-        .map_err(|e| located(e, spec.wind_angle_deg.span()))?;
-        let points = paths::segment::equal_length(&tube, &path, *spec.segments.get_ref() as usize)
-            .map_err(|e| located(e, spec.segments.span()))?;
+            let (Some(angle), Some(wind), Some(direction)) = (
+                spec.start_angle_deg.as_ref(),
+                spec.wind_angle_deg.as_ref(),
+                spec.direction.as_ref(),
+            ) else {
+                return Err(located(
+                    paths::Error::OutOfRange {
+                        name: "path",
+                        value: 0.0,
+                        expected: "needs direction, wind_angle_deg and start_angle_deg, or dxf",
+                    },
+                    spec.program.span(),
+                ));
+            };
+            let start = PathStart {
+                angle_rad: angle.get_ref().to_radians(),
+                wind_angle_rad: wind.get_ref().to_radians(),
+                direction: match direction.get_ref() {
+                    Direction::Down => paths::Direction::Down,
+                    Direction::Up => paths::Direction::Up,
+                },
+            };
+            if let Some(tracer) = &tracer {
+                // Mesh mandrel: trace on the mesh, smooth, cut into equal lengths on the surface.
+                let (_, cut) = paths::mesh::resegment::wind(
+                    tracer,
+                    &tube,
+                    &start,
+                    segments,
+                    &paths::mesh::trace::TraceOptions::default(),
+                )
+                .map_err(|e| located(e, wind.span()))?;
+                (cut.points, Some(cut.max_deviation_mm))
+            } else {
+                let path = if tube.spine().is_straight() {
+                    geodesic::helix(&tube, &start, HELIX_STEP_MM)
+                } else {
+                    geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
+                }
+                .map_err(|e| located(e, wind.span()))?;
+                let points = paths::segment::equal_length(&tube, &path, segments)
+                    .map_err(|e| located(e, spec.segments.span()))?;
+                (points, None)
+            }
+        };
         let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
             .map_err(|e| {
                 let span = match &e {
@@ -142,6 +300,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             name: format!("{}_{}", job.name.get_ref(), spec.program.get_ref()),
             program: *spec.program.get_ref(),
             plan,
+            smoothing_deviation_mm,
         });
     }
     Ok(JobPlan { paths: planned })

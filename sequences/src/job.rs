@@ -117,6 +117,8 @@ pub enum MandrelKind {
     Cylinder,
     /// A tube swept along a measured spine (the S-bend, configuration 4).
     Tube,
+    /// A triangulated mandrel (STL or OBJ file) with the spine of its sections (eq 3.7).
+    Mesh,
 }
 
 /// The mandrel. Which fields apply depends on `kind`; [`Job::parse`] checks them.
@@ -142,6 +144,19 @@ pub struct Mandrel {
     /// Tube: how far the smoothed spine may depart from the knots, mm (0 interpolates).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spine_smoothing_mm: Option<Spanned<f64>>,
+    /// Tube or mesh: the spine profile as a DXF drawing instead of `spine_mm` (its path read as
+    /// (height, offset) = (x, y), mm; seed 001 §5.6), relative to the job file's folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spine_dxf: Option<Spanned<String>>,
+    /// The DXF layer holding the spine profile (default: any).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spine_layer: Option<Spanned<String>>,
+    /// Mesh: the STL or OBJ file, relative to the job file's folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<Spanned<String>>,
+    /// Mesh: vertex welding tolerance, mm (default 1e-4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weld_mm: Option<Spanned<f64>>,
 }
 
 /// Winding direction.
@@ -160,12 +175,23 @@ pub enum Direction {
 pub struct PathSpec {
     /// Program number 1–255; also the file suffix `NAME_<prog>`.
     pub program: Spanned<u8>,
-    /// `down` or `up`.
-    pub direction: Spanned<Direction>,
-    /// Angle between fibre and spine, degrees, in (0, 90).
-    pub wind_angle_deg: Spanned<f64>,
-    /// Angle around the spine at the start, degrees (0 = toward the spine's offset side).
-    pub start_angle_deg: Spanned<f64>,
+    /// `down` or `up` (a traced path; not with `dxf`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<Spanned<Direction>>,
+    /// Angle between fibre and spine, degrees, in (0, 90) (a traced path; not with `dxf`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wind_angle_deg: Option<Spanned<f64>>,
+    /// Angle around the spine at the start, degrees (0 = toward the spine's offset side; a traced
+    /// path; not with `dxf`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_angle_deg: Option<Spanned<f64>>,
+    /// An imported path instead of a traced one: a DXF drawing (POINT, LINE, POLYLINE or
+    /// LWPOLYLINE, mandrel frame, mm; seed 001 §5.5), relative to the job file's folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dxf: Option<Spanned<String>>,
+    /// The DXF layer holding the path (default: any layer).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layer: Option<Spanned<String>>,
     /// Number of equal-length segments (50 in the thesis).
     pub segments: Spanned<u32>,
 }
@@ -330,14 +356,64 @@ impl Job {
                 ));
             }
             programs.push(*p.program.get_ref());
-            let angle = *p.wind_angle_deg.get_ref();
-            check(
-                text,
-                &p.wind_angle_deg,
-                angle > 0.0 && angle < 90.0,
-                "is not a valid wind angle: must lie in (0°, 90°)",
-            )?;
-            finite(text, &p.start_angle_deg, "start angle")?;
+            if let Some(dxf) = &p.dxf {
+                for (span, name) in [
+                    (p.direction.as_ref().map(Spanned::span), "direction"),
+                    (
+                        p.wind_angle_deg.as_ref().map(Spanned::span),
+                        "wind_angle_deg",
+                    ),
+                    (
+                        p.start_angle_deg.as_ref().map(Spanned::span),
+                        "start_angle_deg",
+                    ),
+                ] {
+                    if let Some(span) = span {
+                        return Err(error_at(
+                            text,
+                            span,
+                            format!("`{name}` does not apply to a path imported from `dxf`"),
+                        ));
+                    }
+                }
+                if dxf.get_ref().is_empty() {
+                    return Err(error_at(text, dxf.span(), "dxf must name a file"));
+                }
+            } else {
+                let missing = |name: &str| {
+                    error_at(
+                        text,
+                        p.program.span(),
+                        format!("missing field `{name}` (or `dxf` for an imported path)"),
+                    )
+                };
+                if p.direction.is_none() {
+                    return Err(missing("direction"));
+                }
+                let wind = p
+                    .wind_angle_deg
+                    .as_ref()
+                    .ok_or_else(|| missing("wind_angle_deg"))?;
+                let start = p
+                    .start_angle_deg
+                    .as_ref()
+                    .ok_or_else(|| missing("start_angle_deg"))?;
+                let angle = *wind.get_ref();
+                check(
+                    text,
+                    wind,
+                    angle > 0.0 && angle < 90.0,
+                    "is not a valid wind angle: must lie in (0°, 90°)",
+                )?;
+                finite(text, start, "start angle")?;
+                if let Some(layer) = &p.layer {
+                    return Err(error_at(
+                        text,
+                        layer.span(),
+                        "`layer` applies only to a path imported from `dxf`",
+                    ));
+                }
+            }
             if *p.segments.get_ref() == 0 {
                 return Err(error_at(
                     text,
@@ -372,9 +448,15 @@ impl Job {
             )),
             None => Ok(()),
         };
+        if *m.kind.get_ref() != MandrelKind::Mesh {
+            forbid(m.mesh.as_ref().map(Spanned::span), "mesh")?;
+            forbid(m.weld_mm.as_ref().map(Spanned::span), "weld_mm")?;
+        }
         match m.kind.get_ref() {
             MandrelKind::Cylinder => {
                 require(m.length_mm.is_some(), "length_mm")?;
+                forbid(m.spine_dxf.as_ref().map(Spanned::span), "spine_dxf")?;
+                forbid(m.spine_layer.as_ref().map(Spanned::span), "spine_layer")?;
                 forbid(m.spine_mm.as_ref().map(Spanned::span), "spine_mm")?;
                 forbid(
                     m.spine_smoothing_mm.as_ref().map(Spanned::span),
@@ -390,8 +472,24 @@ impl Job {
                     finite(text, offset, "offset")?;
                 }
             }
-            MandrelKind::Tube => {
-                require(m.spine_mm.is_some(), "spine_mm")?;
+            MandrelKind::Tube | MandrelKind::Mesh => {
+                require(m.spine_mm.is_some() || m.spine_dxf.is_some(), "spine_mm")?;
+                if let (Some(_), Some(dxf)) = (&m.spine_mm, &m.spine_dxf) {
+                    return Err(error_at(
+                        text,
+                        dxf.span(),
+                        "give the spine as `spine_mm` or `spine_dxf`, not both",
+                    ));
+                }
+                if m.spine_dxf.is_none() {
+                    forbid(m.spine_layer.as_ref().map(Spanned::span), "spine_layer")?;
+                }
+                if *m.kind.get_ref() == MandrelKind::Mesh {
+                    require(m.mesh.is_some(), "mesh")?;
+                    if let Some(w) = &m.weld_mm {
+                        positive(text, w, "weld tolerance")?;
+                    }
+                }
                 forbid(m.length_mm.as_ref().map(Spanned::span), "length_mm")?;
                 forbid(
                     m.bottom_offset_mm.as_ref().map(Spanned::span),
@@ -477,7 +575,10 @@ segments = 50
         let job = Job::parse(CYLINDER).unwrap();
         assert_eq!(job.name.get_ref(), "CYL");
         assert_eq!(*job.cell.movement.get_ref(), Movement::Fine);
-        assert_eq!(*job.paths[0].direction.get_ref(), Direction::Down);
+        assert_eq!(
+            *job.paths[0].direction.as_ref().unwrap().get_ref(),
+            Direction::Down
+        );
         let again = Job::parse(&job.write()).unwrap();
         assert_eq!(again, job);
         assert_eq!(Job::parse(&again.write()).unwrap().write(), job.write());

@@ -2,9 +2,12 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod geodesic;
 pub mod plan;
 pub mod sim_indexer;
 pub mod sim_robot;
+pub mod sweep;
+pub mod triasym;
 
 /// Exit code for bad input: a file, a field or an argument the operator must fix.
 pub const EXIT_INPUT: u8 = 2;
@@ -64,6 +67,12 @@ pub enum Command {
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Run the ASEA robot-computer simulator on a pseudo-terminal.
     SimRobot(sim_robot::SimRobotArgs),
+    /// Trace a geodesic on a triangulated mandrel (STL or OBJ).
+    Geodesic(geodesic::GeodesicArgs),
+    /// Plan a coverage set: the job's first path repeated around the mandrel.
+    Sweep(sweep::SweepArgs),
+    /// Mesh a job's tube mandrel (TRIASYM) and write it as STL.
+    Triasym(triasym::TriasymArgs),
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
@@ -85,5 +94,8 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Plan(args) => plan::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::SimRobot(args) => sim_robot::run(args),
+        Command::Geodesic(args) => geodesic::run(args),
+        Command::Sweep(args) => sweep::run(args),
+        Command::Triasym(args) => triasym::run(args),
     }
 }

@@ -136,9 +136,17 @@ pub fn smooth_and_cut(
     let cut = spline.equal_length(segments)?;
     let mut points = Vec::with_capacity(cut.len());
     let mut faces = Vec::with_capacity(cut.len());
+    let last = cut.len() - 1;
     for (index, c) in cut.iter().enumerate() {
+        // The end points sit on the rim of an end cap: look a micrometre inward along the path so
+        // they take the winding surface's triangle and normal, not the cap's.
+        let inward = match index {
+            0 => (cut[1] - c).try_normalize(0.0).unwrap_or_default() * 1e-3,
+            i if i == last => (cut[last - 1] - c).try_normalize(0.0).unwrap_or_default() * 1e-3,
+            _ => Vector3::zeros(),
+        };
         let at = tracer
-            .locate(&Point3::from(*c))
+            .locate(&Point3::from(c + inward))
             .ok_or(Error::NonFinitePoint { index })?;
         points.push(SurfacePoint {
             point: at.point,

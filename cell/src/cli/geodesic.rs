@@ -1,0 +1,151 @@
+//! `windcell geodesic MESH --start X,Y,Z --heading DEG …`: trace a geodesic (or a path with a slip
+//! ratio) on a mesh mandrel and print it, one point and its triangle per line.
+
+use std::path::PathBuf;
+
+use cell::mesh;
+use clap::Args;
+use nalgebra::{Point3, Vector3};
+use paths::mesh::trace::{DEFAULT_CREASE_DEG, DEFAULT_START_TOLERANCE_MM, Mode, TraceOptions};
+use paths::mesh::{Closure, DEFAULT_WELD_MM};
+use serde::Serialize;
+
+use super::Failure;
+
+/// Trace a geodesic on a triangulated mandrel (STL or OBJ) and print the polyline.
+#[derive(Debug, Args)]
+pub struct GeodesicArgs {
+    /// The mesh file (.stl, binary or ASCII, or .obj).
+    pub mesh: PathBuf,
+    /// Start point, mm (`X,Y,Z`); it is moved onto the nearest surface point.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub start: [f64; 3],
+    /// Heading, degrees, from the axis projected into the tangent plane, counter-clockwise seen
+    /// from outside.
+    #[arg(long, allow_hyphen_values = true)]
+    pub heading: f64,
+    /// Reference axis (`X,Y,Z`), also the direction heights are measured along.
+    #[arg(long, value_parser = parse_triple, default_value = "0,0,1", allow_hyphen_values = true)]
+    pub axis: [f64; 3],
+    /// Longest path, mm.
+    #[arg(long, default_value_t = 1000.0)]
+    pub length: f64,
+    /// Stop at these heights along the axis (`LO,HI`, mm); the path stops at boundary and crease
+    /// edges (end caps) anyway.
+    #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
+    pub heights: Option<[f64; 2]>,
+    /// Slip ratio λ = k_g/k_n (0: geodesic); needs --mu.
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_hyphen_values = true,
+        requires = "mu"
+    )]
+    pub lambda: f64,
+    /// Friction coefficient μ; |λ| must not exceed it.
+    #[arg(long)]
+    pub mu: Option<f64>,
+    /// Trace the polyhedron's straightest geodesic instead of the smooth surface's.
+    #[arg(long)]
+    pub exact: bool,
+    /// Vertex welding tolerance, mm.
+    #[arg(long, default_value_t = DEFAULT_WELD_MM)]
+    pub weld_mm: f64,
+    /// Edges sharper than this (degrees) are boundaries.
+    #[arg(long, default_value_t = DEFAULT_CREASE_DEG)]
+    pub crease_deg: f64,
+    /// Print one JSON document instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_numbers<const N: usize>(text: &str) -> Result<[f64; N], String> {
+    let parts: Vec<&str> = text.split(',').collect();
+    if parts.len() != N {
+        return Err(format!(
+            "expected {N} comma-separated numbers, got `{text}`"
+        ));
+    }
+    let mut out = [0.0; N];
+    for (slot, p) in out.iter_mut().zip(parts) {
+        let v: f64 = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{p}` is not a number"))?;
+        if !v.is_finite() {
+            return Err(format!("`{p}` is not finite"));
+        }
+        *slot = v;
+    }
+    Ok(out)
+}
+
+fn parse_triple(text: &str) -> Result<[f64; 3], String> {
+    parse_numbers::<3>(text)
+}
+
+fn parse_pair(text: &str) -> Result<[f64; 2], String> {
+    parse_numbers::<2>(text)
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    points_mm: Vec<[f64; 3]>,
+    faces: Vec<u32>,
+    length_mm: f64,
+    crossings: usize,
+    stop: &'static str,
+}
+
+/// Runs `windcell geodesic`.
+pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
+    let options = TraceOptions {
+        max_length_mm: args.length,
+        axis: Vector3::from(args.axis),
+        height_range_mm: args.heights.map(|[lo, hi]| (lo, hi)),
+        lambda: args.lambda,
+        mu: args.mu,
+        mode: if args.exact {
+            Mode::Exact
+        } else {
+            Mode::Smooth
+        },
+    };
+    // Check the options before the (possibly long) load.
+    options.validate().map_err(Failure::input)?;
+    let tracer = mesh::load(&args.mesh, args.weld_mm, Closure::Open, args.crease_deg)
+        .map_err(Failure::from_cell)?;
+    let path = tracer
+        .trace_heading(
+            &Point3::from(args.start),
+            args.heading.to_radians(),
+            DEFAULT_START_TOLERANCE_MM,
+            &options,
+        )
+        .map_err(|e| Failure::input(format!("{}: {e}", args.mesh.display())))?;
+    let mut out = String::new();
+    if args.json {
+        let report = Report {
+            points_mm: path.points.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            faces: path.faces.clone(),
+            length_mm: path.length_mm,
+            crossings: path.crossings,
+            stop: path.stop.name(),
+        };
+        out = serde_json::to_string(&report).map_err(Failure::runtime)?;
+        out.push('\n');
+    } else {
+        out += "# x_mm y_mm z_mm face\n";
+        for (p, f) in path.points.iter().zip(&path.faces) {
+            out += &format!("{:.4} {:.4} {:.4} {f}\n", p.x, p.y, p.z);
+        }
+        out += &format!(
+            "# {} points, {:.3} mm, {} crossings, stopped at a {}\n",
+            path.points.len(),
+            path.length_mm,
+            path.crossings,
+            path.stop.name()
+        );
+    }
+    super::print(&out)
+}

@@ -1,0 +1,65 @@
+//! `windcell triasym JOB.toml -o MANDREL.stl`: mesh a job's tube mandrel the TRIASYM way (seed 001
+//! §3.1: sections normal to the spine, facets per circumference, flat end caps) and write an STL.
+
+use std::path::PathBuf;
+
+use cell::tool;
+use clap::Args;
+use paths::mesh::{Closure, stl, triasym};
+use sequences::Job;
+
+use super::Failure;
+
+/// Generate the triangulated mandrel of a job's spine and diameter (STL).
+#[derive(Debug, Args)]
+pub struct TriasymArgs {
+    /// The job file (a `tube` or `mesh` mandrel: its spine and diameter are used).
+    pub job: PathBuf,
+    /// The STL file to write.
+    #[arg(short = 'o', long = "out", value_name = "FILE")]
+    pub out: PathBuf,
+    /// Facets per circumference.
+    #[arg(long, default_value_t = 128)]
+    pub facets: usize,
+    /// Section spacing along the spine, mm (at most; the sections are equally spaced).
+    #[arg(long, default_value_t = 2.5)]
+    pub spacing_mm: f64,
+    /// Write ASCII STL instead of binary.
+    #[arg(long)]
+    pub ascii: bool,
+}
+
+/// Runs `windcell triasym`.
+pub fn run(args: TriasymArgs) -> Result<(), Failure> {
+    let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    let tube = tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
+    let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(Failure::input)?;
+    mesh.validate(Closure::Closed).map_err(Failure::runtime)?;
+    let name = job.name.get_ref();
+    let bytes = if args.ascii {
+        stl::write_ascii(&mesh, name).into_bytes()
+    } else {
+        stl::write_binary(
+            &mesh,
+            &format!(
+                "windcell TRIASYM {name}: {} facets, sections every {} mm",
+                args.facets, args.spacing_mm
+            ),
+        )
+    };
+    // Written beside the target and renamed into place: all or nothing, normal permissions.
+    let mut staging = args.out.clone().into_os_string();
+    staging.push(".partial");
+    let staging = PathBuf::from(staging);
+    std::fs::write(&staging, &bytes)
+        .and_then(|()| std::fs::rename(&staging, &args.out))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&staging);
+            Failure::runtime(format!("{}: {e}", args.out.display()))
+        })?;
+    super::print(&format!(
+        "wrote {} ({} triangles)\n",
+        args.out.display(),
+        mesh.triangles().len()
+    ))
+}
