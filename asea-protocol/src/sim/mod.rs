@@ -16,8 +16,8 @@ pub use motion::{EyePose, MotionParams, Move, Speeds, Trajectory};
 
 use crate::clock::Clock;
 use crate::command::{
-    Command, Control, IO_LINES, Instruction, Length, Mode, Pose, Positioning,
-    QUATERNION_NORM_TOLERANCE, Quaternion, Reply, RobotError, Selector, State, Status,
+    Command, Control, Instruction, Length, Mode, Pose, Positioning, QUATERNION_NORM_TOLERANCE,
+    Quaternion, Reply, RobotError, Selector, State, Status,
 };
 use crate::error::Result;
 use crate::frame::{Frame, FrameConfig};
@@ -681,9 +681,4 @@ pub fn serve<L: Link>(
         }
     }
     Ok(())
-}
-
-/// Lines 1..=6.
-pub fn io_lines() -> std::ops::RangeInclusive<u8> {
-    1..=IO_LINES
 }
