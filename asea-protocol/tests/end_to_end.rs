@@ -418,6 +418,64 @@ fn sum8_never_executes_twice() {
     }
 }
 
+/// Read-backs under 10 % byte errors in both directions (reverse sessions, request retries): with
+/// the strong link every answer is the stored instruction or an error.
+#[test]
+fn read_backs_under_faults_are_true_or_errors() {
+    let setup = STRONG;
+    let cfg = FrameConfig {
+        checksum: setup.checksum,
+        ..FrameConfig::default()
+    };
+    let timers = Timers {
+        t_ack_window: setup.ack_window,
+        ..Timers::default()
+    };
+    let clock = VirtualClock::new();
+    let mut robot = Robot::new(cfg, timers, MotionParams::default());
+    let prog = program_50();
+    for (n, i) in (1u16..).zip(&prog) {
+        let bytes = asea_protocol::client::store_command(5, n, i)
+            .encode(&cfg)
+            .unwrap();
+        let f = asea_protocol::frame::Frame {
+            code: bytes[1],
+            data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
+        };
+        robot.machine.execute(&f, 0.0);
+    }
+    let wire = Paced::new(clock.clone(), 9600, robot).with_faults(
+        Faults::new(FaultRates::uniform(0.10), 11),
+        Faults::new(FaultRates::uniform(0.10), 12),
+    );
+    let mut c = Client::with_clock(
+        wire,
+        clock,
+        ClientConfig {
+            frame: cfg,
+            timers,
+            ..ClientConfig::default()
+        },
+    );
+    let (mut ok, mut err) = (0, 0);
+    for k in 0..200u16 {
+        let n = k % 50 + 1;
+        match c.read_back(5, n) {
+            Ok(got) => {
+                assert_eq!(
+                    got.as_ref(),
+                    prog.get(usize::from(n - 1)),
+                    "instruction {n}"
+                );
+                ok += 1;
+            }
+            Err(_) => err += 1,
+        }
+    }
+    eprintln!("read-backs at 10 %: {ok} answered, {err} errors");
+    assert!(ok > 50, "{ok} answered, {err} errors");
+}
+
 /// Uploading 470 positioning instructions at 9600 baud takes the wire time of every byte both
 /// ways plus `T_GAP` between sessions, and no more: the host adds no idle time of its own
 /// (figure in docs/benchmarks-asea.md).

@@ -682,3 +682,172 @@ pub fn serve<L: Link>(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::command::{Flags, Reference, Speed, Zone};
+
+    fn frame(cmd: Command) -> Frame {
+        let bytes = cmd.encode(&FrameConfig::default()).unwrap();
+        Frame {
+            code: bytes[1],
+            data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
+        }
+    }
+
+    fn pos(xyz: [f64; 3], reference: Reference) -> Positioning {
+        Positioning {
+            flags: Flags {
+                reference,
+                zone: Zone::Fine,
+                ..Flags::default()
+            },
+            pose: Pose::from_mm(xyz, [1.0, 0.0, 0.0, 0.0]).unwrap(),
+            speed: Speed::from_value("speed", 0.5).unwrap(),
+        }
+    }
+
+    fn homed_operate() -> Machine {
+        let mut m = Machine::default();
+        m.execute(&frame(Command::Operate), 0.0);
+        m.execute(&frame(Command::SyncHome), 0.0);
+        assert_eq!(m.status().state, State::Homing);
+        m.advance(3.0);
+        assert!(m.homed());
+        m
+    }
+
+    #[test]
+    fn immediate_moves_need_operate_and_home_and_stop_at_the_point() {
+        let mut m = Machine::default();
+        // Standby: checked, not moved.
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 50.0, 800.0],
+                Reference::Absolute,
+            ))),
+            0.0,
+        );
+        assert_eq!(m.last_error(), 0);
+        assert_eq!(m.pose().xyz_mm, MotionParams::default().home.xyz_mm);
+        // Operate without home.
+        m.execute(&frame(Command::Operate), 0.0);
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 50.0, 800.0],
+                Reference::Absolute,
+            ))),
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::NotHomed.code());
+
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [0.0, 100.0, 0.0],
+                Reference::Relative,
+            ))),
+            10.0,
+        );
+        assert!(!m.io().output(IN_POSITION_OUTPUT));
+        // A second move while the first runs is refused.
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 0.0, 800.0],
+                Reference::Absolute,
+            ))),
+            10.1,
+        );
+        assert_eq!(m.last_error(), RobotError::Busy.code());
+        m.advance(12.0);
+        assert!(m.io().output(IN_POSITION_OUTPUT));
+        assert_eq!(m.pose().xyz_mm, [900.0, 100.0, 800.0]);
+        // Reading the status clears the error.
+        let r = m.execute(&frame(Command::Enquire(Selector::Status)), 12.0);
+        assert!(matches!(r, Some(Reply::Status(s)) if s.last_error == 7));
+        assert_eq!(m.last_error(), 0);
+    }
+
+    #[test]
+    fn stop_freezes_the_arm_mid_move() {
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 400.0, 800.0],
+                Reference::Absolute,
+            ))),
+            10.0,
+        );
+        m.execute(&frame(Command::Stop), 10.3);
+        let y = m.pose().xyz_mm[1];
+        assert!(y > 0.0 && y < 400.0, "{y}");
+        m.advance(20.0);
+        assert_eq!(m.pose().xyz_mm[1], y);
+        assert_eq!(m.status().state, State::Idle);
+    }
+
+    #[test]
+    fn read_back_delete_and_bad_telegrams() {
+        let mut m = Machine::default();
+        let p = pos([900.0, 0.0, 800.0], Reference::Absolute);
+        m.execute(
+            &frame(Command::StorePos {
+                program: 4,
+                instruction: 2,
+                positioning: p,
+            }),
+            0.0,
+        );
+        let r = m.execute(
+            &frame(Command::ReadBack {
+                program: 4,
+                instruction: 2,
+            }),
+            0.0,
+        );
+        assert_eq!(
+            r,
+            Some(Reply::ReadBack {
+                program: 4,
+                instruction: 2,
+                stored: Some(Instruction::Position(p))
+            })
+        );
+        assert_eq!(m.used_units(), POSITION_UNITS);
+        m.execute(&frame(Command::DeleteProgram { program: 4 }), 0.0);
+        assert_eq!(m.used_units(), 0);
+        m.execute(&frame(Command::DeleteProgram { program: 4 }), 0.0);
+        assert_eq!(m.last_error(), RobotError::NoProgram.code());
+        // A telegram that does not parse sets an error and changes nothing.
+        m.execute(
+            &Frame {
+                code: 0x01,
+                data: vec![0; 3],
+            },
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::Length.code());
+        m.execute(
+            &Frame {
+                code: 0x20,
+                data: vec![],
+            },
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::UnknownCommand.code());
+        // A bad quaternion is refused.
+        let mut bad = p;
+        bad.pose.q = Quaternion([16384, 16384, 0, 0]);
+        m.execute(
+            &frame(Command::StorePos {
+                program: 1,
+                instruction: 1,
+                positioning: bad,
+            }),
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::Range.code());
+        assert_eq!(m.program_len(1), 0);
+    }
+}
