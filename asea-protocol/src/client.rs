@@ -73,6 +73,19 @@ impl<L: Link> Client<L, RealClock> {
     }
 }
 
+impl Client<Box<dyn serialport::SerialPort>, RealClock> {
+    /// A client on the serial port at `path`, 9600 baud 8N1 (spec/protocols.md §5.1; see
+    /// [`crate::link::open_serial`] for other settings).
+    pub fn open(path: &str, cfg: ClientConfig) -> Result<Self> {
+        let port = crate::link::open_serial(
+            path,
+            crate::link::DEFAULT_BAUD,
+            crate::link::DEFAULT_CHAR_FORMAT,
+        )?;
+        Ok(Client::new(port, cfg))
+    }
+}
+
 impl<L: Link, C: Clock> Client<L, C> {
     /// A client on `link` timed by `clock` (a virtual clock for a paced wire).
     pub fn with_clock(link: L, clock: C, cfg: ClientConfig) -> Self {

@@ -617,3 +617,9 @@ fn fault_matrix() {
         }
     }
 }
+
+#[test]
+fn a_missing_serial_port_is_a_typed_error() {
+    let e = Client::open("/dev/windcell-no-such-port", ClientConfig::default()).unwrap_err();
+    assert!(matches!(e, Error::Serial(_)), "{e}");
+}

@@ -34,6 +34,16 @@ pub const POSITION_UNITS: u32 = 20;
 pub const CONTROL_UNITS: u32 = 17;
 /// The output line that tells the PC "in position" after a discrete move (App. D).
 pub const IN_POSITION_OUTPUT: u8 = 1;
+/// Longest [`Machine::executed`] and [`Machine::trace`]; beyond it the older half is dropped, so
+/// that a simulator serving for days stays bounded.
+pub const RECORD_LIMIT: usize = 100_000;
+
+fn push_bounded<T>(v: &mut Vec<T>, item: T) {
+    if v.len() >= RECORD_LIMIT {
+        v.drain(..RECORD_LIMIT / 2);
+    }
+    v.push(item);
+}
 
 fn units(i: &Instruction) -> u32 {
     match i {
@@ -117,9 +127,10 @@ pub struct Machine {
     current_instruction: u16,
     io: IoLines,
     now_s: f64,
-    /// Every telegram executed, in order (the link delivered it once).
+    /// Every telegram executed, in order (the link delivered it once); the last
+    /// [`RECORD_LIMIT`] at most.
     pub executed: Vec<Frame>,
-    /// Eye poses sampled at every instruction boundary: (time s, pose).
+    /// Eye poses at every instruction end: (time s, pose); the last [`RECORD_LIMIT`] at most.
     pub trace: Vec<(f64, EyePose)>,
 }
 
@@ -247,7 +258,7 @@ impl Machine {
     /// Executes one delivered telegram at time `now_s`; the reply, if the command has one.
     pub fn execute(&mut self, frame: &Frame, now_s: f64) -> Option<Reply> {
         self.advance(now_s);
-        self.executed.push(frame.clone());
+        push_bounded(&mut self.executed, frame.clone());
         let cmd = match Command::from_frame(frame) {
             Ok(c) => c,
             Err(e) => {
@@ -549,7 +560,7 @@ impl Machine {
                     }
                     let (end, t1, next, discrete) = (traj.end_pose(), traj.t1(), *next, *discrete);
                     for m in &traj.moves {
-                        self.trace.push((m.t1(), m.pose_at(m.t1())));
+                        push_bounded(&mut self.trace, (m.t1(), m.pose_at(m.t1())));
                     }
                     self.pose = end;
                     if discrete {
