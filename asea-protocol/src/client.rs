@@ -174,7 +174,11 @@ impl<L: Link, C: Clock> Client<L, C> {
         let mut last = None;
         for _ in 0..self.cfg.retry.request_sessions.max(1) {
             match self.session(cmd) {
-                Ok(Some(frame)) => return Ok(Reply::from_frame(&frame)?),
+                Ok(Some(frame)) => match Reply::from_frame(&frame) {
+                    Ok(reply) => return Ok(reply),
+                    // A reply that passed the check value but does not parse was corrupted.
+                    Err(e) => last = Some(Error::Parse(e)),
+                },
                 Ok(None) => last = Some(Error::UnexpectedReply("no reply telegram")),
                 Err(Error::Link(e)) => last = Some(Error::Link(e)),
                 Err(e) => return Err(e),

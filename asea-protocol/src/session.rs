@@ -444,10 +444,11 @@ impl Host {
             }
             (S::WaitFrameAck, Token::Control(EOT)) => self.finish(Err(LinkError::Interrupted), now),
             (S::WaitReplyEnq | S::ReceiveReply, Token::Control(ENQ)) => {
-                // The robot opens (or, having lost our ACK, re-opens) its reply session.
+                // The robot opens (or, having lost our ACK, re-opens) its reply session. Wait
+                // long enough for its repeated ENQ if this ACK is lost.
                 self.out.push(ACK);
                 self.state = S::ReceiveReply;
-                self.deadline = Some(now + self.timers.t_ack);
+                self.deadline = Some(now + self.timers.t_enq + self.timers.t_flush);
             }
             (S::ReceiveReply, Token::Frame(f)) => {
                 self.out.push(ACK);
