@@ -566,6 +566,37 @@ fn program_over_a_pseudo_terminal() {
     server.join().unwrap().unwrap();
 }
 
+/// CRC-16 with and without the ACK window, 50 seeds × 1 000 telegrams at 10 % (figures in
+/// docs/protocol.md):
+/// `cargo test -p asea-protocol --release --test end_to_end fault_long_run -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn fault_long_run() {
+    for (name, setup) in [
+        ("crc16+window", STRONG),
+        (
+            "crc16",
+            Setup {
+                ack_window: None,
+                ..STRONG
+            },
+        ),
+    ] {
+        let mut sum = Tally::default();
+        for seed in 1000..1050 {
+            let t = fault_run(setup, 0.10, 1000, seed);
+            sum.sent += t.sent;
+            sum.delivered += t.delivered;
+            sum.errors += t.errors;
+            sum.violations += t.violations;
+            sum.twice += t.twice;
+            sum.foreign += t.foreign;
+        }
+        println!("{name} 10 %: {sum:?}");
+        assert_eq!(sum.twice, 0);
+    }
+}
+
 /// Measurement over several seeds and configurations (figures in docs/protocol.md):
 /// `cargo test -p asea-protocol --release --test end_to_end fault_matrix -- --ignored --nocapture`
 #[test]
