@@ -421,6 +421,7 @@ impl Machine {
             return self.fail(RobotError::NoProgram);
         };
         let list: Vec<(u16, Instruction)> = prog.iter().map(|(n, i)| (*n, *i)).collect();
+        self.error_state = false;
         if self.mode == Mode::Standby {
             // Execute in memory only: check every instruction, stop at the first error.
             let mut prev = self.last_target;
