@@ -797,3 +797,37 @@ mod tests {
         assert_eq!(clock.now(), w.byte_time() * 4 + Duration::from_millis(5));
     }
 }
+
+#[cfg(test)]
+mod wrapper_tests {
+    use super::*;
+
+    #[test]
+    fn faulty_drops_and_duplicates_and_tap_records() {
+        let (a, mut b) = Pipe::pair();
+        let rates = FaultRates {
+            drop: 0.5,
+            corrupt: 0.0,
+            delay: 0.0,
+            duplicate: 0.5,
+            max_delay: Duration::ZERO,
+        };
+        let (mut tap, log) = Tap::new(Faulty::new(a, Faults::new(rates, 3)));
+        tap.write_all(&[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+        let mut buf = [0u8; 64];
+        let n = b.read_timeout(&mut buf, Duration::from_millis(10)).unwrap();
+        let c = tap.inner().counts();
+        assert_eq!(c.dropped + c.duplicated, 8);
+        assert_eq!(n as u64, 8 - c.dropped + c.duplicated);
+        b.write_all(&[9]).unwrap();
+        assert_eq!(
+            tap.read_timeout(&mut buf, Duration::from_millis(10))
+                .unwrap(),
+            1
+        );
+        let log = log.lock().unwrap();
+        assert_eq!(log.len(), 2);
+        assert_eq!((log[0].dir, log[1].dir), (Direction::Tx, Direction::Rx));
+        assert_eq!(log[1].bytes, [9]);
+    }
+}

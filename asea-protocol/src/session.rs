@@ -444,10 +444,11 @@ impl Host {
             }
             (S::WaitFrameAck, Token::Control(EOT)) => self.finish(Err(LinkError::Interrupted), now),
             (S::WaitReplyEnq | S::ReceiveReply, Token::Control(ENQ)) => {
-                // The robot opens (or, having lost our ACK, re-opens) its reply session.
+                // The robot opens (or, having lost our ACK, re-opens) its reply session. Wait
+                // long enough for its repeated ENQ if this ACK is lost.
                 self.out.push(ACK);
                 self.state = S::ReceiveReply;
-                self.deadline = Some(now + self.timers.t_ack);
+                self.deadline = Some(now + self.timers.t_enq + self.timers.t_flush);
             }
             (S::ReceiveReply, Token::Frame(f)) => {
                 self.out.push(ACK);
@@ -1045,6 +1046,71 @@ mod tests {
             }
         }
         panic!("no outcome");
+    }
+
+    #[test]
+    fn busy_robot_through_n_enq_is_busy_error() {
+        let mut h = host();
+        let mut now = ms(0);
+        h.start(RUN3.to_vec(), false, now);
+        let mut enqs = 0;
+        loop {
+            let out = h.take_output();
+            if out.contains(&ENQ) {
+                enqs += 1;
+                h.on_bytes(&[NAK], now + ms(1));
+            }
+            if let Some(o) = h.take_outcome() {
+                assert_eq!(o, Err(LinkError::Busy { attempts: N_ENQ }));
+                break;
+            }
+            now = h.deadline().expect("deadline");
+            h.on_time(now);
+        }
+        assert_eq!(enqs, N_ENQ);
+        // Five back-offs of T_BUSY between six ENQs.
+        assert_eq!(now, T_BUSY * (N_ENQ - 1) + ms(N_ENQ as u64 - 1));
+    }
+
+    #[test]
+    fn robot_session_times_out_to_neutral() {
+        let mut r = robot();
+        r.on_bytes(&[ENQ], ms(0));
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.deadline(), Some(T_IDLE));
+        r.on_time(T_IDLE);
+        assert_eq!(r.deadline(), None);
+        // A telegram now is ignored (no session); the next ENQ opens one.
+        assert!(r.on_bytes(&RUN3, T_IDLE + ms(100)).is_empty());
+        assert!(r.take_output().is_empty());
+        r.on_bytes(&[ENQ], T_IDLE + ms(200));
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.on_bytes(&RUN3, T_IDLE + ms(210)).len(), 1);
+    }
+
+    #[test]
+    fn host_wins_contention_and_stray_enq_in_data_is_ignored() {
+        let mut r = robot();
+        r.on_bytes(&[ENQ], ms(0));
+        r.take_output();
+        // ENQUIRE accepted; the robot will reply after EOT.
+        let enquire = [0x02, 0x06, 0x01, 0x00, 0x03, 0x0A];
+        assert_eq!(r.on_bytes(&enquire, ms(10)).len(), 1);
+        r.queue_reply(encode(&cfg(), 0x86, &[1; 15]).unwrap());
+        r.on_bytes(&[EOT], ms(20));
+        assert_eq!(r.take_output(), [ACK, ENQ]);
+        // The host starts a new session instead: it wins, the reply is dropped.
+        r.on_bytes(&[ENQ], ms(100));
+        assert_eq!(r.take_output(), [ACK]);
+        // Inside the session, a 0x05 right behind other bytes is data, not ENQ.
+        assert!(r.on_bytes(&[0x41, ENQ], ms(110)).is_empty());
+        assert!(r.take_output().is_empty());
+        r.on_bytes(&[EOT], ms(120));
+        r.on_time(ms(5000));
+        assert!(
+            r.take_output().is_empty(),
+            "no reply session after contention"
+        );
     }
 
     #[test]

@@ -418,6 +418,64 @@ fn sum8_never_executes_twice() {
     }
 }
 
+/// Read-backs under 10 % byte errors in both directions (reverse sessions, request retries): with
+/// the strong link every answer is the stored instruction or an error.
+#[test]
+fn read_backs_under_faults_are_true_or_errors() {
+    let setup = STRONG;
+    let cfg = FrameConfig {
+        checksum: setup.checksum,
+        ..FrameConfig::default()
+    };
+    let timers = Timers {
+        t_ack_window: setup.ack_window,
+        ..Timers::default()
+    };
+    let clock = VirtualClock::new();
+    let mut robot = Robot::new(cfg, timers, MotionParams::default());
+    let prog = program_50();
+    for (n, i) in (1u16..).zip(&prog) {
+        let bytes = asea_protocol::client::store_command(5, n, i)
+            .encode(&cfg)
+            .unwrap();
+        let f = asea_protocol::frame::Frame {
+            code: bytes[1],
+            data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
+        };
+        robot.machine.execute(&f, 0.0);
+    }
+    let wire = Paced::new(clock.clone(), 9600, robot).with_faults(
+        Faults::new(FaultRates::uniform(0.10), 11),
+        Faults::new(FaultRates::uniform(0.10), 12),
+    );
+    let mut c = Client::with_clock(
+        wire,
+        clock,
+        ClientConfig {
+            frame: cfg,
+            timers,
+            ..ClientConfig::default()
+        },
+    );
+    let (mut ok, mut err) = (0, 0);
+    for k in 0..200u16 {
+        let n = k % 50 + 1;
+        match c.read_back(5, n) {
+            Ok(got) => {
+                assert_eq!(
+                    got.as_ref(),
+                    prog.get(usize::from(n - 1)),
+                    "instruction {n}"
+                );
+                ok += 1;
+            }
+            Err(_) => err += 1,
+        }
+    }
+    eprintln!("read-backs at 10 %: {ok} answered, {err} errors");
+    assert!(ok > 50, "{ok} answered, {err} errors");
+}
+
 /// Uploading 470 positioning instructions at 9600 baud takes the wire time of every byte both
 /// ways plus `T_GAP` between sessions, and no more: the host adds no idle time of its own
 /// (figure in docs/benchmarks-asea.md).
@@ -508,6 +566,37 @@ fn program_over_a_pseudo_terminal() {
     server.join().unwrap().unwrap();
 }
 
+/// CRC-16 with and without the ACK window, 50 seeds × 1 000 telegrams at 10 % (figures in
+/// docs/protocol.md):
+/// `cargo test -p asea-protocol --release --test end_to_end fault_long_run -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn fault_long_run() {
+    for (name, setup) in [
+        ("crc16+window", STRONG),
+        (
+            "crc16",
+            Setup {
+                ack_window: None,
+                ..STRONG
+            },
+        ),
+    ] {
+        let mut sum = Tally::default();
+        for seed in 1000..1050 {
+            let t = fault_run(setup, 0.10, 1000, seed);
+            sum.sent += t.sent;
+            sum.delivered += t.delivered;
+            sum.errors += t.errors;
+            sum.violations += t.violations;
+            sum.twice += t.twice;
+            sum.foreign += t.foreign;
+        }
+        println!("{name} 10 %: {sum:?}");
+        assert_eq!(sum.twice, 0);
+    }
+}
+
 /// Measurement over several seeds and configurations (figures in docs/protocol.md):
 /// `cargo test -p asea-protocol --release --test end_to_end fault_matrix -- --ignored --nocapture`
 #[test]
@@ -558,4 +647,10 @@ fn fault_matrix() {
             );
         }
     }
+}
+
+#[test]
+fn a_missing_serial_port_is_a_typed_error() {
+    let e = Client::open("/dev/windcell-no-such-port", ClientConfig::default()).unwrap_err();
+    assert!(matches!(e, Error::Serial(_)), "{e}");
 }
