@@ -47,6 +47,9 @@ pub struct ClientConfig {
     pub retry: RetryPolicy,
 }
 
+/// Read-backs [`Client::read_back_confirmed`] makes at most while looking for two equal answers.
+pub const CONFIRMING_READS: u32 = 4;
+
 /// Result of [`Client::verify`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct VerifyReport {
@@ -302,20 +305,84 @@ impl<L: Link, C: Clock> Client<L, C> {
         let mut report = VerifyReport::default();
         for (n, want) in (1u16..).zip(instructions) {
             report.checked += 1;
-            let mut attempts = 0;
-            while self.read_back(program, n)?.as_ref() != Some(want) {
-                if attempts >= self.cfg.retry.restores {
-                    return Err(Error::Verify {
-                        program,
-                        instruction: n,
-                    });
-                }
-                attempts += 1;
-                report.restored += 1;
-                self.store(program, n, want)?;
-            }
+            report.restored += self.ensure_stored(program, n, want)?;
         }
         Ok(report)
+    }
+
+    /// Reads instruction `instruction` of `program` until two answers in a row agree, and returns
+    /// that answer (at most [`CONFIRMING_READS`] reads).
+    ///
+    /// A one-byte sum lets about one corrupted telegram in 256 through, so a single read-back on a
+    /// noisy `Sum8` link can be wrong; two equal answers from independent sessions cannot both be
+    /// the same corruption in practice.
+    pub fn read_back_confirmed(
+        &mut self,
+        program: u8,
+        instruction: u16,
+    ) -> Result<Option<Instruction>> {
+        let mut previous: Option<Option<Instruction>> = None;
+        let mut last_error = None;
+        for _ in 0..CONFIRMING_READS {
+            match self.read_back(program, instruction) {
+                Ok(answer) => {
+                    if previous.as_ref() == Some(&answer) {
+                        return Ok(answer);
+                    }
+                    previous = Some(answer);
+                }
+                Err(e @ Error::Link(_))
+                | Err(e @ Error::Parse(_))
+                | Err(e @ Error::UnexpectedReply(_)) => last_error = Some(e),
+                Err(e) => return Err(e),
+            }
+        }
+        Err(last_error.unwrap_or(Error::Verify {
+            program,
+            instruction,
+        }))
+    }
+
+    /// Stores `i` as `instruction` of `program` and confirms it by reading it back: `Ok` means the
+    /// robot's memory holds exactly `i` there, stored once by this call (or already there).
+    ///
+    /// This is the exactly-once delivery of stored instructions on a link whose check value can be
+    /// fooled (the thesis's one-byte sum, docs/protocol.md §7): a corrupted twin that the sum let
+    /// through is found by the read-back and overwritten, and a store whose acknowledgement was
+    /// lost is found stored and not sent again. Returns the number of stores sent.
+    pub fn store_verified(
+        &mut self,
+        program: u8,
+        instruction: u16,
+        i: &Instruction,
+    ) -> Result<usize> {
+        // A failed send may still have stored the instruction; the read-back decides.
+        let _ = self.store(program, instruction, i);
+        Ok(1 + self.ensure_stored(program, instruction, i)?)
+    }
+
+    /// Confirms `want` at `instruction` of `program`, storing it again while the confirmed
+    /// read-back differs (at most [`RetryPolicy::restores`] times). Returns the stores sent (0 when
+    /// it was already there).
+    pub fn ensure_stored(
+        &mut self,
+        program: u8,
+        instruction: u16,
+        want: &Instruction,
+    ) -> Result<usize> {
+        let mut stores = 0;
+        while self.read_back_confirmed(program, instruction)?.as_ref() != Some(want) {
+            if stores >= self.cfg.retry.restores as usize {
+                return Err(Error::Verify {
+                    program,
+                    instruction,
+                });
+            }
+            stores += 1;
+            // As in `store_verified`: a failed send is settled by the next read-back.
+            let _ = self.store(program, instruction, want);
+        }
+        Ok(stores)
     }
 }
 
