@@ -82,6 +82,24 @@ fn geodesic_prints_points_and_faces_and_stops_at_the_end_cap() {
     assert!(r.status.success(), "{}", stderr(&r));
     let text = String::from_utf8(r.stdout).unwrap();
     assert!(text.trim_end().ends_with("stopped at a height"), "{text}");
+    // Smoothed and cut into equal lengths on the surface.
+    let r = windcell(&[
+        "geodesic",
+        example("sbend.stl").to_str().unwrap(),
+        "--start",
+        "-18,28.5,200",
+        "--heading",
+        "45",
+        "--segments",
+        "20",
+        "--json",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let seg = &v["segments"];
+    assert_eq!(seg["points_mm"].as_array().unwrap().len(), 21);
+    let dev = seg["max_deviation_mm"].as_f64().unwrap();
+    assert!(dev < 0.05, "{dev}");
 }
 
 #[test]
