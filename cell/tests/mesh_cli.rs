@@ -124,7 +124,10 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
     let cases: [(&Path, &str); 4] = [
         (&stl, "bad.stl: line 5: `oops` is not a number"),
         (&obj, "bad.obj: line 5: vertex 7 does not exist"),
-        (&open, "open.obj: triangle 1: inconsistent orientation"),
+        (
+            &open,
+            "open.obj: line 6: triangle 1: inconsistent orientation",
+        ),
         (&empty, "empty.stl: the file is empty"),
     ];
     for (file, message) in cases {

@@ -60,7 +60,12 @@ pub enum Stop {
     Height,
     /// It met a vertex whose triangles admit no direction.
     Stuck,
+    /// It crossed [`MAX_CROSSINGS`] edges (a length far beyond the mesh's scale).
+    CrossingLimit,
 }
+
+/// Most edge crossings of one trace.
+pub const MAX_CROSSINGS: usize = 100_000_000;
 
 impl Stop {
     /// Lower-case name.
@@ -70,6 +75,7 @@ impl Stop {
             Stop::Boundary => "boundary",
             Stop::Height => "height",
             Stop::Stuck => "vertex",
+            Stop::CrossingLimit => "crossing limit",
         }
     }
 }
@@ -498,6 +504,11 @@ impl Tracer {
             t *= 0.5 * (3.0 - t.norm_squared());
             nprev = nq;
             crossings += 1;
+            if crossings >= MAX_CROSSINGS {
+                points.push(Point3::from(q));
+                faces.push(g as u32);
+                return finish(points, faces, s, crossings, Stop::CrossingLimit);
+            }
             if step > 0.0 {
                 zero_steps = 0;
                 points.push(Point3::from(q));
