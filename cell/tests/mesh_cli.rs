@@ -391,3 +391,37 @@ fn spine_profile_from_dxf_plans_like_spine_mm() {
     assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
     assert!(stderr(&r).contains("spine.dxf"), "{}", stderr(&r));
 }
+
+#[test]
+fn obj_and_ascii_stl_of_the_same_mesh_trace_the_same_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut outputs = Vec::new();
+    for (name, extra) in [("s.obj", None), ("s.stl", Some("--ascii"))] {
+        let file = dir.path().join(name);
+        let job = example("sbend.toml");
+        let mut args = vec![
+            "triasym",
+            job.to_str().unwrap(),
+            "-o",
+            file.to_str().unwrap(),
+            "--facets",
+            "32",
+            "--spacing-mm",
+            "10",
+        ];
+        args.extend(extra);
+        let r = windcell(&args);
+        assert!(r.status.success(), "{}", stderr(&r));
+        let r = windcell(&[
+            "geodesic",
+            file.to_str().unwrap(),
+            "--start",
+            "-18,28.5,200",
+            "--heading",
+            "45",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        outputs.push(r.stdout);
+    }
+    assert_eq!(outputs[0], outputs[1]);
+}
