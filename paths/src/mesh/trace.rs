@@ -268,13 +268,18 @@ impl Tracer {
                 fill[v as usize] += 1;
             }
         }
-        let corner_angle = |f: usize, c: usize| {
-            let t = tris[f];
-            let p = verts[t[c] as usize];
-            let a = verts[t[(c + 1) % 3] as usize] - p;
-            let b = verts[t[(c + 2) % 3] as usize] - p;
-            a.cross(&b).norm().atan2(a.dot(&b))
-        };
+        // Interior angle at every corner, once.
+        let corner_angle: Vec<f64> = tris
+            .iter()
+            .flat_map(|t| {
+                (0..3).map(move |c| {
+                    let p = verts[t[c] as usize];
+                    let a = verts[t[(c + 1) % 3] as usize] - p;
+                    let b = verts[t[(c + 2) % 3] as usize] - p;
+                    a.cross(&b).norm().atan2(a.dot(&b))
+                })
+            })
+            .collect();
         let mut faces = Vec::with_capacity(tris.len());
         for (f, t) in tris.iter().enumerate() {
             let n = normals[f];
@@ -307,7 +312,7 @@ impl Tracer {
                 for &fc in &incident[count[v] as usize..count[v + 1] as usize] {
                     let g = (fc >> 2) as usize;
                     if normals[g].dot(&n) >= cos_crease {
-                        sum += normals[g] * corner_angle(g, (fc & 3) as usize);
+                        sum += normals[g] * corner_angle[3 * g + (fc & 3) as usize];
                     }
                 }
                 face.corner_normals[i] = sum.try_normalize(0.0).unwrap_or(n);
