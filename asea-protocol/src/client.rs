@@ -73,6 +73,19 @@ impl<L: Link> Client<L, RealClock> {
     }
 }
 
+impl Client<Box<dyn serialport::SerialPort>, RealClock> {
+    /// A client on the serial port at `path`, 9600 baud 8N1 (spec/protocols.md §5.1; see
+    /// [`crate::link::open_serial`] for other settings).
+    pub fn open(path: &str, cfg: ClientConfig) -> Result<Self> {
+        let port = crate::link::open_serial(
+            path,
+            crate::link::DEFAULT_BAUD,
+            crate::link::DEFAULT_CHAR_FORMAT,
+        )?;
+        Ok(Client::new(port, cfg))
+    }
+}
+
 impl<L: Link, C: Clock> Client<L, C> {
     /// A client on `link` timed by `clock` (a virtual clock for a paced wire).
     pub fn with_clock(link: L, clock: C, cfg: ClientConfig) -> Self {
@@ -114,6 +127,13 @@ impl<L: Link, C: Clock> Client<L, C> {
             let out = self.host.take_output();
             if !out.is_empty() {
                 self.link.write_all(&out)?;
+                self.host.on_sent(self.clock.now());
+                // Half duplex: nothing the robot sent while we were sending an ENQ or a telegram
+                // answers it (a duplicated or stale ACK must not acknowledge a telegram the
+                // robot never saw).
+                if matches!(out.first(), Some(&crate::frame::ENQ | &crate::frame::STX)) {
+                    self.link.discard_input()?;
+                }
             }
             if let Some(outcome) = self.host.take_outcome() {
                 return outcome.map_err(Error::from);
@@ -154,7 +174,11 @@ impl<L: Link, C: Clock> Client<L, C> {
         let mut last = None;
         for _ in 0..self.cfg.retry.request_sessions.max(1) {
             match self.session(cmd) {
-                Ok(Some(frame)) => return Ok(Reply::from_frame(&frame)?),
+                Ok(Some(frame)) => match Reply::from_frame(&frame) {
+                    Ok(reply) => return Ok(reply),
+                    // A reply that passed the check value but does not parse was corrupted.
+                    Err(e) => last = Some(Error::Parse(e)),
+                },
                 Ok(None) => last = Some(Error::UnexpectedReply("no reply telegram")),
                 Err(Error::Link(e)) => last = Some(Error::Link(e)),
                 Err(e) => return Err(e),

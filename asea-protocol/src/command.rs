@@ -609,6 +609,18 @@ impl Command {
     }
 }
 
+/// True if `f` parses as a command and every quaternion in it has unit norm within
+/// [`QUATERNION_NORM_TOLERANCE`]: the strict check a robot may apply before acknowledging.
+pub fn well_formed(f: &Frame) -> bool {
+    match Command::from_frame(f) {
+        Ok(Command::StorePos { positioning: p, .. } | Command::MoveImmediate(p)) => {
+            p.pose.q.norm_error() <= QUATERNION_NORM_TOLERANCE
+        }
+        Ok(_) => true,
+        Err(_) => false,
+    }
+}
+
 /// The robot's mode (seed 001 §5.3.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Mode {

@@ -6,6 +6,7 @@
 //! - [`session`]: the host and robot session state machines, no I/O, timers as inputs (spec §5.4–5.5).
 //! - [`link`]: the byte link (serial port, in-memory pipe, fault injector, tap, paced virtual wire).
 //! - [`client`]: the blocking client with its retry policy.
+//! - [`clock`]: real or virtual time.
 //! - [`sim`]: the robot computer: memory, programs, modes, motion model, output and input lines.
 
 pub mod client;

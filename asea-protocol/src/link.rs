@@ -120,10 +120,21 @@ impl Link for serialport::TTYPort {
         serial_read(self, buf, timeout)
     }
     fn discard_input(&mut self) -> io::Result<()> {
-        // Drain what has arrived; tcflush is not reliable on every pty implementation.
+        // Drain what has arrived without waiting (tcflush is not reliable on every pty
+        // implementation, and a wait would swallow a prompt answer).
+        use std::io::Read;
         let mut scratch = [0u8; 256];
-        while serial_read(self, &mut scratch, Duration::from_millis(1))? > 0 {}
-        Ok(())
+        loop {
+            let n = serialport::SerialPort::bytes_to_read(self).map_err(io::Error::from)? as usize;
+            if n == 0 {
+                return Ok(());
+            }
+            let n = n.min(scratch.len());
+            let got = self.read(scratch.get_mut(..n).unwrap_or_default())?;
+            if got == 0 {
+                return Ok(());
+            }
+        }
     }
 }
 
@@ -263,6 +274,8 @@ pub struct FaultCounts {
     pub delayed: u64,
     /// Duplicated.
     pub duplicated: u64,
+    /// NAK corrupted into ACK (the single-byte answers differ in three bits).
+    pub nak_to_ack: u64,
 }
 
 /// A seeded fault injector.
@@ -314,6 +327,9 @@ impl Faults {
             self.counts.corrupted += 1;
             let mask = (self.rng.next_u64() % 255 + 1) as u8;
             fate.byte = byte ^ mask;
+            if byte == crate::frame::NAK && fate.byte == crate::frame::ACK {
+                self.counts.nak_to_ack += 1;
+            }
         } else if u < r.drop + r.corrupt + r.delay {
             self.counts.delayed += 1;
             fate.delay = r.max_delay.mul_f64(self.rng.unit());
@@ -394,6 +410,11 @@ pub struct Tap<L> {
 }
 
 impl<L: Link> Tap<L> {
+    /// The wrapped link.
+    pub fn inner(&mut self) -> &mut L {
+        &mut self.inner
+    }
+
     /// Wraps `inner`; the returned log fills as traffic passes.
     pub fn new(inner: L) -> (Self, Arc<Mutex<Vec<TapRecord>>>) {
         let log = Arc::new(Mutex::new(Vec::new()));
@@ -536,6 +557,15 @@ impl<P: Peer> Paced<P> {
     /// The shared clock.
     pub fn clock(&self) -> &VirtualClock {
         &self.clock
+    }
+
+    /// Lets `dt` of virtual time pass with the host silent: the device runs (and may send).
+    pub fn run_for(&mut self, dt: Duration) {
+        let end = self.clock.now() + dt;
+        self.run_peer_until(end);
+        self.clock.advance_to(end);
+        self.peer.poll(end);
+        self.peer_output(end);
     }
 
     fn schedule(
@@ -765,5 +795,39 @@ mod tests {
             0
         );
         assert_eq!(clock.now(), w.byte_time() * 4 + Duration::from_millis(5));
+    }
+}
+
+#[cfg(test)]
+mod wrapper_tests {
+    use super::*;
+
+    #[test]
+    fn faulty_drops_and_duplicates_and_tap_records() {
+        let (a, mut b) = Pipe::pair();
+        let rates = FaultRates {
+            drop: 0.5,
+            corrupt: 0.0,
+            delay: 0.0,
+            duplicate: 0.5,
+            max_delay: Duration::ZERO,
+        };
+        let (mut tap, log) = Tap::new(Faulty::new(a, Faults::new(rates, 3)));
+        tap.write_all(&[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+        let mut buf = [0u8; 64];
+        let n = b.read_timeout(&mut buf, Duration::from_millis(10)).unwrap();
+        let c = tap.inner().counts();
+        assert_eq!(c.dropped + c.duplicated, 8);
+        assert_eq!(n as u64, 8 - c.dropped + c.duplicated);
+        b.write_all(&[9]).unwrap();
+        assert_eq!(
+            tap.read_timeout(&mut buf, Duration::from_millis(10))
+                .unwrap(),
+            1
+        );
+        let log = log.lock().unwrap();
+        assert_eq!(log.len(), 2);
+        assert_eq!((log[0].dir, log[1].dir), (Direction::Tx, Direction::Rx));
+        assert_eq!(log[1].bytes, [9]);
     }
 }

@@ -45,6 +45,12 @@ pub const T_GAP: Duration = Duration::from_millis(20);
 /// rest of the bad frame is not mistaken for the retransmission.
 pub const T_FLUSH: Duration = Duration::from_millis(20);
 
+/// How many NAK bytes the robot sends to refuse a telegram. One corrupted NAK can read as ACK
+/// (they differ in three bits); the host watches for a NAK during `T_GAP` after an ACK and then
+/// reports the telegram as not delivered. A host that reads a single byte sees the first NAK and
+/// ignores the second as a stray byte.
+pub const NAK_REPEAT: usize = 2;
+
 /// The timers and retry counts of a link (defaults: the constants above).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Timers {
@@ -68,6 +74,13 @@ pub struct Timers {
     pub t_gap: Duration,
     /// [`T_FLUSH`].
     pub t_flush: Duration,
+    /// If set, the host takes an ACK to its telegram only within this time after the telegram
+    /// has left the line; a later "ACK" is treated as NAK (retransmit, which the robot
+    /// re-acknowledges without executing again). A robot answers a good telegram at once and a
+    /// bad one only after `T_FLUSH` of silence, so a NAK corrupted into ACK arrives too late to
+    /// count. Must exceed the robot's turnaround; off by default because a real controller's
+    /// turnaround is unknown.
+    pub t_ack_window: Option<Duration>,
 }
 
 impl Default for Timers {
@@ -83,6 +96,7 @@ impl Default for Timers {
             t_idle: T_IDLE,
             t_gap: T_GAP,
             t_flush: T_FLUSH,
+            t_ack_window: None,
         }
     }
 }
@@ -118,6 +132,7 @@ enum HostState {
     WaitEnqAck,
     Backoff,
     WaitFrameAck,
+    Confirm,
     WaitReplyEnq,
     ReceiveReply,
     WaitReplyEot,
@@ -128,6 +143,8 @@ enum HostState {
 struct Rx {
     decoder: Decoder,
     last_rx: Duration,
+    /// Nothing received yet.
+    fresh: bool,
     flush_until: Option<Duration>,
 }
 
@@ -136,6 +153,7 @@ impl Rx {
         Rx {
             decoder: Decoder::new(cfg),
             last_rx: Duration::ZERO,
+            fresh: true,
             flush_until: None,
         }
     }
@@ -145,11 +163,16 @@ impl Rx {
             return;
         }
         self.last_rx = now;
+        self.fresh = false;
         if self.flush_until.is_some() {
             self.flush_until = Some(now + t_flush);
         } else {
             self.decoder.push(bytes);
         }
+    }
+    /// True if nothing arrived for `gap` before `now`.
+    fn quiet(&self, now: Duration, gap: Duration) -> bool {
+        self.fresh || now.saturating_sub(self.last_rx) >= gap
     }
     fn start_flush(&mut self, now: Duration, t_flush: Duration) {
         self.decoder.clear();
@@ -195,9 +218,12 @@ pub struct Host {
     enq_attempts: u32,
     nak_to_enq: bool,
     tx: u32,
+    /// Nothing but silence since the telegram went out.
+    clean: bool,
     reply: Option<Frame>,
     outcome: Option<Outcome>,
     ready_at: Duration,
+    line_free: Duration,
     stats: Stats,
 }
 
@@ -215,9 +241,11 @@ impl Host {
             enq_attempts: 0,
             nak_to_enq: false,
             tx: 0,
+            clean: true,
             reply: None,
             outcome: None,
             ready_at: Duration::ZERO,
+            line_free: Duration::ZERO,
             stats: Stats::default(),
         }
     }
@@ -257,6 +285,15 @@ impl Host {
         std::mem::take(&mut self.out)
     }
 
+    /// Tells the host that what [`Host::take_output`] returned has left the line at `now`, so
+    /// that `T_GAP` is counted from the end of the EOT.
+    pub fn on_sent(&mut self, now: Duration) {
+        self.line_free = now;
+        if self.state == HostState::Idle {
+            self.ready_at = self.ready_at.max(now + self.timers.t_gap);
+        }
+    }
+
     /// The session's result, once it has one.
     pub fn take_outcome(&mut self) -> Option<Outcome> {
         self.outcome.take()
@@ -288,6 +325,7 @@ impl Host {
         self.tx += 1;
         self.stats.frames_sent += 1;
         self.out.extend_from_slice(&self.frame);
+        self.clean = true;
         self.state = HostState::WaitFrameAck;
         self.deadline = Some(now + self.timers.t_ack);
     }
@@ -338,8 +376,24 @@ impl Host {
                     self.rx.decoder.clear();
                     return;
                 }
+                HostState::WaitFrameAck
+                    if b == ACK
+                        && (!self.clean
+                            || self
+                                .timers
+                                .t_ack_window
+                                .is_some_and(|w| now > self.line_free + w)) =>
+                {
+                    // An ACK behind noise may be a corrupted NAK: ask again (a retransmission is
+                    // re-acknowledged, never executed twice).
+                    self.rx.last_rx = now;
+                    self.on_token(Token::Control(NAK), now);
+                }
                 _ => {
                     self.rx.last_rx = now;
+                    if self.state == HostState::WaitFrameAck && b != NAK {
+                        self.clean = false;
+                    }
                     if matches!(b, ENQ | ACK | NAK | EOT) {
                         self.on_token(Token::Control(b), now);
                     }
@@ -373,8 +427,16 @@ impl Host {
                     self.state = S::WaitReplyEnq;
                     self.deadline = Some(now + self.timers.t_reply);
                 } else {
-                    self.finish(Ok(None), now);
+                    // Watch the line through T_GAP: a NAK now means the "ACK" was a corrupted
+                    // NAK and the robot did not take the telegram.
+                    self.state = S::Confirm;
+                    self.deadline = Some(now + self.timers.t_gap);
                 }
+            }
+            (S::Confirm | S::WaitReplyEnq, Token::Control(NAK)) => {
+                self.stats.nak_received += 1;
+                self.deadline = None;
+                self.finish(Err(LinkError::Retries { attempts: self.tx }), now);
             }
             (S::WaitFrameAck, Token::Control(NAK)) => {
                 self.stats.nak_received += 1;
@@ -382,10 +444,11 @@ impl Host {
             }
             (S::WaitFrameAck, Token::Control(EOT)) => self.finish(Err(LinkError::Interrupted), now),
             (S::WaitReplyEnq | S::ReceiveReply, Token::Control(ENQ)) => {
-                // The robot opens (or, having lost our ACK, re-opens) its reply session.
+                // The robot opens (or, having lost our ACK, re-opens) its reply session. Wait
+                // long enough for its repeated ENQ if this ACK is lost.
                 self.out.push(ACK);
                 self.state = S::ReceiveReply;
-                self.deadline = Some(now + self.timers.t_ack);
+                self.deadline = Some(now + self.timers.t_enq + self.timers.t_flush);
             }
             (S::ReceiveReply, Token::Frame(f)) => {
                 self.out.push(ACK);
@@ -452,6 +515,11 @@ impl Host {
                 self.stats.timeouts += 1;
                 self.retransmit_or_fail(now);
             }
+            S::Confirm => {
+                // The gap before the next session has been served here.
+                self.finish(Ok(None), now);
+                self.ready_at = now.max(self.line_free + self.timers.t_gap);
+            }
             S::WaitReplyEnq | S::ReceiveReply => self.finish(Err(LinkError::NoReply), now),
             S::WaitReplyEot => {
                 // The robot's EOT was lost; the reply was good and acknowledged.
@@ -484,6 +552,9 @@ pub struct RobotSession {
     tx: u32,
     /// When true the robot answers ENQ with NAK (busy).
     pub busy: bool,
+    /// A check a framed telegram must pass to be acknowledged; a telegram that fails it is
+    /// treated as a transmission error (NAK). `None` acknowledges every well-framed telegram.
+    pub validate: Option<fn(&Frame) -> bool>,
     stats: Stats,
 }
 
@@ -500,6 +571,7 @@ impl RobotSession {
             enq_attempts: 0,
             tx: 0,
             busy: false,
+            validate: None,
             stats: Stats::default(),
         }
     }
@@ -589,12 +661,22 @@ impl RobotSession {
         for (i, &b) in bytes.iter().enumerate() {
             if let RobotState::InSession { .. } = self.state {
                 self.deadline = Some(now + self.timers.t_idle);
+                // Inside a session the host repeats ENQ only after T_ENQ of waiting; a 0x05
+                // after a shorter pause is telegram data whose STX was lost (or a stalled check
+                // byte), and must not be acknowledged as an ENQ. A host that lost our ACK to its
+                // ENQ, or whose EOT was lost, is answered at its next ENQ.
+                let mut quiet =
+                    self.rx.quiet(now, self.timers.t_enq / 2) && self.rx.decoder.pending() == 0;
                 self.rx
                     .push(bytes.get(i..).unwrap_or_default(), now, self.timers.t_flush);
                 while let RobotState::InSession { .. } = self.state {
                     let Some(token) = self.rx.decoder.next_token() else {
                         return delivered;
                     };
+                    if token == Token::Control(ENQ) && !quiet {
+                        continue;
+                    }
+                    quiet = false;
                     if let Some(f) = self.on_token(token, now) {
                         delivered.push(f);
                     }
@@ -603,9 +685,17 @@ impl RobotSession {
                 self.rx.decoder.clear();
                 return delivered;
             }
+            // Outside a session the host's ENQ follows at least T_GAP of silence; a 0x05
+            // straight behind other bytes is data of a telegram the robot is not waiting for.
+            let quiet = self.rx.quiet(now, self.timers.t_gap / 2);
             self.rx.last_rx = now;
-            if matches!(b, ENQ | ACK | NAK | EOT) {
-                self.on_token(Token::Control(b), now);
+            self.rx.fresh = false;
+            match b {
+                ENQ if !quiet => {}
+                ENQ | ACK | NAK | EOT => {
+                    self.on_token(Token::Control(b), now);
+                }
+                _ => {}
             }
         }
         delivered
@@ -616,6 +706,12 @@ impl RobotSession {
         match (&mut self.state, token) {
             // A new ENQ opens a session; from any state the host wins.
             (_, Token::Control(ENQ)) => self.open_session(now),
+            (S::InSession { last }, Token::Frame(f))
+                if last.as_ref() != Some(&f) && self.validate.is_some_and(|ok| !ok(&f)) =>
+            {
+                self.stats.bad_frames += 1;
+                self.rx.start_flush(now, self.timers.t_flush);
+            }
             (S::InSession { last }, Token::Frame(f)) => match last {
                 Some(prev) if *prev == f => {
                     self.stats.duplicates += 1;
@@ -624,7 +720,7 @@ impl RobotSession {
                 Some(_) => {
                     // One telegram per session (spec §5.5): a different one is refused.
                     self.stats.nak_sent += 1;
-                    self.out.push(NAK);
+                    self.out.extend_from_slice(&[NAK; NAK_REPEAT]);
                 }
                 None => {
                     *last = Some(f.clone());
@@ -674,7 +770,7 @@ impl RobotSession {
         use RobotState as S;
         if matches!(self.state, S::InSession { .. }) && self.rx.expired(now, self.timers.t_char) {
             self.stats.nak_sent += 1;
-            self.out.push(NAK);
+            self.out.extend_from_slice(&[NAK; NAK_REPEAT]);
             return;
         }
         if self.deadline.is_none_or(|d| now < d) {
@@ -742,12 +838,18 @@ mod tests {
         assert_eq!(h.deadline(), Some(ms(5) + T_ACK));
         h.on_bytes(&[ACK], ms(20));
         assert_eq!(h.take_output(), [EOT]);
-        assert_eq!(h.take_outcome(), Some(Ok(None)));
-        // The next session waits T_GAP.
-        h.start(RUN3.to_vec(), false, ms(25));
-        assert!(h.take_output().is_empty());
+        // The EOT has left the line one millisecond later.
+        h.on_sent(ms(21));
+        // Confirmed once T_GAP has passed without a NAK; the next ENQ follows T_GAP after the
+        // end of the EOT.
+        assert_eq!(h.take_outcome(), None);
         assert_eq!(h.deadline(), Some(ms(20) + T_GAP));
-        h.on_time(ms(40));
+        h.on_time(ms(20) + T_GAP);
+        assert_eq!(h.take_outcome(), Some(Ok(None)));
+        h.start(RUN3.to_vec(), false, ms(20) + T_GAP);
+        assert!(h.take_output().is_empty());
+        assert_eq!(h.deadline(), Some(ms(21) + T_GAP));
+        h.on_time(ms(21) + T_GAP);
         assert_eq!(h.take_output(), [ENQ]);
     }
 
@@ -764,8 +866,26 @@ mod tests {
         assert_eq!(h.take_output(), RUN3);
         h.on_bytes(&[ACK], ms(3));
         assert_eq!(h.take_output(), [EOT]);
+        h.on_time(ms(3) + T_GAP);
         assert_eq!(h.take_outcome(), Some(Ok(None)));
         assert_eq!(h.stats().frames_sent, 3);
+    }
+
+    #[test]
+    fn nak_corrupted_into_ack_is_caught_by_the_repeat() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.take_output();
+        h.on_bytes(&[ACK], ms(1));
+        h.take_output();
+        // The robot's NAK NAK arrives as ACK NAK.
+        h.on_bytes(&[ACK], ms(10));
+        assert_eq!(h.take_output(), [EOT]);
+        h.on_bytes(&[NAK], ms(11));
+        assert_eq!(
+            h.take_outcome(),
+            Some(Err(LinkError::Retries { attempts: 1 }))
+        );
     }
 
     #[test]
@@ -854,7 +974,7 @@ mod tests {
         // A different telegram in the same session is refused.
         let other = encode(&cfg(), 0x02, &[4]).unwrap();
         assert!(r.on_bytes(&other, ms(2200)).is_empty());
-        assert_eq!(r.take_output(), [NAK]);
+        assert_eq!(r.take_output(), [NAK, NAK]);
         // EOT ends the session; a new session delivers the same telegram again.
         r.on_bytes(&[EOT], ms(2300));
         r.on_bytes(&[ENQ], ms(2400));
@@ -873,12 +993,12 @@ mod tests {
         assert!(r.take_output().is_empty());
         assert_eq!(r.deadline(), Some(ms(5) + T_FLUSH));
         r.on_time(ms(5) + T_FLUSH);
-        assert_eq!(r.take_output(), [NAK]);
+        assert_eq!(r.take_output(), [NAK, NAK]);
         // Half a telegram, then silence beyond T_CHAR.
         r.on_bytes(&RUN3[..3], ms(100));
         assert_eq!(r.deadline(), Some(ms(100) + T_CHAR));
         r.on_time(ms(100) + T_CHAR);
-        assert_eq!(r.take_output(), [NAK]);
+        assert_eq!(r.take_output(), [NAK, NAK]);
         // The retransmission goes through.
         assert_eq!(r.on_bytes(&RUN3, ms(400)).len(), 1);
         assert_eq!(r.take_output(), [ACK]);
@@ -926,6 +1046,71 @@ mod tests {
             }
         }
         panic!("no outcome");
+    }
+
+    #[test]
+    fn busy_robot_through_n_enq_is_busy_error() {
+        let mut h = host();
+        let mut now = ms(0);
+        h.start(RUN3.to_vec(), false, now);
+        let mut enqs = 0;
+        loop {
+            let out = h.take_output();
+            if out.contains(&ENQ) {
+                enqs += 1;
+                h.on_bytes(&[NAK], now + ms(1));
+            }
+            if let Some(o) = h.take_outcome() {
+                assert_eq!(o, Err(LinkError::Busy { attempts: N_ENQ }));
+                break;
+            }
+            now = h.deadline().expect("deadline");
+            h.on_time(now);
+        }
+        assert_eq!(enqs, N_ENQ);
+        // Five back-offs of T_BUSY between six ENQs.
+        assert_eq!(now, T_BUSY * (N_ENQ - 1) + ms(N_ENQ as u64 - 1));
+    }
+
+    #[test]
+    fn robot_session_times_out_to_neutral() {
+        let mut r = robot();
+        r.on_bytes(&[ENQ], ms(0));
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.deadline(), Some(T_IDLE));
+        r.on_time(T_IDLE);
+        assert_eq!(r.deadline(), None);
+        // A telegram now is ignored (no session); the next ENQ opens one.
+        assert!(r.on_bytes(&RUN3, T_IDLE + ms(100)).is_empty());
+        assert!(r.take_output().is_empty());
+        r.on_bytes(&[ENQ], T_IDLE + ms(200));
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!(r.on_bytes(&RUN3, T_IDLE + ms(210)).len(), 1);
+    }
+
+    #[test]
+    fn host_wins_contention_and_stray_enq_in_data_is_ignored() {
+        let mut r = robot();
+        r.on_bytes(&[ENQ], ms(0));
+        r.take_output();
+        // ENQUIRE accepted; the robot will reply after EOT.
+        let enquire = [0x02, 0x06, 0x01, 0x00, 0x03, 0x0A];
+        assert_eq!(r.on_bytes(&enquire, ms(10)).len(), 1);
+        r.queue_reply(encode(&cfg(), 0x86, &[1; 15]).unwrap());
+        r.on_bytes(&[EOT], ms(20));
+        assert_eq!(r.take_output(), [ACK, ENQ]);
+        // The host starts a new session instead: it wins, the reply is dropped.
+        r.on_bytes(&[ENQ], ms(100));
+        assert_eq!(r.take_output(), [ACK]);
+        // Inside the session, a 0x05 right behind other bytes is data, not ENQ.
+        assert!(r.on_bytes(&[0x41, ENQ], ms(110)).is_empty());
+        assert!(r.take_output().is_empty());
+        r.on_bytes(&[EOT], ms(120));
+        r.on_time(ms(5000));
+        assert!(
+            r.take_output().is_empty(),
+            "no reply session after contention"
+        );
     }
 
     #[test]

@@ -16,8 +16,8 @@ pub use motion::{EyePose, MotionParams, Move, Speeds, Trajectory};
 
 use crate::clock::Clock;
 use crate::command::{
-    Command, Control, IO_LINES, Instruction, Length, Mode, Pose, Positioning,
-    QUATERNION_NORM_TOLERANCE, Quaternion, Reply, RobotError, Selector, State, Status,
+    Command, Control, Instruction, Length, Mode, Pose, Positioning, QUATERNION_NORM_TOLERANCE,
+    Quaternion, Reply, RobotError, Selector, State, Status,
 };
 use crate::error::Result;
 use crate::frame::{Frame, FrameConfig};
@@ -34,6 +34,16 @@ pub const POSITION_UNITS: u32 = 20;
 pub const CONTROL_UNITS: u32 = 17;
 /// The output line that tells the PC "in position" after a discrete move (App. D).
 pub const IN_POSITION_OUTPUT: u8 = 1;
+/// Longest [`Machine::executed`] and [`Machine::trace`]; beyond it the older half is dropped, so
+/// that a simulator serving for days stays bounded.
+pub const RECORD_LIMIT: usize = 100_000;
+
+fn push_bounded<T>(v: &mut Vec<T>, item: T) {
+    if v.len() >= RECORD_LIMIT {
+        v.drain(..RECORD_LIMIT / 2);
+    }
+    v.push(item);
+}
 
 fn units(i: &Instruction) -> u32 {
     match i {
@@ -117,9 +127,10 @@ pub struct Machine {
     current_instruction: u16,
     io: IoLines,
     now_s: f64,
-    /// Every telegram executed, in order (the link delivered it once).
+    /// Every telegram executed, in order (the link delivered it once); the last
+    /// [`RECORD_LIMIT`] at most.
     pub executed: Vec<Frame>,
-    /// Eye poses sampled at every instruction boundary: (time s, pose).
+    /// Eye poses at every instruction end: (time s, pose); the last [`RECORD_LIMIT`] at most.
     pub trace: Vec<(f64, EyePose)>,
 }
 
@@ -247,7 +258,7 @@ impl Machine {
     /// Executes one delivered telegram at time `now_s`; the reply, if the command has one.
     pub fn execute(&mut self, frame: &Frame, now_s: f64) -> Option<Reply> {
         self.advance(now_s);
-        self.executed.push(frame.clone());
+        push_bounded(&mut self.executed, frame.clone());
         let cmd = match Command::from_frame(frame) {
             Ok(c) => c,
             Err(e) => {
@@ -410,6 +421,7 @@ impl Machine {
             return self.fail(RobotError::NoProgram);
         };
         let list: Vec<(u16, Instruction)> = prog.iter().map(|(n, i)| (*n, *i)).collect();
+        self.error_state = false;
         if self.mode == Mode::Standby {
             // Execute in memory only: check every instruction, stop at the first error.
             let mut prev = self.last_target;
@@ -549,7 +561,7 @@ impl Machine {
                     }
                     let (end, t1, next, discrete) = (traj.end_pose(), traj.t1(), *next, *discrete);
                     for m in &traj.moves {
-                        self.trace.push((m.t1(), m.pose_at(m.t1())));
+                        push_bounded(&mut self.trace, (m.t1(), m.pose_at(m.t1())));
                     }
                     self.pose = end;
                     if discrete {
@@ -563,6 +575,23 @@ impl Machine {
         }
     }
 }
+
+/// What the robot does with a well-framed telegram that does not parse (unknown code, LEN not
+/// matching the code, reserved flag bits or zone, program or instruction 0, quaternion norm off
+/// by more than 0.01).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Malformed {
+    /// Acknowledge it and set `last_error` (spec/protocols.md §5.5: NAK only for link errors).
+    #[default]
+    AckWithError,
+    /// Treat it as a transmission error: NAK, so that the host retransmits. Most corruptions
+    /// that a one-byte sum misses are caught this way; a host that really sends such a telegram
+    /// gets a retries error instead of an error code.
+    Nak,
+}
+
+/// The robot's policy unless configured otherwise.
+pub const DEFAULT_MALFORMED: Malformed = Malformed::AckWithError;
 
 /// The simulated robot computer on a link: session + machine.
 #[derive(Debug)]
@@ -582,6 +611,16 @@ impl Robot {
             machine: Machine::new(params),
             frame,
         }
+        .with_malformed(DEFAULT_MALFORMED)
+    }
+
+    /// Sets the policy for telegrams that do not parse.
+    pub fn with_malformed(mut self, policy: Malformed) -> Self {
+        self.session.validate = match policy {
+            Malformed::AckWithError => None,
+            Malformed::Nak => Some(crate::command::well_formed),
+        };
+        self
     }
 }
 
@@ -619,6 +658,9 @@ impl Peer for Robot {
 
 /// How long [`serve`] waits for host bytes before letting the clock run.
 pub const POLL_PERIOD: Duration = Duration::from_millis(2);
+/// The simulator's turnaround in real time: it answers no sooner than this after the byte that
+/// prompts the answer, as a UART robot computer would (spec §5.4: under 50 ms).
+pub const TURNAROUND: Duration = Duration::from_millis(3);
 
 /// Serves `robot` over `link` in real time until `stop` is set.
 pub fn serve<L: Link>(
@@ -644,13 +686,180 @@ pub fn serve<L: Link>(
             r.take_output()
         };
         if !out.is_empty() {
+            if n > 0 {
+                std::thread::sleep(TURNAROUND);
+            }
             link.write_all(&out)?;
         }
     }
     Ok(())
 }
 
-/// Lines 1..=6.
-pub fn io_lines() -> std::ops::RangeInclusive<u8> {
-    1..=IO_LINES
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::command::{Flags, Reference, Speed, Zone};
+
+    fn frame(cmd: Command) -> Frame {
+        let bytes = cmd.encode(&FrameConfig::default()).unwrap();
+        Frame {
+            code: bytes[1],
+            data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
+        }
+    }
+
+    fn pos(xyz: [f64; 3], reference: Reference) -> Positioning {
+        Positioning {
+            flags: Flags {
+                reference,
+                zone: Zone::Fine,
+                ..Flags::default()
+            },
+            pose: Pose::from_mm(xyz, [1.0, 0.0, 0.0, 0.0]).unwrap(),
+            speed: Speed::from_value("speed", 0.5).unwrap(),
+        }
+    }
+
+    fn homed_operate() -> Machine {
+        let mut m = Machine::default();
+        m.execute(&frame(Command::Operate), 0.0);
+        m.execute(&frame(Command::SyncHome), 0.0);
+        assert_eq!(m.status().state, State::Homing);
+        m.advance(3.0);
+        assert!(m.homed());
+        m
+    }
+
+    #[test]
+    fn immediate_moves_need_operate_and_home_and_stop_at_the_point() {
+        let mut m = Machine::default();
+        // Standby: checked, not moved.
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 50.0, 800.0],
+                Reference::Absolute,
+            ))),
+            0.0,
+        );
+        assert_eq!(m.last_error(), 0);
+        assert_eq!(m.pose().xyz_mm, MotionParams::default().home.xyz_mm);
+        // Operate without home.
+        m.execute(&frame(Command::Operate), 0.0);
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 50.0, 800.0],
+                Reference::Absolute,
+            ))),
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::NotHomed.code());
+
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [0.0, 100.0, 0.0],
+                Reference::Relative,
+            ))),
+            10.0,
+        );
+        assert!(!m.io().output(IN_POSITION_OUTPUT));
+        // A second move while the first runs is refused.
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 0.0, 800.0],
+                Reference::Absolute,
+            ))),
+            10.1,
+        );
+        assert_eq!(m.last_error(), RobotError::Busy.code());
+        m.advance(12.0);
+        assert!(m.io().output(IN_POSITION_OUTPUT));
+        assert_eq!(m.pose().xyz_mm, [900.0, 100.0, 800.0]);
+        // Reading the status clears the error.
+        let r = m.execute(&frame(Command::Enquire(Selector::Status)), 12.0);
+        assert!(matches!(r, Some(Reply::Status(s)) if s.last_error == 7));
+        assert_eq!(m.last_error(), 0);
+    }
+
+    #[test]
+    fn stop_freezes_the_arm_mid_move() {
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 400.0, 800.0],
+                Reference::Absolute,
+            ))),
+            10.0,
+        );
+        m.execute(&frame(Command::Stop), 10.3);
+        let y = m.pose().xyz_mm[1];
+        assert!(y > 0.0 && y < 400.0, "{y}");
+        m.advance(20.0);
+        assert_eq!(m.pose().xyz_mm[1], y);
+        assert_eq!(m.status().state, State::Idle);
+    }
+
+    #[test]
+    fn read_back_delete_and_bad_telegrams() {
+        let mut m = Machine::default();
+        let p = pos([900.0, 0.0, 800.0], Reference::Absolute);
+        m.execute(
+            &frame(Command::StorePos {
+                program: 4,
+                instruction: 2,
+                positioning: p,
+            }),
+            0.0,
+        );
+        let r = m.execute(
+            &frame(Command::ReadBack {
+                program: 4,
+                instruction: 2,
+            }),
+            0.0,
+        );
+        assert_eq!(
+            r,
+            Some(Reply::ReadBack {
+                program: 4,
+                instruction: 2,
+                stored: Some(Instruction::Position(p))
+            })
+        );
+        assert_eq!(m.used_units(), POSITION_UNITS);
+        m.execute(&frame(Command::DeleteProgram { program: 4 }), 0.0);
+        assert_eq!(m.used_units(), 0);
+        m.execute(&frame(Command::DeleteProgram { program: 4 }), 0.0);
+        assert_eq!(m.last_error(), RobotError::NoProgram.code());
+        // A telegram that does not parse sets an error and changes nothing.
+        m.execute(
+            &Frame {
+                code: 0x01,
+                data: vec![0; 3],
+            },
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::Length.code());
+        m.execute(
+            &Frame {
+                code: 0x20,
+                data: vec![],
+            },
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::UnknownCommand.code());
+        // A bad quaternion is refused.
+        let mut bad = p;
+        bad.pose.q = Quaternion([16384, 16384, 0, 0]);
+        m.execute(
+            &frame(Command::StorePos {
+                program: 1,
+                instruction: 1,
+                positioning: bad,
+            }),
+            0.0,
+        );
+        assert_eq!(m.last_error(), RobotError::Range.code());
+        assert_eq!(m.program_len(1), 0);
+    }
 }

@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 pub mod geodesic;
 pub mod plan;
 pub mod sim_indexer;
+pub mod sim_robot;
 pub mod sweep;
 pub mod triasym;
 
@@ -64,6 +65,8 @@ pub enum Command {
     Plan(plan::PlanArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
+    /// Run the ASEA robot-computer simulator on a pseudo-terminal.
+    SimRobot(sim_robot::SimRobotArgs),
     /// Trace a geodesic on a triangulated mandrel (STL or OBJ).
     Geodesic(geodesic::GeodesicArgs),
     /// Plan a coverage set: the job's first path repeated around the mandrel.
@@ -90,6 +93,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
+        Command::SimRobot(args) => sim_robot::run(args),
         Command::Geodesic(args) => geodesic::run(args),
         Command::Sweep(args) => sweep::run(args),
         Command::Triasym(args) => triasym::run(args),

@@ -1,0 +1,656 @@
+//! Client ↔ simulated robot: over the paced virtual-time wire (program flow, silence, NAK storm,
+//! fault injection with exactly-once accounting) and over a pseudo-terminal in real time.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use asea_protocol::clock::{Clock, RealClock, VirtualClock};
+use asea_protocol::command::{Control, Instruction};
+use asea_protocol::link::{FaultRates, Faults, Paced, Peer};
+use asea_protocol::session::{N_ENQ, N_TX, T_ENQ, Timers};
+use asea_protocol::sim::{IN_POSITION_OUTPUT, Malformed, MotionParams, Robot, serve};
+use asea_protocol::{
+    Checksum, Client, ClientConfig, Command, Error, Flags, FrameConfig, LinkError, Mode, Pose,
+    Positioning, Speed, Zone,
+};
+
+fn positioning(x: f64, y: f64, z: f64, zone: Zone) -> Positioning {
+    Positioning {
+        flags: Flags {
+            zone,
+            ..Flags::default()
+        },
+        pose: Pose::from_mm([x, y, z], [0.0, 0.0, 1.0, 0.0]).unwrap(),
+        speed: Speed::from_value("speed", 0.5).unwrap(),
+    }
+}
+
+/// A 50-instruction winding-like program: a zig-zag of 47 points in medium zone, then "in
+/// position" on output 1, wait for the PC's start on input 1, end.
+fn program_50() -> Vec<Instruction> {
+    program_50_zigzag(100.0)
+}
+
+fn program_50_zigzag(half_width_mm: f64) -> Vec<Instruction> {
+    let mut v: Vec<Instruction> = (0..47)
+        .map(|k| {
+            let k = f64::from(k);
+            let y = if (k as i32) % 2 == 0 {
+                -half_width_mm
+            } else {
+                half_width_mm
+            };
+            Instruction::Position(positioning(900.0, y, 400.0 + 5.0 * k, Zone::Medium))
+        })
+        .collect();
+    v.push(Instruction::Control(Control::SetOutput {
+        line: IN_POSITION_OUTPUT,
+        on: true,
+    }));
+    v.push(Instruction::Control(Control::WaitInput {
+        line: 1,
+        on: true,
+    }));
+    v.push(Instruction::Control(Control::End));
+    v
+}
+
+fn paced(cfg: FrameConfig) -> (Client<Paced<Robot>, VirtualClock>, VirtualClock) {
+    let clock = VirtualClock::new();
+    let robot = Robot::new(cfg, Timers::default(), MotionParams::default());
+    let wire = Paced::new(clock.clone(), 9600, robot);
+    let ccfg = ClientConfig {
+        frame: cfg,
+        ..ClientConfig::default()
+    };
+    (Client::with_clock(wire, clock.clone(), ccfg), clock)
+}
+
+#[test]
+fn program_flow_in_virtual_time() {
+    let (mut c, clock) = paced(FrameConfig::default());
+    // Moves need OPERATE and home.
+    c.run_program(1).unwrap();
+    assert_eq!(
+        c.check_status().unwrap_err().to_string(),
+        "robot error 5: program empty or unknown"
+    );
+    c.operate().unwrap();
+    c.sync_home().unwrap();
+    c.link_mut().run_for(Duration::from_secs(4));
+    let s = c.check_status().unwrap();
+    assert!(s.homed);
+    assert_eq!(s.mode, Mode::Operate);
+
+    let prog = program_50();
+    c.upload(7, &prog).unwrap();
+    let report = c.verify(7, &prog).unwrap();
+    assert_eq!((report.checked, report.restored), (50, 0));
+    assert_eq!(c.read_back(7, 51).unwrap(), None);
+
+    let t_run = clock.now();
+    c.run_program(7).unwrap();
+    // The program runs 47 moves, raises output 1 and waits for input 1.
+    c.link_mut().run_for(Duration::from_secs(60));
+    let io = c.link().peer.machine.io().clone();
+    assert!(io.output(IN_POSITION_OUTPUT));
+    assert_eq!(c.status().unwrap().state, asea_protocol::State::Running);
+    io.set_input(1, true);
+    c.link_mut().run_for(Duration::from_millis(100));
+    let s = c.status().unwrap();
+    assert_eq!(s.state, asea_protocol::State::Idle);
+    let pose = c.position().unwrap();
+    assert_eq!(pose.xyz_mm(), [900.0, -100.0, 400.0 + 5.0 * 46.0]);
+    // 47 short moves: each at least the medium floor, 540 ms.
+    let m = &c.link().peer.machine;
+    let first = m.trace.first().unwrap().0;
+    let last = m.trace.get(46).unwrap().0;
+    assert!(first > t_run.as_secs_f64());
+    assert!(last - t_run.as_secs_f64() >= 47.0 * 0.54 - 1e-9);
+    // Discrete move: output 1 drops while moving and rises in position.
+    c.move_immediate(positioning(900.0, 0.0, 500.0, Zone::Fine))
+        .unwrap();
+    assert!(!io.output(IN_POSITION_OUTPUT));
+    c.link_mut().run_for(Duration::from_secs(2));
+    assert!(io.output(IN_POSITION_OUTPUT));
+    assert_eq!(c.position().unwrap().xyz_mm(), [900.0, 0.0, 500.0]);
+}
+
+#[test]
+fn standby_checks_without_moving_and_memory_limits() {
+    let (mut c, _) = paced(FrameConfig::default());
+    // Out of reach (x = 2000 mm): stored, then caught by the standby dry run.
+    let mut prog: Vec<Instruction> = (0..3)
+        .map(|k| Instruction::Position(positioning(900.0, 10.0 * f64::from(k), 500.0, Zone::Fine)))
+        .collect();
+    prog.push(Instruction::Position(positioning(
+        2000.0,
+        0.0,
+        500.0,
+        Zone::Fine,
+    )));
+    c.upload(2, &prog).unwrap();
+    c.run_program(2).unwrap();
+    let s = c.status().unwrap();
+    assert_eq!((s.last_error, s.instruction), (3, 4));
+    assert_eq!(
+        c.link().peer.machine.pose().xyz_mm,
+        MotionParams::default().home.xyz_mm
+    );
+    c.delete_program(2).unwrap();
+
+    // 470 positioning instructions fit; the 471st does not.
+    let m = &mut c.link_mut().peer.machine;
+    let store = |m: &mut asea_protocol::sim::Machine, prog: u8, n: u16, i: Instruction| {
+        let cmd = asea_protocol::client::store_command(prog, n, &i);
+        let bytes = cmd.encode(&FrameConfig::default()).unwrap();
+        let frame = asea_protocol::frame::Frame {
+            code: bytes[1],
+            data: bytes[3..bytes.len() - 2].to_vec(),
+        };
+        m.execute(&frame, 0.0);
+        m.last_error()
+    };
+    let p = Instruction::Position(positioning(900.0, 0.0, 500.0, Zone::Fine));
+    for n in 1..=470 {
+        assert_eq!(store(m, 1, n, p), 0, "instruction {n}");
+    }
+    assert_eq!(store(m, 1, 471, p), 8);
+    // Overwriting is not growth.
+    assert_eq!(store(m, 1, 470, p), 8, "the error stays until read");
+    let mut m2 = asea_protocol::sim::Machine::default();
+    let ctl = Instruction::Control(Control::SetOutput { line: 2, on: true });
+    for n in 1..=300 {
+        assert_eq!(store(&mut m2, 1, n, p), 0);
+    }
+    for n in 301..=500 {
+        assert_eq!(store(&mut m2, 1, n, ctl), 0, "control {n}");
+    }
+    assert_eq!(store(&mut m2, 2, 1, ctl), 8);
+}
+
+/// A device that never answers.
+#[derive(Debug, Default)]
+struct Silent;
+impl Peer for Silent {
+    fn receive(&mut self, _: &[u8], _: Duration) {}
+    fn poll(&mut self, _: Duration) {}
+    fn take_output(&mut self) -> Vec<u8> {
+        Vec::new()
+    }
+    fn deadline(&self) -> Option<Duration> {
+        None
+    }
+}
+
+/// A device that acknowledges ENQ and refuses every telegram.
+#[derive(Debug, Default)]
+struct Naker(Vec<u8>);
+impl Peer for Naker {
+    fn receive(&mut self, bytes: &[u8], _: Duration) {
+        for &b in bytes {
+            match b {
+                0x05 => self.0.push(0x06),
+                0x03 => {} // ETX: the check value follows
+                _ => {}
+            }
+        }
+        // Answer NAK to every complete frame (its check value is the byte after ETX).
+    }
+    fn poll(&mut self, _: Duration) {}
+    fn take_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.0)
+    }
+    fn deadline(&self) -> Option<Duration> {
+        None
+    }
+}
+
+#[test]
+fn silence_is_no_response_within_n_enq_times_t_enq() {
+    let clock = VirtualClock::new();
+    let mut c = Client::with_clock(
+        Paced::new(clock.clone(), 9600, Silent),
+        clock.clone(),
+        ClientConfig::default(),
+    );
+    let e = c.operate().unwrap_err();
+    assert!(
+        matches!(e, Error::Link(LinkError::NoResponse { attempts }) if attempts == N_ENQ),
+        "{e}"
+    );
+    let elapsed = clock.now();
+    // N_ENQ timeouts of T_ENQ, plus the wire time of the ENQ bytes.
+    assert!(elapsed >= T_ENQ * N_ENQ, "{elapsed:?}");
+    assert!(
+        elapsed < T_ENQ * N_ENQ + Duration::from_millis(50),
+        "{elapsed:?}"
+    );
+}
+
+#[test]
+fn nak_storm_is_a_retries_error() {
+    // The robot answers ENQ and then NAKs: on a wire whose device NAKs each frame at its end.
+    #[derive(Debug, Default)]
+    struct Storm {
+        out: Vec<u8>,
+        in_frame: usize,
+    }
+    impl Peer for Storm {
+        fn receive(&mut self, bytes: &[u8], _: Duration) {
+            for &b in bytes {
+                if self.in_frame > 0 {
+                    self.in_frame += 1;
+                    // STX CMD LEN ETX CS for a zero-data telegram (MODE_OPERATE): 5 bytes.
+                    if self.in_frame == 5 {
+                        self.out.push(0x15);
+                        self.in_frame = 0;
+                    }
+                } else if b == 0x05 {
+                    self.out.push(0x06);
+                } else if b == 0x02 {
+                    self.in_frame = 1;
+                }
+            }
+        }
+        fn poll(&mut self, _: Duration) {}
+        fn take_output(&mut self) -> Vec<u8> {
+            std::mem::take(&mut self.out)
+        }
+        fn deadline(&self) -> Option<Duration> {
+            None
+        }
+    }
+    let clock = VirtualClock::new();
+    let mut c = Client::with_clock(
+        Paced::new(clock.clone(), 9600, Storm::default()),
+        clock.clone(),
+        ClientConfig::default(),
+    );
+    let e = c.operate().unwrap_err();
+    assert!(
+        matches!(e, Error::Link(LinkError::Retries { attempts }) if attempts == N_TX),
+        "{e}"
+    );
+    assert!(clock.now() < Duration::from_secs(1));
+    assert_eq!(c.stats().frames_sent, u64::from(N_TX));
+    // A device that only acknowledges ENQ: every telegram times out.
+    let clock = VirtualClock::new();
+    let mut c = Client::with_clock(
+        Paced::new(clock.clone(), 9600, Naker::default()),
+        clock.clone(),
+        ClientConfig::default(),
+    );
+    assert!(matches!(
+        c.stop(),
+        Err(Error::Link(LinkError::Retries { attempts: 6 }))
+    ));
+}
+
+/// Outcome of a fault-injection run.
+#[derive(Debug, Default)]
+struct Tally {
+    sent: usize,
+    delivered: usize,
+    errors: usize,
+    /// Reported delivered but not executed exactly once.
+    violations: usize,
+    /// Executed more than once.
+    twice: usize,
+    /// Executed frames that no one sent (corruption the check value missed).
+    foreign: usize,
+}
+
+/// Link set-up of a fault-injection run.
+#[derive(Debug, Clone, Copy)]
+struct Setup {
+    checksum: Checksum,
+    malformed: Malformed,
+    ack_window: Option<Duration>,
+}
+
+/// The spec's link: one-byte sum, malformed telegrams acknowledged with an error code.
+const SPEC: Setup = Setup {
+    checksum: Checksum::Sum8,
+    malformed: Malformed::AckWithError,
+    ack_window: None,
+};
+
+/// The strong link: CRC-16 and a 10 ms ACK window.
+const STRONG: Setup = Setup {
+    checksum: Checksum::Crc16,
+    malformed: Malformed::AckWithError,
+    ack_window: Some(Duration::from_millis(10)),
+};
+
+fn fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> Tally {
+    let cfg = FrameConfig {
+        checksum: setup.checksum,
+        ..FrameConfig::default()
+    };
+    let timers = Timers {
+        t_ack_window: setup.ack_window,
+        ..Timers::default()
+    };
+    let clock = VirtualClock::new();
+    let robot = Robot::new(cfg, timers, MotionParams::default()).with_malformed(setup.malformed);
+    let wire = Paced::new(clock.clone(), 9600, robot).with_faults(
+        Faults::new(FaultRates::uniform(rate), seed),
+        Faults::new(FaultRates::uniform(rate), seed ^ 0xA5A5),
+    );
+    let mut c = Client::with_clock(
+        wire,
+        clock,
+        ClientConfig {
+            frame: cfg,
+            timers,
+            ..ClientConfig::default()
+        },
+    );
+    let mut tally = Tally::default();
+    let mut outcomes = Vec::with_capacity(telegrams);
+    for k in 0..telegrams {
+        let kf = k as f64;
+        let cmd = Command::StorePos {
+            program: 1 + (k % 3) as u8,
+            instruction: (k % 150) as u16 + 1,
+            positioning: positioning(500.0 + kf * 0.5, -200.0 + kf * 0.25, 300.0 + kf, Zone::Fine),
+        };
+        tally.sent += 1;
+        let ok = c.send(&cmd).is_ok();
+        if ok {
+            tally.delivered += 1;
+        } else {
+            tally.errors += 1;
+        }
+        outcomes.push((cmd, ok));
+    }
+    let mut counts: HashMap<(u8, Vec<u8>), usize> = HashMap::new();
+    for f in &c.link().peer.machine.executed {
+        *counts.entry((f.code, f.data.clone())).or_default() += 1;
+    }
+    let mut known = 0;
+    for (cmd, ok) in &outcomes {
+        let bytes = cmd.encode(&cfg).unwrap();
+        let key = (bytes[1], bytes[3..3 + usize::from(bytes[2])].to_vec());
+        let n = counts.get(&key).copied().unwrap_or(0);
+        known += n;
+        if n > 1 {
+            tally.twice += 1;
+        }
+        if *ok && n != 1 {
+            tally.violations += 1;
+        }
+    }
+    tally.foreign = c.link().peer.machine.executed.len() - known;
+    tally
+}
+
+/// The configuration that meets the target: CRC-16 check value and a 10 ms ACK window. 1 000 telegrams at 1 % and at
+/// 10 % byte errors (drop, corrupt, stall, duplicate, both directions): every telegram reported
+/// delivered was executed exactly once, none twice.
+#[test]
+fn exactly_once_with_crc16_and_ack_window_at_1_and_10_percent_byte_errors() {
+    for (rate, seed) in [(0.01, 1), (0.10, 2)] {
+        let t = fault_run(STRONG, rate, 1000, seed);
+        eprintln!("crc16 {rate}: {t:?}");
+        assert_eq!(t.sent, 1000);
+        assert_eq!(t.delivered + t.errors, t.sent);
+        assert_eq!(t.violations, 0, "{t:?}");
+        assert_eq!(t.twice, 0, "{t:?}");
+        assert_eq!(t.foreign, 0, "{t:?}");
+        assert!(t.delivered > if rate < 0.05 { 990 } else { 300 }, "{t:?}");
+    }
+}
+
+/// The spec's one-byte sum: never twice, but it misses some multi-byte corruptions, so a few
+/// telegrams reported delivered were replaced by a corrupted twin (rates in docs/protocol.md;
+/// not asserted to be zero because they are not).
+#[test]
+fn sum8_never_executes_twice() {
+    for (rate, seed) in [(0.01, 1), (0.10, 3)] {
+        let t = fault_run(SPEC, rate, 1000, seed);
+        eprintln!("sum8 {rate}: {t:?}");
+        assert_eq!(t.twice, 0, "{t:?}");
+        assert_eq!(t.delivered + t.errors, t.sent);
+    }
+}
+
+/// Read-backs under 10 % byte errors in both directions (reverse sessions, request retries): with
+/// the strong link every answer is the stored instruction or an error.
+#[test]
+fn read_backs_under_faults_are_true_or_errors() {
+    let setup = STRONG;
+    let cfg = FrameConfig {
+        checksum: setup.checksum,
+        ..FrameConfig::default()
+    };
+    let timers = Timers {
+        t_ack_window: setup.ack_window,
+        ..Timers::default()
+    };
+    let clock = VirtualClock::new();
+    let mut robot = Robot::new(cfg, timers, MotionParams::default());
+    let prog = program_50();
+    for (n, i) in (1u16..).zip(&prog) {
+        let bytes = asea_protocol::client::store_command(5, n, i)
+            .encode(&cfg)
+            .unwrap();
+        let f = asea_protocol::frame::Frame {
+            code: bytes[1],
+            data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
+        };
+        robot.machine.execute(&f, 0.0);
+    }
+    let wire = Paced::new(clock.clone(), 9600, robot).with_faults(
+        Faults::new(FaultRates::uniform(0.10), 11),
+        Faults::new(FaultRates::uniform(0.10), 12),
+    );
+    let mut c = Client::with_clock(
+        wire,
+        clock,
+        ClientConfig {
+            frame: cfg,
+            timers,
+            ..ClientConfig::default()
+        },
+    );
+    let (mut ok, mut err) = (0, 0);
+    for k in 0..200u16 {
+        let n = k % 50 + 1;
+        match c.read_back(5, n) {
+            Ok(got) => {
+                assert_eq!(
+                    got.as_ref(),
+                    prog.get(usize::from(n - 1)),
+                    "instruction {n}"
+                );
+                ok += 1;
+            }
+            Err(_) => err += 1,
+        }
+    }
+    eprintln!("read-backs at 10 %: {ok} answered, {err} errors");
+    assert!(ok > 50, "{ok} answered, {err} errors");
+}
+
+/// Uploading 470 positioning instructions at 9600 baud takes the wire time of every byte both
+/// ways plus `T_GAP` between sessions, and no more: the host adds no idle time of its own
+/// (figure in docs/benchmarks-asea.md).
+#[test]
+fn upload_of_470_instructions_adds_no_idle_time() {
+    let (mut c, clock) = paced(FrameConfig::default());
+    let prog: Vec<Instruction> = (0..470)
+        .map(|k| Instruction::Position(positioning(600.0 + f64::from(k), 0.0, 500.0, Zone::Medium)))
+        .collect();
+    let t0 = clock.now();
+    for (n, i) in (1u16..).zip(&prog) {
+        c.store(4, n, i).unwrap();
+    }
+    let elapsed = (clock.now() - t0).as_secs_f64();
+    // Host: ENQ, telegram (25 bytes), EOT; robot: ACK, ACK; per session, sessions back to back
+    // with T_GAP between the end of one EOT and the next ENQ.
+    let byte_s = 10.0 / 9600.0;
+    let per_session_bytes = 1.0 + 25.0 + 1.0 + 1.0 + 1.0;
+    let sessions = prog.len() as f64;
+    let gaps = (sessions - 1.0) * asea_protocol::session::T_GAP.as_secs_f64();
+    let reference = sessions * per_session_bytes * byte_s + gaps;
+    let ratio = elapsed / reference;
+    eprintln!("upload 470: {elapsed:.3} s, wire + gaps {reference:.3} s, ratio {ratio:.4}");
+    assert!(ratio <= 1.02, "ratio {ratio}");
+    assert_eq!(c.link().peer.machine.program_len(4), 470);
+    assert_eq!(c.stats().frames_sent, 470);
+}
+
+/// Pseudo-terminal tests run one at a time.
+static PTY: Mutex<()> = Mutex::new(());
+
+#[cfg(unix)]
+#[test]
+fn program_over_a_pseudo_terminal() {
+    use serialport::TTYPort;
+    let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
+    let (master, slave) = TTYPort::pair().expect("pty pair");
+    // Fast arm constants so that the 47 moves run in a fraction of a second of real time.
+    let params = MotionParams {
+        accel_mm_s2: 1.0e6,
+        overhead_s: [0.0; 3],
+        floor_s: [0.002; 3],
+        home_s: 0.01,
+        ..MotionParams::default()
+    };
+    let robot = Arc::new(Mutex::new(Robot::new(
+        FrameConfig::default(),
+        Timers::default(),
+        params,
+    )));
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = {
+        let (robot, stop) = (robot.clone(), stop.clone());
+        std::thread::spawn(move || serve(master, &robot, &RealClock::new(), &stop))
+    };
+    let mut c = Client::new(slave, ClientConfig::default());
+    // A narrow zig-zag at full speed, so that the run takes a fraction of a second.
+    let prog = program_50_zigzag(5.0);
+    c.set_base_speed(Speed::from_value("base", 7.9).unwrap())
+        .unwrap();
+    c.set_max_speed(Speed::from_value("max", 7.9).unwrap())
+        .unwrap();
+    if let Err(e) = c.upload(9, &prog) {
+        panic!("upload: {e}; {:?}", c.stats());
+    }
+    for (n, want) in (1u16..).zip(&prog) {
+        assert_eq!(c.read_back(9, n).unwrap().as_ref(), Some(want));
+    }
+    c.operate().unwrap();
+    c.sync_home().unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    c.run_program(9).unwrap();
+    let io = robot.lock().unwrap().machine.io().clone();
+    let clock = RealClock::new();
+    while !io.output(IN_POSITION_OUTPUT) {
+        assert!(
+            clock.now() < Duration::from_secs(5),
+            "program did not reach its end"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    io.set_input(1, true);
+    std::thread::sleep(Duration::from_millis(20));
+    let s = c.check_status().unwrap();
+    assert_eq!(s.state, asea_protocol::State::Idle);
+    assert_eq!(c.position().unwrap().xyz_mm(), [900.0, -5.0, 630.0]);
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap().unwrap();
+}
+
+/// CRC-16 with and without the ACK window, 50 seeds × 1 000 telegrams at 10 % (figures in
+/// docs/protocol.md):
+/// `cargo test -p asea-protocol --release --test end_to_end fault_long_run -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn fault_long_run() {
+    for (name, setup) in [
+        ("crc16+window", STRONG),
+        (
+            "crc16",
+            Setup {
+                ack_window: None,
+                ..STRONG
+            },
+        ),
+    ] {
+        let mut sum = Tally::default();
+        for seed in 1000..1050 {
+            let t = fault_run(setup, 0.10, 1000, seed);
+            sum.sent += t.sent;
+            sum.delivered += t.delivered;
+            sum.errors += t.errors;
+            sum.violations += t.violations;
+            sum.twice += t.twice;
+            sum.foreign += t.foreign;
+        }
+        println!("{name} 10 %: {sum:?}");
+        assert_eq!(sum.twice, 0);
+    }
+}
+
+/// Measurement over several seeds and configurations (figures in docs/protocol.md):
+/// `cargo test -p asea-protocol --release --test end_to_end fault_matrix -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn fault_matrix() {
+    let with = |checksum, malformed, ack_window| Setup {
+        checksum,
+        malformed,
+        ack_window,
+    };
+    let w = Some(Duration::from_millis(10));
+    for (name, setup) in [
+        ("sum8", SPEC),
+        (
+            "sum8+nak-malformed",
+            with(Checksum::Sum8, Malformed::Nak, None),
+        ),
+        (
+            "sum8+nak-malformed+window",
+            with(Checksum::Sum8, Malformed::Nak, w),
+        ),
+        (
+            "crc16",
+            with(Checksum::Crc16, Malformed::AckWithError, None),
+        ),
+        ("crc16+window", STRONG),
+    ] {
+        for rate in [0.01, 0.10] {
+            let mut sum = Tally::default();
+            for seed in 0..10 {
+                let t = fault_run(setup, rate, 1000, 100 + seed);
+                sum.sent += t.sent;
+                sum.delivered += t.delivered;
+                sum.errors += t.errors;
+                sum.violations += t.violations;
+                sum.twice += t.twice;
+                sum.foreign += t.foreign;
+            }
+            println!(
+                "{name:>26} {:>4.0}%: sent {} delivered {} errors {} delivered-not-once {} twice {} foreign {}",
+                rate * 100.0,
+                sum.sent,
+                sum.delivered,
+                sum.errors,
+                sum.violations,
+                sum.twice,
+                sum.foreign
+            );
+        }
+    }
+}
+
+#[test]
+fn a_missing_serial_port_is_a_typed_error() {
+    let e = Client::open("/dev/windcell-no-such-port", ClientConfig::default()).unwrap_err();
+    assert!(matches!(e, Error::Serial(_)), "{e}");
+}

@@ -1,0 +1,96 @@
+//! `windcell sim-robot --pty [--checksum sum8|crc16] [--nak-malformed]`: the ASEA robot-computer
+//! simulator on a pseudo-terminal (seed 001 §5.2; docs/protocol.md).
+//!
+//! Prints the slave device path on one line, serves the simulated robot computer on the master
+//! side in real time until SIGINT or SIGTERM, then exits 0.
+
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+
+use asea_protocol::clock::RealClock;
+use asea_protocol::session::Timers;
+use asea_protocol::sim::{Malformed, MotionParams, Robot, serve};
+use asea_protocol::{Checksum, FrameConfig};
+use clap::{Args, ValueEnum};
+use serialport::{SerialPort, TTYPort};
+
+use super::{Failure, print};
+
+/// The check value after ETX (both ends must agree).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CheckValue {
+    /// One-byte sum (the thesis' choice; the default).
+    Sum8,
+    /// CRC-16/CCITT-FALSE, two bytes.
+    Crc16,
+}
+
+/// Arguments of `windcell sim-robot`.
+#[derive(Debug, Args)]
+pub struct SimRobotArgs {
+    /// Serve on a new pseudo-terminal and print its device path.
+    #[arg(long)]
+    pub pty: bool,
+    /// Check value after ETX.
+    #[arg(long, value_enum, default_value = "sum8")]
+    pub checksum: CheckValue,
+    /// Refuse (NAK) telegrams that do not parse instead of acknowledging them with an error code.
+    #[arg(long)]
+    pub nak_malformed: bool,
+    /// Duration of a home synchronisation, seconds.
+    #[arg(long, default_value_t = MotionParams::default().home_s)]
+    pub home_s: f64,
+}
+
+/// Runs the simulator until SIGINT or SIGTERM.
+pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
+    if !args.pty {
+        return Err(Failure::input(
+            "sim-robot: --pty is required (the simulator serves on a pseudo-terminal)",
+        ));
+    }
+    if !(args.home_s.is_finite() && args.home_s >= 0.0) {
+        return Err(Failure::input(format!(
+            "sim-robot: --home-s {} must be a number of seconds, 0 or more",
+            args.home_s
+        )));
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone())
+            .map_err(|e| Failure::runtime(format!("sim-robot: signal handler: {e}")))?;
+    }
+    let (master, slave) = TTYPort::pair()
+        .map_err(|e| Failure::runtime(format!("sim-robot: pseudo-terminal: {e}")))?;
+    let path = slave
+        .name()
+        .ok_or_else(|| Failure::runtime("sim-robot: the pseudo-terminal has no device path"))?;
+    print(&format!("{path}\n"))?;
+    let frame = FrameConfig {
+        checksum: match args.checksum {
+            CheckValue::Sum8 => Checksum::Sum8,
+            CheckValue::Crc16 => Checksum::Crc16,
+        },
+        ..FrameConfig::default()
+    };
+    let malformed = if args.nak_malformed {
+        Malformed::Nak
+    } else {
+        Malformed::AckWithError
+    };
+    let robot = Mutex::new(
+        Robot::new(
+            frame,
+            Timers::default(),
+            MotionParams {
+                home_s: args.home_s,
+                ..MotionParams::default()
+            },
+        )
+        .with_malformed(malformed),
+    );
+    let served = serve(master, &robot, &RealClock::new(), &stop);
+    // The slave end stays open until here so that the master never sees a hang-up.
+    drop(slave);
+    served.map_err(|e| Failure::runtime(format!("sim-robot: {e}")))
+}

@@ -1,0 +1,82 @@
+//! `windcell sim-robot --pty`: the binary prints its pty path, a client uploads, reads back and
+//! runs a program over it as over a serial port, and SIGTERM ends it with exit code 0.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use asea_protocol::{
+    Client, ClientConfig, Control, Flags, Instruction, Pose, Positioning, Speed, State, Zone,
+};
+
+#[test]
+fn serves_a_client_and_stops_on_sigterm() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args(["sim-robot", "--pty", "--home-s", "0.2"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn windcell");
+    let stdout = child.stdout.take().expect("stdout");
+    let mut path = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut path)
+        .expect("path line");
+    let path = path.trim().to_string();
+    assert!(path.starts_with("/dev/"), "{path:?}");
+
+    let port = serialport::new(&path, 9600)
+        .timeout(Duration::from_millis(100))
+        .open_native()
+        .expect("open pty");
+    let mut c = Client::new(port, ClientConfig::default());
+    let p = |z: f64| {
+        Instruction::Position(Positioning {
+            flags: Flags {
+                zone: Zone::Medium,
+                ..Flags::default()
+            },
+            pose: Pose::from_mm([900.0, 0.0, z], [1.0, 0.0, 0.0, 0.0]).unwrap(),
+            speed: Speed::from_value("speed", 1.0).unwrap(),
+        })
+    };
+    let prog = [
+        p(800.0),
+        p(802.0),
+        Instruction::Control(Control::SetOutput { line: 1, on: true }),
+        Instruction::Control(Control::End),
+    ];
+    c.upload(3, &prog).unwrap();
+    assert_eq!(c.verify(3, &prog).unwrap().restored, 0);
+    c.operate().unwrap();
+    c.sync_home().unwrap();
+    // Home synchronisation takes 0.2 s here (--home-s).
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(c.check_status().unwrap().homed);
+    c.run_program(3).unwrap();
+    let s = c.check_status().unwrap();
+    assert_eq!((s.state, s.program), (State::Running, 3));
+
+    let killed = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let out = child.wait_with_output().expect("wait");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn without_pty_is_bad_input() {
+    let out = Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args(["sim-robot"])
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--pty"));
+}
