@@ -425,3 +425,21 @@ fn obj_and_ascii_stl_of_the_same_mesh_trace_the_same_path() {
     }
     assert_eq!(outputs[0], outputs[1]);
 }
+
+#[test]
+fn the_dxf_example_plans_like_the_traced_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let total = |name: &str| -> i64 {
+        let r = windcell(&[
+            "plan",
+            example(name).to_str().unwrap(),
+            "-o",
+            dir.path().join(name).to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        v["paths"][0]["total_steps"].as_i64().unwrap()
+    };
+    assert!((total("sbend-dxf.toml") - total("sbend.toml")).abs() <= 2);
+}
