@@ -4,12 +4,17 @@
 use std::path::Path;
 
 use paths::mesh::trace::Tracer;
-use paths::mesh::{Closure, Mesh, obj, prepare, stl};
+use paths::mesh::{Closure, Mesh, obj, prepare, stl, with_line};
 
 use crate::Error;
 
 /// Reads a mesh file (`.stl` or `.obj`, any case) without welding or validating it.
 pub fn read(file: &Path) -> Result<Mesh, Error> {
+    read_located(file).map(|(mesh, _)| mesh)
+}
+
+/// Like [`read`], with the line of each triangle for the text formats (empty for binary STL).
+fn read_located(file: &Path) -> Result<(Mesh, Vec<usize>), Error> {
     let mesh_error = |source| Error::Mesh {
         file: file.to_path_buf(),
         source,
@@ -23,7 +28,12 @@ pub fn read(file: &Path) -> Result<Mesh, Error> {
         source,
     })?;
     match ext.as_str() {
-        "stl" => Mesh::from_soup(&stl::parse(&bytes).map_err(mesh_error)?).map_err(mesh_error),
+        "stl" => {
+            let (soup, lines) = stl::parse_located(&bytes).map_err(mesh_error)?;
+            let lines = lines.unwrap_or_default();
+            let mesh = Mesh::from_soup(&soup).map_err(|e| mesh_error(with_line(e, &lines)))?;
+            Ok((mesh, lines))
+        }
         "obj" => {
             let text = std::str::from_utf8(&bytes).map_err(|e| {
                 let line = 1 + bytes[..e.valid_up_to()]
@@ -35,7 +45,7 @@ pub fn read(file: &Path) -> Result<Mesh, Error> {
                     message: "OBJ with bytes that are not UTF-8 text".into(),
                 })
             })?;
-            obj::parse(text).map_err(mesh_error)
+            obj::parse_located(text).map_err(mesh_error)
         }
         _ => Err(mesh_error(paths::Error::MeshSyntax {
             line: None,
@@ -51,7 +61,8 @@ pub fn load(file: &Path, weld_mm: f64, closure: Closure, crease_deg: f64) -> Res
         file: file.to_path_buf(),
         source,
     };
-    let mesh = read(file)?;
-    let (mesh, adjacency) = prepare(&mesh, weld_mm, closure).map_err(mesh_error)?;
+    let (mesh, lines) = read_located(file)?;
+    let (mesh, adjacency) =
+        prepare(&mesh, weld_mm, closure).map_err(|e| mesh_error(with_line(e, &lines)))?;
     Tracer::new(mesh, &adjacency, crease_deg).map_err(mesh_error)
 }

@@ -82,6 +82,24 @@ fn geodesic_prints_points_and_faces_and_stops_at_the_end_cap() {
     assert!(r.status.success(), "{}", stderr(&r));
     let text = String::from_utf8(r.stdout).unwrap();
     assert!(text.trim_end().ends_with("stopped at a height"), "{text}");
+    // Smoothed and cut into equal lengths on the surface.
+    let r = windcell(&[
+        "geodesic",
+        example("sbend.stl").to_str().unwrap(),
+        "--start",
+        "-18,28.5,200",
+        "--heading",
+        "45",
+        "--segments",
+        "20",
+        "--json",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let seg = &v["segments"];
+    assert_eq!(seg["points_mm"].as_array().unwrap().len(), 21);
+    let dev = seg["max_deviation_mm"].as_f64().unwrap();
+    assert!(dev < 0.05, "{dev}");
 }
 
 #[test]
@@ -106,7 +124,10 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
     let cases: [(&Path, &str); 4] = [
         (&stl, "bad.stl: line 5: `oops` is not a number"),
         (&obj, "bad.obj: line 5: vertex 7 does not exist"),
-        (&open, "open.obj: triangle 1: inconsistent orientation"),
+        (
+            &open,
+            "open.obj: line 6: triangle 1: inconsistent orientation",
+        ),
         (&empty, "empty.stl: the file is empty"),
     ];
     for (file, message) in cases {
@@ -369,4 +390,56 @@ fn spine_profile_from_dxf_plans_like_spine_mm() {
     ]);
     assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
     assert!(stderr(&r).contains("spine.dxf"), "{}", stderr(&r));
+}
+
+#[test]
+fn obj_and_ascii_stl_of_the_same_mesh_trace_the_same_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut outputs = Vec::new();
+    for (name, extra) in [("s.obj", None), ("s.stl", Some("--ascii"))] {
+        let file = dir.path().join(name);
+        let job = example("sbend.toml");
+        let mut args = vec![
+            "triasym",
+            job.to_str().unwrap(),
+            "-o",
+            file.to_str().unwrap(),
+            "--facets",
+            "32",
+            "--spacing-mm",
+            "10",
+        ];
+        args.extend(extra);
+        let r = windcell(&args);
+        assert!(r.status.success(), "{}", stderr(&r));
+        let r = windcell(&[
+            "geodesic",
+            file.to_str().unwrap(),
+            "--start",
+            "-18,28.5,200",
+            "--heading",
+            "45",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        outputs.push(r.stdout);
+    }
+    assert_eq!(outputs[0], outputs[1]);
+}
+
+#[test]
+fn the_dxf_example_plans_like_the_traced_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let total = |name: &str| -> i64 {
+        let r = windcell(&[
+            "plan",
+            example(name).to_str().unwrap(),
+            "-o",
+            dir.path().join(name).to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        v["paths"][0]["total_steps"].as_i64().unwrap()
+    };
+    assert!((total("sbend-dxf.toml") - total("sbend.toml")).abs() <= 2);
 }

@@ -51,6 +51,10 @@ fn load(c: &mut Criterion) {
             black_box(prepare(&m, DEFAULT_WELD_MM, Closure::Closed).unwrap())
         })
     });
+    let (prepared, adjacency) = prepare(&mesh, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+    group.bench_function("tracer_new_1m", |b| {
+        b.iter(|| black_box(Tracer::new(prepared.clone(), &adjacency, DEFAULT_CREASE_DEG).unwrap()))
+    });
     group.finish();
 }
 

@@ -99,3 +99,80 @@ proptest! {
         }
     }
 }
+
+/// A flat grid whose bottom-row triangles are each split by a point a nanometre off the bottom
+/// edge, leaving slivers of almost no area along it: paths that start in the slivers and run
+/// nearly along them stay straight and reach the grid's edge.
+#[test]
+fn slivers_do_not_bend_or_stop_a_path() {
+    let n = 16;
+    let mut v = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            v.push(Point3::new(i as f64, j as f64, 0.0));
+        }
+    }
+    let mut tris: Vec<[u32; 3]> = Vec::new();
+    let mut slivers = 0;
+    for j in 0..n {
+        for i in 0..n {
+            let a = (j * (n + 1) + i) as u32;
+            let (b, c, d) = (a + 1, a + n as u32 + 1, a + n as u32 + 2);
+            if j == 0 {
+                // Split [a, b, d] at a point just above the boundary edge a–b.
+                let mid = Point3::from((v[a as usize].coords + v[b as usize].coords) / 2.0);
+                let m = mid + (v[d as usize] - mid) * 1e-9;
+                v.push(m);
+                let mi = (v.len() - 1) as u32;
+                tris.extend_from_slice(&[[a, b, mi], [a, mi, d], [mi, b, d]]);
+                slivers += 1;
+            } else {
+                tris.push([a, b, d]);
+            }
+            tris.push([a, d, c]);
+        }
+    }
+    assert_eq!(slivers, n);
+    let (m, adj) = prepare(&Mesh::new(v, tris).unwrap(), 1e-12, Closure::Open).unwrap();
+    let tr = Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap();
+    for mode in [Mode::Smooth, Mode::Exact] {
+        for (x0, heading_deg) in [
+            (0.25, -80.0),
+            (3.5, -89.9),
+            (7.0, 45.0),
+            (0.5, 60.0),
+            (9.5, 89.99),
+        ] {
+            let start = Point3::new(x0, 1e-10, 0.0);
+            let o = TraceOptions {
+                axis: Vector3::y(),
+                max_length_mm: 100.0,
+                mode,
+                ..TraceOptions::default()
+            };
+            let path = tr
+                .trace_heading(&start, f64::to_radians(heading_deg), 1e-6, &o)
+                .unwrap();
+            let (p0, p1) = (path.points[0], *path.points.last().unwrap());
+            let dir = (p1 - p0).normalize();
+            for p in &path.points {
+                let off = (p - p0) - dir * (p - p0).dot(&dir);
+                assert!(off.norm() < 1e-6, "{mode:?} {heading_deg}: {}", off.norm());
+            }
+            let on_edge = p1.x.abs() < 1e-9
+                || (p1.x - n as f64).abs() < 1e-9
+                || (p1.y - n as f64).abs() < 1e-9
+                || p1.y.abs() < 1e-6;
+            assert!(
+                on_edge,
+                "{mode:?} {heading_deg}: stopped inside at {p1}, {:?}",
+                path.stop
+            );
+            assert!(
+                path.length_mm > 0.2,
+                "{mode:?} {heading_deg}: {}",
+                path.length_mm
+            );
+        }
+    }
+}

@@ -54,6 +54,10 @@ pub struct GeodesicArgs {
     /// Edges sharper than this (degrees) are boundaries.
     #[arg(long, default_value_t = DEFAULT_CREASE_DEG)]
     pub crease_deg: f64,
+    /// Smooth the traced path (B-spline) and print it cut into this many equal-length segments,
+    /// end points projected onto the mesh, with the largest raw-to-smoothed distance.
+    #[arg(long)]
+    pub segments: Option<usize>,
     /// Print one JSON document instead of text.
     #[arg(long)]
     pub json: bool,
@@ -95,6 +99,17 @@ struct Report {
     length_mm: f64,
     crossings: usize,
     stop: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    segments: Option<Segments>,
+}
+
+#[derive(Debug, Serialize)]
+struct Segments {
+    points_mm: Vec<[f64; 3]>,
+    normals: Vec<[f64; 3]>,
+    faces: Vec<u32>,
+    length_mm: f64,
+    max_deviation_mm: f64,
 }
 
 /// Runs `windcell geodesic`.
@@ -123,6 +138,25 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             &options,
         )
         .map_err(|e| Failure::input(format!("{}: {e}", args.mesh.display())))?;
+    let segments = match args.segments {
+        Some(n) => {
+            let cut = paths::mesh::resegment::smooth_and_cut(
+                &tracer,
+                &path.points,
+                n,
+                paths::mesh::resegment::DEFAULT_SPACING_MM,
+            )
+            .map_err(|e| Failure::input(format!("{}: {e}", args.mesh.display())))?;
+            Some(Segments {
+                points_mm: cut.points.iter().map(|p| p.point.coords.into()).collect(),
+                normals: cut.points.iter().map(|p| p.normal.into()).collect(),
+                faces: cut.faces,
+                length_mm: cut.length_mm,
+                max_deviation_mm: cut.max_deviation_mm,
+            })
+        }
+        None => None,
+    };
     let mut out = String::new();
     if args.json {
         let report = Report {
@@ -131,6 +165,7 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             length_mm: path.length_mm,
             crossings: path.crossings,
             stop: path.stop.name(),
+            segments,
         };
         out = serde_json::to_string(&report).map_err(Failure::runtime)?;
         out.push('\n');
@@ -146,6 +181,18 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             path.crossings,
             path.stop.name()
         );
+        if let Some(seg) = &segments {
+            out += "# smoothed, equal-length segment ends: x_mm y_mm z_mm face\n";
+            for (p, f) in seg.points_mm.iter().zip(&seg.faces) {
+                out += &format!("{:.4} {:.4} {:.4} {f}\n", p[0], p[1], p[2]);
+            }
+            out += &format!(
+                "# {} segments of {:.4} mm, largest raw-to-smoothed distance {:.4} mm\n",
+                seg.points_mm.len() - 1,
+                seg.length_mm / (seg.points_mm.len() - 1) as f64,
+                seg.max_deviation_mm
+            );
+        }
     }
     super::print(&out)
 }

@@ -31,18 +31,31 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
     let mut out = String::new();
     if args.json {
         let report = PlanReport::new(&plan);
-        out = serde_json::to_string_pretty(&report).map_err(Failure::runtime)?;
+        let mut value = serde_json::to_value(&report).map_err(Failure::runtime)?;
+        // Mesh mandrels and imported paths: how far smoothing moved the path.
+        if let Some(paths) = value.get_mut("paths").and_then(|p| p.as_array_mut()) {
+            for (json, planned) in paths.iter_mut().zip(&plan.paths) {
+                if let (Some(obj), Some(d)) = (json.as_object_mut(), planned.smoothing_deviation_mm)
+                {
+                    obj.insert("smoothing_deviation_mm".into(), d.into());
+                }
+            }
+        }
+        out = serde_json::to_string_pretty(&value).map_err(Failure::runtime)?;
         out.push('\n');
     } else {
         for p in &plan.paths {
             let limited = p.plan.segments.iter().filter(|s| s.speed_limited).count();
             out += &format!(
-                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm{}\n",
+                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm{}{}\n",
                 p.name,
                 p.plan.segments.len(),
                 p.plan.segments.iter().map(|s| s.steps).sum::<i64>(),
                 p.plan.max_drift_rad.to_degrees(),
                 p.plan.min_eye_clearance_mm,
+                p.smoothing_deviation_mm
+                    .map(|d| format!(", smoothing deviation ≤ {d:.4} mm"))
+                    .unwrap_or_default(),
                 if limited > 0 {
                     format!(", {limited} segments capped at the maximum speed")
                 } else {

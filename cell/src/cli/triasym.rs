@@ -24,7 +24,7 @@ pub struct TriasymArgs {
     /// Section spacing along the spine, mm (at most; the sections are equally spaced).
     #[arg(long, default_value_t = 2.5)]
     pub spacing_mm: f64,
-    /// Write ASCII STL instead of binary.
+    /// Write ASCII STL instead of binary (an output ending in `.obj` is written as OBJ).
     #[arg(long)]
     pub ascii: bool,
 }
@@ -36,7 +36,13 @@ pub fn run(args: TriasymArgs) -> Result<(), Failure> {
     let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(Failure::input)?;
     mesh.validate(Closure::Closed).map_err(Failure::runtime)?;
     let name = job.name.get_ref();
-    let bytes = if args.ascii {
+    let is_obj = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    let bytes = if is_obj {
+        paths::mesh::obj::write(&mesh).into_bytes()
+    } else if args.ascii {
         stl::write_ascii(&mesh, name).into_bytes()
     } else {
         stl::write_binary(

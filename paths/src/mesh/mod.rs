@@ -383,6 +383,21 @@ pub fn prepare(mesh: &Mesh, weld_mm: f64, closure: Closure) -> Result<(Mesh, Adj
     Ok((welded, adjacency))
 }
 
+/// `error` with the line of its triangle, when it names one and `lines` (one per triangle, from
+/// [`stl::parse_located`] or [`obj::parse_located`]) knows it: `line N: triangle T: reason`.
+pub fn with_line(error: Error, lines: &[usize]) -> Error {
+    match error {
+        Error::MeshInvalid {
+            triangle: Some(t),
+            reason,
+        } if t < lines.len() => Error::MeshSyntax {
+            line: Some(lines[t]),
+            message: format!("triangle {t}: {reason}"),
+        },
+        other => other,
+    }
+}
+
 pub(crate) fn invalid(triangle: Option<usize>, reason: impl Into<String>) -> Error {
     Error::MeshInvalid {
         triangle,

@@ -11,8 +11,14 @@ use crate::Error;
 
 /// Reads OBJ text into an indexed mesh (not yet welded or validated).
 pub fn parse(text: &str) -> Result<Mesh, Error> {
+    parse_located(text).map(|(mesh, _)| mesh)
+}
+
+/// Like [`parse`], with the 1-based line of the `f` statement each triangle came from.
+pub fn parse_located(text: &str) -> Result<(Mesh, Vec<usize>), Error> {
     let mut vertices: Vec<Point3<f64>> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
+    let mut lines: Vec<usize> = Vec::new();
     let mut corners: Vec<u32> = Vec::with_capacity(8);
     for (i, line) in text.lines().enumerate() {
         let n = i + 1;
@@ -60,6 +66,7 @@ pub fn parse(text: &str) -> Result<Mesh, Error> {
                 }
                 for k in 1..corners.len() - 1 {
                     triangles.push([corners[0], corners[k], corners[k + 1]]);
+                    lines.push(n);
                 }
             }
             _ => {}
@@ -68,7 +75,8 @@ pub fn parse(text: &str) -> Result<Mesh, Error> {
     if triangles.is_empty() {
         return Err(syntax(None, "the OBJ file holds no faces"));
     }
-    Mesh::new(vertices, triangles)
+    let mesh = Mesh::new(vertices, triangles).map_err(|e| super::with_line(e, &lines))?;
+    Ok((mesh, lines))
 }
 
 /// OBJ text of `mesh`.

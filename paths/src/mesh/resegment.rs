@@ -187,7 +187,7 @@ pub fn wind(
 ) -> Result<(MeshPath, Resegmented), Error> {
     let (p0, t0) = tube_start(tube, start);
     let path = tracer.trace_direction(&p0, &t0, 0.5, options)?;
-    if path.stop == Stop::Length || path.stop == Stop::Stuck {
+    if matches!(path.stop, Stop::Length | Stop::Stuck | Stop::CrossingLimit) {
         let last = path.points.last().copied().unwrap_or(p0);
         return Err(Error::PathTurnedBack { height_mm: last.z });
     }

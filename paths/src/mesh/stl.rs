@@ -11,15 +11,24 @@ use nalgebra::Point3;
 use super::{Mesh, invalid, syntax};
 use crate::Error;
 
+/// A triangle soup: three corners per triangle, mm.
+pub type Soup = Vec<[Point3<f64>; 3]>;
+
 /// Reads an STL file's bytes (binary or ASCII) into a triangle soup.
-pub fn parse(bytes: &[u8]) -> Result<Vec<[Point3<f64>; 3]>, Error> {
+pub fn parse(bytes: &[u8]) -> Result<Soup, Error> {
+    parse_located(bytes).map(|(soup, _)| soup)
+}
+
+/// Like [`parse`], with the 1-based line of each triangle's `facet` for ASCII STL (`None` for
+/// binary), so later errors about a triangle can name its line.
+pub fn parse_located(bytes: &[u8]) -> Result<(Soup, Option<Vec<usize>>), Error> {
     if bytes.is_empty() {
         return Err(syntax(None, "the file is empty"));
     }
     if bytes.len() >= 84 {
         let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
         if 84 + 50 * count == bytes.len() as u64 {
-            return parse_binary(bytes, count as usize);
+            return parse_binary(bytes, count as usize).map(|soup| (soup, None));
         }
     }
     let head = bytes.iter().position(|b| !b.is_ascii_whitespace());
@@ -31,7 +40,7 @@ pub fn parse(bytes: &[u8]) -> Result<Vec<[Point3<f64>; 3]>, Error> {
                 .count();
             syntax(Some(line), "ASCII STL with bytes that are not UTF-8 text")
         })?;
-        return parse_ascii(text);
+        return parse_ascii(text).map(|(soup, lines)| (soup, Some(lines)));
     }
     if bytes.len() < 84 {
         return Err(syntax(
@@ -81,7 +90,7 @@ fn parse_binary(bytes: &[u8], count: usize) -> Result<Vec<[Point3<f64>; 3]>, Err
     Ok(soup)
 }
 
-fn parse_ascii(text: &str) -> Result<Vec<[Point3<f64>; 3]>, Error> {
+fn parse_ascii(text: &str) -> Result<(Soup, Vec<usize>), Error> {
     #[derive(PartialEq)]
     enum State {
         Solid,
@@ -93,6 +102,8 @@ fn parse_ascii(text: &str) -> Result<Vec<[Point3<f64>; 3]>, Error> {
     }
     let mut state = State::Solid;
     let mut soup = Vec::new();
+    let mut lines = Vec::new();
+    let mut facet_line = 0;
     let mut corners: Vec<Point3<f64>> = Vec::with_capacity(3);
     let mut seen_solid = false;
     let mut last_line = 0;
@@ -115,6 +126,7 @@ fn parse_ascii(text: &str) -> Result<Vec<[Point3<f64>; 3]>, Error> {
                     if words.next() != Some("normal") {
                         return Err(syntax(Some(n), "expected `facet normal nx ny nz`"));
                     }
+                    facet_line = n;
                     state = State::Loop;
                 }
                 "endsolid" => state = State::Done,
@@ -170,6 +182,7 @@ fn parse_ascii(text: &str) -> Result<Vec<[Point3<f64>; 3]>, Error> {
                         ));
                     }
                     soup.push([corners[0], corners[1], corners[2]]);
+                    lines.push(facet_line);
                     state = State::EndFacet;
                 }
                 _ => return Err(expected("`vertex` or `endloop`")),
@@ -204,7 +217,7 @@ fn parse_ascii(text: &str) -> Result<Vec<[Point3<f64>; 3]>, Error> {
             "the ASCII STL holds no facets",
         ));
     }
-    Ok(soup)
+    Ok((soup, lines))
 }
 
 /// Binary STL of `mesh` (corners rounded to `f32`, normals from the corners).

@@ -60,7 +60,12 @@ pub enum Stop {
     Height,
     /// It met a vertex whose triangles admit no direction.
     Stuck,
+    /// It crossed [`MAX_CROSSINGS`] edges (a length far beyond the mesh's scale).
+    CrossingLimit,
 }
+
+/// Most edge crossings of one trace.
+pub const MAX_CROSSINGS: usize = 100_000_000;
 
 impl Stop {
     /// Lower-case name.
@@ -70,6 +75,7 @@ impl Stop {
             Stop::Boundary => "boundary",
             Stop::Height => "height",
             Stop::Stuck => "vertex",
+            Stop::CrossingLimit => "crossing limit",
         }
     }
 }
@@ -262,13 +268,18 @@ impl Tracer {
                 fill[v as usize] += 1;
             }
         }
-        let corner_angle = |f: usize, c: usize| {
-            let t = tris[f];
-            let p = verts[t[c] as usize];
-            let a = verts[t[(c + 1) % 3] as usize] - p;
-            let b = verts[t[(c + 2) % 3] as usize] - p;
-            a.cross(&b).norm().atan2(a.dot(&b))
-        };
+        // Interior angle at every corner, once.
+        let corner_angle: Vec<f64> = tris
+            .iter()
+            .flat_map(|t| {
+                (0..3).map(move |c| {
+                    let p = verts[t[c] as usize];
+                    let a = verts[t[(c + 1) % 3] as usize] - p;
+                    let b = verts[t[(c + 2) % 3] as usize] - p;
+                    a.cross(&b).norm().atan2(a.dot(&b))
+                })
+            })
+            .collect();
         let mut faces = Vec::with_capacity(tris.len());
         for (f, t) in tris.iter().enumerate() {
             let n = normals[f];
@@ -301,7 +312,7 @@ impl Tracer {
                 for &fc in &incident[count[v] as usize..count[v + 1] as usize] {
                     let g = (fc >> 2) as usize;
                     if normals[g].dot(&n) >= cos_crease {
-                        sum += normals[g] * corner_angle(g, (fc & 3) as usize);
+                        sum += normals[g] * corner_angle[3 * g + (fc & 3) as usize];
                     }
                 }
                 face.corner_normals[i] = sum.try_normalize(0.0).unwrap_or(n);
@@ -498,6 +509,11 @@ impl Tracer {
             t *= 0.5 * (3.0 - t.norm_squared());
             nprev = nq;
             crossings += 1;
+            if crossings >= MAX_CROSSINGS {
+                points.push(Point3::from(q));
+                faces.push(g as u32);
+                return finish(points, faces, s, crossings, Stop::CrossingLimit);
+            }
             if step > 0.0 {
                 zero_steps = 0;
                 points.push(Point3::from(q));
