@@ -676,7 +676,7 @@ fn read_backs_under_faults_are_true_or_errors() {
 
 /// Uploading 470 positioning instructions at 9600 baud takes the wire time of every byte both
 /// ways plus `T_GAP` between sessions, and no more: the host adds no idle time of its own
-/// (figure in docs/benchmarks-asea.md).
+/// (figure in docs/benchmarks.md, "Robot link").
 #[test]
 fn upload_of_470_instructions_adds_no_idle_time() {
     let (mut c, clock) = paced(FrameConfig::default());

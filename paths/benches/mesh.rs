@@ -1,6 +1,6 @@
 //! Mesh benchmarks: tracing speed (crossings per second), loading a 1 000 000-triangle binary STL,
 //! and planning a full S-bend coverage set on a 200 000-triangle mesh. Figures in
-//! docs/benchmarks-mesh.md.
+//! docs/benchmarks.md ("Triangulated mandrels").
 
 use std::hint::black_box;
 
