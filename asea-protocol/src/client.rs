@@ -47,8 +47,12 @@ pub struct ClientConfig {
     pub retry: RetryPolicy,
 }
 
-/// Read-backs [`Client::read_back_confirmed`] makes at most while looking for two equal answers.
-pub const CONFIRMING_READS: u32 = 4;
+/// Read-backs [`Client::confirm_stored`] makes at most before giving up.
+pub const CONFIRMING_READS: u32 = 8;
+/// Answers in a row equal to the wanted instruction that prove it stored.
+pub const AGREE_STORED: u32 = 2;
+/// Answers in a row agreeing on something else that prove it not stored.
+pub const AGREE_DIFFERENT: u32 = 3;
 
 /// Result of [`Client::verify`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -299,6 +303,69 @@ impl<L: Link, C: Clock> Client<L, C> {
         self.check_status().map(|_| ())
     }
 
+    /// Uploads `instructions` as instructions 1, 2, … of `program` with verified stores
+    /// ([`Client::store_verified`]), then reads the whole program back once more and stores again
+    /// any instruction a corrupted twin overwrote meanwhile ([`Client::verify`]), and finally checks
+    /// `last_error`. This is the upload for a link whose check value can be fooled (the thesis's
+    /// one-byte sum, docs/protocol.md §7.1): on success the robot holds exactly `instructions`.
+    ///
+    /// A twin with a corrupted instruction number can also land beyond the program's end; the
+    /// robot never runs past `Control::End`, and deleting the program before the upload clears
+    /// such leftovers.
+    pub fn upload_verified(
+        &mut self,
+        program: u8,
+        instructions: &[Instruction],
+    ) -> Result<VerifyReport> {
+        let mut report = VerifyReport::default();
+        for (n, i) in (1u16..).zip(instructions) {
+            report.restored += match self.store_verified(program, n, i) {
+                Ok(stores) => stores - 1,
+                // The store's fate is unknown: settle it by reading back, never by a blind store.
+                Err(_) => self.settle(program, n, i)?,
+            };
+        }
+        for (n, i) in (1u16..).zip(instructions) {
+            report.checked += 1;
+            report.restored += self.settle(program, n, i)?;
+        }
+        // Every instruction is confirmed, so a `last_error` now can only come from a corrupted
+        // twin the robot refused; read it to clear it.
+        let _ = self.status();
+        Ok(report)
+    }
+
+    /// [`Client::ensure_stored`], started again after link failures up to
+    /// [`RetryPolicy::request_sessions`] times in all. Returns the stores sent.
+    fn settle(&mut self, program: u8, instruction: u16, want: &Instruction) -> Result<usize> {
+        let mut last = None;
+        for _ in 0..self.cfg.retry.request_sessions.max(1) {
+            match self.ensure_stored(program, instruction, want) {
+                Ok(stores) => return Ok(stores),
+                Err(
+                    e @ (Error::Link(_)
+                    | Error::Parse(_)
+                    | Error::UnexpectedReply(_)
+                    | Error::Verify { .. }),
+                ) => {
+                    last = Some(e);
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        // A store the robot keeps refusing (memory full, a value out of range) reads back
+        // differently every time: name the robot's reason when it gives one.
+        if matches!(last, Some(Error::Verify { .. }))
+            && let Err(robot @ Error::Robot { .. }) = self.check_status()
+        {
+            return Err(robot);
+        }
+        Err(last.unwrap_or(Error::Verify {
+            program,
+            instruction,
+        }))
+    }
+
     /// Reads every instruction of an uploaded program back and stores again any that differ (a
     /// store overwrites, so this is idempotent).
     pub fn verify(&mut self, program: u8, instructions: &[Instruction]) -> Result<VerifyReport> {
@@ -310,30 +377,41 @@ impl<L: Link, C: Clock> Client<L, C> {
         Ok(report)
     }
 
-    /// Reads instruction `instruction` of `program` until two answers in a row agree, and returns
-    /// that answer (at most [`CONFIRMING_READS`] reads).
+    /// Decides by reading back whether `instruction` of `program` holds `want`: `true` once
+    /// [`AGREE_STORED`] answers in a row equal `want`, `false` once [`AGREE_DIFFERENT`] answers in a
+    /// row agree on something else, an error after [`CONFIRMING_READS`] reads without either.
     ///
-    /// A one-byte sum lets about one corrupted telegram in 256 through, so a single read-back on a
-    /// noisy `Sum8` link can be wrong; two equal answers from independent sessions cannot both be
-    /// the same corruption in practice.
-    pub fn read_back_confirmed(
+    /// A one-byte sum lets some corrupted replies through (a duplicated and a dropped byte of equal
+    /// value cancel), so one answer proves nothing on a noisy `Sum8` link. "Different" needs more
+    /// agreeing answers than "stored" because it leads to a store, the only step that could
+    /// execute a telegram twice.
+    pub fn confirm_stored(
         &mut self,
         program: u8,
         instruction: u16,
-    ) -> Result<Option<Instruction>> {
-        let mut previous: Option<Option<Instruction>> = None;
+        want: &Instruction,
+    ) -> Result<bool> {
+        let mut run: Option<(Option<Instruction>, u32)> = None;
         let mut last_error = None;
         for _ in 0..CONFIRMING_READS {
             match self.read_back(program, instruction) {
                 Ok(answer) => {
-                    if previous.as_ref() == Some(&answer) {
-                        return Ok(answer);
+                    let count = match &run {
+                        Some((previous, n)) if *previous == answer => n + 1,
+                        _ => 1,
+                    };
+                    let stored = answer.as_ref() == Some(want);
+                    if stored && count >= AGREE_STORED {
+                        return Ok(true);
                     }
-                    previous = Some(answer);
+                    if !stored && count >= AGREE_DIFFERENT {
+                        return Ok(false);
+                    }
+                    run = Some((answer, count));
                 }
-                Err(e @ Error::Link(_))
-                | Err(e @ Error::Parse(_))
-                | Err(e @ Error::UnexpectedReply(_)) => last_error = Some(e),
+                Err(e @ (Error::Link(_) | Error::Parse(_) | Error::UnexpectedReply(_))) => {
+                    last_error = Some(e);
+                }
                 Err(e) => return Err(e),
             }
         }
@@ -343,7 +421,8 @@ impl<L: Link, C: Clock> Client<L, C> {
         }))
     }
 
-    /// Stores `i` as `instruction` of `program` and confirms it by reading it back: `Ok` means the
+    /// Stores `i` as `instruction` of `program` and confirms it by reading it back
+    /// ([`Client::confirm_stored`]): `Ok` means the
     /// robot's memory holds exactly `i` there, stored once by this call (or already there).
     ///
     /// This is the exactly-once delivery of stored instructions on a link whose check value can be
@@ -371,7 +450,7 @@ impl<L: Link, C: Clock> Client<L, C> {
         want: &Instruction,
     ) -> Result<usize> {
         let mut stores = 0;
-        while self.read_back_confirmed(program, instruction)?.as_ref() != Some(want) {
+        while !self.confirm_stored(program, instruction, want)? {
             if stores >= self.cfg.retry.restores as usize {
                 return Err(Error::Verify {
                     program,

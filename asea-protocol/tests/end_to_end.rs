@@ -419,31 +419,87 @@ fn sum8_never_executes_twice() {
 }
 
 /// The spec's one-byte sum with verified stores (`Client::store_verified`: store, then read back
-/// until two answers agree, store again while they differ). At 1 % byte errors over 1 000
-/// telegrams every store reported delivered was executed exactly once, none twice, and the robot's
-/// memory holds exactly the last delivered instruction of every slot. At 10 % the sum cannot
-/// promise that (rarely, a store is executed twice, docs/protocol.md §7): the run asserts only that
-/// every slot is right after the closing verification pass.
+/// until the answers agree, store again only when three answers in a row agree on something
+/// else). At 1 % and 10 % byte errors over 1 000 telegrams each: every store reported delivered
+/// was executed exactly once, every other one was reported as an error, none was executed twice,
+/// and after the closing verification pass every slot holds its last delivered instruction (or a
+/// later one whose store was reported failed).
 #[test]
-fn sum8_with_verified_stores_is_exactly_once_at_1_percent_and_repairs_at_10() {
-    let t = verified_fault_run(SPEC, 0.01, 1000, 5);
-    eprintln!("sum8 verified 1 %: {t:?}");
-    assert_eq!(t.tally.sent, 1000);
-    assert_eq!(t.tally.delivered + t.tally.errors, t.tally.sent);
-    assert_eq!(t.tally.violations, 0, "{t:?}");
-    assert_eq!(t.tally.twice, 0, "{t:?}");
-    assert_eq!(t.wrong_slots, 0, "{t:?}");
-    assert_eq!(t.extra_slots, 0, "{t:?}");
-    assert!(t.tally.delivered > 990, "{t:?}");
-
-    let t = verified_fault_run(SPEC, 0.10, 1000, 6);
-    eprintln!("sum8 verified 10 %: {t:?}");
-    assert_eq!(t.tally.delivered + t.tally.errors, t.tally.sent);
-    assert_eq!(t.wrong_after_repair, 0, "{t:?}");
-    assert!(t.tally.delivered > 700, "{t:?}");
+fn exactly_once_with_sum8_and_verified_stores_at_1_and_10_percent_byte_errors() {
+    for (rate, seed) in [(0.01, 5), (0.10, 6)] {
+        let t = verified_fault_run(SPEC, rate, 1000, seed);
+        eprintln!("sum8 verified {rate}: {t:?}");
+        assert_eq!(t.tally.sent, 1000);
+        assert_eq!(t.tally.delivered + t.tally.errors, t.tally.sent);
+        assert_eq!(t.tally.violations, 0, "{t:?}");
+        assert_eq!(t.tally.twice, 0, "{t:?}");
+        assert_eq!(t.wrong_after_repair, 0, "{t:?}");
+        assert!(
+            t.tally.delivered > if rate < 0.05 { 990 } else { 850 },
+            "{t:?}"
+        );
+    }
 }
 
-/// Measurement of verified stores on the spec's link over 10 seeds (figures in
+/// A 50-instruction program uploaded with `upload_verified` over the spec's Sum8 link at 10 %
+/// byte errors in both directions: the robot's program is exactly the one sent, and it runs.
+#[test]
+fn verified_upload_over_a_noisy_sum8_link_stores_the_exact_program() {
+    let cfg = FrameConfig::default();
+    let timers = Timers::default();
+    let clock = VirtualClock::new();
+    let robot = Robot::new(cfg, timers, MotionParams::default());
+    let wire = Paced::new(clock.clone(), 9600, robot).with_faults(
+        Faults::new(FaultRates::uniform(0.10), 21),
+        Faults::new(FaultRates::uniform(0.10), 22),
+    );
+    let mut c = Client::with_clock(
+        wire,
+        clock,
+        ClientConfig {
+            frame: cfg,
+            timers,
+            ..ClientConfig::default()
+        },
+    );
+    let prog = program_50();
+    let report = c.upload_verified(4, &prog).unwrap();
+    eprintln!("verified upload at 10 %: {report:?}");
+    let machine = &c.link().peer.machine;
+    for (n, want) in (1u16..).zip(&prog) {
+        assert_eq!(machine.instruction(4, n), Some(want), "instruction {n}");
+        // Stored once, or again only to overwrite a corrupted twin: never the same store twice in a row.
+        let bytes = asea_protocol::client::store_command(4, n, want)
+            .encode(&cfg)
+            .unwrap();
+        let data = &bytes[3..3 + usize::from(bytes[2])];
+        let times = machine
+            .executed
+            .iter()
+            .filter(|f| f.code == bytes[1] && f.data == data)
+            .count();
+        assert!(times >= 1, "instruction {n} never stored");
+        assert!(
+            times <= 1 + report.restored,
+            "instruction {n} stored {times} times"
+        );
+    }
+}
+
+/// A verified upload the robot cannot hold (471 positioning instructions, memory for 470) fails
+/// with the robot's own reason, not a bare verification error.
+#[test]
+fn verified_upload_beyond_the_memory_names_the_robots_reason() {
+    let (mut c, _clock) = paced(FrameConfig::default());
+    let prog: Vec<Instruction> = (0..471)
+        .map(|k| Instruction::Position(positioning(500.0, 0.0, 300.0 + f64::from(k), Zone::Fine)))
+        .collect();
+    let err = c.upload_verified(1, &prog).unwrap_err();
+    assert!(matches!(err, Error::Robot { .. }), "{err:?}");
+    assert_eq!(c.link().peer.machine.program_len(1), 470);
+}
+
+/// Measurement of verified stores on the spec's link over 50 seeds (figures in
 /// docs/protocol.md §7): `cargo test -p asea-protocol --release --test end_to_end
 /// verified_fault_matrix -- --ignored --nocapture`
 #[test]
@@ -452,8 +508,8 @@ fn verified_fault_matrix() {
     for (name, setup) in [("sum8", SPEC), ("sum8+nak-malformed", SPEC_NAK_MALFORMED)] {
         for rate in [0.01, 0.10] {
             let mut sum = VerifiedTally::default();
-            for seed in 0..10 {
-                let t = verified_fault_run(setup, rate, 1000, 200 + seed);
+            for seed in 0..50 {
+                let t = verified_fault_run(setup, rate, 1000, 300 + seed);
                 sum.tally.sent += t.tally.sent;
                 sum.tally.delivered += t.tally.delivered;
                 sum.tally.errors += t.tally.errors;
@@ -605,9 +661,15 @@ fn verified_fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> V
     let damaged = wrong(machine);
     t.wrong_slots = damaged.len();
     // The closing pass of a verified upload (`Client::verify`): a corrupted twin that the sum let
-    // through into another, already confirmed slot is found and overwritten.
+    // through into another, already confirmed slot is found and overwritten. On a noisy link a
+    // pass can fail; the host runs it again.
     for ((program, instruction), want) in damaged {
-        t.repair_stores += c.ensure_stored(program, instruction, &want).unwrap();
+        for _ in 0..5 {
+            if let Ok(stores) = c.ensure_stored(program, instruction, &want) {
+                t.repair_stores += stores;
+                break;
+            }
+        }
     }
     let machine = &c.link().peer.machine;
     t.wrong_after_repair = wrong(machine).len();
