@@ -39,8 +39,11 @@ impl Default for Robot {
 impl Robot {
     /// Checks that a point lies in the working range; `segment` is for the error.
     pub fn check(&self, p: &Point3<f64>, segment: usize) -> Result<(), Error> {
-        let horizontal = (p.x * p.x + p.y * p.y).sqrt();
-        let limit = if horizontal < self.reach_min_mm || horizontal > self.reach_max_mm {
+        // Squared radii: no square root on the planner's hot path.
+        let horizontal_sq = p.x * p.x + p.y * p.y;
+        let limit = if horizontal_sq < self.reach_min_mm * self.reach_min_mm
+            || horizontal_sq > self.reach_max_mm * self.reach_max_mm
+        {
             "horizontal reach"
         } else if p.z < self.z_min_mm || p.z > self.z_max_mm {
             "height range"
