@@ -449,6 +449,42 @@ end
         );
     }
 
+    /// Non-finite and extreme values are typed errors, never panics.
+    #[test]
+    fn extreme_values_are_errors() {
+        let base = file().instructions[0];
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e300, -1e300] {
+            for k in 0..3 {
+                let mut i = base;
+                i.position_mm[k] = bad;
+                assert!(positioning(&i, Zone::Fine).is_err());
+            }
+            let mut i = base;
+            i.speed_pct = bad;
+            assert!(positioning(&i, Zone::Fine).is_err());
+            let mut i = base;
+            i.q = [bad, 0.0, 0.0, 0.0];
+            // ±1e300 squared overflows the norm: refused like the non-finite values.
+            assert!(matches!(
+                positioning(&i, Zone::Fine),
+                Err(EncodeError::DegenerateQuaternion(..))
+            ));
+            let mut mv = base.mandrel;
+            mv.accel_rps2 = bad;
+            assert!(indexer_move(&mv, &IndexerSetup::default(), Some(1)).is_err());
+            let mut mv = base.mandrel;
+            mv.start_stop_rps = 0.0;
+            mv.max_rps = bad;
+            assert!(indexer_move(&mv, &IndexerSetup::default(), Some(1)).is_err());
+        }
+        let mut i = base;
+        i.q = [0.0; 4];
+        assert!(matches!(
+            positioning(&i, Zone::Fine),
+            Err(EncodeError::DegenerateQuaternion(..))
+        ));
+    }
+
     #[test]
     fn zones_and_discrete_movement() {
         assert_eq!(zone(Movement::Fine).map(Zone::radius_mm), Some(1.0));

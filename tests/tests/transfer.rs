@@ -156,11 +156,12 @@ fn check_program(name: &str, path: &PlannedPath, job: &Job, movement: Movement) 
     let worst = max(&run.closest_mm);
     eprintln!(
         "{name} {movement:?}: {} points, closest approach max {worst:.4} mm (zone {radius_mm} mm), \
-         instruction-end pose max {:.4} mm, sample spacing {:.4} mm, run {:.1} s",
+         instruction-end pose max {:.4} mm, sample spacing {:.4} mm, run {:.1} s (plan {:.1} s)",
         run.closest_mm.len(),
         max(&run.trace_mm),
         run.sample_spacing_mm,
-        run.run_s
+        run.run_s,
+        path.plan.segments.iter().map(|s| s.duration_s).sum::<f64>()
     );
     // The closest sample overstates the closest approach by at most half the sample spacing, so
     // the check is never kinder than the path.
@@ -223,6 +224,41 @@ fn sbend_path_1_in_discrete_movement_stops_at_every_point() {
     );
 }
 
+/// Sends X-language commands to the simulated card, 10 ms of virtual time apart.
+fn send_x(card: &mut Card, clock: &mandrel_drive::sim::VirtualClock, cmds: &[xlang::Command]) {
+    for cmd in cmds {
+        let line = format!("{}\r", xlang::encode(Some(1), cmd));
+        card.receive(line.as_bytes(), clock.now_s());
+        card.poll(clock.now_s());
+        clock.advance(0.01);
+    }
+}
+
+/// Sends one move's commands and lets virtual time run until its move-complete notification
+/// (CR LF; the echoes end in CR only).
+fn run_x_move(
+    card: &mut Card,
+    clock: &mandrel_drive::sim::VirtualClock,
+    cmds: &[xlang::Command],
+    what: &str,
+) {
+    card.take_output();
+    send_x(card, clock, cmds);
+    let mut out = card.take_output();
+    let mut waited = 0;
+    while !out.contains(&b'\n') {
+        clock.advance(0.01);
+        card.poll(clock.now_s());
+        out.extend(card.take_output());
+        waited += 1;
+        assert!(
+            waited < 1_000_000,
+            "{what}: the mandrel move never completed"
+        );
+    }
+    assert!(!out.contains(&b'?'), "{what}: refused: {out:?}");
+}
+
 fn check_indexer(name: &str) {
     let (job, plan) = planned(name);
     let path = &plan.paths[0];
@@ -236,26 +272,8 @@ fn check_indexer(name: &str) {
     let program = transfer::indexer_program(&ind, &indexer).unwrap();
     let clock = mandrel_drive::sim::VirtualClock::new();
     let mut card = Card::new(Machine::new(drive, PULL_IN_SPS), 1);
-    for cmd in program.init.iter().chain(&program.path_move) {
-        let line = format!("{}\r", xlang::encode(Some(1), cmd));
-        card.receive(line.as_bytes(), clock.now_s());
-        card.poll(clock.now_s());
-        clock.advance(0.01);
-    }
-    // Until the move-complete notification (CR LF; echoes end in CR only).
-    let mut out = card.take_output();
-    let mut waited = 0;
-    while !out.contains(&b'\n') {
-        clock.advance(0.01);
-        card.poll(clock.now_s());
-        out.extend(card.take_output());
-        waited += 1;
-        assert!(
-            waited < 1_000_000,
-            "{name}: the mandrel move never completed"
-        );
-    }
-    assert!(!out.contains(&b'?'), "{name}: refused: {out:?}");
+    send_x(&mut card, &clock, &program.init);
+    run_x_move(&mut card, &clock, &program.path_move, name);
     let m = card.machine();
     assert_eq!(m.counter_steps(), ind.path_move.steps);
     assert_eq!(m.motor_steps(), ind.path_move.steps);
@@ -285,8 +303,54 @@ fn check_indexer(name: &str) {
     assert_eq!(card.machine().counter_steps(), 0);
 }
 
+/// Discrete movement sends each .ROB instruction's mandrel move with its robot move: the moves
+/// add up to the .IND file's steps.
+fn check_discrete_mandrel_moves(name: &str) {
+    let (job, plan) = planned(name);
+    let path = &plan.paths[0];
+    let rob = cell::tool::robot_file(&job, path);
+    let ind = cell::tool::mandrel_file(&job, path);
+    let (setup, _) = cell::tool::setup(&job);
+    let drive = Drive::new(setup.gearing, TRANSLATOR_LIMIT_PPS).unwrap();
+    let indexer = IndexerSetup {
+        drive,
+        start_velocity_command: true,
+    };
+    let clock = mandrel_drive::sim::VirtualClock::new();
+    let mut card = Card::new(Machine::new(drive, PULL_IN_SPS), 1);
+    send_x(
+        &mut card,
+        &clock,
+        &transfer::indexer_program(&ind, &indexer).unwrap().init,
+    );
+    let mut sum = 0;
+    for i in &rob.instructions {
+        let cmds = transfer::indexer_move(&i.mandrel, &indexer, Some(i.number)).unwrap();
+        run_x_move(
+            &mut card,
+            &clock,
+            &cmds,
+            &format!("{name} instruction {}", i.number),
+        );
+        sum += i.mandrel.steps;
+        assert_eq!(
+            card.machine().counter_steps(),
+            sum,
+            "{name} instruction {}",
+            i.number
+        );
+    }
+    assert_eq!(sum, ind.path_move.steps);
+    eprintln!(
+        "{name} discrete indexer: {} moves, {sum} steps in {:.2} s",
+        rob.instructions.len(),
+        clock.now_s()
+    );
+}
+
 #[test]
 fn ind_moves_run_on_the_simulated_indexer() {
+    check_discrete_mandrel_moves("sbend");
     check_indexer("sbend");
     check_indexer("cylinder");
 }
