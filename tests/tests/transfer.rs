@@ -99,6 +99,13 @@ fn run_program(rob: &RobotFile) -> ProgramRun {
         }
         samples.push((s.instruction, pos));
         assert_ne!(s.state, State::Error, "robot stopped: {s:?}");
+        // "In position" only once the last point is reached.
+        let n = rob.instructions.len();
+        assert!(
+            !io.output(IN_POSITION_OUTPUT) || usize::from(s.instruction) > n,
+            "in-position output raised during instruction {}",
+            s.instruction
+        );
         if s.state == State::Idle {
             break;
         }
