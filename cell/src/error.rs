@@ -39,6 +39,33 @@ pub enum Error {
         /// The system's error.
         source: std::io::Error,
     },
+    /// A robot control file's value does not fit the robot's telegram (seed 001 §5.4.1): the
+    /// program and the .ROB instruction number (`None`: the header's speeds).
+    #[error("program {program}: {}: {source}", place(*instruction))]
+    RobotTransfer {
+        /// Program number of the .ROB file.
+        program: u8,
+        /// The file's instruction number; `None` for the header.
+        instruction: Option<u16>,
+        /// What the telegram encoder refused.
+        source: asea_protocol::EncodeError,
+    },
+    /// A mandrel move does not fit the indexer or the drive (seed 001 §5.3.2, §4.1.5): the .ROB
+    /// instruction number, or `None` for the move of a .IND file.
+    #[error("{}: {source}", mandrel_place(*instruction))]
+    IndexerTransfer {
+        /// The .ROB instruction whose mandrel move it is; `None` for the .IND file's move.
+        instruction: Option<u16>,
+        /// What the drive's units or the X-language refused.
+        source: mandrel_drive::Error,
+    },
+    /// A discrete-movement file given where a stored program is needed (discrete positions are
+    /// sent one at a time as immediate moves, seed 001 §5.4.1).
+    #[error("program {program}: movement is discrete; send it as immediate moves")]
+    DiscreteProgram {
+        /// Program number of the .ROB file.
+        program: u8,
+    },
     /// Writing output failed.
     #[error("{}: {source}", path.display())]
     Output {
@@ -59,6 +86,22 @@ impl Error {
                 | Error::Plan { .. }
                 | Error::Mesh { .. }
                 | Error::Read { .. }
+                | Error::RobotTransfer { .. }
+                | Error::IndexerTransfer { .. }
         )
+    }
+}
+
+fn place(instruction: Option<u16>) -> String {
+    match instruction {
+        Some(n) => format!("instruction {n}"),
+        None => "header".to_string(),
+    }
+}
+
+fn mandrel_place(instruction: Option<u16>) -> String {
+    match instruction {
+        Some(n) => format!("instruction {n}: mandrel move"),
+        None => "mandrel move".to_string(),
     }
 }

@@ -6,5 +6,6 @@ pub mod mesh;
 pub mod output;
 pub mod report;
 pub mod tool;
+pub mod transfer;
 
 pub use error::Error;
