@@ -103,12 +103,17 @@ fn program_flow_in_virtual_time() {
     assert_eq!(s.state, asea_protocol::State::Idle);
     let pose = c.position().unwrap();
     assert_eq!(pose.xyz_mm(), [900.0, -100.0, 400.0 + 5.0 * 46.0]);
-    // 47 short moves: each at least the medium floor, 540 ms.
+    // 47 flying moves of about 200 mm at half the 1 m/s base speed (0.4 s each, less the 10 mm
+    // corners the medium zone cuts): they take their motion time, not the 540 ms plateau Table 6.2
+    // measured on isolated moves.
     let m = &c.link().peer.machine;
     let first = m.trace.first().unwrap().0;
     let last = m.trace.get(46).unwrap().0;
     assert!(first > t_run.as_secs_f64());
-    assert!(last - t_run.as_secs_f64() >= 47.0 * 0.54 - 1e-9);
+    let run_s = last - t_run.as_secs_f64();
+    eprintln!("47 flying moves: {run_s:.3} s");
+    assert!(run_s < 47.0 * 0.54, "{run_s} s");
+    assert!(run_s > 46.0 * (0.2 - 0.02) / 0.5, "{run_s} s");
     // Discrete move: output 1 drops while moving and rises in position.
     c.move_immediate(positioning(900.0, 0.0, 500.0, Zone::Fine))
         .unwrap();
