@@ -130,15 +130,44 @@ mod tests {
             Vector3::new(0.4, 0.1, -0.9),
             Vector3::new(-0.4, 0.3, -0.9),
             Vector3::z(),
-        ] {
+            -Vector3::z(),
+            Vector3::y(),
+            -Vector3::y(),
+        ]
+        .into_iter()
+        // And a sphere of directions, 15° apart.
+        .chain((0..24).flat_map(|i| {
+            (1..12).map(move |j| {
+                let (a, b) = (
+                    f64::from(i) * 15f64.to_radians(),
+                    f64::from(j) * 15f64.to_radians(),
+                );
+                Vector3::new(b.sin() * a.cos(), b.sin() * a.sin(), b.cos())
+            })
+        })) {
             let dir = Unit::new_normalize(d);
             let (pitch, roll) = pitch_roll_toward(&dir);
             let expected = from_pitch_roll(pitch, roll);
             let q = toward(&dir);
-            assert_abs_diff_eq!(q.coords, expected.coords, epsilon = 1e-12);
+            // The tool axis always points along the direction.
+            assert_abs_diff_eq!(q * Vector3::z(), dir.into_inner(), epsilon = 1e-12);
+            if d.y.abs() > (1.0 - 1e-12) * d.norm() {
+                // Along ±Y every pitch points the axis the same way (gimbal lock); pitch 0 is chosen.
+                continue;
+            }
+            // q and −q are one rotation; at pitch ±180° the two formulas may pick either sign.
+            let gap = (q.coords - expected.coords)
+                .norm()
+                .min((q.coords + expected.coords).norm());
+            assert!(gap < 1e-12, "{d:?}: {q:?} vs {expected:?}");
+            assert_abs_diff_eq!(q.norm(), 1.0, epsilon = 1e-14);
             let (p2, r2) = pitch_roll(&q);
-            assert_abs_diff_eq!(p2, pitch, epsilon = 1e-12);
-            assert_abs_diff_eq!(r2, roll, epsilon = 1e-12);
+            let pitch_gap = (p2 - pitch).rem_euclid(std::f64::consts::TAU);
+            assert!(
+                pitch_gap.min(std::f64::consts::TAU - pitch_gap) < 1e-9,
+                "{d:?}: pitch {p2} vs {pitch}"
+            );
+            assert_abs_diff_eq!(r2, roll, epsilon = 1e-9);
         }
     }
 
