@@ -305,9 +305,11 @@ impl<L: Link, C: Clock> Client<L, C> {
 
     /// Uploads `instructions` as instructions 1, 2, … of `program` with verified stores
     /// ([`Client::store_verified`]), then reads the whole program back once more and stores again
-    /// any instruction a corrupted twin overwrote meanwhile ([`Client::verify`]), and finally checks
-    /// `last_error`. This is the upload for a link whose check value can be fooled (the thesis's
-    /// one-byte sum, docs/protocol.md §7.1): on success the robot holds exactly `instructions`.
+    /// any instruction a corrupted twin overwrote meanwhile (as [`Client::verify`] does, each
+    /// instruction started again after link failures), and finally reads the status to clear the
+    /// error a refused twin may have left. This is the upload for a link whose check value can be
+    /// fooled (the thesis's one-byte sum, docs/protocol.md §7.1): on success the robot holds
+    /// exactly `instructions`; a store the robot refuses fails with its `last_error`.
     ///
     /// A twin with a corrupted instruction number can also land beyond the program's end; the
     /// robot never runs past `Control::End`, and deleting the program before the upload clears
@@ -342,14 +344,7 @@ impl<L: Link, C: Clock> Client<L, C> {
         for _ in 0..self.cfg.retry.request_sessions.max(1) {
             match self.ensure_stored(program, instruction, want) {
                 Ok(stores) => return Ok(stores),
-                Err(
-                    e @ (Error::Link(_)
-                    | Error::Parse(_)
-                    | Error::UnexpectedReply(_)
-                    | Error::Verify { .. }),
-                ) => {
-                    last = Some(e);
-                }
+                Err(e) if is_link_noise(&e) || matches!(e, Error::Verify { .. }) => last = Some(e),
                 Err(e) => return Err(e),
             }
         }
@@ -409,9 +404,7 @@ impl<L: Link, C: Clock> Client<L, C> {
                     }
                     run = Some((answer, count));
                 }
-                Err(e @ (Error::Link(_) | Error::Parse(_) | Error::UnexpectedReply(_))) => {
-                    last_error = Some(e);
-                }
+                Err(e) if is_link_noise(&e) => last_error = Some(e),
                 Err(e) => return Err(e),
             }
         }
@@ -463,6 +456,15 @@ impl<L: Link, C: Clock> Client<L, C> {
         }
         Ok(stores)
     }
+}
+
+/// A failure that another read-back may not repeat: the link, or a reply that passed the check
+/// value but was corrupted (does not parse, or answers another request).
+fn is_link_noise(e: &Error) -> bool {
+    matches!(
+        e,
+        Error::Link(_) | Error::Parse(_) | Error::UnexpectedReply(_)
+    )
 }
 
 /// The telegram that stores `i` as `instruction` of `program`.

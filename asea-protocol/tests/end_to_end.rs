@@ -308,6 +308,17 @@ struct Tally {
     foreign: usize,
 }
 
+impl std::ops::AddAssign for Tally {
+    fn add_assign(&mut self, t: Tally) {
+        self.sent += t.sent;
+        self.delivered += t.delivered;
+        self.errors += t.errors;
+        self.violations += t.violations;
+        self.twice += t.twice;
+        self.foreign += t.foreign;
+    }
+}
+
 /// Link set-up of a fault-injection run.
 #[derive(Debug, Clone, Copy)]
 struct Setup {
@@ -330,7 +341,13 @@ const STRONG: Setup = Setup {
     ack_window: Some(Duration::from_millis(10)),
 };
 
-fn fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> Tally {
+/// A client and a simulated robot on the 9600-baud virtual wire with `setup` on both ends and
+/// seeded byte faults at `rate` in both directions.
+fn fault_client(
+    setup: Setup,
+    rate: f64,
+    seed: u64,
+) -> (Client<Paced<Robot>, VirtualClock>, FrameConfig) {
     let cfg = FrameConfig {
         checksum: setup.checksum,
         ..FrameConfig::default()
@@ -345,7 +362,7 @@ fn fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> Tally {
         Faults::new(FaultRates::uniform(rate), seed),
         Faults::new(FaultRates::uniform(rate), seed ^ 0xA5A5),
     );
-    let mut c = Client::with_clock(
+    let client = Client::with_clock(
         wire,
         clock,
         ClientConfig {
@@ -354,31 +371,40 @@ fn fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> Tally {
             ..ClientConfig::default()
         },
     );
-    let mut tally = Tally::default();
-    let mut outcomes = Vec::with_capacity(telegrams);
-    for k in 0..telegrams {
-        let kf = k as f64;
-        let cmd = Command::StorePos {
-            program: 1 + (k % 3) as u8,
-            instruction: (k % 150) as u16 + 1,
-            positioning: positioning(500.0 + kf * 0.5, -200.0 + kf * 0.25, 300.0 + kf, Zone::Fine),
-        };
-        tally.sent += 1;
-        let ok = c.send(&cmd).is_ok();
-        if ok {
-            tally.delivered += 1;
-        } else {
-            tally.errors += 1;
-        }
-        outcomes.push((cmd, ok));
-    }
+    (client, cfg)
+}
+
+/// Telegram `k` of a fault run: a slot of programs 1–3 and a position no other telegram has.
+fn fault_telegram(k: usize) -> (u8, u16, Instruction) {
+    let kf = k as f64;
+    (
+        1 + (k % 3) as u8,
+        (k % 150) as u16 + 1,
+        Instruction::Position(positioning(
+            500.0 + kf * 0.5,
+            -200.0 + kf * 0.25,
+            300.0 + kf,
+            Zone::Fine,
+        )),
+    )
+}
+
+/// Counts how often the robot executed each sent store (`outcomes`: the telegram and whether the
+/// client reported it delivered) into `tally`: executed twice, and delivered but not executed
+/// exactly once. Returns how many executed frames were sent stores.
+fn account(
+    tally: &mut Tally,
+    executed: &[asea_protocol::frame::Frame],
+    outcomes: &[(Command, bool)],
+    cfg: &FrameConfig,
+) -> usize {
     let mut counts: HashMap<(u8, Vec<u8>), usize> = HashMap::new();
-    for f in &c.link().peer.machine.executed {
+    for f in executed {
         *counts.entry((f.code, f.data.clone())).or_default() += 1;
     }
     let mut known = 0;
-    for (cmd, ok) in &outcomes {
-        let bytes = cmd.encode(&cfg).unwrap();
+    for (cmd, ok) in outcomes {
+        let bytes = cmd.encode(cfg).unwrap();
         let key = (bytes[1], bytes[3..3 + usize::from(bytes[2])].to_vec());
         let n = counts.get(&key).copied().unwrap_or(0);
         known += n;
@@ -389,7 +415,28 @@ fn fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> Tally {
             tally.violations += 1;
         }
     }
-    tally.foreign = c.link().peer.machine.executed.len() - known;
+    known
+}
+
+fn fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> Tally {
+    let (mut c, cfg) = fault_client(setup, rate, seed);
+    let mut tally = Tally::default();
+    let mut outcomes = Vec::with_capacity(telegrams);
+    for k in 0..telegrams {
+        let (program, instruction, i) = fault_telegram(k);
+        let cmd = asea_protocol::client::store_command(program, instruction, &i);
+        tally.sent += 1;
+        let ok = c.send(&cmd).is_ok();
+        if ok {
+            tally.delivered += 1;
+        } else {
+            tally.errors += 1;
+        }
+        outcomes.push((cmd, ok));
+    }
+    let executed = &c.link().peer.machine.executed;
+    // Only stores were sent: anything else executed is foreign too.
+    tally.foreign = executed.len() - account(&mut tally, executed, &outcomes, &cfg);
     tally
 }
 
@@ -514,17 +561,7 @@ fn verified_fault_matrix() {
         for rate in [0.01, 0.10] {
             let mut sum = VerifiedTally::default();
             for seed in 0..50 {
-                let t = verified_fault_run(setup, rate, 1000, 300 + seed);
-                sum.tally.sent += t.tally.sent;
-                sum.tally.delivered += t.tally.delivered;
-                sum.tally.errors += t.tally.errors;
-                sum.tally.violations += t.tally.violations;
-                sum.tally.twice += t.tally.twice;
-                sum.tally.foreign += t.tally.foreign;
-                sum.stores += t.stores;
-                sum.wrong_slots += t.wrong_slots;
-                sum.wrong_after_repair += t.wrong_after_repair;
-                sum.extra_slots += t.extra_slots;
+                sum += verified_fault_run(setup, rate, 1000, 300 + seed);
             }
             println!(
                 "{name:>20} verified {:>3.0}%: sent {} delivered {} errors {} delivered-not-once {} twice {} foreign {} stores {} damaged-slots {} after-repair {} extra-slots {}",
@@ -567,44 +604,26 @@ struct VerifiedTally {
     extra_slots: usize,
 }
 
+impl std::ops::AddAssign for VerifiedTally {
+    fn add_assign(&mut self, t: VerifiedTally) {
+        self.tally += t.tally;
+        self.stores += t.stores;
+        self.wrong_slots += t.wrong_slots;
+        self.repair_stores += t.repair_stores;
+        self.wrong_after_repair += t.wrong_after_repair;
+        self.extra_slots += t.extra_slots;
+    }
+}
+
 fn verified_fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> VerifiedTally {
-    let cfg = FrameConfig {
-        checksum: setup.checksum,
-        ..FrameConfig::default()
-    };
-    let timers = Timers {
-        t_ack_window: setup.ack_window,
-        ..Timers::default()
-    };
-    let clock = VirtualClock::new();
-    let robot = Robot::new(cfg, timers, MotionParams::default()).with_malformed(setup.malformed);
-    let wire = Paced::new(clock.clone(), 9600, robot).with_faults(
-        Faults::new(FaultRates::uniform(rate), seed),
-        Faults::new(FaultRates::uniform(rate), seed ^ 0xA5A5),
-    );
-    let mut c = Client::with_clock(
-        wire,
-        clock,
-        ClientConfig {
-            frame: cfg,
-            timers,
-            ..ClientConfig::default()
-        },
-    );
+    let (mut c, cfg) = fault_client(setup, rate, seed);
     let mut t = VerifiedTally::default();
     let mut outcomes = Vec::with_capacity(telegrams);
     let mut last_delivered: HashMap<(u8, u16), Instruction> = HashMap::new();
     // Failed stores to a slot after its last delivered one: any of them may have been stored.
     let mut failed_since: HashMap<(u8, u16), Vec<Instruction>> = HashMap::new();
     for k in 0..telegrams {
-        let kf = k as f64;
-        let (program, instruction) = (1 + (k % 3) as u8, (k % 150) as u16 + 1);
-        let i = Instruction::Position(positioning(
-            500.0 + kf * 0.5,
-            -200.0 + kf * 0.25,
-            300.0 + kf,
-            Zone::Fine,
-        ));
+        let (program, instruction, i) = fault_telegram(k);
         t.tally.sent += 1;
         let result = c.store_verified(program, instruction, &i);
         let ok = result.is_ok();
@@ -624,23 +643,8 @@ fn verified_fault_run(setup: Setup, rate: f64, telegrams: usize, seed: u64) -> V
         outcomes.push((cmd, ok));
     }
     let machine = &c.link().peer.machine;
-    let mut counts: HashMap<(u8, Vec<u8>), usize> = HashMap::new();
-    for f in &machine.executed {
-        *counts.entry((f.code, f.data.clone())).or_default() += 1;
-    }
-    let mut known = 0;
-    for (cmd, ok) in &outcomes {
-        let bytes = cmd.encode(&cfg).unwrap();
-        let key = (bytes[1], bytes[3..3 + usize::from(bytes[2])].to_vec());
-        let n = counts.get(&key).copied().unwrap_or(0);
-        known += n;
-        if n > 1 {
-            t.tally.twice += 1;
-        }
-        if *ok && n != 1 {
-            t.tally.violations += 1;
-        }
-    }
+    let known = account(&mut t.tally, &machine.executed, &outcomes, &cfg);
+    // Read-backs are executed too; count the foreign stores.
     let store_code = outcomes
         .first()
         .map_or(0, |(cmd, _)| cmd.encode(&cfg).unwrap()[1]);
@@ -849,13 +853,7 @@ fn fault_long_run() {
     ] {
         let mut sum = Tally::default();
         for seed in 1000..1050 {
-            let t = fault_run(setup, 0.10, 1000, seed);
-            sum.sent += t.sent;
-            sum.delivered += t.delivered;
-            sum.errors += t.errors;
-            sum.violations += t.violations;
-            sum.twice += t.twice;
-            sum.foreign += t.foreign;
+            sum += fault_run(setup, 0.10, 1000, seed);
         }
         println!("{name} 10 %: {sum:?}");
         assert_eq!(sum.twice, 0);
@@ -875,10 +873,7 @@ fn fault_matrix() {
     let w = Some(Duration::from_millis(10));
     for (name, setup) in [
         ("sum8", SPEC),
-        (
-            "sum8+nak-malformed",
-            with(Checksum::Sum8, Malformed::Nak, None),
-        ),
+        ("sum8+nak-malformed", SPEC_NAK_MALFORMED),
         (
             "sum8+nak-malformed+window",
             with(Checksum::Sum8, Malformed::Nak, w),
@@ -892,13 +887,7 @@ fn fault_matrix() {
         for rate in [0.01, 0.10] {
             let mut sum = Tally::default();
             for seed in 0..10 {
-                let t = fault_run(setup, rate, 1000, 100 + seed);
-                sum.sent += t.sent;
-                sum.delivered += t.delivered;
-                sum.errors += t.errors;
-                sum.violations += t.violations;
-                sum.twice += t.twice;
-                sum.foreign += t.foreign;
+                sum += fault_run(setup, rate, 1000, 100 + seed);
             }
             println!(
                 "{name:>26} {:>4.0}%: sent {} delivered {} errors {} delivered-not-once {} twice {} foreign {}",
