@@ -315,19 +315,29 @@ mod tests {
         }
     }
 
-    #[test]
-    fn sbend_geodesic_reaches_both_ends_and_stays_unit_speed() {
-        let tube = Tube::new(
+    /// The S-bend of seed 001 §6.4: Table 6.1's spine, 57 mm diameter.
+    fn sbend() -> Tube {
+        Tube::new(
             Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
             28.5,
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    /// 45° to the spine, starting at 90° around the circumference.
+    fn sbend_start(direction: Direction) -> PathStart {
+        PathStart {
+            angle_rad: PI / 2.0,
+            wind_angle_rad: PI / 4.0,
+            direction,
+        }
+    }
+
+    #[test]
+    fn sbend_geodesic_reaches_both_ends_and_stays_unit_speed() {
+        let tube = sbend();
         for dir in [Direction::Down, Direction::Up] {
-            let st = PathStart {
-                angle_rad: PI / 2.0,
-                wind_angle_rad: PI / 4.0,
-                direction: dir,
-            };
+            let st = sbend_start(dir);
             let path = trace(&tube, &st, 0.25).unwrap();
             let last = path.samples.last().unwrap();
             let end = if dir == Direction::Down { 0.0 } else { 350.0 };
@@ -359,17 +369,9 @@ mod tests {
         // Steps end on every spine knot, where the tube's X_uu jumps; the far end then moves by
         // far less than a micrometre from 1 mm to 0.05 mm steps. (Stepping across the knots in arc
         // length left millimetres of error at 0.25 mm steps.)
-        let tube = Tube::new(
-            Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let tube = sbend();
         for dir in [Direction::Down, Direction::Up] {
-            let st = PathStart {
-                angle_rad: PI / 2.0,
-                wind_angle_rad: PI / 4.0,
-                direction: dir,
-            };
+            let st = sbend_start(dir);
             let end = |step: f64| {
                 let path = trace(&tube, &st, step).unwrap();
                 let last = *path.samples.last().unwrap();
