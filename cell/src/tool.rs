@@ -47,18 +47,21 @@ pub struct JobPlan {
     pub paths: Vec<PlannedPath>,
 }
 
+/// A planning error at the job-file place `span` of `text`, read from `file`.
+fn located(text: &str, file: &Path, source: paths::Error, span: Range<usize>) -> Error {
+    let (line, column) = sequences::error::line_column(text, span.start);
+    Error::Plan {
+        file: file.to_path_buf(),
+        line,
+        column,
+        source,
+    }
+}
+
 /// The mandrel model a job describes, with a `spine_dxf` profile read relative to the job `file`.
 /// `text` locates errors in the job file.
 pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
-    let located = |source: paths::Error, span: Range<usize>| {
-        let (line, column) = sequences::error::line_column(text, span.start);
-        Error::Plan {
-            file: file.to_path_buf(),
-            line,
-            column,
-            source,
-        }
-    };
+    let located = |source, span| located(text, file, source, span);
     let knots = match &job.mandrel.spine_dxf {
         Some(dxf) => {
             let dxf_file = file.parent().unwrap_or(Path::new("")).join(dxf.get_ref());
@@ -155,15 +158,7 @@ pub fn setup(job: &Job) -> (Setup, Speeds) {
 
 /// Plans every path of `job`. `text` and `file` locate errors in the job file.
 pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
-    let located = |source: paths::Error, span: Range<usize>| {
-        let (line, column) = sequences::error::line_column(text, span.start);
-        Error::Plan {
-            file: file.to_path_buf(),
-            line,
-            column,
-            source,
-        }
-    };
+    let located = |source, span| located(text, file, source, span);
     let tube = mandrel_in(job, text, file)?;
     let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
         (MandrelKind::Mesh, Some(mesh)) => {

@@ -424,41 +424,40 @@ impl Machine {
         self.error_state = false;
         if self.mode == Mode::Standby {
             // Execute in memory only: check every instruction, stop at the first error.
-            let mut prev = self.last_target;
-            for (n, i) in &list {
-                if let Instruction::Position(p) = i {
-                    match self.check_positioning(p, prev) {
-                        Ok(t) => prev = t,
-                        Err(e) => {
-                            self.current_instruction = *n;
-                            self.error_state = true;
-                            return self.fail(e);
-                        }
-                    }
-                }
+            if self.check_program(&list) {
+                self.current_instruction = list.last().map_or(0, |(n, _)| *n);
             }
-            self.current_instruction = list.last().map_or(0, |(n, _)| *n);
             return;
         }
         if !self.homed {
             return self.fail(RobotError::NotHomed);
         }
+        if !self.check_program(&list) {
+            return;
+        }
+        self.error_state = false;
+        self.running = Some((program, list));
+        self.step_program(0, now_s);
+    }
+
+    /// Checks every positioning of `list` in order (syntax, range, reach); at the first bad one
+    /// stops there in the error state and returns false.
+    fn check_program(&mut self, list: &[(u16, Instruction)]) -> bool {
         let mut prev = self.last_target;
-        for (n, i) in &list {
+        for (n, i) in list {
             if let Instruction::Position(p) = i {
                 match self.check_positioning(p, prev) {
                     Ok(t) => prev = t,
                     Err(e) => {
                         self.current_instruction = *n;
                         self.error_state = true;
-                        return self.fail(e);
+                        self.fail(e);
+                        return false;
                     }
                 }
             }
         }
-        self.error_state = false;
-        self.running = Some((program, list));
-        self.step_program(0, now_s);
+        true
     }
 
     /// Continues the running program at list index `next`, time `t`.
