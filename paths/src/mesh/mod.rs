@@ -412,6 +412,33 @@ pub(crate) fn syntax(line: Option<usize>, message: impl Into<String>) -> Error {
     }
 }
 
+/// The three finite coordinates of a vertex record on text line `line` (ASCII STL `vertex`, OBJ
+/// `v`). The "is not finite" error names `triangle` where the reader knows it (STL).
+pub(crate) fn coordinates<'a>(
+    words: &mut impl Iterator<Item = &'a str>,
+    line: usize,
+    triangle: Option<usize>,
+) -> Result<[f64; 3], Error> {
+    let mut c = [0.0; 3];
+    for (k, slot) in c.iter_mut().enumerate() {
+        let w = words
+            .next()
+            .ok_or_else(|| syntax(Some(line), format!("vertex has {k} coordinates, needs 3")))?;
+        let v: f64 = w
+            .parse()
+            .map_err(|_| syntax(Some(line), format!("`{w}` is not a number")))?;
+        if !v.is_finite() {
+            let message = match triangle {
+                Some(t) => format!("coordinate `{w}` is not finite (triangle {t})"),
+                None => format!("coordinate `{w}` is not finite"),
+            };
+            return Err(syntax(Some(line), message));
+        }
+        *slot = v;
+    }
+    Ok(c)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use nalgebra::Point3;
 
-use super::{Mesh, syntax};
+use super::{Mesh, coordinates, syntax};
 use crate::Error;
 
 /// Reads OBJ text into an indexed mesh (not yet welded or validated).
@@ -26,19 +26,7 @@ pub fn parse_located(text: &str) -> Result<(Mesh, Vec<usize>), Error> {
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
-                let mut c = [0.0; 3];
-                for (k, slot) in c.iter_mut().enumerate() {
-                    let w = words.next().ok_or_else(|| {
-                        syntax(Some(n), format!("vertex has {k} coordinates, needs 3"))
-                    })?;
-                    let v: f64 = w
-                        .parse()
-                        .map_err(|_| syntax(Some(n), format!("`{w}` is not a number")))?;
-                    if !v.is_finite() {
-                        return Err(syntax(Some(n), format!("coordinate `{w}` is not finite")));
-                    }
-                    *slot = v;
-                }
+                let c = coordinates(&mut words, n, None)?;
                 vertices.push(Point3::from(c));
             }
             Some("f") => {

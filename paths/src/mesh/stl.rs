@@ -8,7 +8,7 @@
 
 use nalgebra::Point3;
 
-use super::{Mesh, invalid, syntax};
+use super::{Mesh, coordinates, invalid, syntax};
 use crate::Error;
 
 /// A triangle soup: three corners per triangle, mm.
@@ -150,22 +150,7 @@ fn parse_ascii(text: &str) -> Result<(Soup, Vec<usize>), Error> {
                             "a fourth vertex: ASCII STL facets are triangles",
                         ));
                     }
-                    let mut c = [0.0; 3];
-                    for (k, slot) in c.iter_mut().enumerate() {
-                        let w = words.next().ok_or_else(|| {
-                            syntax(Some(n), format!("vertex has {k} coordinates, needs 3"))
-                        })?;
-                        let v: f64 = w
-                            .parse()
-                            .map_err(|_| syntax(Some(n), format!("`{w}` is not a number")))?;
-                        if !v.is_finite() {
-                            return Err(syntax(
-                                Some(n),
-                                format!("coordinate `{w}` is not finite (triangle {})", soup.len()),
-                            ));
-                        }
-                        *slot = v;
-                    }
+                    let c = coordinates(&mut words, n, Some(soup.len()))?;
                     if let Some(extra) = words.next() {
                         return Err(syntax(
                             Some(n),
