@@ -1,20 +1,8 @@
 //! The `windcell` command line, run as a user runs it.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn windcell(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(args)
-        .output()
-        .expect("windcell runs")
-}
-
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples")
-        .join(name)
-}
+use common::{example, windcell};
 
 const EXAMPLES: [&str; 7] = [
     "cylinder.toml",

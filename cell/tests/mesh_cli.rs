@@ -1,25 +1,11 @@
 //! Mesh mandrels through the `windcell` command line: `geodesic`, `triasym` and `plan` with a
 //! mesh mandrel, and the errors a bad mesh file gives.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn windcell(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(args)
-        .output()
-        .expect("windcell runs")
-}
+use std::path::Path;
 
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples")
-        .join(name)
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{example, stderr, windcell};
 
 #[test]
 fn triasym_reproduces_the_shipped_sbend_stl() {

@@ -1,26 +1,14 @@
 //! `windcell sim-indexer --pty`: the binary prints its pty path, a client drives a preset move
 //! over it, and SIGTERM ends it with exit code 0.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+mod common;
+
 use std::time::Duration;
 
 use mandrel_drive::{GrblClient, Indexer, IndexerConfig, PosMode, Profile, XClient};
 
 fn run_dialect(dialect: &str) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(["sim-indexer", "--pty", "--dialect", dialect])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn windcell");
-    let stdout = child.stdout.take().expect("stdout");
-    let mut path = String::new();
-    BufReader::new(stdout)
-        .read_line(&mut path)
-        .expect("path line");
-    let path = path.trim().to_string();
-    assert!(path.starts_with("/dev/"), "{path:?}");
+    let (child, path) = common::serve_on_pty(&["sim-indexer", "--pty", "--dialect", dialect]);
 
     let port = serialport::new(&path, 115_200)
         .timeout(Duration::from_millis(100))
@@ -48,18 +36,7 @@ fn run_dialect(dialect: &str) {
         assert_eq!(s.position_steps, Some(1846));
     }
 
-    let killed = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .expect("kill");
-    assert!(killed.success());
-    let out = child.wait_with_output().expect("wait");
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    common::stop_cleanly(child);
 }
 
 #[test]
@@ -70,10 +47,7 @@ fn serves_both_dialects_and_stops_on_sigterm() {
 
 #[test]
 fn without_pty_is_bad_input() {
-    let out = Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(["sim-indexer"])
-        .output()
-        .expect("run");
+    let out = common::windcell(&["sim-indexer"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--pty"));
+    assert!(common::stderr(&out).contains("--pty"));
 }

@@ -1,8 +1,8 @@
 //! `windcell sim-robot --pty`: the binary prints its pty path, a client uploads, reads back and
 //! runs a program over it as over a serial port, and SIGTERM ends it with exit code 0.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+mod common;
+
 use std::time::Duration;
 
 use asea_protocol::{
@@ -11,19 +11,7 @@ use asea_protocol::{
 
 #[test]
 fn serves_a_client_and_stops_on_sigterm() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(["sim-robot", "--pty", "--home-s", "0.2"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn windcell");
-    let stdout = child.stdout.take().expect("stdout");
-    let mut path = String::new();
-    BufReader::new(stdout)
-        .read_line(&mut path)
-        .expect("path line");
-    let path = path.trim().to_string();
-    assert!(path.starts_with("/dev/"), "{path:?}");
+    let (child, path) = common::serve_on_pty(&["sim-robot", "--pty", "--home-s", "0.2"]);
 
     let port = serialport::new(&path, 9600)
         .timeout(Duration::from_millis(100))
@@ -57,26 +45,12 @@ fn serves_a_client_and_stops_on_sigterm() {
     let s = c.check_status().unwrap();
     assert_eq!((s.state, s.program), (State::Running, 3));
 
-    let killed = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .expect("kill");
-    assert!(killed.success());
-    let out = child.wait_with_output().expect("wait");
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    common::stop_cleanly(child);
 }
 
 #[test]
 fn without_pty_is_bad_input() {
-    let out = Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(["sim-robot"])
-        .output()
-        .expect("run");
+    let out = common::windcell(&["sim-robot"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--pty"));
+    assert!(common::stderr(&out).contains("--pty"));
 }

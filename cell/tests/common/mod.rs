@@ -1,0 +1,59 @@
+//! What the `windcell` command-line tests share: running the binary, the examples, and a
+//! simulator served on a pseudo-terminal.
+
+// Each test file uses its own part of this module.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+/// Runs `windcell` with `args` to the end.
+pub fn windcell(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args(args)
+        .output()
+        .expect("windcell runs")
+}
+
+/// A file of `examples/`.
+pub fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples")
+        .join(name)
+}
+
+/// The process's standard error as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Starts `windcell ARGS` (a `sim-… --pty` server) and returns it with the device path it prints
+/// on its first line.
+pub fn serve_on_pty(args: &[&str]) -> (Child, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn windcell");
+    let stdout = child.stdout.take().expect("stdout");
+    let mut path = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut path)
+        .expect("path line");
+    let path = path.trim().to_string();
+    assert!(path.starts_with("/dev/"), "{path:?}");
+    (child, path)
+}
+
+/// Sends SIGTERM to a server from [`serve_on_pty`] and asserts that it exits with code 0.
+pub fn stop_cleanly(child: Child) {
+    let killed = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let out = child.wait_with_output().expect("wait");
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+}
