@@ -7,6 +7,25 @@ use std::path::Path;
 
 use common::{example, stderr, windcell};
 
+/// `windcell plan JOB -o OUT --json`: each path's total mandrel steps.
+fn planned_steps(job: &Path, out: &Path) -> Vec<i64> {
+    let r = windcell(&[
+        "plan",
+        job.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(r.status.success(), "{}: {}", job.display(), stderr(&r));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    v["paths"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["total_steps"].as_i64().unwrap())
+        .collect()
+}
+
 #[test]
 fn triasym_reproduces_the_shipped_sbend_stl() {
     let dir = tempfile::tempdir().unwrap();
@@ -173,23 +192,7 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
 #[test]
 fn plan_runs_the_tool_step_from_the_sbend_stl_like_the_analytic_tube() {
     let dir = tempfile::tempdir().unwrap();
-    let steps = |name: &str| -> Vec<i64> {
-        let r = windcell(&[
-            "plan",
-            example(name).to_str().unwrap(),
-            "-o",
-            dir.path().join(name).to_str().unwrap(),
-            "--json",
-        ]);
-        assert!(r.status.success(), "{}", stderr(&r));
-        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
-        v["paths"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|p| p["total_steps"].as_i64().unwrap())
-            .collect()
-    };
+    let steps = |name: &str| planned_steps(&example(name), &dir.path().join(name));
     let mesh = steps("sbend-mesh.toml");
     let tube = steps("sbend.toml");
     assert_eq!(mesh.len(), tube.len());
@@ -249,21 +252,7 @@ fn plan_takes_a_dxf_path_on_mesh_and_tube_mandrels() {
         let job = std::fs::read_to_string(example(name)).unwrap() + "\n" + imported;
         let job_file = dir.path().join(name);
         std::fs::write(&job_file, job).unwrap();
-        let r = windcell(&[
-            "plan",
-            job_file.to_str().unwrap(),
-            "-o",
-            dir.path().join(format!("out-{name}")).to_str().unwrap(),
-            "--json",
-        ]);
-        assert!(r.status.success(), "{name}: {}", stderr(&r));
-        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
-        let steps: Vec<i64> = v["paths"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|p| p["total_steps"].as_i64().unwrap())
-            .collect();
+        let steps = planned_steps(&job_file, &dir.path().join(format!("out-{name}")));
         assert!((steps[2] - steps[0]).abs() <= 5, "{name}: {steps:?}");
     }
     // A DXF error names the file; exit 2.
@@ -346,23 +335,7 @@ fn spine_profile_from_dxf_plans_like_spine_mm() {
         &text[b..]
     );
     std::fs::write(dir.path().join("job.toml"), job).unwrap();
-    let steps = |job: &Path, out: &str| -> Vec<i64> {
-        let r = windcell(&[
-            "plan",
-            job.to_str().unwrap(),
-            "-o",
-            dir.path().join(out).to_str().unwrap(),
-            "--json",
-        ]);
-        assert!(r.status.success(), "{}", stderr(&r));
-        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
-        v["paths"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|p| p["total_steps"].as_i64().unwrap())
-            .collect()
-    };
+    let steps = |job: &Path, out: &str| planned_steps(job, &dir.path().join(out));
     assert_eq!(
         steps(&dir.path().join("job.toml"), "a"),
         steps(&example("sbend.toml"), "b")
@@ -415,17 +388,6 @@ fn obj_and_ascii_stl_of_the_same_mesh_trace_the_same_path() {
 #[test]
 fn the_dxf_example_plans_like_the_traced_path() {
     let dir = tempfile::tempdir().unwrap();
-    let total = |name: &str| -> i64 {
-        let r = windcell(&[
-            "plan",
-            example(name).to_str().unwrap(),
-            "-o",
-            dir.path().join(name).to_str().unwrap(),
-            "--json",
-        ]);
-        assert!(r.status.success(), "{}", stderr(&r));
-        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
-        v["paths"][0]["total_steps"].as_i64().unwrap()
-    };
+    let total = |name: &str| planned_steps(&example(name), &dir.path().join(name))[0];
     assert!((total("sbend-dxf.toml") - total("sbend.toml")).abs() <= 2);
 }
