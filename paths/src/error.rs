@@ -2,6 +2,8 @@
 
 use thiserror::Error;
 
+use crate::robot::ArmFault;
+
 /// Everything that can go wrong while building mandrel models and planning paths.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
@@ -73,6 +75,15 @@ pub enum Error {
         z_mm: f64,
         /// Which limit (`horizontal reach`, `height range`, `wrist pitch range`).
         limit: &'static str,
+    },
+    /// The arm cannot take a pose: out of reach, off the arm plane, a joint out of range or a
+    /// joint jump between consecutive poses.
+    #[error("{}{fault}", segment.map(|s| format!("segment {s}: ")).unwrap_or_default())]
+    Arm {
+        /// The segment end point index (0 = start point), when the pose belongs to a path.
+        segment: Option<usize>,
+        /// What the arm cannot do.
+        fault: ArmFault,
     },
     /// Two consecutive segment end points coincide, so the fibre direction is undefined.
     #[error("segment {segment} has zero length")]

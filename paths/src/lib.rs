@@ -23,7 +23,7 @@ pub use geodesic::{Direction, PathStart, SurfacePath};
 pub use mandrel::{Section, Tube};
 pub use mesh::Mesh;
 pub use plan::{PathPlan, Pose, Segment, Setup, Speeds};
-pub use robot::Robot;
+pub use robot::{Arm, ArmFault, ArmPose, Capsule, ElbowBranch, Joint, Joints, Robot};
 pub use segment::SurfacePoint;
 pub use spine::Spine;
 pub use spline::{BSpline, UniformCubic};
