@@ -163,4 +163,20 @@ pub enum Error {
         /// The largest accepted distance.
         limit_mm: f64,
     },
+    /// The fibre's contact with the mandrel cannot be followed (placement model).
+    #[error("the fibre contact at height {height_mm:.2} mm is undefined: {reason}")]
+    ContactUndefined {
+        /// Height of the contact's spine point.
+        height_mm: f64,
+        /// Why, in words.
+        reason: &'static str,
+    },
+    /// The fibre's contact left the mandrel past one of its ends.
+    #[error("the fibre contact left the mandrel at {height_mm:.2} mm, t = {time_s:.3} s")]
+    ContactOffSurface {
+        /// When, s.
+        time_s: f64,
+        /// Height of the contact's spine point.
+        height_mm: f64,
+    },
 }

@@ -9,6 +9,7 @@ pub mod eye;
 pub mod geodesic;
 pub mod mandrel;
 pub mod mesh;
+pub mod placement;
 pub mod plan;
 pub mod robot;
 pub mod segment;
