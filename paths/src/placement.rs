@@ -34,6 +34,7 @@
 
 use nalgebra::{Matrix2, Point3, Vector2, Vector3};
 
+use crate::mesh::trace::Tracer;
 use crate::{Error, Tube};
 
 /// The eye's position and velocity in the mandrel frame at time `t_s`.
@@ -254,6 +255,135 @@ impl<'a> TubeContact<'a> {
         Ok(())
     }
 }
+
+/// The fibre's contact with a triangulated mandrel, advanced in steps.
+///
+/// On a mesh the surface has no second derivatives to integrate with, so each step solves the
+/// tangency condition directly: from the last contact `C₀` the fibre is laid along the free
+/// fibre's direction `d̂` (projected into the tangent plane), and the new contact is the nearest
+/// surface point to `C₀ + s d̂` for the `s ≥ 0` at which `(E − C(s))·n(C(s)) = 0`, `n` the smooth
+/// (interpolated) normal of [`Tracer::normal_at`]. `s` is bracketed by doubling and found by the
+/// Illinois false-position method. Each call lays straight chords toward the eye's new position,
+/// so the laid path follows the continuous model of [`TubeContact`] to first order in how far the
+/// contact moves per call: call it at eye samples close enough that the contact moves a
+/// millimetre or less (the tests compare both models on the S-bend), on top of the mesh's own
+/// distance from the true surface.
+#[derive(Debug, Clone)]
+pub struct MeshContact<'a> {
+    tracer: &'a Tracer,
+    point: Point3<f64>,
+    normal: Vector3<f64>,
+    state: ContactState,
+}
+
+impl<'a> MeshContact<'a> {
+    /// Starts at the surface point nearest to `start` (mandrel frame).
+    pub fn new(tracer: &'a Tracer, start: &Point3<f64>) -> Result<Self, Error> {
+        let at = tracer
+            .locate(start)
+            .ok_or(Error::NonFinitePoint { index: 0 })?;
+        Ok(MeshContact {
+            tracer,
+            point: at.point,
+            normal: at.normal,
+            state: ContactState::Wrapping,
+        })
+    }
+
+    /// The contact point, mandrel frame.
+    pub fn point(&self) -> Point3<f64> {
+        self.point
+    }
+
+    /// Whether the fibre is being laid or pivoting.
+    pub fn state(&self) -> ContactState {
+        self.state
+    }
+
+    /// Moves the contact for the eye now at `eye` (mandrel frame), laying at most `max_step_mm`
+    /// per chord; returns the contact point.
+    pub fn advance(&mut self, eye: &Point3<f64>, max_step_mm: f64) -> Result<Point3<f64>, Error> {
+        if max_step_mm.is_nan() || max_step_mm <= 0.0 || !eye.iter().all(|c| c.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "max_step_mm",
+                value: max_step_mm,
+                expected: "must be > 0 with a finite eye position",
+            });
+        }
+        let residual = (eye - self.point).dot(&self.normal);
+        if residual >= -TANGENCY_TOLERANCE_MM {
+            // The eye is on or outside the tangent plane: nothing more is laid.
+            self.state = ContactState::Pivoting;
+            return Ok(self.point);
+        }
+        self.state = ContactState::Wrapping;
+        // Lay chords of at most max_step_mm until the free fibre is tangent again.
+        for _ in 0..MAX_CHORDS_PER_ADVANCE {
+            let d = eye - self.point;
+            let dt = d - self.normal * d.dot(&self.normal);
+            let len = dt.norm();
+            if len < 1e-12 {
+                return Err(Error::ContactUndefined {
+                    height_mm: self.point.z,
+                    reason: "the eye lies on the surface normal of the contact",
+                });
+            }
+            let dir = dt / len;
+            let g = |s: f64| -> Result<(f64, Point3<f64>, Vector3<f64>), Error> {
+                let at = self
+                    .tracer
+                    .locate(&(self.point + dir * s))
+                    .ok_or(Error::NonFinitePoint { index: 0 })?;
+                Ok(((eye - at.point).dot(&at.normal), at.point, at.normal))
+            };
+            let (g_step, p_step, n_step) = g(max_step_mm)?;
+            if g_step < 0.0 {
+                // Still short of tangency after a whole chord: lay it and go on.
+                self.point = p_step;
+                self.normal = n_step;
+                continue;
+            }
+            // Tangency lies within this chord: Illinois false position on [0, max_step_mm],
+            // keeping g(a) < 0 ≤ g(b).
+            let (mut a, mut ga) = (0.0, (eye - self.point).dot(&self.normal));
+            let (mut b, mut gb) = (max_step_mm, g_step);
+            let mut retained = 0i8;
+            let mut best = (p_step, n_step);
+            for _ in 0..100 {
+                let s = (a * gb - b * ga) / (gb - ga);
+                let (gs, ps, ns) = g(s)?;
+                best = (ps, ns);
+                if gs.abs() < 1e-10 || b - a < 1e-12 {
+                    break;
+                }
+                if gs < 0.0 {
+                    (a, ga) = (s, gs);
+                    if retained == -1 {
+                        gb *= 0.5;
+                    }
+                    retained = -1;
+                } else {
+                    (b, gb) = (s, gs);
+                    if retained == 1 {
+                        ga *= 0.5;
+                    }
+                    retained = 1;
+                }
+            }
+            self.point = best.0;
+            self.normal = best.1;
+            return Ok(self.point);
+        }
+        Err(Error::OutOfRange {
+            name: "placement chords",
+            value: MAX_CHORDS_PER_ADVANCE as f64,
+            expected: "the eye moved farther in one call than the chords allow (a larger max_step_mm)",
+        })
+    }
+}
+
+/// Bound on chords laid in one [`MeshContact::advance`] call.
+const MAX_CHORDS_PER_ADVANCE: usize = 100_000;
 
 /// How far the tangency residual may be from zero before the contact counts as pivoting, mm.
 const TANGENCY_TOLERANCE_MM: f64 = 1e-9;
