@@ -12,6 +12,7 @@ pub mod job;
 pub mod rob;
 pub mod run;
 pub mod sequence;
+pub mod source;
 pub mod syntax;
 
 pub use dxf::Drawing;
