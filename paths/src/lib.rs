@@ -7,6 +7,7 @@
 pub mod error;
 pub mod eye;
 pub mod geodesic;
+pub mod limits;
 pub mod mandrel;
 pub mod mesh;
 pub mod placement;

@@ -14,6 +14,7 @@ pub mod part_program;
 pub mod rob;
 pub mod run;
 pub mod sequence;
+pub mod source;
 pub mod syntax;
 
 pub use dxf::Drawing;
