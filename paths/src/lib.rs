@@ -4,6 +4,7 @@
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
+pub mod control;
 pub mod error;
 pub mod eye;
 pub mod geodesic;
@@ -18,6 +19,7 @@ pub mod spine;
 pub mod spline;
 pub mod step;
 pub mod tangent;
+pub mod trajectory;
 pub mod wrist;
 
 pub use error::Error;
