@@ -4,11 +4,14 @@
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
+pub mod delivery;
 pub mod error;
 pub mod eye;
 pub mod geodesic;
 pub mod mandrel;
 pub mod mesh;
+pub mod motion;
+pub mod pattern;
 pub mod plan;
 pub mod robot;
 pub mod segment;
@@ -16,6 +19,7 @@ pub mod spine;
 pub mod spline;
 pub mod step;
 pub mod tangent;
+pub mod vessel;
 pub mod wrist;
 
 pub use error::Error;
