@@ -7,6 +7,7 @@
 
 pub mod dxf;
 pub mod error;
+pub mod gcode;
 pub mod ind;
 pub mod job;
 pub mod rob;
