@@ -198,4 +198,47 @@ pub enum Error {
         /// Height of the contact's spine point.
         height_mm: f64,
     },
+    /// A helical layer's pattern does not close (seed 002 Eqs. 7–8), with the nearest choices that do.
+    #[error("the winding pattern does not close: {reason}; nearest valid: {alternatives}")]
+    PatternNotClosed {
+        /// Why, in words, with the numbers.
+        reason: String,
+        /// The nearest pattern numbers, dwell and wind angle that close, in words.
+        alternatives: String,
+    },
+    /// The delivery eye's circle does not clear the laminate (seed 002 Eq. 12 needs Re > Rc).
+    #[error(
+        "layer {layer}: the eye circle radius {eye_radius_mm} mm does not clear the winding \
+         radius {winding_radius_mm:.3} mm"
+    )]
+    EyeInsideLaminate {
+        /// 1-based layer number.
+        layer: usize,
+        /// Re.
+        eye_radius_mm: f64,
+        /// The winding surface's radius at this layer (mandrel plus laminate below).
+        winding_radius_mm: f64,
+    },
+    /// A planned move needs an axis beyond its travel.
+    #[error("layer {layer}: {axis} reaches {value:.3}, beyond its travel {min}..{max}")]
+    BeyondTravel {
+        /// 1-based layer number.
+        layer: usize,
+        /// The axis name (`carriage_mm`, `cross_feed_mm`, `eye_deg`).
+        axis: &'static str,
+        /// The value reached.
+        value: f64,
+        /// Travel minimum.
+        min: f64,
+        /// Travel maximum.
+        max: f64,
+    },
+    /// A tube helical layer breaks a coverage rule (pattern number, skip index, lock, lead-in).
+    #[error("layer {layer}: {reason}")]
+    WindRule {
+        /// 1-based layer number.
+        layer: usize,
+        /// The rule broken, with the numbers and the nearest valid values.
+        reason: String,
+    },
 }

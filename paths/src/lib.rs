@@ -5,6 +5,7 @@
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
 pub mod control;
+pub mod delivery;
 pub mod error;
 pub mod eye;
 pub mod geodesic;
@@ -12,6 +13,8 @@ pub mod limits;
 pub mod mandrel;
 pub mod mesh;
 pub mod placement;
+pub mod motion;
+pub mod pattern;
 pub mod plan;
 pub mod robot;
 pub mod segment;
@@ -20,6 +23,7 @@ pub mod spline;
 pub mod step;
 pub mod tangent;
 pub mod trajectory;
+pub mod vessel;
 pub mod wrist;
 
 pub use error::Error;

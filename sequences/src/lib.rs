@@ -8,6 +8,7 @@
 
 pub mod dxf;
 pub mod error;
+pub mod gcode;
 pub mod ind;
 pub mod job;
 pub mod part_program;
