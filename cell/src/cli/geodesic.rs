@@ -14,6 +14,7 @@ use super::Failure;
 
 /// Trace a geodesic on a triangulated mandrel (STL or OBJ) and print the polyline.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct GeodesicArgs {
     /// The mesh file (.stl, binary or ASCII, or .obj).
     pub mesh: PathBuf,
