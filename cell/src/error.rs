@@ -66,6 +66,15 @@ pub enum Error {
         /// Program number of the .ROB file.
         program: u8,
     },
+    /// A run cannot start or go on: `input` true when the operator's files or arguments are at
+    /// fault (exit code 2), false for the cell (exit code 1).
+    #[error("{message}")]
+    Run {
+        /// One line for the operator.
+        message: String,
+        /// True for bad input.
+        input: bool,
+    },
     /// Writing output failed.
     #[error("{}: {source}", path.display())]
     Output {
@@ -88,6 +97,7 @@ impl Error {
                 | Error::Read { .. }
                 | Error::RobotTransfer { .. }
                 | Error::IndexerTransfer { .. }
+                | Error::Run { input: true, .. }
         )
     }
 }
