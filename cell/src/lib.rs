@@ -2,6 +2,7 @@
 //! pieces the `windcell` command line is built from.
 
 pub mod batch;
+pub mod cellfile;
 pub mod coordinator;
 pub mod device;
 pub mod error;
