@@ -88,6 +88,15 @@ pub enum Error {
         /// What is in the way, in words.
         reason: String,
     },
+    /// A run cannot start or go on: `input` true when the operator's files or arguments are at
+    /// fault (exit code 2), false for the cell (exit code 1).
+    #[error("{message}")]
+    Run {
+        /// One line for the operator.
+        message: String,
+        /// True for bad input.
+        input: bool,
+    },
     /// Writing output failed.
     #[error("{}: {source}", path.display())]
     Output {
@@ -129,6 +138,7 @@ impl Error {
                 | Error::Read { .. }
                 | Error::RobotTransfer { .. }
                 | Error::IndexerTransfer { .. }
+                | Error::Run { input: true, .. }
         )
     }
 }
