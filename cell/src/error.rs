@@ -97,6 +97,14 @@ pub enum Error {
         /// True for bad input.
         input: bool,
     },
+    /// A recording (MCAP file or live server) could not be opened or finished.
+    #[error("{}: recording failed: {message}", path.display())]
+    Record {
+        /// The MCAP file (or the live server's address).
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
     /// Writing output failed.
     #[error("{}: {source}", path.display())]
     Output {

@@ -9,6 +9,7 @@ pub mod error;
 pub mod journal;
 pub mod mesh;
 pub mod output;
+pub mod record;
 pub mod report;
 pub mod simcell;
 pub mod tool;
