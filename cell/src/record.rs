@@ -702,4 +702,84 @@ mod tests {
         assert_eq!(read(&a).len(), 1);
         assert_eq!(read(&b).len(), 2);
     }
+
+    /// A client speaking Foxglove's WebSocket protocol subscribes to `/eye/simulated` on the live
+    /// server and receives the poses logged after it subscribed (binary `MessageData`: opcode 1,
+    /// subscription id, log time, protobuf payload).
+    #[test]
+    fn a_live_client_receives_eye_poses() {
+        use tungstenite::Message;
+        use tungstenite::client::IntoClientRequest;
+        use tungstenite::http::HeaderValue;
+
+        let rec = Recorder::open(
+            &Sinks {
+                mcap: None,
+                live: Some(("127.0.0.1".into(), 0)),
+            },
+            0,
+        )
+        .unwrap();
+        let port = rec.live_port().unwrap();
+        let mut request = format!("ws://127.0.0.1:{port}")
+            .into_client_request()
+            .unwrap();
+        request.headers_mut().insert(
+            "Sec-WebSocket-Protocol",
+            HeaderValue::from_static("foxglove.sdk.v1"),
+        );
+        let stream = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+        stream
+            .set_read_timeout(Some(Duration::from_secs(5)))
+            .unwrap();
+        let (mut ws, _) = tungstenite::client(request, stream).unwrap();
+        // Read the advertisements until the eye channel shows up.
+        let mut channel_id = None;
+        while channel_id.is_none() {
+            if let Message::Text(text) = ws.read().unwrap() {
+                let v: serde_json::Value = serde_json::from_str(text.as_str()).unwrap();
+                if v["op"] == "advertise" {
+                    for ch in v["channels"].as_array().unwrap() {
+                        if ch["topic"] == "/eye/simulated" {
+                            assert_eq!(ch["schemaName"], "foxglove.PoseInFrame");
+                            channel_id = ch["id"].as_u64();
+                        }
+                    }
+                }
+            }
+        }
+        let subscribe = serde_json::json!({
+            "op": "subscribe",
+            "subscriptions": [{"id": 42, "channelId": channel_id.unwrap()}]
+        });
+        ws.send(Message::Text(subscribe.to_string().into()))
+            .unwrap();
+        // The subscription takes effect asynchronously: log until a pose arrives.
+        let q = UnitQuaternion::identity();
+        let mut received = None;
+        for k in 0..500 {
+            rec.eye(
+                k as f64 * 0.01,
+                &Point3::new(700.0, 0.0, 300.0 + k as f64),
+                &q,
+                true,
+            );
+            ws.get_mut()
+                .set_read_timeout(Some(Duration::from_millis(10)))
+                .unwrap();
+            match ws.read() {
+                Ok(Message::Binary(data)) if data.first() == Some(&1) => {
+                    received = Some(data);
+                    break;
+                }
+                _ => {}
+            }
+        }
+        let data = received.expect("no eye pose reached the client");
+        assert_eq!(u32::from_le_bytes(data[1..5].try_into().unwrap()), 42);
+        let pose = PoseInFrame::decode(&data[13..]).unwrap();
+        assert_eq!(pose.frame_id, "world");
+        assert!((pose.pose.unwrap().position.unwrap().x - 0.7).abs() < 1e-12);
+        rec.finish().unwrap();
+    }
 }
