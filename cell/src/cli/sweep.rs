@@ -60,8 +60,8 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
     let files = tool::control_files(&job, &plan);
     output::write_all(&args.out, &files).map_err(Failure::from_cell)?;
     let out = if args.json {
-        let mut s =
-            serde_json::to_string_pretty(&PlanReport::new(&plan)).map_err(Failure::runtime)?;
+        let mut s = serde_json::to_string_pretty(&PlanReport::new(&job, &plan))
+            .map_err(Failure::runtime)?;
         s.push('\n');
         s
     } else {
