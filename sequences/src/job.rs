@@ -49,9 +49,12 @@ pub struct Cell {
     pub movement: Spanned<Movement>,
     /// The mandrel drive.
     pub drive: Drive,
-    /// The robot's working range; absent means the IRB 6/2-class defaults.
+    /// The robot arm; absent means the IRB 6/2 defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub robot: Option<RobotLimits>,
+    pub robot: Option<Robot>,
+    /// The measured cell; absent means the nominal cell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<Calibration>,
     /// Serial ports; absent means the built-in simulated cell.
     #[serde(default, skip_serializing_if = "Ports::is_empty")]
     pub ports: Ports,
@@ -71,20 +74,63 @@ pub struct Drive {
     pub start_stop_rps: Spanned<f64>,
 }
 
-/// The robot's working range in the cell frame.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// The robot arm (`[cell.robot]`): every field optional, absent ones take the IRB 6/2 defaults
+/// of `paths::robot::Arm` (which documents where each figure comes from).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RobotLimits {
-    /// Least horizontal distance from the pedestal axis, mm.
-    pub reach_min_mm: Spanned<f64>,
-    /// Greatest horizontal distance from the pedestal axis, mm.
-    pub reach_max_mm: Spanned<f64>,
-    /// Lowest height, mm.
-    pub z_min_mm: Spanned<f64>,
-    /// Highest height, mm.
-    pub z_max_mm: Spanned<f64>,
-    /// Fastest tool speed, mm/s.
-    pub max_speed_mm_s: Spanned<f64>,
+pub struct Robot {
+    /// Height of the shoulder axis above the robot base, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shoulder_height_mm: Option<Spanned<f64>>,
+    /// Shoulder axis to elbow axis, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upper_arm_mm: Option<Spanned<f64>>,
+    /// Elbow axis to wrist axis, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forearm_mm: Option<Spanned<f64>>,
+    /// The longest eye mechanism the wrist can carry, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eye_mechanism_max_mm: Option<Spanned<f64>>,
+    /// Base yaw range `[least, greatest]`, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_yaw_deg: Option<Spanned<[f64; 2]>>,
+    /// Shoulder range (upper arm from the vertical), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shoulder_deg: Option<Spanned<[f64; 2]>>,
+    /// Elbow range (forearm elevation), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elbow_deg: Option<Spanned<[f64; 2]>>,
+    /// Wrist pitch range (roll axis below the horizontal), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pitch_deg: Option<Spanned<[f64; 2]>>,
+    /// Wrist roll range, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub roll_deg: Option<Spanned<[f64; 2]>>,
+    /// Joint speed limits in axis order (base yaw, shoulder, elbow, pitch, roll), degrees/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_speed_deg_s: Option<Spanned<[f64; 5]>>,
+    /// Largest fibre entry angle (tow line to the eye's roll axis), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub entry_angle_max_deg: Option<Spanned<f64>>,
+}
+
+/// The measured cell (`[cell.calibration]`, seed 001 §6.2.1 item 2); absent fields are nominal.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    /// Where the rotation axis crosses the mandrel's start height, relative to `(b, 0)`,
+    /// `[x, y]` in the cell frame, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_offset_mm: Option<Spanned<[f64; 2]>>,
+    /// The rotation axis's lean from the vertical toward `+x` and toward `+y`, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_tilt_deg: Option<Spanned<[f64; 2]>>,
+    /// The mandrel angle at the indexer's zero, degrees (counter-clockwise from above).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zero_angle_deg: Option<Spanned<f64>>,
+    /// `1` when positive steps turn the mandrel counter-clockwise seen from above, `-1` clockwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation_sign: Option<Spanned<i8>>,
 }
 
 /// Serial ports of the real cell.
@@ -362,21 +408,78 @@ impl Job {
             ));
         }
         if let Some(r) = &c.robot {
-            positive(text, &r.reach_max_mm, "reach")?;
-            check(
-                text,
-                &r.reach_min_mm,
-                (0.0..*r.reach_max_mm.get_ref()).contains(r.reach_min_mm.get_ref()),
-                "is not a valid reach_min_mm: must be ≥ 0 and below reach_max_mm",
-            )?;
-            finite(text, &r.z_min_mm, "height")?;
-            check(
-                text,
-                &r.z_max_mm,
-                r.z_max_mm.get_ref() > r.z_min_mm.get_ref(),
-                "is not a valid z_max_mm: must be above z_min_mm",
-            )?;
-            positive(text, &r.max_speed_mm_s, "speed")?;
+            for length in [
+                &r.shoulder_height_mm,
+                &r.upper_arm_mm,
+                &r.forearm_mm,
+                &r.eye_mechanism_max_mm,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                positive(text, length, "length")?;
+            }
+            for range in [
+                &r.base_yaw_deg,
+                &r.shoulder_deg,
+                &r.elbow_deg,
+                &r.pitch_deg,
+                &r.roll_deg,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                let [lo, hi] = *range.get_ref();
+                if !(lo.is_finite() && hi.is_finite() && lo < hi && lo >= -360.0 && hi <= 360.0) {
+                    return Err(error_at(
+                        text,
+                        range.span(),
+                        "a joint range is [least, greatest] degrees, finite, least below \
+                         greatest, within ±360°",
+                    ));
+                }
+            }
+            if let Some(speeds) = &r.joint_speed_deg_s
+                && !speeds.get_ref().iter().all(|v| v.is_finite() && *v > 0.0)
+            {
+                return Err(error_at(
+                    text,
+                    speeds.span(),
+                    "joint speeds must be finite and > 0 degrees/s",
+                ));
+            }
+            if let Some(a) = &r.entry_angle_max_deg {
+                check(
+                    text,
+                    a,
+                    *a.get_ref() > 0.0 && *a.get_ref() <= 90.0,
+                    "is not a valid entry angle limit: must lie in (0°, 90°]",
+                )?;
+            }
+        }
+        if let Some(k) = &c.calibration {
+            for pair in [&k.axis_offset_mm, &k.axis_tilt_deg].into_iter().flatten() {
+                if !pair.get_ref().iter().all(|v| v.is_finite()) {
+                    return Err(error_at(text, pair.span(), "values must be finite"));
+                }
+            }
+            if let Some(tilt) = &k.axis_tilt_deg
+                && !tilt.get_ref().iter().all(|v| v.abs() < 10.0)
+            {
+                return Err(error_at(
+                    text,
+                    tilt.span(),
+                    "axis tilt must lie within ±10° (a measured misalignment)",
+                ));
+            }
+            if let Some(zero) = &k.zero_angle_deg {
+                finite(text, zero, "zero angle")?;
+            }
+            if let Some(sign) = &k.rotation_sign
+                && !matches!(sign.get_ref(), 1 | -1)
+            {
+                return Err(error_at(text, sign.span(), "rotation_sign must be 1 or -1"));
+            }
         }
         self.validate_mandrel(text)?;
         if self.paths.is_empty() {
@@ -640,6 +743,26 @@ segments = 50
 "#;
 
     #[test]
+    fn robot_and_calibration_tables_parse_and_round_trip() {
+        let text = CYLINDER.replacen(
+            "[mandrel]",
+            "[cell.robot]\nshoulder_height_mm = 320.0\nelbow_deg = [-50.0, 20.0]\n\
+             joint_speed_deg_s = [100.0, 50.0, 60.0, 180.0, 200.0]\nentry_angle_max_deg = 25.0\n\n\
+             [cell.calibration]\naxis_offset_mm = [0.5, -0.2]\naxis_tilt_deg = [0.03, 0.05]\n\
+             zero_angle_deg = 12.5\nrotation_sign = -1\n\n[mandrel]",
+            1,
+        );
+        let job = Job::parse(&text).unwrap();
+        let r = job.cell.robot.as_ref().unwrap();
+        assert_eq!(*r.shoulder_height_mm.as_ref().unwrap().get_ref(), 320.0);
+        assert_eq!(*r.elbow_deg.as_ref().unwrap().get_ref(), [-50.0, 20.0]);
+        assert!(r.forearm_mm.is_none());
+        let k = job.cell.calibration.as_ref().unwrap();
+        assert_eq!(*k.rotation_sign.as_ref().unwrap().get_ref(), -1);
+        assert_eq!(Job::parse(&job.write()).unwrap(), job);
+    }
+
+    #[test]
     fn parses_and_round_trips() {
         let job = Job::parse(CYLINDER).unwrap();
         assert_eq!(job.name.get_ref(), "CYL");
@@ -684,6 +807,21 @@ segments = 50
                 "missing field `length_mm`",
             ),
             ("gear_ratio = [13, 60]", "gear_ratio = [0, 60]", "15:14:"),
+            (
+                "[mandrel]",
+                "[cell.robot]\nelbow_deg = [30.0, -60.0]\n\n[mandrel]",
+                "20:13:",
+            ),
+            (
+                "[mandrel]",
+                "[cell.calibration]\nrotation_sign = 2\n\n[mandrel]",
+                "20:17:",
+            ),
+            (
+                "[mandrel]",
+                "[cell.robot]\nentry_angle_max_deg = 95.0\n\n[mandrel]",
+                "20:23:",
+            ),
         ];
         for (from, to, expected) in cases {
             let err = error_for(from, to);

@@ -37,7 +37,7 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
         .map_err(Failure::from_cell)?;
     let mut out = String::new();
     if args.json {
-        let report = PlanReport::new(&plan);
+        let report = PlanReport::new(&job, &plan);
         let mut value = serde_json::to_value(&report).map_err(Failure::runtime)?;
         // Mesh mandrels and imported paths: how far smoothing moved the path.
         if let Some(paths) = value.get_mut("paths").and_then(|p| p.as_array_mut()) {
@@ -52,19 +52,21 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
         out.push('\n');
     } else {
         for p in &plan.paths {
-            let limited = p.plan.segments.iter().filter(|s| s.speed_limited).count();
+            let paced = p.plan.segments.iter().filter(|s| s.robot_paced).count();
             out += &format!(
-                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm{}{}\n",
+                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm, entry angle \
+                 ≤ {:.2}°{}{}\n",
                 p.name,
                 p.plan.segments.len(),
                 p.plan.segments.iter().map(|s| s.steps).sum::<i64>(),
                 p.plan.max_drift_rad.to_degrees(),
                 p.plan.min_eye_clearance_mm,
+                p.plan.max_entry_angle_rad.to_degrees(),
                 p.smoothing_deviation_mm
                     .map(|d| format!(", smoothing deviation ≤ {d:.4} mm"))
                     .unwrap_or_default(),
-                if limited > 0 {
-                    format!(", {limited} segments capped at the maximum speed")
+                if paced > 0 {
+                    format!(", {paced} segments at the robot's time (mandrel slowed)")
                 } else {
                     String::new()
                 }

@@ -67,8 +67,8 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
     output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
         .map_err(Failure::from_cell)?;
     let out = if args.json {
-        let mut s =
-            serde_json::to_string_pretty(&PlanReport::new(&plan)).map_err(Failure::runtime)?;
+        let mut s = serde_json::to_string_pretty(&PlanReport::new(&job, &plan))
+            .map_err(Failure::runtime)?;
         s.push('\n');
         s
     } else {

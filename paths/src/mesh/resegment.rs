@@ -158,9 +158,13 @@ pub fn smooth_and_cut(
         let at = tracer
             .locate(&Point3::from(c + inward))
             .ok_or(Error::NonFinitePoint { index })?;
+        // The angle around the axis, unwrapped from the previous point (an imported path has no
+        // angle of its own; its points must be dense enough to turn less than half a revolution).
+        let near = points.last().map_or(0.0, |p: &SurfacePoint| p.around_rad);
         points.push(SurfacePoint {
             point: at.point,
             normal: at.normal,
+            around_rad: crate::segment::around_near(&at.normal, near),
         });
         faces.push(at.face as u32);
     }
