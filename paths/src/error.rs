@@ -96,6 +96,24 @@ pub enum Error {
         /// Index of the offending point.
         index: usize,
     },
+    /// Sampling a path would take more samples than the limit (a path far longer than any
+    /// mandrel's, from a wrong coordinate or unit): refused before anything is allocated.
+    #[error(
+        "the {what} is longer than {limit} samples of {spacing_mm} mm allow ({} mm){}",
+        *limit as f64 * spacing_mm,
+        index.map(|i| format!(", from point {i} on")).unwrap_or_default()
+    )]
+    TooManySamples {
+        /// What was being sampled (`path to smooth`, `geodesic`).
+        what: &'static str,
+        /// The point (0-based, in the input) from which the length passes the limit, where the
+        /// input is a list of points.
+        index: Option<usize>,
+        /// The most samples allowed.
+        limit: usize,
+        /// The sample spacing, mm.
+        spacing_mm: f64,
+    },
     /// Two consecutive points coincide, so chord-length parameters are not strictly increasing.
     #[error("points {} and {index} coincide", index - 1)]
     CoincidentPoints {

@@ -18,6 +18,11 @@ use crate::{Error, SurfacePoint, Tube};
 /// Default resampling spacing, mm.
 pub const DEFAULT_SPACING_MM: f64 = 2.0;
 
+/// The most samples a path is resampled into: 100 m of path at [`DEFAULT_SPACING_MM`], far
+/// beyond any mandrel the cell can hold. A longer path (a coordinate in the wrong unit or with a
+/// stray exponent) is refused with [`Error::TooManySamples`] before the samples are allocated.
+pub const MAX_SAMPLES: usize = 50_000;
+
 /// A path cut into equal-length segments on the mesh.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Resegmented {
@@ -84,13 +89,25 @@ pub fn smooth_and_cut(
             expected: "must be > 0",
         });
     }
-    // Drop repeated points; a path needs some length.
+    // Drop repeated points; a path needs some length, but no more than the samples allow.
     let mut clean: Vec<Point3<f64>> = Vec::with_capacity(raw.len());
+    let mut length_mm = 0.0;
     for (index, p) in raw.iter().enumerate() {
         if !p.iter().all(|c| c.is_finite()) {
             return Err(Error::NonFinitePoint { index });
         }
-        if clean.last().is_none_or(|q| (p - q).norm() > 1e-9) {
+        let step = clean.last().map_or(0.0, |q| (p - q).norm());
+        length_mm += step;
+        // An infinite length is refused too (finite points can still overflow).
+        if length_mm.is_nan() || length_mm / spacing_mm > MAX_SAMPLES as f64 {
+            return Err(Error::TooManySamples {
+                what: "path to smooth",
+                index: Some(index),
+                limit: MAX_SAMPLES,
+                spacing_mm,
+            });
+        }
+        if clean.is_empty() || step > 1e-9 {
             clean.push(*p);
         }
     }
@@ -236,5 +253,36 @@ mod tests {
         }
         assert!(smooth_and_cut(&tr, &path.points, 0, 2.0).is_err());
         assert!(smooth_and_cut(&tr, &path.points[..1], 5, 2.0).is_err());
+    }
+
+    #[test]
+    fn paths_longer_than_the_sample_limit_are_refused_at_the_point_that_makes_them_so() {
+        let profile: Vec<(f64, f64)> = (0..=10).map(|i| (10.0 * i as f64, 20.0)).collect();
+        let (m, adj) = prepare(
+            &triasym::revolution(&profile, 32, true).unwrap(),
+            DEFAULT_WELD_MM,
+            Closure::Closed,
+        )
+        .unwrap();
+        let tr = Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap();
+        let on = |z: f64| Point3::new(20.0, 0.0, z);
+        for far in [1e9, 1e308, f64::MAX] {
+            let raw = [on(10.0), on(20.0), Point3::new(20.0, far, 30.0), on(40.0)];
+            match smooth_and_cut(&tr, &raw, 5, DEFAULT_SPACING_MM) {
+                Err(Error::TooManySamples { index, limit, .. }) => {
+                    assert_eq!((index, limit), (Some(2), MAX_SAMPLES));
+                }
+                other => panic!("{far}: {other:?}"),
+            }
+        }
+        // Exactly at the limit is accepted: MAX_SAMPLES samples of 2⁻¹⁰ mm on a path of exactly
+        // MAX_SAMPLES · 2⁻¹⁰ mm (both exact in binary).
+        let spacing = 1.0 / 1024.0;
+        let raw = [on(10.0), on(10.0 + MAX_SAMPLES as f64 * spacing)];
+        assert!(smooth_and_cut(&tr, &raw, 2, spacing).is_ok());
+        assert!(matches!(
+            smooth_and_cut(&tr, &raw, 2, spacing * 0.999),
+            Err(Error::TooManySamples { index: Some(1), .. })
+        ));
     }
 }
