@@ -2,8 +2,8 @@
 //! a .DXF file format"), checked before anything is planned:
 //!
 //! - the drawing's units come from `$INSUNITS` (absent: millimetres; see `docs/file-formats.md`);
-//! - the path's length is held to [`paths::mesh::resegment::MAX_SAMPLES`] samples before they
-//!   are allocated: a longer path is refused at the coordinate that makes it so;
+//! - the path's length is held to [`paths::limits::MAX_PATH_LENGTH_MM`] (100 m) before anything
+//!   is sampled: a longer path is refused at the coordinate that makes it so;
 //! - every point's distance to the mandrel surface is measured, and a point farther than the
 //!   job's `surface_tolerance_mm` (default 0.5 mm) refuses the plan at the point's place in the
 //!   drawing. A drawing in metres without `$INSUNITS`, or a path shifted off the mandrel, stops
@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::Point3;
-use paths::mesh::resegment::MAX_SAMPLES;
+use paths::limits::MAX_PATH_LENGTH_MM;
 use sequences::dxf::{Drawing, Place};
 
 use crate::Error;
@@ -31,12 +31,8 @@ pub struct ImportedPath {
 }
 
 impl ImportedPath {
-    /// Reads the path on `layer` (any layer for `None`) of the drawing `file`.
-    pub fn load(file: &Path, layer: Option<&str>) -> Result<Self, Error> {
-        let drawing = Drawing::load(file).map_err(|e| match e {
-            sequences::Error::Io { file, source } => Error::Read { file, source },
-            other => Error::File(other),
-        })?;
+    /// The path on `layer` (any layer for `None`) of `drawing`, read from `file`.
+    pub fn new(file: &Path, drawing: &Drawing, layer: Option<&str>) -> Result<Self, Error> {
         let points = drawing
             .path_points(layer)
             .map_err(|e| Error::File(e.in_file(file)))?;
@@ -57,11 +53,10 @@ impl ImportedPath {
         })
     }
 
-    /// Refuses a path longer than [`MAX_SAMPLES`] samples of `spacing_mm` cover, at the first
-    /// point from which it is (its coordinate farthest from the previous point's), before any
-    /// sample is allocated.
-    pub fn check_length(&self, spacing_mm: f64) -> Result<(), Error> {
-        let limit_mm = MAX_SAMPLES as f64 * spacing_mm;
+    /// Refuses a path longer than [`MAX_PATH_LENGTH_MM`] at the first point from which it is
+    /// (its coordinate farthest from the previous point's), before anything is sampled.
+    pub fn check_length(&self) -> Result<(), Error> {
+        let limit_mm = MAX_PATH_LENGTH_MM;
         let mut length_mm = 0.0;
         for (k, w) in self.points.windows(2).enumerate() {
             length_mm += (w[1] - w[0]).norm();
@@ -85,8 +80,6 @@ impl ImportedPath {
                     point: index + 1,
                     value_mm: self.points[index][axis],
                     limit_mm,
-                    samples: MAX_SAMPLES,
-                    spacing_mm,
                 });
             }
         }

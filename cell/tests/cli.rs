@@ -123,7 +123,7 @@ fn bad_jobs_fail_cleanly_and_write_nothing() {
         (
             "segments = 50",
             "segments = 0",
-            "a path has 2 to 65534 segments",
+            "a path has 2 to 10000 segments",
         ),
         (
             "robot_distance_mm = 800.0",

@@ -115,7 +115,9 @@ fn absurd_dxf_coordinates_are_refused_at_their_value() {
         refused(
             &job,
             &place(d, &format!("{name}.dxf"), "14:1"),
-            &format!("path point 1 at {value} mm makes the path longer than 100000 mm"),
+            &format!(
+                "path point 1 at {value} mm makes the path longer than the limit of 100000 mm"
+            ),
         );
     }
     for (name, value) in [("nan", "NaN"), ("inf", "-inf")] {
@@ -234,7 +236,7 @@ fn segment_counts_the_robot_cannot_number_or_hold_are_refused_at_segments() {
         (
             "many",
             "70000",
-            "segments = 70000 is out of range: a path has 2 to 65534",
+            "segments = 70000 is out of range: a path has 2 to 10000",
         ),
         ("one", "1", "segments = 1 is out of range"),
         (

@@ -15,6 +15,7 @@
 //! faces). Near a tilted end a horizontal plane cuts the tube beyond the last knot on one side;
 //! there the spine is its end piece's cubic continued, the curve [`crate::Spine::eval`] gives.
 
+use crate::limits;
 use std::f64::consts::FRAC_PI_2;
 
 use crate::{Error, Tube};
@@ -132,11 +133,6 @@ pub enum Ends {
     Horizontal,
 }
 
-/// The most integration steps (samples) a traced path may take: 100 m of path at 0.25 mm. A
-/// longer path (a spine of absurd length) is refused with [`Error::TooManySamples`] before its
-/// samples are allocated.
-pub const MAX_STEPS: usize = 400_000;
-
 /// The height `u` at which the surface curve `v = const` meets the horizontal plane `z = plane`,
 /// near `guess`: `z(u) = u − r g cos v / √(1 + g²)` with `g` the spine slope, by Newton's method.
 fn plane_height(tube: &Tube, v: f64, plane: f64, guess: f64) -> f64 {
@@ -189,16 +185,10 @@ pub fn helix(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath
     }
     let [u0, v0, du, dv] = start_state(tube, start, Ends::Square);
     let length = (tube.u_max() - tube.u_min()) / du.abs();
-    let steps = (length / step_mm).ceil();
-    if steps.is_nan() || steps > MAX_STEPS as f64 {
-        return Err(Error::TooManySamples {
-            what: "helix",
-            index: None,
-            limit: MAX_STEPS,
-            spacing_mm: step_mm,
-        });
-    }
-    let n = steps.max(1.0) as usize;
+    limits::at_most("path length_mm", length, limits::MAX_PATH_LENGTH_MM)?;
+    let n = (length / step_mm).ceil().max(1.0);
+    limits::at_most("path samples", n, limits::MAX_PATH_SAMPLES as f64)?;
+    let n = n as usize;
     let samples = (0..=n)
         .map(|i| {
             let s = length * i as f64 / n as f64;
@@ -283,8 +273,8 @@ fn sample(tube: &Tube, u: f64, y: [f64; 3], sign: f64) -> Result<Sample, Error> 
 /// steps that end exactly on every knot (see `geodesic_rhs`), so the error falls as `step⁴`: on
 /// the S-bend at 45° the observed order between 2, 1 and 0.5 mm steps is above 3.5 (test
 /// `sbend_geodesic_converges_at_fourth_order`). A path that turns back along the spine (winds
-/// within 0.5° of a circle) is an error, and so is one that would take more than [`MAX_STEPS`]
-/// steps.
+/// within 0.5° of a circle) is an error, and so is one that would take more than
+/// [`limits::MAX_PATH_SAMPLES`] steps.
 pub fn trace(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath, Error> {
     trace_to(tube, start, step_mm, Ends::Square)
 }
@@ -343,22 +333,17 @@ pub fn trace_to(
     }
     // Signed height above the far plane, positive before it is reached.
     let before_plane = |u: f64, v: f64| (plane - tube.point(u, v).z) * sign;
-    let mut taken = 0usize;
     for (piece, end) in intervals {
         // Arc length per unit height at the interval's start sets the number of steps.
         let ds_du = geodesic_rhs(tube, piece, u, y)[2];
         let span = end - u;
-        let steps = (span.abs() * ds_du / step_mm).ceil();
-        if steps.is_nan() || steps + taken as f64 > MAX_STEPS as f64 {
-            return Err(Error::TooManySamples {
-                what: "geodesic",
-                index: None,
-                limit: MAX_STEPS,
-                spacing_mm: step_mm,
-            });
-        }
-        let n = (steps as usize).max(1);
-        taken += n;
+        let n = (span.abs() * ds_du / step_mm).ceil().max(1.0);
+        limits::at_most(
+            "path samples",
+            samples.len() as f64 + n,
+            limits::MAX_PATH_SAMPLES as f64,
+        )?;
+        let n = n as usize;
         let interval_start = u;
         for k in 1..=n {
             let next_u = if k == n {
@@ -621,37 +606,24 @@ mod tests {
         let long = Tube::cylinder(63.5, 1e9, 0.0, 0.0).unwrap();
         assert!(matches!(
             helix(&long, &start(Direction::Up), 1.0),
-            Err(Error::TooManySamples {
-                limit: MAX_STEPS,
-                ..
-            })
+            Err(Error::OverLimit { .. })
         ));
         assert!(matches!(
             trace(&long, &start(Direction::Up), 1.0),
-            Err(Error::TooManySamples {
-                limit: MAX_STEPS,
-                ..
-            })
+            Err(Error::OverLimit { .. })
         ));
-        // Just inside the limit: a 178 mm cylinder at steps that need MAX_STEPS or fewer.
+        // Just inside the limit: a 178 mm cylinder at steps that need MAX_PATH_SAMPLES or fewer.
+        let most = limits::MAX_PATH_SAMPLES as f64;
         let tube = Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap();
         let length = 178.0 / 48.3f64.to_radians().cos();
-        assert!(
-            helix(
-                &tube,
-                &start(Direction::Up),
-                length / MAX_STEPS as f64 * 1.001
-            )
-            .is_ok()
-        );
-        assert!(
-            helix(
-                &tube,
-                &start(Direction::Up),
-                length / MAX_STEPS as f64 * 0.99
-            )
-            .is_err()
-        );
+        assert!(helix(&tube, &start(Direction::Up), length / most * 1.001).is_ok());
+        assert!(helix(&tube, &start(Direction::Up), length / most * 0.99).is_err());
+        let sbend = sbend();
+        assert!(trace(&sbend, &sbend_start(Direction::Up), 2e-3).is_ok());
+        assert!(matches!(
+            trace(&sbend, &sbend_start(Direction::Up), 5e-4),
+            Err(Error::OverLimit { .. })
+        ));
     }
 
     #[test]

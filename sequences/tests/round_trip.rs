@@ -439,6 +439,6 @@ fn segment_limits_are_inclusive() {
         let text = CYLINDER.replace("segments = 50", &format!("segments = {segments}"));
         assert_eq!(Job::parse(&text).is_ok(), ok, "{segments}");
     }
-    // The limits themselves: 16-bit instruction numbers hold the approach and every segment.
-    assert_eq!(u32::from(u16::MAX), MAX_SEGMENTS + 1);
+    // 16-bit instruction numbers hold the approach and every segment.
+    assert!(MAX_SEGMENTS < u32::from(u16::MAX));
 }
