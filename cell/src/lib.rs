@@ -6,6 +6,7 @@ pub mod cellfile;
 pub mod coordinator;
 pub mod device;
 pub mod error;
+pub mod imported;
 pub mod journal;
 pub mod mesh;
 pub mod output;

@@ -27,7 +27,7 @@ fn sbend(mode: Option<RunMode>) -> Loaded {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml");
     let (job, text) = Job::load(&path).unwrap();
     let plan = tool::plan(&job, &text, &path).unwrap();
-    let files = batch::files_of_job(&tool::control_files(&job, &plan));
+    let files = batch::files_of_job(&tool::control_files(&job, &plan).unwrap());
     batch::from_files(&files, mode, Path::new("."), Path::new("SBEND.RUN")).unwrap()
 }
 

@@ -31,6 +31,20 @@ pub enum Error {
         /// What is wrong, in lower case.
         message: String,
     },
+    /// A value the writer refuses because its reader would refuse the text written, or read it
+    /// back as a different value (an empty sequence, program 0, a speed above the maximum, a
+    /// non-finite number). `line` and `column` are where the written text would be refused.
+    #[error("cannot write the {format}: line {line}, column {column} of its text: {message}")]
+    Unwritable {
+        /// Which file format (`robot control file`, `run file`, …).
+        format: &'static str,
+        /// 1-based line of the written text.
+        line: usize,
+        /// 1-based column of the written text.
+        column: usize,
+        /// What the reader says, in lower case.
+        message: String,
+    },
     /// A file to read is a device, FIFO, socket or folder (refused without reading it).
     #[error("{}: is {kind}, not a regular file", file.display())]
     NotRegularFile {
@@ -104,6 +118,38 @@ impl Error {
             },
             other => other,
         }
+    }
+}
+
+/// `text`, the written form of `value`, if `parse` reads it back as `value`; otherwise the
+/// reader's complaint as [`Error::Unwritable`]. Every writer goes through this, so a file
+/// windcell writes is always one it reads.
+pub(crate) fn written<T: PartialEq>(
+    format: &'static str,
+    value: &T,
+    text: String,
+    parse: impl FnOnce(&str) -> Result<T, Error>,
+) -> Result<String, Error> {
+    match parse(&text) {
+        Ok(back) if back == *value => Ok(text),
+        Ok(_) => Err(Error::Unwritable {
+            format,
+            line: 1,
+            column: 1,
+            message: "the text reads back as a different value".into(),
+        }),
+        Err(Error::Parse {
+            line,
+            column,
+            message,
+            ..
+        }) => Err(Error::Unwritable {
+            format,
+            line,
+            column,
+            message,
+        }),
+        Err(other) => Err(other),
     }
 }
 

@@ -161,7 +161,7 @@ fn max(v: &[f64]) -> f64 {
 }
 
 fn check_program(name: &str, path: &PlannedPath, job: &Job, movement: Movement) -> f64 {
-    let mut rob = cell::tool::robot_file(job, path);
+    let mut rob = cell::tool::robot_file(job, path).unwrap();
     rob.header.movement = movement;
     let radius_mm = transfer::zone(movement).unwrap().radius_mm();
     let run = run_program(&rob);
@@ -219,7 +219,7 @@ fn cylinder_path_1_runs_on_the_simulated_robot_within_its_zones() {
 #[test]
 fn sbend_path_1_in_discrete_movement_stops_at_every_point() {
     let (job, plan) = planned("sbend");
-    let rob = cell::tool::robot_file(&job, &plan.paths[0]);
+    let rob = cell::tool::robot_file(&job, &plan.paths[0]).unwrap();
     let moves = transfer::immediate_moves(&rob).unwrap();
     let mut c = robot_ready(&rob);
     let io = c.link().peer.machine.io().clone();
@@ -331,7 +331,7 @@ fn check_indexer(name: &str) {
 fn check_discrete_mandrel_moves(name: &str) {
     let (job, plan) = planned(name);
     let path = &plan.paths[0];
-    let rob = cell::tool::robot_file(&job, path);
+    let rob = cell::tool::robot_file(&job, path).unwrap();
     let ind = cell::tool::mandrel_file(&job, path);
     let (setup, _) = cell::tool::setup(&job);
     let drive = Drive::new(setup.gearing, TRANSLATOR_LIMIT_PPS).unwrap();

@@ -88,7 +88,9 @@ fn load(args: &RunArgs) -> Result<(Loaded, Cell, Reach, String), Failure> {
     let (loaded, job_cell, reach, name) = if is_job {
         let (job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
         let plan = cell::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
-        let files = batch::files_of_job(&cell::tool::control_files(&job, &plan));
+        let files = batch::files_of_job(
+            &cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+        );
         let dir = args.input.parent().unwrap_or(Path::new("."));
         let mut loaded =
             batch::from_files(&files, mode, dir, &dir.join("RUN")).map_err(Failure::from_cell)?;

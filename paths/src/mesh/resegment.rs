@@ -251,4 +251,34 @@ mod tests {
         assert!(smooth_and_cut(&tr, &path.points, 0, 2.0).is_err());
         assert!(smooth_and_cut(&tr, &path.points[..1], 5, 2.0).is_err());
     }
+
+    #[test]
+    fn paths_longer_than_the_limits_are_refused_before_resampling() {
+        let profile: Vec<(f64, f64)> = (0..=10).map(|i| (10.0 * i as f64, 20.0)).collect();
+        let (m, adj) = prepare(
+            &triasym::revolution(&profile, 32, true).unwrap(),
+            DEFAULT_WELD_MM,
+            Closure::Closed,
+        )
+        .unwrap();
+        let tr = Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap();
+        let on = |z: f64| Point3::new(20.0, 0.0, z);
+        for far in [1e9, 1e308, f64::MAX] {
+            let raw = [on(10.0), on(20.0), Point3::new(20.0, far, 30.0), on(40.0)];
+            assert!(
+                matches!(
+                    smooth_and_cut(&tr, &raw, 5, DEFAULT_SPACING_MM),
+                    Err(Error::OverLimit { .. })
+                ),
+                "{far}"
+            );
+        }
+        // Samples: a 50 mm path at a spacing that needs more than the most samples.
+        let spacing = 50.0 / crate::limits::MAX_PATH_SAMPLES as f64;
+        let raw = [on(10.0), on(60.0)];
+        assert!(matches!(
+            smooth_and_cut(&tr, &raw, 2, spacing * 0.99),
+            Err(Error::OverLimit { .. })
+        ));
+    }
 }
