@@ -23,8 +23,9 @@ pub enum Error {
         /// What the geometry said.
         source: paths::Error,
     },
-    /// A mesh file is malformed or not a usable surface (the source names the line or triangle).
-    #[error("{}: {source}", file.display())]
+    /// A mesh file is malformed or not a usable surface: `FILE:LINE:COL: message` for the text
+    /// formats, `FILE: byte N: message` for binary STL, where the reader knows the place.
+    #[error("{}", mesh_place(file, source))]
     Mesh {
         /// The mesh file.
         file: PathBuf,
@@ -130,6 +131,18 @@ impl Error {
                 | Error::RobotTransfer { .. }
                 | Error::IndexerTransfer { .. }
         )
+    }
+}
+
+fn mesh_place(file: &std::path::Path, source: &paths::Error) -> String {
+    match source {
+        paths::Error::MeshSyntax {
+            line: Some(line),
+            column: Some(column),
+            message,
+            ..
+        } => format!("{}:{line}:{column}: {message}", file.display()),
+        other => format!("{}: {other}", file.display()),
     }
 }
 

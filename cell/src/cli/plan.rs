@@ -54,23 +54,28 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
         for p in &plan.paths {
             let limited = p.plan.segments.iter().filter(|s| s.speed_limited).count();
             out += &format!(
-                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm{}{}\n",
+                "{}: {} segments, {} mandrel motor steps, drift ≤ {:.4}° from the ideal mandrel angle, \
+                 payout eye ≥ {:.1} mm from the mandrel surface{}{}\n",
                 p.name,
                 p.plan.segments.len(),
                 p.plan.segments.iter().map(|s| s.steps).sum::<i64>(),
                 p.plan.max_drift_rad.to_degrees(),
                 p.plan.min_eye_clearance_mm,
                 p.smoothing_deviation_mm
-                    .map(|d| format!(", smoothing deviation ≤ {d:.4} mm"))
+                    .map(|d| format!(", smoothed path ≤ {d:.4} mm from the traced one"))
                     .unwrap_or_default(),
                 if limited > 0 {
-                    format!(", {limited} segments capped at the maximum speed")
+                    format!(", {limited} segments capped at the robot's maximum speed")
                 } else {
                     String::new()
                 }
             );
         }
-        out += &format!("wrote {} files to {}\n", files.len(), args.out.display());
+        out += &format!(
+            "wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
+            files.len(),
+            args.out.display()
+        );
     }
     super::print(&out)
 }
