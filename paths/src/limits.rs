@@ -7,6 +7,9 @@ use crate::Error;
 
 /// Most equal-length segments of one path (the thesis uses 50; a robot program holds far fewer).
 pub const MAX_SEGMENTS: usize = 10_000;
+/// Most segments of all paths of one job or coverage set together (a plan costs about 60 µs and
+/// 350 bytes per segment on a mesh mandrel, and its control files about 170 bytes).
+pub const MAX_JOB_SEGMENTS: usize = 50_000;
 /// Longest fibre path, mm (100 m: a path that long winds a mandrel hundreds of times).
 pub const MAX_PATH_LENGTH_MM: f64 = 100_000.0;
 /// Most samples of one path (integrator steps, helix samples, resampled points).
