@@ -102,8 +102,9 @@ pub enum Error {
         /// The number that does not fit.
         number: usize,
     },
-    /// A mesh file is malformed or not a usable surface (the source names the line or triangle).
-    #[error("{}: {source}", file.display())]
+    /// A mesh file is malformed or not a usable surface: `FILE:LINE:COL: message` for the text
+    /// formats, `FILE: byte N: message` for binary STL, where the reader knows the place.
+    #[error("{}", mesh_place(file, source))]
     Mesh {
         /// The mesh file.
         file: PathBuf,
@@ -244,6 +245,18 @@ fn short(mm: f64) -> String {
             .to_string()
     } else {
         format!("{mm:e}")
+    }
+}
+
+fn mesh_place(file: &std::path::Path, source: &paths::Error) -> String {
+    match source {
+        paths::Error::MeshSyntax {
+            line: Some(line),
+            column: Some(column),
+            message,
+            ..
+        } => format!("{}:{line}:{column}: {message}", file.display()),
+        other => format!("{}: {other}", file.display()),
     }
 }
 

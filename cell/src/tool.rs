@@ -300,6 +300,17 @@ fn error_span(job: &Job, spec: &PathSpec, error: &paths::Error) -> Range<usize> 
 /// Plans every path of `job`. `text` and `file` locate errors in the job file.
 pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
     let located = |source, span| located(text, file, source, span);
+    // The whole job's work is bounded before any of it starts.
+    let mut total = 0usize;
+    for spec in &job.paths {
+        total += *spec.segments.get_ref() as usize;
+        paths::limits::at_most(
+            "segments in all paths",
+            total as f64,
+            paths::limits::MAX_JOB_SEGMENTS as f64,
+        )
+        .map_err(|e| located(e, spec.segments.span()))?;
+    }
     let tube = mandrel_in(job, text, file)?;
     let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
         (MandrelKind::Mesh, Some(mesh)) => {

@@ -86,7 +86,11 @@ fn geodesic_prints_points_and_faces_and_stops_at_the_end_cap() {
     ]);
     assert!(r.status.success(), "{}", stderr(&r));
     let text = String::from_utf8(r.stdout).unwrap();
-    assert!(text.trim_end().ends_with("stopped at a height"), "{text}");
+    assert!(
+        text.trim_end()
+            .ends_with("stopped at the edge of the --heights range"),
+        "{text}"
+    );
     // Smoothed and cut into equal lengths on the surface.
     let r = windcell(&[
         "geodesic",
@@ -127,13 +131,10 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
     let empty = dir.path().join("empty.stl");
     std::fs::write(&empty, "").unwrap();
     let cases: [(&Path, &str); 4] = [
-        (&stl, "bad.stl: line 5: `oops` is not a number"),
-        (&obj, "bad.obj: line 5: vertex 7 does not exist"),
-        (
-            &open,
-            "open.obj: line 6: triangle 1: inconsistent orientation",
-        ),
-        (&empty, "empty.stl: the file is empty"),
+        (&stl, "bad.stl:5:15: `oops` is not a number"),
+        (&obj, "bad.obj:5:7: `7`: vertex 7 does not exist"),
+        (&open, "open.obj:6:1: triangle 1: inconsistent orientation"),
+        (&empty, "empty.stl: byte 0: the file is empty"),
     ];
     for (file, message) in cases {
         let r = windcell(&[
@@ -185,7 +186,7 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(r.status.code(), Some(2));
-    assert!(stderr(&r).contains("bad.stl: line 5"), "{}", stderr(&r));
+    assert!(stderr(&r).contains("bad.stl:5:15: "), "{}", stderr(&r));
     assert!(!out.exists());
 }
 

@@ -181,11 +181,24 @@ pub enum Error {
         /// The row where elimination met a zero pivot.
         row: usize,
     },
-    /// A mesh file could not be read: the line (ASCII STL, OBJ) where known, and what is wrong.
-    #[error("{}{message}", line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    /// A mesh file could not be read: the line and column (ASCII STL, OBJ) or the byte offset
+    /// (binary STL) where known, and what is wrong.
+    #[error(
+        "{}{message}",
+        match (line, column, byte) {
+            (Some(l), Some(c), _) => format!("line {l}, column {c}: "),
+            (Some(l), None, _) => format!("line {l}: "),
+            (None, _, Some(b)) => format!("byte {b}: "),
+            _ => String::new(),
+        }
+    )]
     MeshSyntax {
         /// 1-based line of a text format, `None` for binary STL.
         line: Option<usize>,
+        /// 1-based column (in characters) on that line, where known.
+        column: Option<usize>,
+        /// 0-based byte offset in a binary file, where known.
+        byte: Option<u64>,
         /// What is wrong, in lower case.
         message: String,
     },
@@ -210,8 +223,17 @@ pub enum Error {
         mu: f64,
     },
     /// A start point too far from the mesh surface.
-    #[error("start point is {distance_mm:.3} mm from the mesh surface (more than {limit_mm} mm)")]
+    #[error(
+        "start point is {distance_mm:.3} mm from the mesh surface (more than {} mm); the nearest \
+         surface point is {:.3},{:.3},{:.3}",
+        shown(*limit_mm),
+        nearest_mm[0],
+        nearest_mm[1],
+        nearest_mm[2]
+    )]
     OffSurface {
+        /// The nearest surface point, mm (a start point that would be accepted).
+        nearest_mm: [f64; 3],
         /// Distance to the nearest surface point.
         distance_mm: f64,
         /// The largest accepted distance.

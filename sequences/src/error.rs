@@ -153,9 +153,9 @@ pub(crate) fn written<T: PartialEq>(
     }
 }
 
-/// How a number reads in a message: plain with up to 6 decimals (trailing zeros dropped) between
-/// 1e-4 and 1e9, else in exponent form with 6 significant digits (no 300-digit numbers). The same
-/// rule as `paths::limits::shown`.
+/// How a number reads in a message: plain between 1e-4 and 1e9, with at most 9 significant digits
+/// and 6 decimals (trailing zeros dropped), else in exponent form with 6 significant digits (no
+/// 300-digit numbers). The same rule as `paths::limits::shown`.
 pub fn shown(value: f64) -> String {
     if !value.is_finite() || value == 0.0 {
         return format!("{value}");
@@ -168,7 +168,8 @@ pub fn shown(value: f64) -> String {
         }
     };
     if (1e-4..1e9).contains(&value.abs()) {
-        trim(format!("{value:.6}"))
+        let decimals = (8 - value.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        trim(format!("{value:.decimals$}"))
     } else {
         let e = format!("{value:.5e}");
         let (mantissa, exponent) = e.split_once('e').unwrap_or((&e, "0"));
@@ -207,6 +208,7 @@ mod tests {
         assert_eq!(shown(-2.5e-7), "-2.5e-7");
         assert_eq!(shown(2000.0), "2000");
         assert_eq!(shown(63.5), "63.5");
+        assert_eq!(shown(101_986_487.528_729), "101986488");
         assert_eq!(shown(f64::NAN), "NaN");
     }
 

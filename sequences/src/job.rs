@@ -292,8 +292,7 @@ pub fn error_at(text: &str, span: Range<usize>, message: impl Into<String>) -> E
 }
 
 /// Checks `value` against `ok`, that it is finite, and its magnitude against [`MAX_LENGTH_MM`]
-/// when `what` names a length (`_mm`, `length`, `offset`, …: see [`is_length`]) or
-/// [`MAX_MAGNITUDE`] otherwise.
+/// when its key names a length (ends in `_mm`, see [`key_of`]) or [`MAX_MAGNITUDE`] otherwise.
 fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), Error> {
     let v = *value.get_ref();
     if !(ok && v.is_finite()) {
@@ -303,7 +302,8 @@ fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), E
             format!("{} {what}", crate::error::shown(v)),
         ));
     }
-    let (limit, unit) = if is_length(text, value) {
+    let key = key_of(text, value);
+    let (limit, unit) = if key.ends_with("_mm") {
         (MAX_LENGTH_MM, " mm")
     } else {
         (MAX_MAGNITUDE, "")
@@ -313,7 +313,7 @@ fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), E
             text,
             value.span(),
             format!(
-                "{} is larger than the limit of {}{unit} (docs/ARCHITECTURE.md, \"Limits\")",
+                "{key} = {} is larger than the limit of {}{unit} (docs/ARCHITECTURE.md, \"Limits\")",
                 crate::error::shown(v),
                 crate::error::shown(limit)
             ),
@@ -322,13 +322,12 @@ fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), E
     Ok(())
 }
 
-/// True when the key in front of `value` in `text` ends in `_mm` (a length).
-fn is_length(text: &str, value: &Spanned<f64>) -> bool {
-    let before = &text[..value.span().start.min(text.len())];
+/// The key in front of `value` on its line of `text` (`diameter_mm`); a key ending in `_mm` is a
+/// length.
+fn key_of<'t>(text: &'t str, value: &Spanned<f64>) -> &'t str {
+    let before = text.get(..value.span().start).unwrap_or_default();
     let line = before.rsplit('\n').next().unwrap_or_default();
-    line.split('=')
-        .next()
-        .is_some_and(|key| key.trim().ends_with("_mm"))
+    line.split('=').next().unwrap_or_default().trim()
 }
 
 fn positive(text: &str, value: &Spanned<f64>, name: &str) -> Result<(), Error> {
@@ -807,7 +806,7 @@ segments = 50
         assert!(r.forearm_mm.is_none());
         let k = job.cell.calibration.as_ref().unwrap();
         assert_eq!(*k.rotation_sign.as_ref().unwrap().get_ref(), -1);
-        assert_eq!(Job::parse(&job.write()).unwrap(), job);
+        assert_eq!(Job::parse(&job.write().unwrap()).unwrap(), job);
     }
 
     #[test]

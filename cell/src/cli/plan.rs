@@ -61,8 +61,9 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
         for p in &plan.paths {
             let paced = p.plan.segments.iter().filter(|s| s.robot_paced).count();
             out += &format!(
-                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm, entry angle \
-                 ≤ {:.2}°{}{}\n",
+                "{}: {} segments, {} mandrel motor steps, drift ≤ {:.4}° from the ideal mandrel \
+                 angle, payout eye ≥ {:.1} mm from the mandrel surface, fibre enters the eye at \
+                 ≤ {:.2}° to its axis{}{}\n",
                 p.name,
                 p.plan.segments.len(),
                 p.plan.segments.iter().map(|s| s.steps).sum::<i64>(),
@@ -70,7 +71,7 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
                 p.plan.min_eye_clearance_mm,
                 p.plan.max_entry_angle_rad.to_degrees(),
                 p.smoothing_deviation_mm
-                    .map(|d| format!(", smoothing deviation ≤ {d:.4} mm"))
+                    .map(|d| format!(", smoothed path ≤ {d:.4} mm from the traced one"))
                     .unwrap_or_default(),
                 if paced > 0 {
                     format!(", {paced} segments at the robot's time (mandrel slowed)")
@@ -79,7 +80,11 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
                 }
             );
         }
-        out += &format!("wrote {} files to {}\n", files.len(), args.out.display());
+        out += &format!(
+            "wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
+            files.len(),
+            args.out.display()
+        );
     }
     super::print(&out)
 }

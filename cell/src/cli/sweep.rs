@@ -78,7 +78,8 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
             .filter_map(|p| p.smoothing_deviation_mm)
             .fold(0.0f64, f64::max);
         format!(
-            "{} paths of {} segments planned, smoothing deviation ≤ {worst:.4} mm\nwrote {} files to {}\n",
+            "{} paths of {} segments planned, smoothed paths ≤ {worst:.4} mm from the traced ones\n\
+             wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
             plan.paths.len(),
             pattern.segments.get_ref(),
             files.len(),
