@@ -71,12 +71,21 @@ fn paced(cfg: FrameConfig) -> (Client<Paced<Robot>, VirtualClock>, VirtualClock)
 #[test]
 fn program_flow_in_virtual_time() {
     let (mut c, clock) = paced(FrameConfig::default());
-    // Moves need OPERATE and home.
-    c.run_program(1).unwrap();
-    assert_eq!(
-        c.check_status().unwrap_err().to_string(),
-        "robot error 5: program empty or unknown"
+    // An empty program is refused: the confirmed RUN_PROGRAM reports the robot's error.
+    let e = c.run_program(1).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Robot {
+                code: 5,
+                count: 1,
+                ..
+            }
+        ),
+        "{e}"
     );
+    // It was reported once: the latch was acknowledged, the next check is clean.
+    assert_eq!(c.check_status().unwrap().last_error, 0);
     c.operate().unwrap();
     c.sync_home().unwrap();
     c.link_mut().run_for(Duration::from_secs(4));
@@ -137,9 +146,20 @@ fn standby_checks_without_moving_and_memory_limits() {
         Zone::Fine,
     )));
     c.upload(2, &prog).unwrap();
-    c.run_program(2).unwrap();
-    let s = c.status().unwrap();
-    assert_eq!((s.last_error, s.instruction), (3, 4));
+    // The standby dry run stops at instruction 4 and the client names it.
+    let e = c.run_program(2).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Robot {
+                code: 3,
+                program: 0,
+                instruction: 4,
+                ..
+            }
+        ),
+        "{e}"
+    );
     assert_eq!(
         c.link().peer.machine.pose().xyz_mm,
         MotionParams::default().home.xyz_mm
@@ -221,7 +241,7 @@ fn silence_is_no_response_within_n_enq_times_t_enq() {
         clock.clone(),
         ClientConfig::default(),
     );
-    let e = c.operate().unwrap_err();
+    let e = c.send(&Command::Operate).unwrap_err();
     assert!(
         matches!(e, Error::Link(LinkError::NoResponse { attempts }) if attempts == N_ENQ),
         "{e}"
@@ -274,7 +294,7 @@ fn nak_storm_is_a_retries_error() {
         clock.clone(),
         ClientConfig::default(),
     );
-    let e = c.operate().unwrap_err();
+    let e = c.send(&Command::Operate).unwrap_err();
     assert!(
         matches!(e, Error::Link(LinkError::Retries { attempts }) if attempts == N_TX),
         "{e}"
@@ -289,7 +309,7 @@ fn nak_storm_is_a_retries_error() {
         ClientConfig::default(),
     );
     assert!(matches!(
-        c.stop(),
+        c.send(&Command::Stop),
         Err(Error::Link(LinkError::Retries { attempts: 6 }))
     ));
 }
@@ -787,6 +807,7 @@ fn program_over_a_pseudo_terminal() {
         accel_mm_s2: 1.0e6,
         overhead_s: [0.0; 3],
         floor_s: [0.002; 3],
+        flying_floor_s: [0.0; 3],
         home_s: 0.01,
         ..MotionParams::default()
     };

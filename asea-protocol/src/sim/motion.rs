@@ -52,8 +52,13 @@ pub struct MotionParams {
     pub overhead_s: [f64; 3],
     /// Shortest time of one stop move, per zone (fine, medium, coarse), seconds (Table 6.2).
     pub floor_s: [f64; 3],
-    /// Shortest time of one flying move of a stored program, per zone, seconds.
+    /// Shortest time of one flying move of a stored program, per zone, seconds: the robot
+    /// computer's interpretation time for the next instruction ([`INTERPRETATION_S`]).
     pub flying_floor_s: [f64; 3],
+    /// Commanded speeds below this have no plateau ([`PLATEAU_MIN_SPEED_MM_S`]).
+    pub plateau_min_speed_mm_s: f64,
+    /// The arm stands still while the robot computer serves the link (seed 001 §4.1.2).
+    pub link_idles_arm: bool,
     /// Time of a home synchronisation, seconds.
     pub home_s: f64,
     /// The home pose.
@@ -68,7 +73,9 @@ impl Default for MotionParams {
             accel_mm_s2: 4000.0,
             overhead_s: [0.50, 0.385, 0.30],
             floor_s: [0.71, 0.54, 0.40],
-            flying_floor_s: [0.0; 3],
+            flying_floor_s: INTERPRETATION_S,
+            plateau_min_speed_mm_s: PLATEAU_MIN_SPEED_MM_S,
+            link_idles_arm: true,
             home_s: 3.0,
             home: EyePose {
                 xyz_mm: [900.0, 0.0, 800.0],
@@ -78,6 +85,18 @@ impl Default for MotionParams {
         }
     }
 }
+
+/// Commanded speed below which a stop move has no plateau, mm/s (seed 001 §6.7: "Speeds of less
+/// than 500 mm/s do not have a plateau; the total time increases with segment length"; at
+/// 100 mm/s Table 6.2 reads about 550 ms for a 2 mm move in both modes).
+pub const PLATEAU_MIN_SPEED_MM_S: f64 = 500.0;
+
+/// Interpretation time of a flying move of a stored program, per zone (fine, medium, coarse), s.
+/// Seed 001 App. B: the fastest windings of the 50-segment cylinder paths that still kept the
+/// path ran fine at 0.20 rev/s (10.0 s, 0.20 s per instruction) and medium at 0.30 rev/s (6.7 s,
+/// 0.134 s per instruction); fine asks the servos to come within 1 mm before the next instruction
+/// is taken, so it needs more time per instruction. Coarse is not used for winding (§5.4.2); ours.
+pub const INTERPRETATION_S: [f64; 3] = [0.20, 0.13, 0.10];
 
 fn zone_index(z: Zone) -> usize {
     match z {
@@ -324,6 +343,63 @@ impl Trajectory {
         let i = self.moves.partition_point(|m| m.t1() <= t);
         self.moves.get(i)
     }
+    /// Shifts the whole trajectory `dt_s` later (the arm held still meanwhile).
+    pub fn delay(&mut self, dt_s: f64) {
+        self.t0 += dt_s;
+        for m in &mut self.moves {
+            m.t0 += dt_s;
+        }
+    }
+}
+
+/// The deceleration of a STOP at `t` on `traj`: from the pose and velocity there, straight on along
+/// the direction of travel, slowing at `params.accel_mm_s2` to rest (seed 001 §6.7: the servos
+/// ramp down so that the linkages do not oscillate). `None` when the arm is at rest at `t`.
+pub fn braking(traj: &Trajectory, t: f64, params: &MotionParams) -> Option<Trajectory> {
+    const DT_S: f64 = 1e-4;
+    let here = traj.pose_at(t);
+    let before = traj.pose_at(t - DT_S);
+    let vel = sub(here.xyz_mm, before.xyz_mm).map(|c| c / DT_S);
+    let v = norm(vel);
+    if v.is_nan() || v <= 1e-3 || t >= traj.t1() {
+        return None;
+    }
+    let a = params.accel_mm_s2;
+    let len = v * v / (2.0 * a);
+    let to = lerp3(
+        here.xyz_mm,
+        [
+            here.xyz_mm[0] + vel[0],
+            here.xyz_mm[1] + vel[1],
+            here.xyz_mm[2] + vel[2],
+        ],
+        len / v,
+    );
+    let profile = Profile {
+        a,
+        v,
+        t_up: 0.0,
+        t_cruise: 0.0,
+        t_down: v / a,
+    };
+    let m = Move {
+        instruction: 0,
+        t0: t,
+        duration: v / a,
+        target_mm: to,
+        zone: Zone::Fine,
+        stops: true,
+        pieces: vec![Piece::new(here.xyz_mm, to, false)],
+        profile,
+        stretch: 1.0,
+        q0: here.q,
+        q1: here.q,
+    };
+    Some(Trajectory {
+        moves: vec![m],
+        start: here,
+        t0: t,
+    })
 }
 
 /// Speeds in force: base and maximum, mm/s.
@@ -390,10 +466,15 @@ pub fn plan(
         } else {
             let next = targets[k + 1];
             let (d_in, d_out) = (sub(target, pos), sub(next, target));
+            // The corner is cut from where the arm would have to start braking to stop at the
+            // point, v²/2a: slow moves pass almost through their points, fast ones cut up to the
+            // zone (seed 001 §5.4.2: the smoothing grows with speed; the zone bounds it).
+            let v = (p.speed.value() * speeds.base_mm_s).min(speeds.max_mm_s);
             let r = p
                 .flags
                 .zone
                 .radius_mm()
+                .min(v * v / (2.0 * params.accel_mm_s2))
                 .min(norm(d_in) / 2.0)
                 .min(norm(d_out) / 2.0);
             let a = if norm(d_in) > 0.0 {
@@ -417,8 +498,13 @@ pub fn plan(
             .max(1.0);
         let profile = Profile::new(len, v, params.accel_mm_s2, from_rest, stops);
         let motion = profile.duration();
+        let floor = if v >= params.plateau_min_speed_mm_s {
+            params.floor_s[zi]
+        } else {
+            0.0
+        };
         let (duration, stretch) = if stops {
-            (params.floor_s[zi].max(params.overhead_s[zi] + motion), 1.0)
+            (floor.max(params.overhead_s[zi] + motion), 1.0)
         } else if motion < params.flying_floor_s[zi] && motion > 0.0 {
             (
                 params.flying_floor_s[zi],
