@@ -108,6 +108,9 @@ pub struct VerifyReport {
     pub checked: usize,
     /// Instructions stored again because they read back differently.
     pub restored: usize,
+    /// Errors the robot raised during the upload that belong to no instruction of it (corrupted
+    /// twins it refused), acknowledged.
+    pub refused_twins: u64,
 }
 
 /// The blocking robot client.
@@ -123,6 +126,12 @@ pub struct Client<L, C = RealClock> {
     uncancellable: bool,
     /// The robot's error sequence number as last accounted for: errors up to it are reported.
     seen_error_seq: Option<u8>,
+    /// Errors the robot raised that this client has seen (reported or acknowledged), counted by
+    /// sequence number.
+    errors_seen: u64,
+    /// The robot's execution count after the last confirmed command, while nothing else with an
+    /// effect was sent since (stores make it unknown).
+    last_executed: Option<u16>,
 }
 
 impl<L: Link> Client<L, RealClock> {
@@ -157,7 +166,15 @@ impl<L: Link, C: Clock> Client<L, C> {
             cancel: Cancel::new(),
             uncancellable: false,
             seen_error_seq: None,
+            errors_seen: 0,
+            last_executed: None,
         }
+    }
+
+    /// Errors the robot raised that this client has seen since it was made (by the robot's error
+    /// sequence number, so errors that overwrote each other between two reads count each).
+    pub fn errors_seen(&self) -> u64 {
+        self.errors_seen
     }
 
     /// The token that cancels this client's exchanges (clone it into another thread).
@@ -334,7 +351,10 @@ impl<L: Link, C: Clock> Client<L, C> {
             .map_or(s.last_error != 0, |seen| seen != s.error_seq);
         let count = self
             .seen_error_seq
-            .map_or(1, |seen| s.error_seq.wrapping_sub(seen));
+            .map_or(u8::from(s.last_error != 0), |seen| {
+                s.error_seq.wrapping_sub(seen)
+            });
+        self.errors_seen += u64::from(count);
         self.seen_error_seq = Some(s.error_seq);
         if s.last_error != 0 {
             // Idempotent: it clears only the error with this number; if it is lost the error stays
@@ -380,6 +400,17 @@ impl<L: Link, C: Clock> Client<L, C> {
         let mut before = self.status_agreed()?;
         // Errors from before this command are not its errors: report them first.
         self.account_errors(&before)?;
+        // Anything executed since the last confirmed command that this client did not send.
+        if let Some(last) = self.last_executed.take()
+            && last != before.executed
+        {
+            return Err(Error::Foreign {
+                command: "(between commands)",
+                executed: before.executed.wrapping_sub(last),
+                digest: before.last_digest,
+                sent: 0,
+            });
+        }
         let attempts = self.cfg.retry.command_attempts.max(1);
         for _ in 0..attempts {
             match self.send(cmd) {
@@ -396,6 +427,7 @@ impl<L: Link, C: Clock> Client<L, C> {
                     continue;
                 }
                 1 if after.last_digest == sent => {
+                    self.last_executed = Some(after.executed);
                     self.account_errors(&after)?;
                     return match effect(cmd, &after) {
                         Ok(()) => Ok(after),
@@ -407,7 +439,7 @@ impl<L: Link, C: Clock> Client<L, C> {
                     };
                 }
                 _ => {
-                    let _ = self.account_errors(&after);
+                    // Errors stay latched for the next check to report.
                     return Err(Error::Foreign {
                         command: name,
                         executed,
@@ -559,6 +591,7 @@ impl<L: Link, C: Clock> Client<L, C> {
             let r = self.upload_verified(*program, instructions)?;
             report.checked += r.checked;
             report.restored += r.restored;
+            report.refused_twins += r.refused_twins;
         }
         for (program, instructions) in batch {
             for (n, i) in (1u16..).zip(instructions.iter()) {
@@ -591,6 +624,7 @@ impl<L: Link, C: Clock> Client<L, C> {
                 let r = self.upload_verified(*program, instructions)?;
                 report.checked += r.checked;
                 report.restored += r.restored;
+                report.refused_twins += r.refused_twins;
             }
         }
         let (_, _, total) = self.program_info(batch.first().map_or(1, |(p, _)| *p))?;
@@ -612,8 +646,10 @@ impl<L: Link, C: Clock> Client<L, C> {
         }
     }
 
-    /// Stores one instruction (positioning or control) as `instruction` of `program`.
+    /// Stores one instruction (positioning or control) as `instruction` of `program`, sent once
+    /// ([`Client::send`]); [`Client::store_verified`] proves it.
     pub fn store(&mut self, program: u8, instruction: u16, i: &Instruction) -> Result<()> {
+        self.last_executed = None;
         self.send(&store_command(program, instruction, i))
     }
 
@@ -654,9 +690,15 @@ impl<L: Link, C: Clock> Client<L, C> {
             report.restored += self.settle(program, n, i)?;
         }
         // Every instruction is confirmed, so a new latched error now can only come from a
-        // corrupted twin the robot refused: acknowledge it (a twin that was stored is found by
-        // [`Client::upload_batch`]).
-        let _ = self.check_status();
+        // corrupted twin the robot refused: acknowledge it and count it in the report (a twin
+        // that was stored is found by [`Client::upload_batch`]).
+        let seen = self.errors_seen;
+        match self.check_status() {
+            Ok(_) | Err(Error::Robot { .. }) => {}
+            Err(e) if is_link_noise(&e) => {}
+            Err(e) => return Err(e),
+        }
+        report.refused_twins += self.errors_seen - seen;
         Ok(report)
     }
 

@@ -128,6 +128,8 @@ pub struct Machine {
     homed: bool,
     last_error: u8,
     error_seq: u8,
+    errors_raised: u64,
+    redundant_stores: u64,
     executed_count: u16,
     last_digest: u16,
     error_state: bool,
@@ -163,6 +165,8 @@ impl Machine {
             homed: false,
             last_error: 0,
             error_seq: 0,
+            errors_raised: 0,
+            redundant_stores: 0,
             executed_count: 0,
             last_digest: 0,
             error_state: false,
@@ -221,6 +225,17 @@ impl Machine {
         self.error_seq
     }
 
+    /// Errors raised since power-up (the simulator's truth, not on the wire).
+    pub fn errors_raised(&self) -> u64 {
+        self.errors_raised
+    }
+
+    /// Stores executed into a slot that already held exactly that instruction: a store executed
+    /// twice (the simulator's truth, not on the wire).
+    pub fn redundant_stores(&self) -> u64 {
+        self.redundant_stores
+    }
+
     /// The eye pose now (after the last [`Machine::advance`]).
     pub fn pose(&self) -> EyePose {
         self.pose
@@ -262,6 +277,7 @@ impl Machine {
     fn fail(&mut self, e: RobotError) {
         self.last_error = e.code();
         self.error_seq = self.error_seq.wrapping_add(1);
+        self.errors_raised += 1;
     }
 
     fn busy(&self) -> bool {
@@ -420,6 +436,9 @@ impl Machine {
     }
 
     fn store(&mut self, program: u8, instruction: u16, i: Instruction) {
+        if self.instruction(program, instruction) == Some(&i) {
+            self.redundant_stores += 1;
+        }
         let old = self.instruction(program, instruction).map_or(0, units);
         let new_used = self.used_units - old + units(&i);
         if new_used > MEMORY_UNITS {
