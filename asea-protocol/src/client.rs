@@ -349,6 +349,12 @@ impl<L: Link, C: Clock> Client<L, C> {
         let new = self
             .seen_error_seq
             .map_or(s.last_error != 0, |seen| seen != s.error_seq);
+        if new && s.last_error == 0 {
+            // Only this client acknowledges errors, so a new error number without its code is a
+            // corrupted reply (or another host's doing): the error, if there is one, is still
+            // latched and the next read reports it.
+            return Ok(());
+        }
         let count = self
             .seen_error_seq
             .map_or(u8::from(s.last_error != 0), |seen| {
@@ -361,14 +367,11 @@ impl<L: Link, C: Clock> Client<L, C> {
             // latched and the next check acknowledges it again.
             let _ = self.send(&Command::AckError { seq: s.error_seq });
         }
-        if !new || s.last_error == 0 && count == 0 {
+        if !new {
             return Ok(());
         }
         let code = s.last_error;
-        let message = RobotError::from_code(code).map_or(
-            "an error acknowledged before this client read it",
-            RobotError::message,
-        );
+        let message = RobotError::from_code(code).map_or("unknown", RobotError::message);
         Err(Error::Robot {
             code,
             message,

@@ -706,7 +706,8 @@ pub struct Status {
     /// Sequence number of the latest error (wraps at 256): it changes with every error the robot
     /// raises, so the host tells a new error from one it has already seen.
     pub error_seq: u8,
-    /// Count of telegrams with an effect (every command but ENQUIRE and READ_BACK) the robot has
+    /// Count of telegrams with an effect (every command but ENQUIRE, READ_BACK, PROGRAM_INFO and
+    /// ACK_ERROR, which only clears the error latch) the robot has
     /// executed since power-up, wrapping at 65 536: the host compares it before and after a
     /// command to see whether the command was executed, and how often.
     pub executed: u16,
@@ -1036,12 +1037,19 @@ mod tests {
             speed: Speed(0x2000),
         };
         let b = Command::MoveImmediate(p).encode(&c).unwrap();
+        // All 22 bytes: ETX, and CS = (0x08 + 0x11 + 0x03 + 0x10 + 0xFF + 0xF0 + 0x40 + 0x20 +
+        // 0x03) mod 256 = 0x27E mod 256 = 0x7E.
         assert_eq!(
-            &b[..20],
+            b,
             [
                 0x02, 0x08, 0x11, 0x03, 0x00, 0x10, 0x00, 0x00, 0xFF, 0xF0, 0x40, 0x00, 0x00, 0x00,
-                0x00, 0x00, 0x00, 0x00, 0x20, 0x00
+                0x00, 0x00, 0x00, 0x00, 0x20, 0x00, 0x03, 0x7E
             ]
+        );
+        // ACK_ERROR 5: 02 0E 01 05 03 CS = 0x0E + 0x01 + 0x05 + 0x03 = 0x17.
+        assert_eq!(
+            Command::AckError { seq: 5 }.encode(&c).unwrap(),
+            [0x02, 0x0E, 0x01, 0x05, 0x03, 0x17]
         );
         // STORE_CONTROL program 2, instruction 7, set output 1 on: 02 09 06 02 00 07 01 01 01 03 CS
         let b = Command::StoreControl {

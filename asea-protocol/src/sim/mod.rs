@@ -5,6 +5,7 @@
 //! [`Robot`] is driven by bytes and time ([`Peer`]): over a [`crate::link::Paced`] wire in virtual
 //! time (a whole program in milliseconds), or by [`serve`] on any [`Link`] in real time.
 
+pub mod kinematics;
 pub mod motion;
 
 use std::collections::BTreeMap;
@@ -12,6 +13,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::time::Duration;
 
+pub use kinematics::{ArmModel, Kinematics, Reach};
 pub use motion::{EyePose, MotionParams, Move, Speeds, Trajectory};
 
 use crate::clock::Clock;
@@ -141,6 +143,7 @@ pub struct Machine {
     running: Option<(u8, Vec<(u16, Instruction)>)>,
     current_instruction: u16,
     io: IoLines,
+    kinematics: Arc<dyn Kinematics>,
     now_s: f64,
     /// Every telegram executed, in order (the link delivered it once); the last
     /// [`RECORD_LIMIT`] at most.
@@ -178,11 +181,20 @@ impl Machine {
             running: None,
             current_instruction: 0,
             io: IoLines::default(),
+            kinematics: Arc::new(Reach {
+                reach_mm: params.reach_mm,
+            }),
             now_s: 0.0,
             executed: Vec::new(),
             trace: Vec::new(),
             params,
         }
+    }
+
+    /// Uses `k` to decide which poses the arm can take ([`kinematics`]; default [`Reach`]).
+    pub fn with_kinematics(mut self, k: Arc<dyn Kinematics>) -> Self {
+        self.kinematics = k;
+        self
     }
 
     /// The I/O lines (clone to wire them elsewhere).
@@ -295,10 +307,10 @@ impl Machine {
             return Err(RobotError::Range);
         }
         let t = motion::target_of(p, prev);
-        let radial = t[0].hypot(t[1]);
-        if !(radial <= self.params.reach_mm && t[2].abs() <= 2047.9375 && p.speed.0 > 0) {
+        if p.speed.0 == 0 {
             return Err(RobotError::Range);
         }
+        self.kinematics.check(t, p.pose.q.wxyz())?;
         Ok(t)
     }
 
@@ -309,7 +321,10 @@ impl Machine {
         let parsed = Command::from_frame(frame);
         if !matches!(
             parsed,
-            Ok(Command::Enquire(_) | Command::ReadBack { .. } | Command::ProgramInfo { .. })
+            Ok(Command::Enquire(_)
+                | Command::ReadBack { .. }
+                | Command::ProgramInfo { .. }
+                | Command::AckError { .. })
         ) {
             self.executed_count = self.executed_count.wrapping_add(1);
             self.last_digest = crate::frame::telegram_digest(frame.code, &frame.data);
