@@ -171,14 +171,13 @@ impl<L: RobotLink, C: RobotClock> ProtocolRobot<L, C> {
         ProtocolRobot { client }
     }
 
-    /// Sends a command and checks the robot's error latch afterwards (the spec's rule for
-    /// motion and mode commands, docs/protocol.md).
+    /// A command confirmed by the client (docs/protocol.md §7: executed once, proven by the
+    /// status; a latched robot error is reported and acknowledged).
     fn confirmed(
         &mut self,
-        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<()>,
+        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<asea_protocol::Status>,
     ) -> DeviceResult<()> {
         f(&mut self.client)?;
-        self.client.check_status()?;
         Ok(())
     }
 }
@@ -221,10 +220,15 @@ impl<L: RobotLink, C: RobotClock> RobotDevice for ProtocolRobot<L, C> {
     }
 
     fn delete_program(&mut self, program: u8) -> DeviceResult<()> {
-        self.client.delete_program(program)?;
-        // "No such program" is what we wanted; read the status to clear it.
-        let _ = self.client.status()?;
-        Ok(())
+        match self.client.delete_program(program) {
+            // "No such program" is what we wanted (the client acknowledged the error).
+            Err(asea_protocol::Error::Robot { code, .. })
+                if code == asea_protocol::RobotError::NoProgram.code() =>
+            {
+                Ok(())
+            }
+            r => r.map(|_| ()).map_err(Into::into),
+        }
     }
 
     fn upload(&mut self, program: u8, instructions: &[Instruction]) -> DeviceResult<()> {

@@ -291,7 +291,8 @@ fn discrete_batch_winds_every_segment_once_and_resumes_after_a_stop() {
     let (r, m) = cell
         .with(|p| (p.robot.machine.status().state, p.card.machine().is_moving()))
         .unwrap();
-    assert_eq!(r, State::Idle);
+    // STOP leaves the robot in its own STOPPED state (not idle, not in position).
+    assert_eq!(r, State::Stopped);
     cell.timebase_sleep(Duration::from_secs(2));
     assert!(!m || !cell.with(|p| p.card.machine().is_moving()).unwrap());
     let (journal, records) = Journal::resume(&jp).unwrap();
