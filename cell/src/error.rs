@@ -66,6 +66,12 @@ pub enum Error {
         /// Program number of the .ROB file.
         program: u8,
     },
+    /// The lathe winder's controller refused a setting or stopped (a limit switch).
+    #[error("lathe controller: {source}")]
+    Lathe {
+        /// What the controller said.
+        source: mandrel_drive::Error,
+    },
     /// Writing output failed.
     #[error("{}: {source}", path.display())]
     Output {
@@ -88,6 +94,9 @@ impl Error {
                 | Error::Read { .. }
                 | Error::RobotTransfer { .. }
                 | Error::IndexerTransfer { .. }
+                | Error::Lathe {
+                    source: mandrel_drive::Error::OutOfRange { .. }
+                }
         )
     }
 }
