@@ -8,12 +8,14 @@
 
 pub mod dxf;
 pub mod error;
+pub mod gcode;
 pub mod ind;
 pub mod job;
 pub mod part_program;
 pub mod rob;
 pub mod run;
 pub mod sequence;
+pub mod source;
 pub mod syntax;
 
 pub use dxf::Drawing;

@@ -2,8 +2,10 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod argument_error;
 pub mod geodesic;
 pub mod plan;
+pub mod run;
 pub mod sim_indexer;
 pub mod sim_robot;
 pub mod sweep;
@@ -63,6 +65,8 @@ pub struct Cli {
 pub enum Command {
     /// Plan a job: write .ROB, .IND, sequence and run files (the TOOL step).
     Plan(plan::PlanArgs),
+    /// Wind a batch on the cell: a job (planned first) or a sequence of control files.
+    Run(run::RunArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Run the ASEA robot-computer simulator on a pseudo-terminal.
@@ -92,6 +96,7 @@ pub fn print(text: &str) -> Result<(), Failure> {
 pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
+        Command::Run(args) => run::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::SimRobot(args) => sim_robot::run(args),
         Command::Geodesic(args) => geodesic::run(args),
