@@ -45,6 +45,9 @@ pub struct Setup {
     pub travel_mm: [f64; 2],
     /// Part zero: offset from machine zero (A deg, X mm, Y mm).
     pub part_zero: Position,
+    /// Single-block execution (seed 003 §4.2 "step-by-step"): every block is its own
+    /// point-to-point run, so the machine stops on each.
+    pub single_block: bool,
 }
 
 impl Default for Setup {
@@ -65,6 +68,7 @@ impl Default for Setup {
                 x_mm: 150.0,
                 y_mm: 10.0,
             },
+            single_block: false,
         }
     }
 }
@@ -173,6 +177,11 @@ pub fn plan(program: &PartProgram, file: &Path, setup: &Setup) -> Result<Plan, E
         }
     }
     let planner = setup.planner();
+    let interpolation = if setup.single_block {
+        Interpolation::PointToPoint
+    } else {
+        setup.interpolation
+    };
     let mut runs = Vec::new();
     let mut points = vec![counts(&expanded.start, &zero)];
     let mut blocks = Vec::new();
@@ -184,7 +193,7 @@ pub fn plan(program: &PartProgram, file: &Path, setup: &Setup) -> Result<Plan, E
      -> Result<(), Error> {
         if points.len() >= 2 {
             let trajectory = planner
-                .plan(points, setup.interpolation)
+                .plan(points, interpolation)
                 .map_err(|source| Error::Plan {
                     file: file.to_path_buf(),
                     line: blocks.first().map_or(1, |b: &Location| b.line),
@@ -215,6 +224,9 @@ pub fn plan(program: &PartProgram, file: &Path, setup: &Setup) -> Result<Plan, E
                 circuit = t.circuit;
                 points.push(counts(&t.position, &zero));
                 blocks.push(t.at);
+                if setup.single_block {
+                    flush(&mut points, &mut blocks, circuit, false)?;
+                }
             }
             Step::Stop(_) => flush(&mut points, &mut blocks, circuit, true)?,
         }
@@ -304,11 +316,15 @@ struct AxisStats {
     saturated: u64,
 }
 
+/// Sees every interrupt: its number, the desired and the measured positions (counts from machine
+/// zero).
+pub type TickHook<'a> = &'a mut dyn FnMut(u64, &[f64; 3], &[i64; 3]);
+
 /// Runs `plan` on `controller` paced by `clock`. The controller's origin must be machine zero.
 /// `trace_every` > 0 records a [`TraceRow`] every that many interrupts into `trace`;
 /// `on_progress` sees circuits and stops; `on_tick` sees every interrupt (desired and measured
 /// counts from machine zero, for a recorder).
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 pub fn execute<I: AxisIo>(
     plan: &Plan,
     setup: &Setup,
@@ -317,7 +333,7 @@ pub fn execute<I: AxisIo>(
     trace_every: u64,
     trace: &mut Vec<TraceRow>,
     on_progress: &mut dyn FnMut(Progress),
-    on_tick: &mut dyn FnMut(u64, &[f64; 3], &[i64; 3]),
+    on_tick: TickHook<'_>,
 ) -> Result<Report, Error> {
     let scale: [f64; 3] = LatheAxis::ALL.map(|a| a.counts_per_unit());
     let zero = counts(&Position::default(), &setup.part_zero);
@@ -373,7 +389,7 @@ pub fn execute<I: AxisIo>(
                 peak_a[i] = peak_a[i].max(pk.acceleration[i]);
                 peak_j[i] = peak_j[i].max(pk.jerk[i]);
             }
-            if trace_every > 0 && k % trace_every == 0 {
+            if trace_every > 0 && k.is_multiple_of(trace_every) {
                 trace.push(TraceRow {
                     interrupt: k,
                     time_s: k as f64 / hz,
@@ -554,11 +570,20 @@ mod tests {
 
     #[test]
     fn bspline_has_lower_peak_acceleration_and_jerk_at_feed_80() {
-        let (lin, _) = simulate(&fig_9_1(), Path::new("f.prg"), &setup(Interpolation::Linear, 80.0), 0).unwrap();
+        let (lin, _) = simulate(
+            &fig_9_1(),
+            Path::new("f.prg"),
+            &setup(Interpolation::Linear, 80.0),
+            0,
+        )
+        .unwrap();
         let (bs, _) = simulate(&fig_9_1(), Path::new("f.prg"), &setup(BSPLINE, 80.0), 0).unwrap();
         for axis in 0..3 {
             let (l, b) = (&lin.axes[axis], &bs.axes[axis]);
-            assert!(b.peak_acceleration < l.peak_acceleration, "{axis}: {b:?} {l:?}");
+            assert!(
+                b.peak_acceleration < l.peak_acceleration,
+                "{axis}: {b:?} {l:?}"
+            );
             assert!(b.peak_jerk < l.peak_jerk, "{axis}: {b:?} {l:?}");
             assert!(b.max_following_error < l.max_following_error);
         }
@@ -570,8 +595,13 @@ mod tests {
     /// the plan on one circuit of Fig 9-1 (§10.5's criterion).
     fn max_feed(interpolation: Interpolation) -> f64 {
         let ok = |feed: f64| {
-            let (r, _) = simulate(&one_circuit(), Path::new("f.prg"), &setup(interpolation, feed), 0)
-                .unwrap();
+            let (r, _) = simulate(
+                &one_circuit(),
+                Path::new("f.prg"),
+                &setup(interpolation, feed),
+                0,
+            )
+            .unwrap();
             r.axes[1].max_following_error <= 0.5 && r.axes[2].max_following_error <= 0.5
         };
         let (mut lo, mut hi) = (0.5f64, 160.0f64);
@@ -588,7 +618,10 @@ mod tests {
         let linear = max_feed(Interpolation::Linear);
         let bspline = max_feed(BSPLINE);
         assert!(linear > 1.0, "{linear}");
-        assert!(bspline >= 1.5 * linear, "linear {linear}, b-spline {bspline}");
+        assert!(
+            bspline >= 1.5 * linear,
+            "linear {linear}, b-spline {bspline}"
+        );
     }
 
     #[test]
@@ -602,19 +635,60 @@ mod tests {
         assert!(text.starts_with("prg/f.prg:"), "{text}");
         assert!(text.contains("beyond the limit switches"), "{text}");
         let line: usize = text.split(':').nth(1).unwrap().parse().unwrap();
-        assert!(FIG_9_1.lines().nth(line - 1).unwrap().starts_with('N'), "{text}");
+        assert!(
+            FIG_9_1.lines().nth(line - 1).unwrap().starts_with('N'),
+            "{text}"
+        );
         // Beyond the far end of Y.
         let mut s = setup(Interpolation::Linear, 30.0);
         s.travel_mm[1] = 60.0;
-        let e = plan(&fig_9_1(), Path::new("f.prg"), &s).unwrap_err().to_string();
+        let e = plan(&fig_9_1(), Path::new("f.prg"), &s)
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("f.prg:9:1: Y would reach"), "{e}");
+    }
+
+    #[test]
+    fn single_block_stops_on_every_block() {
+        let mut s = setup(BSPLINE, 30.0);
+        s.single_block = true;
+        let plan = plan(&one_circuit(), Path::new("f.prg"), &s).unwrap();
+        assert_eq!(plan.runs.len(), 26);
+        for run in &plan.runs {
+            assert_eq!(run.blocks.len(), 1);
+            let sp = &run.trajectory.setpoints;
+            assert_eq!(sp.last(), run.trajectory.points.last());
+        }
+        let mut starts = 0;
+        let mut circuits = Vec::new();
+        let mut c = start_at_part_zero(&s).unwrap();
+        execute(
+            &plan,
+            &s,
+            &mut c,
+            &mut mandrel_drive::lathe::SimulatedClock,
+            0,
+            &mut Vec::new(),
+            &mut |p| match p {
+                Progress::RunStart { .. } => starts += 1,
+                Progress::Circuit { done, total } => circuits.push((done, total)),
+                Progress::Stop => {}
+            },
+            &mut |_, _, _| {},
+        )
+        .unwrap();
+        assert_eq!(starts, 26);
+        assert_eq!(circuits, [(0, 1)]);
     }
 
     #[test]
     fn bad_programs_name_the_file() {
         let p = PartProgram::parse("O 1; M98 P 5; M30;").unwrap();
         let e = plan(&p, Path::new("a.prg"), &Setup::default()).unwrap_err();
-        assert_eq!(e.to_string(), "a.prg:1:6: M98 calls O5, which is not in the file");
+        assert_eq!(
+            e.to_string(),
+            "a.prg:1:6: M98 calls O5, which is not in the file"
+        );
         assert!(e.is_input());
     }
 
@@ -623,7 +697,11 @@ mod tests {
         let p = PartProgram::parse("O 1 (PART ZERO X 120.5 Y 4 A 0); G91 X 1; M30;").unwrap();
         assert_eq!(
             part_zero_of(&p),
-            Some(Position { a_deg: 0.0, x_mm: 120.5, y_mm: 4.0 })
+            Some(Position {
+                a_deg: 0.0,
+                x_mm: 120.5,
+                y_mm: 4.0
+            })
         );
         assert_eq!(part_zero_of(&fig_9_1()), None);
         let bad = PartProgram::parse("O 1 (PART ZERO X); M30;").unwrap();
@@ -632,7 +710,13 @@ mod tests {
 
     #[test]
     fn trace_rows_every_n_interrupts_and_csv() {
-        let (r, trace) = simulate(&one_circuit(), Path::new("f.prg"), &setup(BSPLINE, 30.0), 20).unwrap();
+        let (r, trace) = simulate(
+            &one_circuit(),
+            Path::new("f.prg"),
+            &setup(BSPLINE, 30.0),
+            20,
+        )
+        .unwrap();
         assert_eq!(trace.len() as u64, r.interrupts / 20);
         assert_eq!(trace[0].interrupt, 20);
         let last = trace.last().unwrap();
