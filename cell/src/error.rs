@@ -146,6 +146,12 @@ pub enum Error {
         /// Program number of the .ROB file.
         program: u8,
     },
+    /// The lathe winder's controller refused a setting or stopped (a limit switch).
+    #[error("lathe controller: {source}")]
+    Lathe {
+        /// What the controller said.
+        source: mandrel_drive::Error,
+    },
     /// A file the job names (`mesh`, `dxf`, `spine_dxf`) cannot be used: the job line and column
     /// that name it, then the file's own problem.
     #[error("{}:{line}:{column}: {source}", job.display())]
@@ -230,6 +236,9 @@ impl Error {
                 | Error::Read { .. }
                 | Error::RobotTransfer { .. }
                 | Error::IndexerTransfer { .. }
+                | Error::Lathe {
+                    source: mandrel_drive::Error::OutOfRange { .. }
+                }
                 | Error::Run { input: true, .. }
         )
     }

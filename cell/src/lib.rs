@@ -8,6 +8,7 @@ pub mod device;
 pub mod error;
 pub mod imported;
 pub mod journal;
+pub mod lathe;
 pub mod mesh;
 pub mod output;
 pub mod record;
