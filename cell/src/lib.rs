@@ -2,6 +2,7 @@
 //! pieces the `windcell` command line is built from.
 
 pub mod error;
+pub mod lathe;
 pub mod mesh;
 pub mod output;
 pub mod report;

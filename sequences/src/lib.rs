@@ -14,6 +14,8 @@ pub mod rob;
 pub mod run;
 pub mod sequence;
 pub mod syntax;
+pub mod vessel;
+pub mod wind;
 
 pub use dxf::Drawing;
 pub use error::Error;

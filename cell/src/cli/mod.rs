@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod geodesic;
+pub mod lathe_plan;
 pub mod plan;
 pub mod sim_indexer;
 pub mod sim_robot;
@@ -73,6 +74,16 @@ pub enum Command {
     Sweep(sweep::SweepArgs),
     /// Mesh a job's tube mandrel (TRIASYM) and write it as STL.
     Triasym(triasym::TriasymArgs),
+    /// The lathe winder: plan winding jobs to G-code.
+    #[command(subcommand)]
+    Lathe(Lathe),
+}
+
+/// `windcell lathe …`.
+#[derive(Debug, Subcommand)]
+pub enum Lathe {
+    /// Plan a vessel (TOML) or `.wind` job and write its G-code.
+    Plan(lathe_plan::LathePlanArgs),
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
@@ -97,5 +108,6 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Geodesic(args) => geodesic::run(args),
         Command::Sweep(args) => sweep::run(args),
         Command::Triasym(args) => triasym::run(args),
+        Command::Lathe(Lathe::Plan(args)) => lathe_plan::run(args),
     }
 }
