@@ -6,6 +6,7 @@ pub mod cellfile;
 pub mod coordinator;
 pub mod device;
 pub mod error;
+pub mod gcode;
 pub mod imported;
 pub mod journal;
 pub mod lathe;

@@ -298,4 +298,12 @@ pub enum Error {
         /// The rule broken, with the numbers and the nearest valid values.
         reason: String,
     },
+    /// A layer of a job could not be planned.
+    #[error("layer {layer}: {source}")]
+    Layer {
+        /// 1-based layer number.
+        layer: usize,
+        /// Why.
+        source: Box<Error>,
+    },
 }
