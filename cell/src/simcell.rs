@@ -154,6 +154,8 @@ pub struct CellPeer {
     card_stop_sent: bool,
     /// Every logged record, in order.
     pub log: Vec<LogRecord>,
+    /// Fault injection: the robot computer stops answering (its output is lost).
+    pub robot_silent: bool,
     log_file: Option<io::BufWriter<std::fs::File>>,
 }
 
@@ -352,7 +354,8 @@ impl Peer for CellPeer {
     }
 
     fn take_output(&mut self) -> Vec<u8> {
-        self.robot.take_output()
+        let out = self.robot.take_output();
+        if self.robot_silent { Vec::new() } else { out }
     }
 
     fn deadline(&self) -> Option<Duration> {
@@ -418,6 +421,7 @@ impl SimCell {
             card_moving: false,
             card_stop_sent: false,
             log: Vec::new(),
+            robot_silent: false,
             log_file: None,
         };
         SimCell {
