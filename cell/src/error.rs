@@ -66,6 +66,28 @@ pub enum Error {
         /// Program number of the .ROB file.
         program: u8,
     },
+    /// A file the job names (`mesh`, `dxf`, `spine_dxf`) cannot be used: the job line and column
+    /// that name it, then the file's own problem.
+    #[error("{}:{line}:{column}: {source}", job.display())]
+    Named {
+        /// The job file.
+        job: PathBuf,
+        /// 1-based line of the value naming the file (or its layer).
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong with the named file.
+        source: Box<Error>,
+    },
+    /// The output path cannot take the output (a file where a folder is needed, a folder where a
+    /// file would go, control files of an earlier plan in the way); nothing was written.
+    #[error("{}: {reason}", path.display())]
+    OutputPath {
+        /// The output folder or file.
+        path: PathBuf,
+        /// What is in the way, in words.
+        reason: String,
+    },
     /// A run cannot start or go on: `input` true when the operator's files or arguments are at
     /// fault (exit code 2), false for the cell (exit code 1).
     #[error("{message}")]
@@ -86,12 +108,31 @@ pub enum Error {
 }
 
 impl Error {
-    /// True when the operator's input is at fault (exit code 2), false for run-time failures.
+    /// True when the operator's input is at fault (exit code 2): a file, a value, the output path
+    /// (a missing or read-only folder, a name the file system refuses); false for run-time
+    /// failures (a full disk, a device).
     pub fn is_input(&self) -> bool {
+        use std::io::ErrorKind;
+        match self {
+            Error::Named { source, .. } => return source.is_input(),
+            Error::Output { source, .. } => {
+                return matches!(
+                    source.kind(),
+                    ErrorKind::PermissionDenied
+                        | ErrorKind::NotADirectory
+                        | ErrorKind::IsADirectory
+                        | ErrorKind::AlreadyExists
+                        | ErrorKind::InvalidFilename
+                        | ErrorKind::ReadOnlyFilesystem
+                        | ErrorKind::NotFound
+                );
+            }
+            _ => {}
+        }
         matches!(
             self,
-            Error::File(sequences::Error::Parse { .. })
-                | Error::File(sequences::Error::Content { .. })
+            Error::File(_)
+                | Error::OutputPath { .. }
                 | Error::Plan { .. }
                 | Error::Mesh { .. }
                 | Error::Read { .. }

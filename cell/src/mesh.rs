@@ -23,10 +23,7 @@ fn read_located(file: &Path) -> Result<(Mesh, Vec<usize>), Error> {
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let bytes = std::fs::read(file).map_err(|source| Error::Read {
-        file: file.to_path_buf(),
-        source,
-    })?;
+    let bytes = sequences::source::read_bytes(file, sequences::source::MAX_MESH_BYTES)?;
     match ext.as_str() {
         "stl" => {
             let (soup, lines) = stl::parse_located(&bytes).map_err(mesh_error)?;

@@ -58,6 +58,34 @@ fn located(text: &str, file: &Path, source: paths::Error, span: Range<usize>) ->
     }
 }
 
+/// A problem with a file the job names at `span` of `text`: a file that cannot be read, or a
+/// problem of the whole file (a drawing without a path, a layer that is not there, a mesh with no
+/// triangles) is reported at the job's place, then the file's own message; an error at a place
+/// inside the named file keeps that place.
+fn named(text: &str, file: &Path, span: Range<usize>, error: Error) -> Error {
+    let whole_file = match &error {
+        Error::File(e) => !matches!(e, sequences::Error::Parse { .. }),
+        Error::Read { .. } => true,
+        Error::Mesh { source, .. } => matches!(
+            source,
+            paths::Error::MeshSyntax { line: None, .. }
+                | paths::Error::MeshInvalid { triangle: None, .. }
+        ),
+        _ => false,
+    };
+    if whole_file {
+        let (line, column) = sequences::error::line_column(text, span.start);
+        Error::Named {
+            job: file.to_path_buf(),
+            line,
+            column,
+            source: Box::new(error),
+        }
+    } else {
+        error
+    }
+}
+
 /// The mandrel model a job describes, with a `spine_dxf` profile read relative to the job `file`.
 /// `text` locates errors in the job file.
 pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
@@ -65,13 +93,15 @@ pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
     let knots = match &job.mandrel.spine_dxf {
         Some(dxf) => {
             let dxf_file = file.parent().unwrap_or(Path::new("")).join(dxf.get_ref());
-            let drawing = load_dxf(&dxf_file)?;
-            let layer = job
-                .mandrel
-                .spine_layer
-                .as_ref()
-                .map(|l| l.get_ref().as_str());
-            Some(drawing.profile(layer).map_err(|e| e.in_file(&dxf_file))?)
+            let drawing = load_dxf(&dxf_file).map_err(|e| named(text, file, dxf.span(), e))?;
+            let layer = job.mandrel.spine_layer.as_ref();
+            let profile = drawing
+                .profile(layer.map(|l| l.get_ref().as_str()))
+                .map_err(|e| {
+                    let span = layer.map_or(dxf.span(), |l| l.span());
+                    named(text, file, span, Error::File(e.in_file(&dxf_file)))
+                })?;
+            Some(profile)
         }
         None => None,
     };
@@ -79,10 +109,7 @@ pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
 }
 
 fn load_dxf(file: &Path) -> Result<sequences::dxf::Drawing, Error> {
-    sequences::dxf::Drawing::load(file).map_err(|e| match e {
-        sequences::Error::Io { file, source } => Error::Read { file, source },
-        other => Error::File(other),
-    })
+    sequences::dxf::Drawing::load(file).map_err(Error::File)
 }
 
 /// The mandrel model a job describes (its spine from `spine_mm`).
@@ -168,12 +195,15 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .weld_mm
                 .as_ref()
                 .map_or(paths::mesh::DEFAULT_WELD_MM, |w| *w.get_ref());
-            Some(crate::mesh::load(
-                &dir.join(mesh.get_ref()),
-                weld,
-                paths::mesh::Closure::Closed,
-                paths::mesh::trace::DEFAULT_CREASE_DEG,
-            )?)
+            Some(
+                crate::mesh::load(
+                    &dir.join(mesh.get_ref()),
+                    weld,
+                    paths::mesh::Closure::Closed,
+                    paths::mesh::trace::DEFAULT_CREASE_DEG,
+                )
+                .map_err(|e| named(text, file, mesh.span(), e))?,
+            )
         }
         _ => None,
     };
@@ -186,10 +216,14 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         let segments = *spec.segments.get_ref() as usize;
         let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
             let dxf_file = dir.join(dxf.get_ref());
-            let drawing = load_dxf(&dxf_file)?;
+            let drawing = load_dxf(&dxf_file).map_err(|e| named(text, file, dxf.span(), e))?;
+            let layer = spec.layer.as_ref();
             let raw: Vec<nalgebra::Point3<f64>> = drawing
-                .path(spec.layer.as_ref().map(|l| l.get_ref().as_str()))
-                .map_err(|e| e.in_file(&dxf_file))?
+                .path(layer.map(|l| l.get_ref().as_str()))
+                .map_err(|e| {
+                    let span = layer.map_or(dxf.span(), |l| l.span());
+                    named(text, file, span, Error::File(e.in_file(&dxf_file)))
+                })?
                 .into_iter()
                 .map(nalgebra::Point3::from)
                 .collect();
@@ -284,11 +318,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         };
         let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
             .map_err(|e| {
-                let span = match &e {
-                    paths::Error::TangentUndefined { .. } => job.cell.robot_distance_mm.span(),
-                    paths::Error::OutOfReach { .. } => job.cell.robot_distance_mm.span(),
-                    _ => spec.program.span(),
-                };
+                let span = culprit(job, &e).unwrap_or(spec.program.span());
                 located(e, span)
             })?;
         planned.push(PlannedPath {
@@ -299,6 +329,44 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         });
     }
     Ok(JobPlan { paths: planned })
+}
+
+/// The cell of seed 001 §6.4 the examples describe: robot distance b, mandrel diameter, tow
+/// distance, eye mechanism length, mm.
+const THESIS_CELL_MM: [f64; 4] = [800.0, 63.5, 100.0, 150.0];
+
+/// The job value a reach or eq 3.7 failure points at. A height outside the robot's range is the
+/// start height's doing. A horizontal distance out of reach, or eq 3.7 without a solution, comes
+/// from the robot distance b against how far the eye stands from the rotation axis (mandrel
+/// radius + tow distance + eye mechanism): of those four, the value furthest (by ratio) from the
+/// thesis cell's is the one named, the likeliest slip of the operator's hand.
+fn culprit(job: &Job, error: &paths::Error) -> Option<Range<usize>> {
+    let c = &job.cell;
+    match error {
+        paths::Error::OutOfReach { limit, .. } if *limit == "height range" => {
+            Some(c.start_height_mm.span())
+        }
+        paths::Error::OutOfReach { .. } | paths::Error::TangentUndefined { .. } => {
+            let fields = [
+                &c.robot_distance_mm,
+                &job.mandrel.diameter_mm,
+                &c.offset_mm,
+                &c.eye_mechanism_length_mm,
+            ];
+            let ratio = |v: f64, nominal: f64| {
+                let r = v.abs().max(1e-9) / nominal;
+                r.max(1.0 / r)
+            };
+            fields
+                .iter()
+                .zip(THESIS_CELL_MM)
+                .max_by(|(a, na), (b, nb)| {
+                    ratio(*a.get_ref(), *na).total_cmp(&ratio(*b.get_ref(), *nb))
+                })
+                .map(|(field, _)| field.span())
+        }
+        _ => None,
+    }
 }
 
 /// `value` rounded to `decimals` decimal places, as the nearest `f64` to that decimal (so it

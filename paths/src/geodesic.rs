@@ -6,6 +6,7 @@
 //! classical fourth-order Runge–Kutta method in arc length. On a straight tube the exact helix
 //! is available too; the tests use it to measure the integrator's error.
 
+use crate::limits;
 use std::f64::consts::FRAC_PI_2;
 
 use crate::{Error, Tube};
@@ -142,7 +143,10 @@ pub fn helix(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath
     }
     let [u0, v0, du, dv] = start_state(tube, start);
     let length = (tube.u_max() - tube.u_min()) / du.abs();
-    let n = (length / step_mm).ceil().max(1.0) as usize;
+    limits::at_most("path length_mm", length, limits::MAX_PATH_LENGTH_MM)?;
+    let n = (length / step_mm).ceil().max(1.0);
+    limits::at_most("path samples", n, limits::MAX_PATH_SAMPLES as f64)?;
+    let n = n as usize;
     let samples = (0..=n)
         .map(|i| {
             let s = length * i as f64 / n as f64;
@@ -252,7 +256,13 @@ pub fn trace(tube: &Tube, start: &PathStart, step_mm: f64) -> Result<SurfacePath
         // Arc length per unit height at the interval's start sets the number of steps.
         let ds_du = geodesic_rhs(tube, piece, u, y)[2];
         let span = end - u;
-        let n = ((span.abs() * ds_du / step_mm).ceil() as usize).max(1);
+        let n = (span.abs() * ds_du / step_mm).ceil().max(1.0);
+        limits::at_most(
+            "path samples",
+            samples.len() as f64 + n,
+            limits::MAX_PATH_SAMPLES as f64,
+        )?;
+        let n = n as usize;
         let interval_start = u;
         for k in 1..=n {
             let next_u = if k == n {

@@ -4,11 +4,17 @@
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
+pub mod control;
+pub mod delivery;
 pub mod error;
 pub mod eye;
 pub mod geodesic;
+pub mod limits;
 pub mod mandrel;
 pub mod mesh;
+pub mod motion;
+pub mod pattern;
+pub mod placement;
 pub mod plan;
 pub mod robot;
 pub mod segment;
@@ -16,6 +22,8 @@ pub mod spine;
 pub mod spline;
 pub mod step;
 pub mod tangent;
+pub mod trajectory;
+pub mod vessel;
 pub mod wrist;
 
 pub use error::Error;
@@ -23,7 +31,7 @@ pub use geodesic::{Direction, PathStart, SurfacePath};
 pub use mandrel::{Section, Tube};
 pub use mesh::Mesh;
 pub use plan::{PathPlan, Pose, Segment, Setup, Speeds};
-pub use robot::Robot;
+pub use robot::{Arm, ArmFault, ArmPose, Capsule, ElbowBranch, Joint, Joints, Robot};
 pub use segment::SurfacePoint;
 pub use spine::Spine;
 pub use spline::{BSpline, UniformCubic};

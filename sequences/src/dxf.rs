@@ -211,10 +211,7 @@ impl Drawing {
 
     /// Reads and parses a DXF file; errors name the file.
     pub fn load(path: &Path) -> Result<Self, Error> {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let bytes = crate::source::read_bytes(path, crate::source::MAX_DXF_BYTES)?;
         // Old drawings may hold Latin-1 text in names; coordinates are ASCII either way.
         let text = String::from_utf8_lossy(&bytes);
         Drawing::parse(&text).map_err(|e| e.in_file(path))

@@ -31,6 +31,24 @@ pub enum Error {
         /// What is wrong, in lower case.
         message: String,
     },
+    /// A file to read is a device, FIFO, socket or folder (refused without reading it).
+    #[error("{}: is {kind}, not a regular file", file.display())]
+    NotRegularFile {
+        /// The path.
+        file: PathBuf,
+        /// What it is (`a character device`, `a folder`).
+        kind: &'static str,
+    },
+    /// A file to read is larger than the limit for its kind (docs/ARCHITECTURE.md, "Limits").
+    #[error("{}: {bytes} bytes, more than the limit of {limit_bytes} bytes", file.display())]
+    FileTooLarge {
+        /// The file.
+        file: PathBuf,
+        /// Its size (or what was read of it before reading stopped).
+        bytes: u64,
+        /// The limit.
+        limit_bytes: u64,
+    },
     /// Reading or writing a file failed.
     #[error("{}: {source}", file.display())]
     Io {
@@ -89,6 +107,29 @@ impl Error {
     }
 }
 
+/// How a number reads in a message: plain with up to 6 decimals (trailing zeros dropped) between
+/// 1e-4 and 1e9, else in exponent form with 6 significant digits (no 300-digit numbers). The same
+/// rule as `paths::limits::shown`.
+pub fn shown(value: f64) -> String {
+    if !value.is_finite() || value == 0.0 {
+        return format!("{value}");
+    }
+    let trim = |t: String| -> String {
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
+    if (1e-4..1e9).contains(&value.abs()) {
+        trim(format!("{value:.6}"))
+    } else {
+        let e = format!("{value:.5e}");
+        let (mantissa, exponent) = e.split_once('e').unwrap_or((&e, "0"));
+        format!("{}e{exponent}", trim(mantissa.to_string()))
+    }
+}
+
 /// 1-based line and character column of byte `offset` in `text`.
 pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let mut offset = offset.min(text.len());
@@ -112,6 +153,15 @@ mod tests {
         assert_eq!(line_column(text, 6), (2, 1));
         assert_eq!(line_column(text, 9), (2, 3));
         assert_eq!(line_column(text, 1000), (3, 1));
+    }
+
+    #[test]
+    fn numbers_read_short() {
+        assert_eq!(shown(1e308), "1e308");
+        assert_eq!(shown(-2.5e-7), "-2.5e-7");
+        assert_eq!(shown(2000.0), "2000");
+        assert_eq!(shown(63.5), "63.5");
+        assert_eq!(shown(f64::NAN), "NaN");
     }
 
     #[test]

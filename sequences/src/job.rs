@@ -196,21 +196,61 @@ pub struct PathSpec {
     pub segments: Spanned<u32>,
 }
 
+/// Longest job name, characters (it names the control files: `NAME_255.ROB` must stay a short
+/// file name).
+pub const MAX_NAME_CHARS: usize = 64;
+/// Most segments of one path (the same limit as `paths::limits::MAX_SEGMENTS`).
+pub const MAX_SEGMENTS: u32 = 10_000;
+/// Largest length in a job (every `_mm` value), mm: 100 m, far beyond any winding cell.
+pub const MAX_LENGTH_MM: f64 = 100_000.0;
+/// Most spine knots (the same limit as `paths::limits::MAX_SPINE_KNOTS`; Table 6.1 has 36).
+pub const MAX_SPINE_KNOTS: usize = 1_000;
+/// Largest other magnitude in a job (speeds, accelerations, angles).
+pub const MAX_MAGNITUDE: f64 = 1e6;
+
 /// Where `span` starts, as a located error.
 pub fn error_at(text: &str, span: Range<usize>, message: impl Into<String>) -> Error {
     Error::at_offset(text, span.start, message)
 }
 
+/// Checks `value` against `ok`, that it is finite, and its magnitude against [`MAX_LENGTH_MM`]
+/// when `what` names a length (`_mm`, `length`, `offset`, …: see [`is_length`]) or
+/// [`MAX_MAGNITUDE`] otherwise.
 fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), Error> {
-    if ok && value.get_ref().is_finite() {
-        Ok(())
-    } else {
-        Err(error_at(
+    let v = *value.get_ref();
+    if !(ok && v.is_finite()) {
+        return Err(error_at(
             text,
             value.span(),
-            format!("{} {what}", value.get_ref()),
-        ))
+            format!("{} {what}", crate::error::shown(v)),
+        ));
     }
+    let (limit, unit) = if is_length(text, value) {
+        (MAX_LENGTH_MM, " mm")
+    } else {
+        (MAX_MAGNITUDE, "")
+    };
+    if v.abs() > limit {
+        return Err(error_at(
+            text,
+            value.span(),
+            format!(
+                "{} is larger than the limit of {}{unit} (docs/ARCHITECTURE.md, \"Limits\")",
+                crate::error::shown(v),
+                crate::error::shown(limit)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// True when the key in front of `value` in `text` ends in `_mm` (a length).
+fn is_length(text: &str, value: &Spanned<f64>) -> bool {
+    let before = &text[..value.span().start.min(text.len())];
+    let line = before.rsplit('\n').next().unwrap_or_default();
+    line.split('=')
+        .next()
+        .is_some_and(|key| key.trim().ends_with("_mm"))
 }
 
 fn positive(text: &str, value: &Spanned<f64>, name: &str) -> Result<(), Error> {
@@ -244,10 +284,7 @@ impl Job {
 
     /// Reads and parses a job file; errors name the file.
     pub fn load(path: &Path) -> Result<(Job, String), Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::source::read_text(path, crate::source::MAX_JOB_BYTES)?;
         let job = Job::parse(&text).map_err(|e| e.in_file(path))?;
         Ok((job, text))
     }
@@ -258,6 +295,16 @@ impl Job {
     }
 
     fn validate(&self, text: &str) -> Result<(), Error> {
+        if self.name.get_ref().chars().count() > MAX_NAME_CHARS {
+            return Err(error_at(
+                text,
+                self.name.span(),
+                format!(
+                    "name has {} characters, more than the limit of {MAX_NAME_CHARS} (it names the control files)",
+                    self.name.get_ref().chars().count()
+                ),
+            ));
+        }
         if !crate::sequence::is_valid_name(self.name.get_ref()) {
             return Err(error_at(
                 text,
@@ -421,6 +468,16 @@ impl Job {
                     "segments must be at least 1",
                 ));
             }
+            if *p.segments.get_ref() > MAX_SEGMENTS {
+                return Err(error_at(
+                    text,
+                    p.segments.span(),
+                    format!(
+                        "segments = {} is larger than the limit of {MAX_SEGMENTS} (docs/ARCHITECTURE.md, \"Limits\")",
+                        p.segments.get_ref()
+                    ),
+                ));
+            }
         }
         Ok(())
     }
@@ -505,16 +562,28 @@ impl Job {
                             "spine_mm needs at least 2 knots",
                         ));
                     }
+                    if knots.len() > MAX_SPINE_KNOTS {
+                        return Err(error_at(
+                            text,
+                            spine.span(),
+                            format!(
+                                "spine_mm has {} knots, more than the limit of {MAX_SPINE_KNOTS} (docs/ARCHITECTURE.md, \"Limits\")",
+                                knots.len()
+                            ),
+                        ));
+                    }
                     for (i, k) in knots.iter().enumerate() {
                         if !k[0].is_finite()
                             || !k[1].is_finite()
+                            || k[0].abs() > MAX_LENGTH_MM
+                            || k[1].abs() > MAX_LENGTH_MM
                             || (i > 0 && k[0] <= knots[i - 1][0])
                         {
                             return Err(error_at(
                                 text,
                                 spine.span(),
                                 format!(
-                                    "spine_mm knot {} must be finite and higher than the one before",
+                                    "spine_mm knot {} must be finite, within ±100000 mm and higher than the one before",
                                     i + 1
                                 ),
                             ));

@@ -14,6 +14,7 @@ use super::Failure;
 
 /// Trace a geodesic on a triangulated mandrel (STL or OBJ) and print the polyline.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct GeodesicArgs {
     /// The mesh file (.stl, binary or ASCII, or .obj).
     pub mesh: PathBuf,
@@ -138,6 +139,8 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             &options,
         )
         .map_err(|e| Failure::input(format!("{}: {e}", args.mesh.display())))?;
+    // Faces as the file numbers them (the loader sorts triangles for locality).
+    let file_face = |f: &u32| tracer.mesh().file_triangle(*f as usize) as u32;
     let segments = match args.segments {
         Some(n) => {
             let cut = paths::mesh::resegment::smooth_and_cut(
@@ -150,7 +153,7 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             Some(Segments {
                 points_mm: cut.points.iter().map(|p| p.point.coords.into()).collect(),
                 normals: cut.points.iter().map(|p| p.normal.into()).collect(),
-                faces: cut.faces,
+                faces: cut.faces.iter().map(file_face).collect(),
                 length_mm: cut.length_mm,
                 max_deviation_mm: cut.max_deviation_mm,
             })
@@ -161,7 +164,7 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
     if args.json {
         let report = Report {
             points_mm: path.points.iter().map(|p| [p.x, p.y, p.z]).collect(),
-            faces: path.faces.clone(),
+            faces: path.faces.iter().map(file_face).collect(),
             length_mm: path.length_mm,
             crossings: path.crossings,
             stop: path.stop.name(),
@@ -172,6 +175,7 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
     } else {
         out += "# x_mm y_mm z_mm face\n";
         for (p, f) in path.points.iter().zip(&path.faces) {
+            let f = file_face(f);
             out += &format!("{:.4} {:.4} {:.4} {f}\n", p.x, p.y, p.z);
         }
         out += &format!(

@@ -2,6 +2,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod argument_error;
 pub mod geodesic;
 pub mod plan;
 pub mod run;

@@ -11,6 +11,7 @@ use super::Failure;
 
 /// Turn a job file into robot (.ROB) and mandrel (.IND) control files, a sequence file and a run file.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct PlanArgs {
     /// The job file (TOML).
     pub job: PathBuf,
@@ -20,14 +21,20 @@ pub struct PlanArgs {
     /// Print the plan as one JSON document on standard output.
     #[arg(long)]
     pub json: bool,
+    /// Control files of an earlier plan of the same job in the output folder that this plan does
+    /// not write (`NAME_3.ROB` beside a new two-path plan): `refuse` to write, or `remove` them.
+    #[arg(long, value_enum, default_value = "refuse")]
+    pub stale: output::Stale,
 }
 
 /// Runs `windcell plan`.
 pub fn run(args: PlanArgs) -> Result<(), Failure> {
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    output::check_dir(&args.out).map_err(Failure::from_cell)?;
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let files = tool::control_files(&job, &plan);
-    output::write_all(&args.out, &files).map_err(Failure::from_cell)?;
+    output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
+        .map_err(Failure::from_cell)?;
     let mut out = String::new();
     if args.json {
         let report = PlanReport::new(&plan);

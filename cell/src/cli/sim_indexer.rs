@@ -26,6 +26,7 @@ pub enum Dialect {
 
 /// Arguments of `windcell sim-indexer`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SimIndexerArgs {
     /// Serve on a new pseudo-terminal and print its device path.
     #[arg(long)]

@@ -27,6 +27,7 @@ pub enum CheckValue {
 
 /// Arguments of `windcell sim-robot`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SimRobotArgs {
     /// Serve on a new pseudo-terminal and print its device path.
     #[arg(long)]
