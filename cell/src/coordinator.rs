@@ -699,6 +699,11 @@ impl<'a> Coordinator<'a> {
         }
         self.ready_robot()?;
         if batch.mode != RunMode::Discrete {
+            if !self.dev.sync.wired() {
+                return Err(Step::Halt(Halt::Fault {
+                    message: "program mode needs the sync lines: name a sync port".into(),
+                }));
+            }
             self.upload(batch, standby)?;
         }
         for k in from.items_done..batch.items.len() {
@@ -807,7 +812,13 @@ impl<'a> Coordinator<'a> {
         let here = self.dev.robot.position_mm()?;
         if distance_mm(here, target) > POSITION_TOLERANCE_MM {
             self.dev.robot.move_immediate(p)?;
-            self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
+            if self.dev.sync.wired() {
+                self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
+            } else {
+                self.wait("robot move", MOVE_TIMEOUT_S, |d| {
+                    Ok(d.robot.state()?.state != State::Running)
+                })?;
+            }
             let s = self.dev.robot.state()?;
             if s.state != State::Idle || s.last_error != 0 {
                 return Err(Step::Halt(Halt::Fault {

@@ -157,6 +157,37 @@ pub trait SyncLines: Send + std::fmt::Debug {
     fn in_position(&mut self) -> DeviceResult<bool>;
     /// The e-stop input (true = pressed).
     fn estop(&mut self) -> DeviceResult<bool>;
+    /// False when no sync lines are wired (discrete mode only: completion is read from the
+    /// robot's status instead).
+    fn wired(&self) -> bool {
+        true
+    }
+}
+
+/// No sync lines: a cell whose robot and indexer are on serial ports without a sync port (or
+/// two pseudo-terminals). Discrete mode works; program mode needs the lines and is refused.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoSync;
+
+fn unwired() -> DeviceError {
+    DeviceError::Sync(std::io::Error::other(
+        "no sync lines are wired (name a sync port in the cell file)",
+    ))
+}
+
+impl SyncLines for NoSync {
+    fn set_start(&mut self, on: bool) -> DeviceResult<()> {
+        if on { Err(unwired()) } else { Ok(()) }
+    }
+    fn in_position(&mut self) -> DeviceResult<bool> {
+        Err(unwired())
+    }
+    fn estop(&mut self) -> DeviceResult<bool> {
+        Ok(false)
+    }
+    fn wired(&self) -> bool {
+        false
+    }
 }
 
 /// The robot over its telegram link ([`asea_protocol::Client`]).

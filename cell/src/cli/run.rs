@@ -155,7 +155,17 @@ fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>)
             use mandrel_drive::sync::{ModemLine, Pin};
             let robot_port = open_port(robot)?;
             let indexer_port = open_port(indexer)?;
-            let sync_port = Arc::new(Mutex::new(open_port(sync)?));
+            let sync: Box<dyn cell::device::SyncLines> = match sync {
+                Some(path) => {
+                    let port = Arc::new(Mutex::new(open_port(path)?));
+                    Box::new(cell::device::WiredSync {
+                        start: Box::new(ModemLine::new(port.clone(), Pin::Rts, false)),
+                        in_position: Box::new(ModemLine::new(port.clone(), Pin::Cts, false)),
+                        estop: Some(Box::new(ModemLine::new(port, Pin::Dsr, false))),
+                    })
+                }
+                None => Box::new(cell::device::NoSync),
+            };
             let client =
                 asea_protocol::Client::new(robot_port, asea_protocol::ClientConfig::default());
             let x = mandrel_drive::XClient::new(
@@ -173,11 +183,7 @@ fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>)
                 Devices {
                     robot: Box::new(cell::device::ProtocolRobot::new(client)),
                     mandrel: Box::new(cell::device::XIndexer::new(x, setup)),
-                    sync: Box::new(cell::device::WiredSync {
-                        start: Box::new(ModemLine::new(sync_port.clone(), Pin::Rts, false)),
-                        in_position: Box::new(ModemLine::new(sync_port.clone(), Pin::Cts, false)),
-                        estop: Some(Box::new(ModemLine::new(sync_port, Pin::Dsr, false))),
-                    }),
+                    sync,
                     time: Arc::new(cell::device::WallClock::new()),
                 },
                 None,
