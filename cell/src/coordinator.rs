@@ -616,11 +616,13 @@ impl<'a> Coordinator<'a> {
 
     /// Stops both devices (each tried whatever the other did); returns the errors.
     fn stop_devices(&mut self) -> Vec<String> {
+        // The indexer's `S` first: three bytes, on the wire at once; then the robot's STOP
+        // session.
         let mut errors = Vec::new();
-        if let Err(e) = self.dev.robot.stop() {
+        if let Err(e) = self.dev.mandrel.stop() {
             errors.push(e.to_string());
         }
-        if let Err(e) = self.dev.mandrel.stop() {
+        if let Err(e) = self.dev.robot.stop() {
             errors.push(e.to_string());
         }
         let _ = self.dev.sync.set_start(false);

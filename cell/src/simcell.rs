@@ -34,7 +34,7 @@ use crate::device::{DeviceError, DeviceResult, SyncLines, Timebase};
 /// The robot input the PC's start line is wired to (App. D).
 pub const START_INPUT: u8 = 1;
 /// How often the cell polls both simulators while time passes (virtual seconds).
-pub const TICK: Duration = Duration::from_millis(1);
+pub const TICK: Duration = Duration::from_millis(5);
 /// The indexer card's address on its link.
 pub const INDEXER_ADDRESS: u8 = 1;
 

@@ -6,6 +6,7 @@ pub mod argument_error;
 pub mod geodesic;
 pub mod plan;
 pub mod run;
+pub mod sim_cell;
 pub mod sim_indexer;
 pub mod sim_robot;
 pub mod sweep;
@@ -67,6 +68,8 @@ pub enum Command {
     Plan(plan::PlanArgs),
     /// Wind a batch on the cell: a job (planned first) or a sequence of control files.
     Run(run::RunArgs),
+    /// Serve the simulated cell (both simulators, one clock, sync lines on a socket) on ptys.
+    SimCell(sim_cell::SimCellArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Run the ASEA robot-computer simulator on a pseudo-terminal.
@@ -97,6 +100,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
         Command::Run(args) => run::run(args),
+        Command::SimCell(args) => sim_cell::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::SimRobot(args) => sim_robot::run(args),
         Command::Geodesic(args) => geodesic::run(args),

@@ -156,6 +156,13 @@ fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>)
             let robot_port = open_port(robot)?;
             let indexer_port = open_port(indexer)?;
             let sync: Box<dyn cell::device::SyncLines> = match sync {
+                Some(path) if path.starts_with("unix:") => {
+                    let p = Path::new(path.trim_start_matches("unix:"));
+                    Box::new(
+                        cell::device::SocketSync::connect(p)
+                            .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
+                    )
+                }
                 Some(path) => {
                     let port = Arc::new(Mutex::new(open_port(path)?));
                     Box::new(cell::device::WiredSync {
