@@ -212,3 +212,41 @@ fn bad_input_is_one_line_and_exit_code_2_before_anything_is_sent() {
         "other.journal:1:1: the record's chain does not match",
     );
 }
+
+#[test]
+fn jog_moves_robot_and_mandrel_together_with_the_limit_checks() {
+    let o = windcell(&["jog", "--pos", "900,0,800", "--steps", "200"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        String::from_utf8_lossy(&o.stdout),
+        "robot at (900.00, 0.00, 800.00) mm; indexer counter 200 steps\n"
+    );
+    // Relative to the powered-up robot's home pose (900, 0, 800) mm.
+    let o = windcell(&["jog", "--pos", "0,-50,-100", "--rel", "--pitch-deg", "30"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).starts_with("robot at (900.00, -50.00, 700.00) mm"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    for (args, expect) in [
+        (vec!["jog", "--pos", "1700,0,500"], "out of the arm's reach"),
+        (vec!["jog", "--pos", "900,0"], "--pos needs X,Y,Z"),
+        (
+            vec![
+                "jog",
+                "--pos",
+                "900,0,800",
+                "--steps",
+                "10",
+                "--max-rps",
+                "20",
+            ],
+            "exceeds the translator limit",
+        ),
+    ] {
+        let o = windcell(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expect), "{args:?}: {}", stderr(&o));
+    }
+}

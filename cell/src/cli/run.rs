@@ -132,7 +132,7 @@ fn open_port(path: &str) -> Result<Box<dyn serialport::SerialPort>, Failure> {
 }
 
 /// The devices of `cell` (and the simulated cell, to keep its log).
-fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
+pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
     match &cell.devices {
         cellfile::Devices::Simulated => {
             let sim = SimCell::new(&SimCellConfig {
