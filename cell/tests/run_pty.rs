@@ -58,8 +58,22 @@ fn discrete_batch_over_ptys_to_separate_simulators() {
         let text = std::fs::read_to_string(d.join(name)).unwrap();
         std::fs::write(d.join(name), first_instructions(&text, 3)).unwrap();
     }
-    let (robot, robot_pty) = serve_on_pty(&["sim-robot", "--pty", "--home-s", "0.2"]);
-    let (indexer, indexer_pty) = serve_on_pty(&["sim-indexer", "--pty"]);
+    let robot_log = d.join("robot.log");
+    let indexer_log = d.join("indexer.log");
+    let (robot, robot_pty) = serve_on_pty(&[
+        "sim-robot",
+        "--pty",
+        "--home-s",
+        "0.2",
+        "--log",
+        robot_log.to_str().unwrap(),
+    ]);
+    let (indexer, indexer_pty) = serve_on_pty(&[
+        "sim-indexer",
+        "--pty",
+        "--log",
+        indexer_log.to_str().unwrap(),
+    ]);
     std::fs::write(
         d.join("cell.toml"),
         format!("[ports]\nrobot = \"{robot_pty}\"\nindexer = \"{indexer_pty}\"\n"),
@@ -96,6 +110,73 @@ fn discrete_batch_over_ptys_to_separate_simulators() {
         .count();
     assert_eq!(confirmed, 6);
     assert!(journal.lines().last().unwrap().contains("\"rec\":\"done\""));
+    // The simulators' own logs: every robot target once, in order; every segment's mandrel move
+    // once, in order (the syncs at each path's start between them).
+    let records = |p: &std::path::Path| -> Vec<serde_json::Value> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect()
+    };
+    let mut targets = Vec::new();
+    let mut steps = Vec::new();
+    for k in 1..=2 {
+        for l in std::fs::read_to_string(d.join(format!("CYL_{k}.ROB")))
+            .unwrap()
+            .lines()
+        {
+            if l.starts_with("instr ") {
+                for w in l.split(' ') {
+                    if let Some(v) = w.strip_prefix("pos_mm=") {
+                        let v: Vec<f64> = v.split(',').map(|x| x.parse().unwrap()).collect();
+                        targets.push(v);
+                    }
+                    if let Some(v) = w.strip_prefix("steps=") {
+                        let v: i64 = v.parse().unwrap();
+                        if v != 0 {
+                            steps.push(v);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let done: Vec<Vec<f64>> = records(&robot_log)
+        .iter()
+        .filter(|r| r["completed"] == true)
+        .map(|r| {
+            r["target_mm"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect();
+    assert_eq!(done.len(), targets.len(), "{done:?}");
+    for (got, want) in done.iter().zip(&targets) {
+        assert!(
+            got.iter().zip(want).all(|(a, b)| (a - b).abs() <= 0.05),
+            "{got:?} against {want:?}"
+        );
+    }
+    let turned: Vec<i64> = records(&indexer_log)
+        .iter()
+        .map(|r| r["steps"].as_i64().unwrap())
+        .collect();
+    let mut k = 0;
+    for t in &turned {
+        if k < steps.len() && *t == steps[k] {
+            k += 1;
+        }
+    }
+    assert_eq!(
+        k,
+        steps.len(),
+        "segment moves {steps:?} not all in {turned:?}"
+    );
+    assert!(turned.len() <= steps.len() + 2, "extra moves: {turned:?}");
 }
 
 /// The cylinder plan in `d`, cut to `n` instructions per path, the .IND moves made to match.
