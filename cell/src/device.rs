@@ -204,9 +204,9 @@ impl<L: RobotLink, C: RobotClock> ProtocolRobot<L, C> {
 
     /// Sends a command and checks the robot's error latch afterwards (the spec's rule for
     /// motion and mode commands, docs/protocol.md).
-    fn confirmed(
+    fn confirmed<T>(
         &mut self,
-        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<()>,
+        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<T>,
     ) -> DeviceResult<()> {
         f(&mut self.client)?;
         self.client.check_status()?;
@@ -252,10 +252,20 @@ impl<L: RobotLink, C: RobotClock> RobotDevice for ProtocolRobot<L, C> {
     }
 
     fn delete_program(&mut self, program: u8) -> DeviceResult<()> {
-        self.client.delete_program(program)?;
-        // "No such program" is what we wanted; read the status to clear it.
-        let _ = self.client.status()?;
-        Ok(())
+        // "No such program" (error 5) is what we wanted: the robot reports it, the status check
+        // acknowledges it.
+        let no_program = |e: &asea_protocol::Error| {
+            matches!(e, asea_protocol::Error::Robot { code, .. }
+                if *code == asea_protocol::RobotError::NoProgram.code())
+        };
+        match self.client.delete_program(program) {
+            Err(e) if !no_program(&e) => return Err(e.into()),
+            _ => {}
+        }
+        match self.client.check_status() {
+            Err(e) if !no_program(&e) => Err(e.into()),
+            _ => Ok(()),
+        }
     }
 
     fn upload(&mut self, program: u8, instructions: &[Instruction]) -> DeviceResult<()> {
