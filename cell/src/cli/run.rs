@@ -137,7 +137,7 @@ fn open_port(path: &str) -> Result<Box<dyn serialport::SerialPort>, Failure> {
 }
 
 /// The devices of `cell` (and the simulated cell, to keep its log).
-fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
+pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
     match &cell.devices {
         cellfile::Devices::Simulated => {
             let sim = SimCell::new(&SimCellConfig {
@@ -160,7 +160,24 @@ fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>)
             use mandrel_drive::sync::{ModemLine, Pin};
             let robot_port = open_port(robot)?;
             let indexer_port = open_port(indexer)?;
-            let sync_port = Arc::new(Mutex::new(open_port(sync)?));
+            let sync: Box<dyn cell::device::SyncLines> = match sync {
+                Some(path) if path.starts_with("unix:") => {
+                    let p = Path::new(path.trim_start_matches("unix:"));
+                    Box::new(
+                        cell::device::SocketSync::connect(p)
+                            .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
+                    )
+                }
+                Some(path) => {
+                    let port = Arc::new(Mutex::new(open_port(path)?));
+                    Box::new(cell::device::WiredSync {
+                        start: Box::new(ModemLine::new(port.clone(), Pin::Rts, false)),
+                        in_position: Box::new(ModemLine::new(port.clone(), Pin::Cts, false)),
+                        estop: Some(Box::new(ModemLine::new(port, Pin::Dsr, false))),
+                    })
+                }
+                None => Box::new(cell::device::NoSync),
+            };
             let client =
                 asea_protocol::Client::new(robot_port, asea_protocol::ClientConfig::default());
             let x = mandrel_drive::XClient::new(
@@ -178,11 +195,7 @@ fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>)
                 Devices {
                     robot: Box::new(cell::device::ProtocolRobot::new(client)),
                     mandrel: Box::new(cell::device::XIndexer::new(x, setup)),
-                    sync: Box::new(cell::device::WiredSync {
-                        start: Box::new(ModemLine::new(sync_port.clone(), Pin::Rts, false)),
-                        in_position: Box::new(ModemLine::new(sync_port.clone(), Pin::Cts, false)),
-                        estop: Some(Box::new(ModemLine::new(sync_port, Pin::Dsr, false))),
-                    }),
+                    sync,
                     time: Arc::new(cell::device::WallClock::new()),
                 },
                 None,
