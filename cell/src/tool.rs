@@ -521,39 +521,36 @@ fn program_fits_memory(
 }
 
 /// The cell of seed 001 §6.4 the examples describe: robot distance b, mandrel diameter, tow
-/// distance, eye mechanism length, mm.
-const THESIS_CELL_MM: [f64; 4] = [800.0, 63.5, 100.0, 150.0];
+/// distance, eye mechanism length and start height, mm.
+const THESIS_CELL_MM: [f64; 5] = [800.0, 63.5, 100.0, 150.0, 300.0];
 
-/// The job value a reach or eq 3.7 failure points at. A wrist out of the arm's reach, or eq 3.7
-/// without a solution, comes
-/// from the robot distance b against how far the eye stands from the rotation axis (mandrel
-/// radius + tow distance + eye mechanism): of those four, the value furthest (by ratio) from the
-/// thesis cell's is the one named, the likeliest slip of the operator's hand.
+/// The job value an arm or eq 3.7 failure points at. A pose the arm cannot take (out of reach, a
+/// joint out of range), or eq 3.7 without a solution, comes from where the cell puts the eye: the
+/// robot distance b, how far the eye stands from the rotation axis (mandrel radius + tow distance
+/// + eye mechanism) and the start height. Of those five, the value furthest (by ratio) from the
+/// thesis cell's is the one named, the likeliest slip of the operator's hand; when none is more
+/// than twice or half the thesis cell's, the arm's own settings are named instead.
 fn culprit(job: &Job, error: &paths::Error) -> Option<Range<usize>> {
     let c = &job.cell;
     match error {
-        paths::Error::Arm {
-            fault: paths::robot::ArmFault::OutOfReach { .. },
-            ..
-        }
-        | paths::Error::TangentUndefined { .. } => {
+        paths::Error::Arm { .. } | paths::Error::TangentUndefined { .. } => {
             let fields = [
                 &c.robot_distance_mm,
                 &job.mandrel.diameter_mm,
                 &c.offset_mm,
                 &c.eye_mechanism_length_mm,
+                &c.start_height_mm,
             ];
             let ratio = |v: f64, nominal: f64| {
                 let r = v.abs().max(1e-9) / nominal;
                 r.max(1.0 / r)
             };
-            fields
+            let (field, worst) = fields
                 .iter()
                 .zip(THESIS_CELL_MM)
-                .max_by(|(a, na), (b, nb)| {
-                    ratio(*a.get_ref(), *na).total_cmp(&ratio(*b.get_ref(), *nb))
-                })
-                .map(|(field, _)| field.span())
+                .map(|(field, nominal)| (field, ratio(*field.get_ref(), nominal)))
+                .max_by(|a, b| a.1.total_cmp(&b.1))?;
+            (worst > 2.0).then(|| field.span())
         }
         _ => None,
     }

@@ -13,6 +13,8 @@ fn examples() -> Vec<PathBuf> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        // Robot-cell jobs only: cell descriptions (`cell-*.toml`) and lathe vessels have no paths.
+        .filter(|p| std::fs::read_to_string(p).is_ok_and(|t| t.contains("[[path]]")))
         .collect();
     jobs.sort();
     jobs
