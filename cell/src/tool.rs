@@ -526,8 +526,8 @@ const THESIS_CELL_MM: [f64; 5] = [800.0, 63.5, 100.0, 150.0, 300.0];
 
 /// The job value an arm or eq 3.7 failure points at. A pose the arm cannot take (out of reach, a
 /// joint out of range), or eq 3.7 without a solution, comes from where the cell puts the eye: the
-/// robot distance b, how far the eye stands from the rotation axis (mandrel radius + tow distance
-/// + eye mechanism) and the start height. Of those five, the value furthest (by ratio) from the
+/// robot distance b, how far the eye stands from the rotation axis (the mandrel radius, the tow
+/// distance and the eye mechanism) and the start height. Of those five, the value furthest (by ratio) from the
 /// thesis cell's is the one named, the likeliest slip of the operator's hand; when none is more
 /// than twice or half the thesis cell's, the arm's own settings are named instead.
 fn culprit(job: &Job, error: &paths::Error) -> Option<Range<usize>> {
