@@ -13,6 +13,7 @@ pub mod output;
 pub mod report;
 pub mod simcell;
 pub mod tool;
+pub mod trace_plot;
 pub mod transfer;
 
 pub use error::Error;
