@@ -62,8 +62,8 @@ pub enum Devices {
         robot: String,
         /// Indexer port.
         indexer: String,
-        /// Sync-line port.
-        sync: String,
+        /// Sync-line port (none: discrete mode only).
+        sync: Option<String>,
     },
 }
 
@@ -95,12 +95,15 @@ fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, Str
 fn devices_of(p: &PortsSection) -> Result<Devices, String> {
     match (&p.robot, &p.indexer, &p.sync) {
         (None, None, None) => Ok(Devices::Simulated),
-        (Some(r), Some(i), Some(s)) => Ok(Devices::Serial {
+        (Some(r), Some(i), s) => Ok(Devices::Serial {
             robot: r.clone(),
             indexer: i.clone(),
             sync: s.clone(),
         }),
-        _ => Err("name all three ports (robot, indexer, sync) or none (the simulated cell)".into()),
+        _ => Err(
+            "name the robot and indexer ports (and the sync port for program mode) or none (the simulated cell)"
+                .into(),
+        ),
     }
 }
 
@@ -211,11 +214,33 @@ mod tests {
         assert!(matches!(c.devices, Devices::Serial { .. }));
         let e = Cell::parse("\n[ports]\nrobot = \"/dev/ttyS0\"\n", p).unwrap_err();
         assert!(
-            e.to_string().starts_with("C.toml:2:1: name all three"),
+            e.to_string()
+                .starts_with("C.toml:2:1: name the robot and indexer ports"),
             "{e}"
         );
         let e = Cell::parse("[drive]\nsteps = 400\n", p).unwrap_err();
         assert!(e.to_string().starts_with("C.toml:2:1:"), "{e}");
         assert!(e.is_input());
+    }
+
+    #[test]
+    fn the_example_cell_files_parse() {
+        let sim =
+            Cell::parse(include_str!("../../examples/cell-sim.toml"), Path::new("s")).unwrap();
+        assert_eq!(sim.devices, Devices::Simulated);
+        assert_eq!(sim.opto_delay_s, 20e-6);
+        let serial = Cell::parse(
+            include_str!("../../examples/cell-serial.toml"),
+            Path::new("r"),
+        )
+        .unwrap();
+        assert_eq!(
+            serial.devices,
+            Devices::Serial {
+                robot: "/dev/ttyS0".into(),
+                indexer: "/dev/ttyS1".into(),
+                sync: Some("/dev/ttyS0".into())
+            }
+        );
     }
 }

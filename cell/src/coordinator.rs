@@ -616,11 +616,13 @@ impl<'a> Coordinator<'a> {
 
     /// Stops both devices (each tried whatever the other did); returns the errors.
     fn stop_devices(&mut self) -> Vec<String> {
+        // The indexer's `S` first: three bytes, on the wire at once; then the robot's STOP
+        // session.
         let mut errors = Vec::new();
-        if let Err(e) = self.dev.robot.stop() {
+        if let Err(e) = self.dev.mandrel.stop() {
             errors.push(e.to_string());
         }
-        if let Err(e) = self.dev.mandrel.stop() {
+        if let Err(e) = self.dev.robot.stop() {
             errors.push(e.to_string());
         }
         let _ = self.dev.sync.set_start(false);
@@ -699,6 +701,11 @@ impl<'a> Coordinator<'a> {
         }
         self.ready_robot()?;
         if batch.mode != RunMode::Discrete {
+            if !self.dev.sync.wired() {
+                return Err(Step::Halt(Halt::Fault {
+                    message: "program mode needs the sync lines: name a sync port".into(),
+                }));
+            }
             self.upload(batch, standby)?;
         }
         for k in from.items_done..batch.items.len() {
@@ -730,6 +737,70 @@ impl<'a> Coordinator<'a> {
         }
         self.journal.append(json!({"rec": "done"}))?;
         Ok(())
+    }
+
+    /// Manual control (seed 001 §5.3.2, §5.4): one robot position and one mandrel instruction
+    /// sent together, each confirmed. `relative` positions are added to the robot's position now.
+    /// Returns the robot's position (mm) and the indexer's counter (steps) afterwards.
+    pub fn jog(
+        &mut self,
+        speeds: (asea_protocol::Speed, asea_protocol::Speed),
+        mut p: Positioning,
+        relative: bool,
+        mandrel: Option<MandrelMove>,
+        reach: Reach,
+    ) -> Result<([f64; 3], i64), Stopped> {
+        let r = (|| -> Result<([f64; 3], i64), Step> {
+            self.check()?;
+            let counter = self.dev.mandrel.attach()?;
+            self.ready_robot()?;
+            let mut target = p.pose.xyz_mm();
+            if relative {
+                let here = self.dev.robot.position_mm()?;
+                target = [
+                    here[0] + target[0],
+                    here[1] + target[1],
+                    here[2] + target[2],
+                ];
+                p.pose = asea_protocol::Pose::from_mm(target, p.pose.q.wxyz()).map_err(|e| {
+                    Step::Halt(Halt::Fault {
+                        message: format!("the relative move leaves the telegram's range: {e}"),
+                    })
+                })?;
+                p.flags.reference = asea_protocol::Reference::Absolute;
+            }
+            let radius = target[0].hypot(target[1]);
+            if radius > reach.max_radius_mm
+                || radius < reach.min_radius_mm
+                || target[2] < reach.z_range_mm.0
+                || target[2] > reach.z_range_mm.1
+            {
+                return Err(Step::Halt(Halt::Fault {
+                    message: format!(
+                        "the eye at ({:.1}, {:.1}, {:.1}) mm is out of the arm's reach",
+                        target[0], target[1], target[2]
+                    ),
+                }));
+            }
+            self.dev.robot.set_speeds(speeds.0, speeds.1)?;
+            let end = counter + mandrel.map_or(0, |m| m.steps);
+            let moving = match mandrel {
+                Some(m) => self.mandrel_start(m, counter, end, false)?,
+                None => false,
+            };
+            self.robot_to(p, target)?;
+            if moving {
+                self.mandrel_finish(end)?;
+            }
+            Ok((self.dev.robot.position_mm()?, end))
+        })();
+        r.map_err(|Step::Halt(halt)| Stopped {
+            halt,
+            item: 0,
+            path: String::new(),
+            segments_done: 0,
+            stop_errors: self.stop_devices(),
+        })
     }
 
     /// Operate mode and homed (homing again if the robot lost it).
@@ -807,7 +878,13 @@ impl<'a> Coordinator<'a> {
         let here = self.dev.robot.position_mm()?;
         if distance_mm(here, target) > POSITION_TOLERANCE_MM {
             self.dev.robot.move_immediate(p)?;
-            self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
+            if self.dev.sync.wired() {
+                self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
+            } else {
+                self.wait("robot move", MOVE_TIMEOUT_S, |d| {
+                    Ok(d.robot.state()?.state != State::Running)
+                })?;
+            }
             let s = self.dev.robot.state()?;
             if s.state != State::Idle || s.last_error != 0 {
                 return Err(Step::Halt(Halt::Fault {

@@ -157,6 +157,37 @@ pub trait SyncLines: Send + std::fmt::Debug {
     fn in_position(&mut self) -> DeviceResult<bool>;
     /// The e-stop input (true = pressed).
     fn estop(&mut self) -> DeviceResult<bool>;
+    /// False when no sync lines are wired (discrete mode only: completion is read from the
+    /// robot's status instead).
+    fn wired(&self) -> bool {
+        true
+    }
+}
+
+/// No sync lines: a cell whose robot and indexer are on serial ports without a sync port (or
+/// two pseudo-terminals). Discrete mode works; program mode needs the lines and is refused.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoSync;
+
+fn unwired() -> DeviceError {
+    DeviceError::Sync(std::io::Error::other(
+        "no sync lines are wired (name a sync port in the cell file)",
+    ))
+}
+
+impl SyncLines for NoSync {
+    fn set_start(&mut self, on: bool) -> DeviceResult<()> {
+        if on { Err(unwired()) } else { Ok(()) }
+    }
+    fn in_position(&mut self) -> DeviceResult<bool> {
+        Err(unwired())
+    }
+    fn estop(&mut self) -> DeviceResult<bool> {
+        Ok(false)
+    }
+    fn wired(&self) -> bool {
+        false
+    }
 }
 
 /// The robot over its telegram link ([`asea_protocol::Client`]).
@@ -171,14 +202,13 @@ impl<L: RobotLink, C: RobotClock> ProtocolRobot<L, C> {
         ProtocolRobot { client }
     }
 
-    /// Sends a command and checks the robot's error latch afterwards (the spec's rule for
-    /// motion and mode commands, docs/protocol.md).
+    /// A command confirmed by the client (docs/protocol.md §7: executed once, proven by the
+    /// status; a latched robot error is reported and acknowledged).
     fn confirmed(
         &mut self,
-        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<()>,
+        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<asea_protocol::Status>,
     ) -> DeviceResult<()> {
         f(&mut self.client)?;
-        self.client.check_status()?;
         Ok(())
     }
 }
@@ -221,10 +251,15 @@ impl<L: RobotLink, C: RobotClock> RobotDevice for ProtocolRobot<L, C> {
     }
 
     fn delete_program(&mut self, program: u8) -> DeviceResult<()> {
-        self.client.delete_program(program)?;
-        // "No such program" is what we wanted; read the status to clear it.
-        let _ = self.client.status()?;
-        Ok(())
+        match self.client.delete_program(program) {
+            // "No such program" is what we wanted (the client acknowledged the error).
+            Err(asea_protocol::Error::Robot { code, .. })
+                if code == asea_protocol::RobotError::NoProgram.code() =>
+            {
+                Ok(())
+            }
+            r => r.map(|_| ()).map_err(Into::into),
+        }
     }
 
     fn upload(&mut self, program: u8, instructions: &[Instruction]) -> DeviceResult<()> {
@@ -357,6 +392,63 @@ impl SyncLines for WiredSync {
             Some(e) => e.level().map_err(DeviceError::Sync),
             None => Ok(false),
         }
+    }
+}
+
+/// The sync lines of `windcell sim-cell`, offered on a local socket (one line each way: `start 1`,
+/// `start 0` → `ok`; `lines` → `in_position <0|1> estop <0|1>`).
+#[derive(Debug)]
+pub struct SocketSync {
+    reader: std::io::BufReader<std::os::unix::net::UnixStream>,
+    writer: std::os::unix::net::UnixStream,
+}
+
+impl SocketSync {
+    /// Connects to the socket at `path`.
+    pub fn connect(path: &std::path::Path) -> std::io::Result<Self> {
+        let writer = std::os::unix::net::UnixStream::connect(path)?;
+        writer.set_read_timeout(Some(Duration::from_secs(2)))?;
+        let reader = std::io::BufReader::new(writer.try_clone()?);
+        Ok(SocketSync { reader, writer })
+    }
+
+    fn ask(&mut self, line: &str) -> DeviceResult<String> {
+        use std::io::{BufRead, Write};
+        writeln!(self.writer, "{line}").map_err(DeviceError::Sync)?;
+        let mut answer = String::new();
+        self.reader
+            .read_line(&mut answer)
+            .map_err(DeviceError::Sync)?;
+        let answer = answer.trim().to_string();
+        if answer.starts_with('?') || answer.is_empty() {
+            return Err(DeviceError::Sync(std::io::Error::other(format!(
+                "sync socket: `{line}` answered `{answer}`"
+            ))));
+        }
+        Ok(answer)
+    }
+
+    fn lines(&mut self) -> DeviceResult<(bool, bool)> {
+        let a = self.ask("lines")?;
+        let f: Vec<&str> = a.split_whitespace().collect();
+        match f.as_slice() {
+            ["in_position", i, "estop", e] => Ok((*i == "1", *e == "1")),
+            _ => Err(DeviceError::Sync(std::io::Error::other(format!(
+                "sync socket: `lines` answered `{a}`"
+            )))),
+        }
+    }
+}
+
+impl SyncLines for SocketSync {
+    fn set_start(&mut self, on: bool) -> DeviceResult<()> {
+        self.ask(if on { "start 1" } else { "start 0" }).map(|_| ())
+    }
+    fn in_position(&mut self) -> DeviceResult<bool> {
+        Ok(self.lines()?.0)
+    }
+    fn estop(&mut self) -> DeviceResult<bool> {
+        Ok(self.lines()?.1)
     }
 }
 

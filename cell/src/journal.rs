@@ -52,7 +52,7 @@ pub enum JournalError {
 /// An open journal, appending.
 #[derive(Debug)]
 pub struct Journal {
-    file: File,
+    file: Option<File>,
     path: PathBuf,
     chain: u64,
 }
@@ -69,7 +69,7 @@ impl Journal {
         };
         let file = File::create(path).map_err(io)?;
         Ok(Journal {
-            file,
+            file: Some(file),
             path: path.to_path_buf(),
             chain: FNV_BASIS,
         })
@@ -94,12 +94,21 @@ impl Journal {
             })?;
         Ok((
             Journal {
-                file,
+                file: Some(file),
                 path: path.to_path_buf(),
                 chain,
             },
             records,
         ))
+    }
+
+    /// A journal that keeps nothing (manual moves, `windcell jog`).
+    pub fn none() -> Self {
+        Journal {
+            file: None,
+            path: PathBuf::new(),
+            chain: FNV_BASIS,
+        }
     }
 
     /// The journal's path.
@@ -127,10 +136,10 @@ impl Journal {
             path: self.path.clone(),
             source,
         };
-        self.file
-            .write_all(format!("{line}\n").as_bytes())
-            .map_err(io)?;
-        self.file.sync_data().map_err(io)?;
+        if let Some(file) = self.file.as_mut() {
+            file.write_all(format!("{line}\n").as_bytes()).map_err(io)?;
+            file.sync_data().map_err(io)?;
+        }
         self.chain = chain;
         Ok(())
     }

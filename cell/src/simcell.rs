@@ -34,7 +34,7 @@ use crate::device::{DeviceError, DeviceResult, SyncLines, Timebase};
 /// The robot input the PC's start line is wired to (App. D).
 pub const START_INPUT: u8 = 1;
 /// How often the cell polls both simulators while time passes (virtual seconds).
-pub const TICK: Duration = Duration::from_millis(1);
+pub const TICK: Duration = Duration::from_millis(5);
 /// The indexer card's address on its link.
 pub const INDEXER_ADDRESS: u8 = 1;
 
@@ -127,6 +127,109 @@ impl LogRecord {
     }
 }
 
+/// Watches a robot computer and reports each move as it finishes (the simulators' logs).
+#[derive(Debug, Default)]
+pub struct RobotWatch {
+    running: Option<(u8, u16)>,
+    immediate: Option<[f64; 3]>,
+    executed_seen: usize,
+}
+
+fn target_of(m: &asea_protocol::sim::Machine, program: u8, instruction: u16) -> [f64; 3] {
+    match m.instruction(program, instruction) {
+        Some(Instruction::Position(p)) => p.pose.xyz_mm(),
+        _ => [f64::NAN; 3],
+    }
+}
+
+impl RobotWatch {
+    /// The records of what finished since the last call, at cell time `now`.
+    pub fn watch(&mut self, machine: &asea_protocol::sim::Machine, now: f64) -> Vec<LogRecord> {
+        let mut out = Vec::new();
+        let m = machine;
+        let status = m.status();
+        let running = (status.state == State::Running && status.program != 0)
+            .then_some((status.program, status.instruction));
+        // A newly executed MOVE_IMMEDIATE or STOP telegram.
+        let new: Vec<_> = m.executed.get(self.executed_seen..).unwrap_or(&[]).to_vec();
+        self.executed_seen = m.executed.len();
+        for f in new {
+            match asea_protocol::Command::from_frame(&f) {
+                Ok(asea_protocol::Command::Stop) => {
+                    if let Some(target) = self.immediate.take() {
+                        out.push(LogRecord::Robot {
+                            t_s: now,
+                            program: 0,
+                            instruction: 0,
+                            target_mm: target,
+                            completed: false,
+                        });
+                    }
+                    if let Some((p, i)) = self.running.take() {
+                        let target = target_of(m, p, i);
+                        out.push(LogRecord::Robot {
+                            t_s: now,
+                            program: p,
+                            instruction: i,
+                            target_mm: target,
+                            completed: false,
+                        });
+                    }
+                }
+                Ok(asea_protocol::Command::MoveImmediate(_))
+                    if m.status().state == State::Running =>
+                {
+                    self.immediate = m
+                        .trajectory()
+                        .and_then(|t| t.moves.last())
+                        .map(|mv| mv.target_mm);
+                }
+                _ => {}
+            }
+        }
+        let status = m.status();
+        if self.immediate.is_some() && status.state != State::Running {
+            let target = self.immediate.take().unwrap_or_default();
+            out.push(LogRecord::Robot {
+                t_s: now,
+                program: 0,
+                instruction: 0,
+                target_mm: target,
+                completed: true,
+            });
+        }
+        if self.running != running {
+            if let Some((p, i)) = self.running {
+                // Every positioning from the last one seen up to (not including) the current.
+                let until = match running {
+                    Some((q, j)) if q == p => j,
+                    _ => u16::MAX,
+                };
+                let mut n = i;
+                while n < until {
+                    match m.instruction(p, n) {
+                        Some(Instruction::Position(_)) => {
+                            let target = target_of(m, p, n);
+                            out.push(LogRecord::Robot {
+                                t_s: now,
+                                program: p,
+                                instruction: n,
+                                target_mm: target,
+                                completed: true,
+                            });
+                        }
+                        Some(Instruction::Control(_)) => {}
+                        None => break,
+                    }
+                    n += 1;
+                }
+            }
+            self.running = running;
+        }
+        out
+    }
+}
+
 /// The devices of the cell, driven as the far end of the robot's paced wire.
 #[derive(Debug)]
 pub struct CellPeer {
@@ -146,14 +249,14 @@ pub struct CellPeer {
     last_poll: Duration,
     edge_due: Option<Duration>,
     // Logging state.
-    robot_running: Option<(u8, u16)>,
-    robot_immediate: Option<[f64; 3]>,
-    executed_seen: usize,
+    robot_watch: RobotWatch,
     card_token: Vec<u8>,
     card_moving: bool,
     card_stop_sent: bool,
     /// Every logged record, in order.
     pub log: Vec<LogRecord>,
+    /// Fault injection: the robot computer stops answering (its output is lost).
+    pub robot_silent: bool,
     log_file: Option<io::BufWriter<std::fs::File>>,
 }
 
@@ -178,96 +281,9 @@ impl CellPeer {
 
     /// Logs robot instructions as they finish.
     fn watch_robot(&mut self) {
-        let m = &self.robot.machine;
-        let status = m.status();
-        let running = (status.state == State::Running && status.program != 0)
-            .then_some((status.program, status.instruction));
-        // A newly executed MOVE_IMMEDIATE or STOP telegram.
-        let new: Vec<_> = m.executed.get(self.executed_seen..).unwrap_or(&[]).to_vec();
-        self.executed_seen = m.executed.len();
         let now = self.now_s();
-        for f in new {
-            match asea_protocol::Command::from_frame(&f) {
-                Ok(asea_protocol::Command::Stop) => {
-                    if let Some(target) = self.robot_immediate.take() {
-                        self.record(LogRecord::Robot {
-                            t_s: now,
-                            program: 0,
-                            instruction: 0,
-                            target_mm: target,
-                            completed: false,
-                        });
-                    }
-                    if let Some((p, i)) = self.robot_running.take() {
-                        let target = self.target_of(p, i);
-                        self.record(LogRecord::Robot {
-                            t_s: now,
-                            program: p,
-                            instruction: i,
-                            target_mm: target,
-                            completed: false,
-                        });
-                    }
-                }
-                Ok(asea_protocol::Command::MoveImmediate(_))
-                    if self.robot.machine.status().state == State::Running =>
-                {
-                    let target = self
-                        .robot
-                        .machine
-                        .trajectory()
-                        .and_then(|t| t.moves.last())
-                        .map(|m| m.target_mm);
-                    self.robot_immediate = target;
-                }
-                _ => {}
-            }
-        }
-        let status = self.robot.machine.status();
-        if self.robot_immediate.is_some() && status.state != State::Running {
-            let target = self.robot_immediate.take().unwrap_or_default();
-            self.record(LogRecord::Robot {
-                t_s: now,
-                program: 0,
-                instruction: 0,
-                target_mm: target,
-                completed: true,
-            });
-        }
-        if self.robot_running != running {
-            if let Some((p, i)) = self.robot_running {
-                // Every positioning from the last one seen up to (not including) the current.
-                let until = match running {
-                    Some((q, j)) if q == p => j,
-                    _ => u16::MAX,
-                };
-                let mut n = i;
-                while n < until {
-                    match self.robot.machine.instruction(p, n) {
-                        Some(Instruction::Position(_)) => {
-                            let target = self.target_of(p, n);
-                            self.record(LogRecord::Robot {
-                                t_s: now,
-                                program: p,
-                                instruction: n,
-                                target_mm: target,
-                                completed: true,
-                            });
-                        }
-                        Some(Instruction::Control(_)) => {}
-                        None => break,
-                    }
-                    n += 1;
-                }
-            }
-            self.robot_running = running;
-        }
-    }
-
-    fn target_of(&self, program: u8, instruction: u16) -> [f64; 3] {
-        match self.robot.machine.instruction(program, instruction) {
-            Some(Instruction::Position(p)) => p.pose.xyz_mm(),
-            _ => [f64::NAN; 3],
+        for r in self.robot_watch.watch(&self.robot.machine, now) {
+            self.record(r);
         }
     }
 
@@ -352,7 +368,8 @@ impl Peer for CellPeer {
     }
 
     fn take_output(&mut self) -> Vec<u8> {
-        self.robot.take_output()
+        let out = self.robot.take_output();
+        if self.robot_silent { Vec::new() } else { out }
     }
 
     fn deadline(&self) -> Option<Duration> {
@@ -411,13 +428,12 @@ impl SimCell {
             from_card_free: Duration::ZERO,
             last_poll: Duration::ZERO,
             edge_due: None,
-            robot_running: None,
-            robot_immediate: None,
-            executed_seen: 0,
+            robot_watch: RobotWatch::default(),
             card_token: Vec::new(),
             card_moving: false,
             card_stop_sent: false,
             log: Vec::new(),
+            robot_silent: false,
             log_file: None,
         };
         SimCell {

@@ -27,7 +27,7 @@ fn sbend(mode: Option<RunMode>) -> Loaded {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml");
     let (job, text) = Job::load(&path).unwrap();
     let plan = tool::plan(&job, &text, &path).unwrap();
-    let files = batch::files_of_job(&tool::control_files(&job, &plan));
+    let files = batch::files_of_job(&tool::control_files(&job, &plan).unwrap());
     batch::from_files(&files, mode, Path::new("."), Path::new("SBEND.RUN")).unwrap()
 }
 
@@ -291,7 +291,8 @@ fn discrete_batch_winds_every_segment_once_and_resumes_after_a_stop() {
     let (r, m) = cell
         .with(|p| (p.robot.machine.status().state, p.card.machine().is_moving()))
         .unwrap();
-    assert_eq!(r, State::Idle);
+    // STOP leaves the robot in its own STOPPED state (not idle, not in position).
+    assert_eq!(r, State::Stopped);
     cell.timebase_sleep(Duration::from_secs(2));
     assert!(!m || !cell.with(|p| p.card.machine().is_moving()).unwrap());
     let (journal, records) = Journal::resume(&jp).unwrap();
@@ -351,15 +352,45 @@ fn discrete_batch_winds_every_segment_once_and_resumes_after_a_stop() {
     assert_eq!(counter, syncs[1] + path2, "total {total}");
 }
 
+/// Sync lines that press "stop" `polls` in-position polls after the start edge.
+#[derive(Debug)]
+struct StopMidProgram {
+    inner: Box<dyn SyncLines>,
+    left: Option<i64>,
+    polls: i64,
+    flag: Arc<AtomicBool>,
+}
+
+impl SyncLines for StopMidProgram {
+    fn set_start(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        if on && self.left.is_none() {
+            self.left = Some(self.polls);
+        }
+        self.inner.set_start(on)
+    }
+    fn in_position(&mut self) -> cell::device::DeviceResult<bool> {
+        if let Some(n) = self.left.as_mut() {
+            *n -= 1;
+            if *n == 0 {
+                self.flag.store(true, Ordering::Relaxed);
+            }
+        }
+        self.inner.in_position()
+    }
+    fn estop(&mut self) -> cell::device::DeviceResult<bool> {
+        self.inner.estop()
+    }
+}
+
 #[test]
-fn fine_and_medium_batches_run_with_the_handshake_and_resume_after_a_stop() {
+fn fine_and_medium_batches_run_with_the_handshake_and_resume_after_a_stop_mid_program() {
     for mode in [RunMode::Fine, RunMode::Medium] {
         let l = sbend(Some(mode));
         let b = checked(&l);
         let dir = tempfile::tempdir().unwrap();
         let jp = dir.path().join("SBEND.journal");
-        let cell = SimCell::new(&SimCellConfig::default());
         // Whole batch.
+        let cell = SimCell::new(&SimCellConfig::default());
         wind(
             &cell,
             &b,
@@ -372,6 +403,36 @@ fn fine_and_medium_batches_run_with_the_handshake_and_resume_after_a_stop() {
         check_each_once(&cell, &b);
         let t = cell.clock().now_s();
         assert!(t < 120.0, "{mode:?}: {t} s of cell time");
+        // Stopped 8 s into the first program, then resumed with the remaining instructions.
+        let cell = SimCell::new(&SimCellConfig::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut d = cell.devices(Drive::default());
+        d.sync = Box::new(StopMidProgram {
+            inner: d.sync,
+            left: None,
+            polls: 800,
+            flag: stop.clone(),
+        });
+        let mut sink = |_e: Event| {};
+        let mut c = Coordinator::new(d, stop, Journal::create(&jp).unwrap(), &mut sink);
+        let stopped = c
+            .run(&b, &ResumePoint::default(), true, false, false)
+            .unwrap_err();
+        drop(c);
+        assert!(matches!(stopped.halt, Halt::Interrupted { .. }));
+        assert!(stopped.stop_errors.is_empty());
+        let (state, instruction) = cell
+            .with(|p| {
+                let s = p.robot.machine.status();
+                (s.state, s.instruction)
+            })
+            .unwrap();
+        assert_ne!(state, State::Running);
+        assert!(instruction > 10, "stopped at instruction {instruction}");
+        resume(&cell, &b, &jp);
+        check_each_once(&cell, &b);
+        let recs = journal::read(&jp).unwrap();
+        assert!(recs.iter().any(|r| r["rec"] == "resume_program"));
     }
 }
 
@@ -384,4 +445,266 @@ impl Sleep for SimCell {
         use cell::device::Timebase;
         self.timebase().sleep(dt);
     }
+}
+
+/// A device seen through a PC that can die (`kill -9`): after `left` more calls every call fails
+/// without reaching the device, stop commands included, so the devices run on by themselves.
+#[derive(Debug, Clone)]
+struct Life(Arc<std::sync::atomic::AtomicI64>);
+
+impl Life {
+    fn new() -> Self {
+        Life(Arc::new(std::sync::atomic::AtomicI64::new(i64::MAX)))
+    }
+    fn die_after(&self, calls: i64) {
+        self.0.store(calls, Ordering::Relaxed);
+    }
+    fn alive(&self) -> Result<(), cell::device::DeviceError> {
+        if self.0.fetch_sub(1, Ordering::Relaxed) <= 0 {
+            return Err(cell::device::DeviceError::RobotState {
+                what: "the coordinator process is gone".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+struct Mortal<T> {
+    inner: T,
+    life: Life,
+}
+
+impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
+    fn state(&mut self) -> cell::device::DeviceResult<cell::device::RobotState> {
+        self.life.alive()?;
+        self.inner.state()
+    }
+    fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
+        self.life.alive()?;
+        self.inner.position_mm()
+    }
+    fn set_speeds(
+        &mut self,
+        b: asea_protocol::Speed,
+        m: asea_protocol::Speed,
+    ) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.set_speeds(b, m)
+    }
+    fn set_operate(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.set_operate(on)
+    }
+    fn start_home(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.start_home()
+    }
+    fn move_immediate(&mut self, p: asea_protocol::Positioning) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.move_immediate(p)
+    }
+    fn delete_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.delete_program(p)
+    }
+    fn upload(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.upload(p, i)
+    }
+    fn read_back(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.read_back(p, i)
+    }
+    fn run_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.run_program(p)
+    }
+    fn stop(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.stop()
+    }
+}
+
+impl MandrelDevice for Mortal<Box<dyn MandrelDevice>> {
+    fn attach(&mut self) -> cell::device::DeviceResult<i64> {
+        self.life.alive()?;
+        self.inner.attach()
+    }
+    fn zero(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.zero()
+    }
+    fn start_move(&mut self, mv: &MandrelMove, armed: bool) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.start_move(mv, armed)
+    }
+    fn busy(&mut self) -> cell::device::DeviceResult<(bool, bool)> {
+        self.life.alive()?;
+        self.inner.busy()
+    }
+    fn counter_steps(&mut self) -> cell::device::DeviceResult<i64> {
+        self.life.alive()?;
+        self.inner.counter_steps()
+    }
+    fn move_steps(&mut self) -> cell::device::DeviceResult<i64> {
+        self.life.alive()?;
+        self.inner.move_steps()
+    }
+    fn stop(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.stop()
+    }
+}
+
+/// Winds until the PC "dies" `calls` device calls after the `at`-th segment or program event;
+/// nothing stops the devices.
+fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, calls: i64) {
+    let life = Life::new();
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Mortal {
+            inner: d.robot,
+            life: life.clone(),
+        }),
+        mandrel: Box::new(Mortal {
+            inner: d.mandrel,
+            life: life.clone(),
+        }),
+        sync: d.sync,
+        time: d.time,
+    };
+    let mut n = 0;
+    let l2 = life.clone();
+    let mut sink = |e: Event| {
+        if matches!(
+            e,
+            Event::Segment { .. } | Event::Program { done: false, .. }
+        ) {
+            n += 1;
+            if n == at {
+                l2.die_after(calls);
+            }
+        }
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut c = Coordinator::new(dev, stop, Journal::create(jp).unwrap(), &mut sink);
+    let r = c.run(b, &ResumePoint::default(), true, false, false);
+    let stopped = r.unwrap_err();
+    assert!(matches!(stopped.halt, Halt::Fault { .. }), "{stopped:?}");
+}
+
+fn resume(cell: &SimCell, b: &Batch, jp: &Path) {
+    let (journal, records) = Journal::resume(jp).unwrap();
+    let from = resume_point(b, &records).unwrap();
+    wind(cell, b, journal, &from, false, None).unwrap();
+}
+
+#[test]
+fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
+    for (mode, at, calls) in [
+        (RunMode::Discrete, 20, 3),
+        (RunMode::Fine, 1, 12),
+        (RunMode::Medium, 2, 40),
+    ] {
+        let b = checked(&sbend(Some(mode)));
+        let dir = tempfile::tempdir().unwrap();
+        let jp = dir.path().join("J.journal");
+        let cell = SimCell::new(&SimCellConfig::default());
+        wind_until_killed(&cell, &b, &jp, at, calls);
+        // Nobody stops the devices: a stored program runs to its end, the indexer finishes.
+        cell.timebase_sleep(Duration::from_secs(60));
+        resume(&cell, &b, &jp);
+        check_each_once(&cell, &b);
+        let (_, _, partial) = completed(&cell);
+        assert!(
+            partial.is_empty(),
+            "{mode:?}: a mandrel move was cut: {partial:?}"
+        );
+    }
+}
+
+#[test]
+fn a_robot_that_stops_answering_stops_the_indexer_and_resume_completes() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let c2 = cell.clone();
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut n = 0;
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            n += 1;
+            if n == 12 {
+                c2.with(|p| p.robot_silent = true).unwrap();
+            }
+        }
+    };
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        stop,
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    let stopped = c
+        .run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    let Halt::Fault { message } = &stopped.halt else {
+        panic!("{stopped:?}")
+    };
+    assert!(message.starts_with("robot:"), "{message}");
+    assert_eq!(stopped.segments_done, 12);
+    // The indexer was told to stop (its stop went through; the robot's could not).
+    assert_eq!(stopped.stop_errors.len(), 1, "{:?}", stopped.stop_errors);
+    cell.timebase_sleep(Duration::from_secs(5));
+    assert!(!cell.with(|p| p.card.machine().is_moving()).unwrap());
+    cell.with(|p| p.robot_silent = false).unwrap();
+    resume(&cell, &b, &jp);
+    let (robot, _, _) = completed(&cell);
+    assert_eq!(robot.len(), expected_targets(&b).len());
+}
+
+#[test]
+fn an_indexer_stall_stops_the_robot_and_resume_completes() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let c2 = cell.clone();
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut n = 0;
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            n += 1;
+            if n == 7 {
+                // The motor can no longer pull in at the start/stop velocity.
+                c2.with(|p| p.card.machine.pull_in_sps = 1.0).unwrap();
+            }
+        }
+    };
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        stop,
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    let stopped = c
+        .run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    let Halt::Fault { message } = &stopped.halt else {
+        panic!("{stopped:?}")
+    };
+    assert!(message.contains("stall"), "{message}");
+    assert!(stopped.stop_errors.is_empty());
+    assert_ne!(
+        cell.with(|p| p.robot.machine.status().state).unwrap(),
+        State::Running
+    );
+    cell.with(|p| p.card.machine.pull_in_sps = mandrel_drive::sim::machine::PULL_IN_SPS)
+        .unwrap();
+    resume(&cell, &b, &jp);
+    let recs = journal::read(&jp).unwrap();
+    assert_eq!(recs.last().unwrap()["rec"], "done");
 }

@@ -4,9 +4,11 @@ use clap::{Parser, Subcommand};
 
 pub mod argument_error;
 pub mod geodesic;
+pub mod jog;
 pub mod lathe;
 pub mod plan;
 pub mod run;
+pub mod sim_cell;
 pub mod sim_indexer;
 pub mod sim_robot;
 pub mod sweep;
@@ -68,6 +70,10 @@ pub enum Command {
     Plan(plan::PlanArgs),
     /// Wind a batch on the cell: a job (planned first) or a sequence of control files.
     Run(run::RunArgs),
+    /// Manual control: one robot position and one mandrel move, sent together.
+    Jog(jog::JogArgs),
+    /// Serve the simulated cell (both simulators, one clock, sync lines on a socket) on ptys.
+    SimCell(sim_cell::SimCellArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Run the ASEA robot-computer simulator on a pseudo-terminal.
@@ -100,6 +106,8 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
         Command::Run(args) => run::run(args),
+        Command::Jog(args) => jog::run(args),
+        Command::SimCell(args) => sim_cell::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::SimRobot(args) => sim_robot::run(args),
         Command::Geodesic(args) => geodesic::run(args),

@@ -88,20 +88,25 @@ fn load(args: &RunArgs) -> Result<(Loaded, Cell, Reach, String), Failure> {
     let (loaded, job_cell, reach, name) = if is_job {
         let (job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
         let plan = cell::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
-        let files = batch::files_of_job(&cell::tool::control_files(&job, &plan));
+        let files = batch::files_of_job(
+            &cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+        );
         let dir = args.input.parent().unwrap_or(Path::new("."));
         let mut loaded =
             batch::from_files(&files, mode, dir, &dir.join("RUN")).map_err(Failure::from_cell)?;
         loaded.sequence_path = args.input.clone();
-        let reach = job
-            .cell
-            .robot
-            .as_ref()
-            .map_or_else(Reach::default, |r| Reach {
-                max_radius_mm: *r.reach_max_mm.get_ref(),
-                min_radius_mm: *r.reach_min_mm.get_ref(),
-                z_range_mm: (*r.z_min_mm.get_ref(), *r.z_max_mm.get_ref()),
-            });
+        // The arm's envelope: the eye is at most the two links and the eye mechanism from the
+        // shoulder (the full five-axis check is the plan's, which this job has just passed).
+        let arm = cell::tool::arm(&job);
+        let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
+        let reach = Reach {
+            max_radius_mm: stretch,
+            min_radius_mm: 0.0,
+            z_range_mm: (
+                arm.shoulder_height_mm - stretch,
+                arm.shoulder_height_mm + stretch,
+            ),
+        };
         let c = Cell::of_job(&job, &args.input).map_err(Failure::from_cell)?;
         (loaded, Some(c), reach, job.name.get_ref().clone())
     } else {
@@ -132,7 +137,7 @@ fn open_port(path: &str) -> Result<Box<dyn serialport::SerialPort>, Failure> {
 }
 
 /// The devices of `cell` (and the simulated cell, to keep its log).
-fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
+pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
     match &cell.devices {
         cellfile::Devices::Simulated => {
             let sim = SimCell::new(&SimCellConfig {
@@ -155,7 +160,24 @@ fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>)
             use mandrel_drive::sync::{ModemLine, Pin};
             let robot_port = open_port(robot)?;
             let indexer_port = open_port(indexer)?;
-            let sync_port = Arc::new(Mutex::new(open_port(sync)?));
+            let sync: Box<dyn cell::device::SyncLines> = match sync {
+                Some(path) if path.starts_with("unix:") => {
+                    let p = Path::new(path.trim_start_matches("unix:"));
+                    Box::new(
+                        cell::device::SocketSync::connect(p)
+                            .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
+                    )
+                }
+                Some(path) => {
+                    let port = Arc::new(Mutex::new(open_port(path)?));
+                    Box::new(cell::device::WiredSync {
+                        start: Box::new(ModemLine::new(port.clone(), Pin::Rts, false)),
+                        in_position: Box::new(ModemLine::new(port.clone(), Pin::Cts, false)),
+                        estop: Some(Box::new(ModemLine::new(port, Pin::Dsr, false))),
+                    })
+                }
+                None => Box::new(cell::device::NoSync),
+            };
             let client =
                 asea_protocol::Client::new(robot_port, asea_protocol::ClientConfig::default());
             let x = mandrel_drive::XClient::new(
@@ -173,11 +195,7 @@ fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>)
                 Devices {
                     robot: Box::new(cell::device::ProtocolRobot::new(client)),
                     mandrel: Box::new(cell::device::XIndexer::new(x, setup)),
-                    sync: Box::new(cell::device::WiredSync {
-                        start: Box::new(ModemLine::new(sync_port.clone(), Pin::Rts, false)),
-                        in_position: Box::new(ModemLine::new(sync_port.clone(), Pin::Cts, false)),
-                        estop: Some(Box::new(ModemLine::new(sync_port, Pin::Dsr, false))),
-                    }),
+                    sync,
                     time: Arc::new(cell::device::WallClock::new()),
                 },
                 None,

@@ -5,6 +5,7 @@ use clap::{Args, Subcommand};
 
 use super::Failure;
 
+pub mod plan;
 pub mod run;
 pub mod tune;
 
@@ -18,6 +19,8 @@ pub struct LatheArgs {
 /// `windcell lathe` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum LatheCommand {
+    /// Plan a vessel (TOML) or `.wind` job and write its G-code.
+    Plan(plan::LathePlanArgs),
     /// Run a part program (Fig 9-1 format) on the simulated lathe winder.
     Run(run::LatheRunArgs),
     /// Position-loop gain by seed 003 Eq. 8 with the Routh check, and the servo step response.
@@ -27,6 +30,7 @@ pub enum LatheCommand {
 /// Runs `windcell lathe …`.
 pub fn run(args: LatheArgs) -> Result<(), Failure> {
     match args.command {
+        LatheCommand::Plan(a) => plan::run(a),
         LatheCommand::Run(a) => run::run(a),
         LatheCommand::Tune(a) => tune::run(a),
     }
