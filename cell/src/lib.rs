@@ -16,6 +16,7 @@ pub mod record;
 pub mod report;
 pub mod simcell;
 pub mod tool;
+pub mod trace_plot;
 pub mod transfer;
 
 pub use error::Error;

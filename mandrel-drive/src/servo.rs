@@ -250,6 +250,8 @@ pub struct ServoAxis {
     switches: Option<(f64, f64)>,
     home: Option<f64>,
     tripped: bool,
+    /// `(dt, e^{−p dt})` of the last step (the period rarely changes).
+    decay: (f64, f64),
 }
 
 impl ServoAxis {
@@ -267,6 +269,7 @@ impl ServoAxis {
             switches: None,
             home: None,
             tripped: false,
+            decay: (0.0, 1.0),
         })
     }
 
@@ -345,7 +348,10 @@ impl ServoAxis {
             f64::from(self.code) - f64::from(DAC_ZERO_CODE)
         };
         let (k, p) = (self.gain, self.pole);
-        let e = (-p * dt_s).exp();
+        if self.decay.0 != dt_s {
+            self.decay = (dt_s, (-p * dt_s).exp());
+        }
+        let e = self.decay.1;
         let v_inf = k * u / p;
         let v0 = self.velocity;
         self.velocity = v_inf + (v0 - v_inf) * e;

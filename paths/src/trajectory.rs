@@ -371,17 +371,21 @@ impl<const D: usize> Planner<D> {
         // limits. Time is ∫ du/σ, tabulated on a fine grid of the parameter.
         let limits = self.speed_limits();
         let sigma_nom = 1.0 / per_segment;
-        let sigma = |seg: usize, t: f64| -> f64 {
-            let d = spline
-                .derivatives(seg, t)
-                .map(|d| d[1])
-                .unwrap_or_else(SVector::zeros);
-            (0..D)
-                .map(|i| limits[i] / d[i].abs())
-                .fold(sigma_nom, f64::min)
+        let segments = spline.segment_count();
+        let coefficients: Vec<[SVector<f64, D>; 4]> = (0..segments)
+            .map(|seg| spline.coefficients(seg).unwrap_or([SVector::zeros(); 4]))
+            .collect();
+        // 1/σ at parameter t of segment seg.
+        let inv_sigma = |seg: usize, t: f64| -> f64 {
+            let [_, a1, a2, a3] = &coefficients[seg];
+            let mut sigma = sigma_nom;
+            for i in 0..D {
+                let d = (3.0 * a3[i] * t + 2.0 * a2[i]) * t + a1[i];
+                sigma = sigma.min(limits[i] / d.abs());
+            }
+            1.0 / sigma
         };
         const SUBSTEPS: usize = 128;
-        let segments = spline.segment_count();
         let mut table_u = Vec::with_capacity(segments * SUBSTEPS + 1);
         let mut table_t = Vec::with_capacity(segments * SUBSTEPS + 1);
         let (mut u, mut time) = (0.0f64, 0.0f64);
@@ -389,11 +393,13 @@ impl<const D: usize> Planner<D> {
         table_t.push(time);
         let du = 1.0 / SUBSTEPS as f64;
         for seg in 0..segments {
+            let mut left = inv_sigma(seg, 0.0);
             for k in 0..SUBSTEPS {
                 // Simpson's rule on 1/σ over the substep.
                 let t0 = k as f64 * du;
-                let inv = |t: f64| 1.0 / sigma(seg, t);
-                time += du / 6.0 * (inv(t0) + 4.0 * inv(t0 + du / 2.0) + inv(t0 + du));
+                let right = inv_sigma(seg, t0 + du);
+                time += du / 6.0 * (left + 4.0 * inv_sigma(seg, t0 + du / 2.0) + right);
+                left = right;
                 u += du;
                 table_u.push(u);
                 table_t.push(time);
@@ -418,11 +424,9 @@ impl<const D: usize> Planner<D> {
             };
             let u = table_u[row] + (table_u[row + 1] - table_u[row]) * f;
             let seg = (u.floor() as usize).min(segments - 1);
-            setpoints.push(
-                spline
-                    .eval(seg, u - seg as f64)
-                    .unwrap_or(knots[knots.len() - 1]),
-            );
+            let t = (u - seg as f64).clamp(0.0, 1.0);
+            let [a0, a1, a2, a3] = &coefficients[seg];
+            setpoints.push(((a3 * t + a2) * t + a1) * t + a0);
         }
         if let Some(last) = setpoints.last_mut() {
             *last = knots[knots.len() - 1];

@@ -56,6 +56,9 @@ pub struct LatheRunArgs {
     /// Write the actual path every record-interval interrupts as CSV.
     #[arg(long, value_name = "FILE")]
     pub trace: Option<PathBuf>,
+    /// Plot X desired, actual and following error over the run (SVG, every interrupt).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
     /// Report as JSON on standard output.
     #[arg(long)]
     pub json: bool,
@@ -165,7 +168,9 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     }
 
     let mut trace: Vec<TraceRow> = Vec::new();
-    let every = if args.trace.is_some() {
+    let every = if args.plot.is_some() {
+        1
+    } else if args.trace.is_some() {
         u64::from(setup.params.record_interval)
     } else {
         0
@@ -225,8 +230,22 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     )
     .map_err(Failure::from_cell)?;
     let jitter: Option<Jitter> = wall.as_ref().map(WallClock::jitter);
+    if let Some(path) = &args.plot {
+        let title = format!(
+            "{}: {:?}, feed {feed} counts/interrupt",
+            args.program.display(),
+            args.interp
+        );
+        cell::trace_plot::write_svg(path, &trace, &title).map_err(Failure::from_cell)?;
+    }
     if let Some(path) = &args.trace {
-        lathe::write_trace(path, &trace).map_err(Failure::from_cell)?;
+        let interval = u64::from(setup.params.record_interval);
+        let rows: Vec<TraceRow> = trace
+            .iter()
+            .filter(|r| r.interrupt.is_multiple_of(interval))
+            .copied()
+            .collect();
+        lathe::write_trace(path, &rows).map_err(Failure::from_cell)?;
     }
 
     let interp_name = match args.interp {
