@@ -13,6 +13,8 @@ fn examples() -> Vec<PathBuf> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        // Robot-cell jobs only (lathe winding jobs have no `[cell]`).
+        .filter(|p| std::fs::read_to_string(p).is_ok_and(|t| t.contains("\n[cell]")))
         .collect();
     jobs.sort();
     jobs
