@@ -14,6 +14,7 @@ pub mod grbl;
 pub mod link;
 pub mod profile;
 pub mod sim;
+pub mod stream;
 pub mod sync;
 pub mod units;
 pub mod xlang;
