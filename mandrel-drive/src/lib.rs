@@ -20,6 +20,7 @@ pub mod link;
 pub mod profile;
 pub mod servo;
 pub mod sim;
+pub mod stream;
 pub mod sync;
 pub mod units;
 pub mod xlang;

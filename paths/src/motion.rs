@@ -186,8 +186,8 @@ impl Limits {
     }
 }
 
-/// The planner buffer of the time estimate: like a GRBL-class controller, the estimate looks this
-/// many moves ahead (and so holds at most this many).
+/// The planner buffer of the time estimate: like a GRBL-class controller, the estimate looks at
+/// least this many moves ahead (and holds at most twice as many).
 pub const LOOKAHEAD_MOVES: usize = 128;
 
 #[derive(Debug, Clone, Copy)]
@@ -206,6 +206,8 @@ struct Planned {
 #[derive(Debug, Clone)]
 pub struct Estimate {
     limits: Limits,
+    inv_velocity: [f64; 4],
+    inv_acceleration: [f64; 4],
     last: Axes,
     buffer: std::collections::VecDeque<Planned>,
     /// Layers seen.
@@ -224,8 +226,10 @@ impl Estimate {
     pub fn new(limits: Limits, start: Axes) -> Estimate {
         Estimate {
             limits,
+            inv_velocity: limits.axes.map(|l| 1.0 / l.velocity),
+            inv_acceleration: limits.axes.map(|l| 1.0 / l.acceleration),
             last: start,
-            buffer: std::collections::VecDeque::with_capacity(LOOKAHEAD_MOVES + 1),
+            buffer: std::collections::VecDeque::with_capacity(2 * LOOKAHEAD_MOVES),
             layers: 0,
             circuits: 0,
             moves: 0,
@@ -275,15 +279,21 @@ impl Estimate {
         if length <= 0.0 {
             return;
         }
-        let unit = delta.map(|d| d / length);
-        let mut speed = f64::INFINITY;
-        let mut acc = f64::INFINITY;
-        for (u, l) in unit.iter().zip(&self.limits.axes) {
-            if u.abs() > 1e-15 {
-                speed = speed.min(l.velocity / u.abs());
-                acc = acc.min(l.acceleration / u.abs());
-            }
+        let inv_length = 1.0 / length;
+        let unit = delta.map(|d| d * inv_length);
+        // Path speed and acceleration at which the most limited axis is at its limit.
+        let mut time_per_v = 0.0f64;
+        let mut time_per_a = 0.0f64;
+        for ((d, iv), ia) in delta
+            .iter()
+            .zip(&self.inv_velocity)
+            .zip(&self.inv_acceleration)
+        {
+            time_per_v = time_per_v.max(d.abs() * iv);
+            time_per_a = time_per_a.max(d.abs() * ia);
         }
+        let speed = length / time_per_v;
+        let acc = length / time_per_a;
         let max_entry = match self.buffer.back() {
             None => 0.0,
             Some(prev) => {
@@ -311,11 +321,15 @@ impl Estimate {
             max_entry,
             entry: max_entry,
         });
-        if self.buffer.len() > LOOKAHEAD_MOVES {
+        // Plan in batches: with 2·N moves held, the first N are final (each still sees at least
+        // N moves ahead of it), so replanning costs O(1) per move.
+        if self.buffer.len() >= 2 * LOOKAHEAD_MOVES {
             Self::replan(&mut self.buffer);
-            let first = self.buffer.pop_front().expect("buffer is not empty");
-            let exit = self.buffer.front().map_or(0.0, |n| n.entry);
-            self.time_s += trapezoid_time(&first, exit);
+            for _ in 0..LOOKAHEAD_MOVES {
+                let first = self.buffer.pop_front().expect("buffer holds 2·N moves");
+                let exit = self.buffer.front().map_or(0.0, |n| n.entry);
+                self.time_s += trapezoid_time(&first, exit);
+            }
         }
     }
 }

@@ -137,56 +137,58 @@ impl std::fmt::Display for Dialect {
 }
 
 fn quantise(v: f64) -> i64 {
-    (v / UNITS_PER_LSB).round() as i64
+    (v * 1000.0).round() as i64
 }
 
-/// Appends `lsb` thousandths as a decimal with trailing zeros dropped (`-1.5`, `30.006`, `0`).
-fn push_fixed(out: &mut Vec<u8>, lsb: i64) {
-    if lsb < 0 {
+/// Appends `scaled` / 10^`decimals` as a decimal with trailing zeros dropped (`-1.5`, `30.006`,
+/// `0`), without going through a formatter.
+fn push_scaled(out: &mut Vec<u8>, scaled: i64, decimals: u32) {
+    if scaled < 0 {
         out.push(b'-');
     }
-    let m = lsb.unsigned_abs();
-    let (int, frac) = (m / 1000, m % 1000);
-    let mut digits = [0u8; 20];
+    let mut m = scaled.unsigned_abs();
+    let mut digits = [0u8; 24];
     let mut n = 0;
-    let mut v = int;
-    loop {
-        digits[n] = b'0' + (v % 10) as u8;
+    // Fraction digits, least significant first, dropping trailing zeros.
+    let mut frac_len = decimals as usize;
+    for _ in 0..decimals {
+        let d = (m % 10) as u8;
+        m /= 10;
+        if n == 0 && d == 0 {
+            frac_len -= 1;
+            continue;
+        }
+        digits[n] = b'0' + d;
         n += 1;
-        v /= 10;
-        if v == 0 {
+    }
+    if frac_len > 0 {
+        digits[n] = b'.';
+        n += 1;
+    }
+    loop {
+        digits[n] = b'0' + (m % 10) as u8;
+        n += 1;
+        m /= 10;
+        if m == 0 {
             break;
         }
     }
     out.extend(digits[..n].iter().rev());
-    if frac != 0 {
-        out.push(b'.');
-        let f = [
-            b'0' + (frac / 100) as u8,
-            b'0' + (frac / 10 % 10) as u8,
-            b'0' + (frac % 10) as u8,
-        ];
-        let len = if frac % 100 == 0 {
-            1
-        } else if frac % 10 == 0 {
-            2
-        } else {
-            3
-        };
-        out.extend_from_slice(&f[..len]);
-    }
+}
+
+/// Appends `lsb` thousandths (see [`push_scaled`]).
+fn push_fixed(out: &mut Vec<u8>, lsb: i64) {
+    push_scaled(out, lsb, 3);
 }
 
 /// Appends a feed with six significant digits, trailing zeros dropped.
 fn push_feed(out: &mut Vec<u8>, f: f64) {
-    let decimals = (5 - f.abs().log10().floor() as i32).clamp(0, 9) as usize;
-    let text = format!("{f:.decimals$}");
-    let text = if text.contains('.') {
-        text.trim_end_matches('0').trim_end_matches('.')
-    } else {
-        &text
-    };
-    out.extend_from_slice(text.as_bytes());
+    let decimals = (5 - f.abs().log10().floor() as i32).clamp(0, 9) as u32;
+    push_scaled(
+        out,
+        (f * 10f64.powi(decimals as i32)).round() as i64,
+        decimals,
+    );
 }
 
 /// A feed word's value for a move of `delta` (axis units, written words only) taking
