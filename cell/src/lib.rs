@@ -1,10 +1,20 @@
 //! The windcell coordinator library: the TOOL step that turns a job into control files, and the
 //! pieces the `windcell` command line is built from.
 
+pub mod batch;
+pub mod cellfile;
+pub mod coordinator;
+pub mod device;
 pub mod error;
+pub mod gcode;
+pub mod imported;
+pub mod journal;
+pub mod lathe;
 pub mod mesh;
 pub mod output;
+pub mod record;
 pub mod report;
+pub mod simcell;
 pub mod tool;
 pub mod transfer;
 

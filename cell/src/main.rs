@@ -10,7 +10,25 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
-    let args = cli::Cli::parse();
+    let argv: Vec<String> = std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    let args = match cli::Cli::try_parse() {
+        Ok(args) => args,
+        Err(error) => {
+            use clap::error::ErrorKind;
+            if matches!(
+                error.kind(),
+                ErrorKind::DisplayHelp | ErrorKind::DisplayVersion
+            ) {
+                // `--help` and `--version` go to standard output; a closed pipe is not an error.
+                let _ = cli::print(&error.render().to_string());
+                return ExitCode::SUCCESS;
+            }
+            eprintln!("windcell: {}", cli::argument_error::render(&error, &argv));
+            return ExitCode::from(cli::EXIT_INPUT);
+        }
+    };
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(failure) => {

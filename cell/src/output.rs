@@ -1,47 +1,274 @@
-//! Writing a set of output files all or nothing: everything is written into a fresh temporary
-//! directory beside the destination first, and moved into place only when every file is complete.
+//! Writing a set of output files all or nothing.
+//!
+//! Every check that could stop the set half-way is made before anything is written: the
+//! destination must be a folder (or absent, under a folder), no output name may be held by a
+//! folder or other non-file, and control files of an earlier plan of the same job that this plan
+//! does not write (`CYL_3.ROB` beside a new two-path `CYL.SEQ`) are refused or removed as
+//! [`Stale`] says. The files are then written into a hidden staging folder:
+//!
+//! - a destination that does not exist yet is created by renaming the staging folder onto it,
+//!   one step;
+//! - into an existing folder, the files it already holds are moved aside into the staging
+//!   folder, the new files are renamed into place (the sequence and run files, which name the
+//!   others, last), and on any failure the moved-aside files are put back, so the folder is
+//!   either as it was or holds the whole new set.
+//!
+//! Messages name the destination and the output file, never the staging folder.
 
+use std::ffi::OsStr;
 use std::fs;
+use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 
 use crate::Error;
 
-fn output_error(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
+/// What to do with control files of an earlier plan of the same job that the new plan does not
+/// write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Stale {
+    /// Refuse to write anything (the default: nothing is deleted unasked).
+    #[default]
+    Refuse,
+    /// Remove them as part of the same all-or-nothing step.
+    Remove,
+}
+
+fn refuse(path: &Path, reason: impl Into<String>) -> Error {
+    Error::OutputPath {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+fn failed(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
     move |source| Error::Output {
         path: path.to_path_buf(),
         source,
     }
 }
 
-/// Writes `files` (names relative to `dir`) so that either all of them land in `dir` or none does.
-/// `dir` is created when missing; other files in it are left alone.
-pub fn write_all(dir: &Path, files: &[(PathBuf, String)]) -> Result<(), Error> {
-    let parent = match dir.parent() {
+/// Checks that `dir` can hold output: it is a folder, or it does not exist and its nearest
+/// existing ancestor is a folder. Made before any work so that a wrong `-o` fails at once.
+pub fn check_dir(dir: &Path) -> Result<(), Error> {
+    if dir.as_os_str().is_empty() {
+        return Err(refuse(dir, "is empty; name an output folder"));
+    }
+    match fs::metadata(dir) {
+        Ok(m) if m.is_dir() => return Ok(()),
+        Ok(_) => return Err(refuse(dir, "exists and is not a folder")),
+        Err(e) if e.kind() == ErrorKind::NotFound => {}
+        Err(e) if e.kind() == ErrorKind::NotADirectory => {}
+        Err(source) => return Err(failed(dir)(source)),
+    }
+    for ancestor in dir.ancestors().skip(1) {
+        if ancestor.as_os_str().is_empty() {
+            break;
+        }
+        match fs::metadata(ancestor) {
+            Ok(m) if m.is_dir() => return Ok(()),
+            Ok(_) => {
+                return Err(refuse(
+                    dir,
+                    format!("lies under {}, which is not a folder", ancestor.display()),
+                ));
+            }
+            Err(_) => continue,
+        }
+    }
+    Ok(())
+}
+
+/// Checks that the single output file `path` can be written: it is a regular file or absent,
+/// and its folder exists.
+pub fn check_file(path: &Path) -> Result<(), Error> {
+    if path.file_name().is_none() {
+        return Err(refuse(path, "does not name a file"));
+    }
+    match fs::symlink_metadata(path) {
+        Ok(m) if m.is_file() => {}
+        Ok(m) if m.is_dir() => return Err(refuse(path, "is a folder")),
+        Ok(_) => return Err(refuse(path, "exists and is not a regular file")),
+        Err(e) if e.kind() == ErrorKind::NotFound => {}
+        Err(e) if e.kind() == ErrorKind::NotADirectory => {
+            return Err(refuse(path, "lies under a file, not a folder"));
+        }
+        Err(source) => return Err(failed(path)(source)),
+    }
+    let parent = folder_of(path);
+    match fs::metadata(&parent) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => Err(refuse(path, "lies under a file, not a folder")),
+        Err(_) => Err(refuse(
+            path,
+            format!("its folder {} does not exist", parent.display()),
+        )),
+    }
+}
+
+fn folder_of(path: &Path) -> PathBuf {
+    match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
-    };
-    fs::create_dir_all(&parent).map_err(output_error(&parent))?;
-    let staging = tempfile::Builder::new()
-        .prefix(".windcell-")
-        .tempdir_in(&parent)
-        .map_err(output_error(&parent))?;
-    for (name, contents) in files {
-        let path = staging.path().join(name);
-        fs::write(&path, contents).map_err(output_error(&path))?;
     }
-    if !dir.exists() {
-        let staged = staging.keep();
-        return fs::rename(&staged, dir).map_err(|source| {
-            let _ = fs::remove_dir_all(&staged);
-            Error::Output {
-                path: dir.to_path_buf(),
-                source,
+}
+
+/// A new hidden file or folder in `parent` (`.windcell-<process>-<n>`), created with the
+/// ordinary permissions (the umask applies, as for the outputs themselves); `make` creates it
+/// and fails if it exists.
+fn staging_in(
+    parent: &Path,
+    make: impl Fn(&Path) -> std::io::Result<()>,
+) -> std::io::Result<PathBuf> {
+    let mut last = None;
+    for n in 0..100 {
+        let path = parent.join(format!(".windcell-{}-{n}", std::process::id()));
+        match make(&path) {
+            Ok(()) => return Ok(path),
+            Err(e) if e.kind() == ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last.unwrap_or_else(|| ErrorKind::AlreadyExists.into()))
+}
+
+/// A staging folder, removed when dropped (after its contents were moved out, or on failure).
+struct Staging(PathBuf);
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        let _ = fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Writes the single file `path` all or nothing: into a hidden file beside it, renamed into place.
+pub fn write_file(path: &Path, contents: &[u8]) -> Result<(), Error> {
+    check_file(path)?;
+    let staged = staging_in(&folder_of(path), |p| {
+        fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(p)
+            .and_then(|mut f| std::io::Write::write_all(&mut f, contents))
+    })
+    .map_err(failed(path))?;
+    fs::rename(&staged, path).map_err(|source| {
+        let _ = fs::remove_file(&staged);
+        failed(path)(source)
+    })
+}
+
+/// `NAME_<digits>.ROB` or `NAME_<digits>.IND`: a control file of a plan of the job `stem`.
+fn is_control_file_of(name: &OsStr, stem: &str) -> bool {
+    let Some(name) = name.to_str() else {
+        return false;
+    };
+    let Some(rest) = name
+        .strip_prefix(stem)
+        .and_then(|r| r.strip_prefix('_'))
+        .and_then(|r| r.strip_suffix(".ROB").or_else(|| r.strip_suffix(".IND")))
+    else {
+        return false;
+    };
+    !rest.is_empty() && rest.bytes().all(|b| b.is_ascii_digit())
+}
+
+/// Writes `files` (names relative to `dir`, the sequence and run files last) so that either all
+/// of them land in `dir` or none does; see the module documentation. `stem` is the job name whose
+/// earlier control files in `dir` are [`Stale`] when this set does not include them.
+pub fn write_all(
+    dir: &Path,
+    files: &[(PathBuf, String)],
+    stem: &str,
+    stale: Stale,
+) -> Result<(), Error> {
+    check_dir(dir)?;
+    let exists = dir.is_dir();
+    let mut earlier = Vec::new();
+    if exists {
+        for (name, _) in files {
+            let target = dir.join(name);
+            match fs::symlink_metadata(&target) {
+                Ok(m) if m.is_file() => {}
+                Ok(m) if m.is_dir() => {
+                    return Err(refuse(
+                        &target,
+                        "is a folder; the output file cannot replace it (nothing written)",
+                    ));
+                }
+                Ok(_) => {
+                    return Err(refuse(
+                        &target,
+                        "exists and is not a regular file (nothing written)",
+                    ));
+                }
+                Err(_) => {}
             }
-        });
+        }
+        for entry in fs::read_dir(dir).map_err(failed(dir))? {
+            let entry = entry.map_err(failed(dir))?;
+            let name = entry.file_name();
+            if is_control_file_of(&name, stem)
+                && !files.iter().any(|(f, _)| f.as_os_str() == name)
+                && entry.file_type().is_ok_and(|t| t.is_file())
+            {
+                earlier.push(PathBuf::from(name));
+            }
+        }
+        earlier.sort();
+        if let (Some(first), Stale::Refuse) = (earlier.first(), stale) {
+            return Err(refuse(
+                &dir.join(first),
+                format!(
+                    "is one of {} control file(s) of an earlier plan of {stem} that this plan \
+                     does not write; remove them or pass --stale remove (nothing written)",
+                    earlier.len()
+                ),
+            ));
+        }
+    }
+    let staging_parent = if exists {
+        dir.to_path_buf()
+    } else {
+        let parent = folder_of(dir);
+        fs::create_dir_all(&parent).map_err(failed(dir))?;
+        parent
+    };
+    let staging = Staging(staging_in(&staging_parent, |p| fs::create_dir(p)).map_err(failed(dir))?);
+    for (name, contents) in files {
+        fs::write(staging.0.join(name), contents).map_err(failed(&dir.join(name)))?;
+    }
+    if !exists {
+        return fs::rename(&staging.0, dir).map_err(failed(dir));
+    }
+    let aside = staging.0.join(".earlier");
+    fs::create_dir(&aside).map_err(failed(dir))?;
+    // Each step, undone in reverse order if a later one fails.
+    let mut done: Vec<(PathBuf, PathBuf)> = Vec::new();
+    let mut step = |from: PathBuf, to: PathBuf, report: PathBuf| -> Result<(), Error> {
+        match fs::rename(&from, &to) {
+            Ok(()) => {
+                done.push((from, to));
+                Ok(())
+            }
+            Err(source) => {
+                for (from, to) in done.drain(..).rev() {
+                    let _ = fs::rename(&to, &from);
+                }
+                Err(failed(&report)(source))
+            }
+        }
+    };
+    let replaced = files
+        .iter()
+        .map(|(name, _)| name.clone())
+        .filter(|name| dir.join(name).exists())
+        .chain(earlier.iter().cloned())
+        .collect::<Vec<_>>();
+    for name in &replaced {
+        step(dir.join(name), aside.join(name), dir.join(name))?;
     }
     for (name, _) in files {
-        let target = dir.join(name);
-        fs::rename(staging.path().join(name), &target).map_err(output_error(&target))?;
+        step(staging.0.join(name), dir.join(name), dir.join(name))?;
     }
     Ok(())
 }
@@ -50,28 +277,125 @@ pub fn write_all(dir: &Path, files: &[(PathBuf, String)]) -> Result<(), Error> {
 mod tests {
     use super::*;
 
+    fn set(names: &[&str], contents: &str) -> Vec<(PathBuf, String)> {
+        names
+            .iter()
+            .map(|n| (PathBuf::from(n), contents.to_string()))
+            .collect()
+    }
+
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
     #[test]
     fn creates_the_directory_or_adds_to_it() {
         let root = tempfile::tempdir().unwrap();
         let dir = root.path().join("out");
-        let files = vec![(PathBuf::from("A_1.ROB"), "x\n".to_string())];
-        write_all(&dir, &files).unwrap();
+        write_all(&dir, &set(&["A_1.ROB"], "x\n"), "A", Stale::Refuse).unwrap();
         assert_eq!(fs::read_to_string(dir.join("A_1.ROB")).unwrap(), "x\n");
         fs::write(dir.join("keep.txt"), "k").unwrap();
-        let more = vec![(PathBuf::from("A_1.ROB"), "y\n".to_string())];
-        write_all(&dir, &more).unwrap();
+        write_all(&dir, &set(&["A_1.ROB"], "y\n"), "A", Stale::Refuse).unwrap();
         assert_eq!(fs::read_to_string(dir.join("A_1.ROB")).unwrap(), "y\n");
-        assert!(dir.join("keep.txt").exists());
-        let leftovers: Vec<_> = fs::read_dir(root.path())
-            .unwrap()
-            .filter(|e| {
-                e.as_ref()
-                    .unwrap()
-                    .file_name()
-                    .to_string_lossy()
-                    .starts_with(".windcell-")
-            })
-            .collect();
-        assert!(leftovers.is_empty());
+        assert_eq!(listing(&dir), ["A_1.ROB", "keep.txt"]);
+        assert_eq!(listing(root.path()), ["out"]);
+    }
+
+    #[test]
+    fn a_folder_named_like_an_output_stops_the_set_before_anything_is_written() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("out");
+        write_all(
+            &dir,
+            &set(&["A_1.ROB", "A_2.ROB", "A.SEQ"], "old\n"),
+            "A",
+            Stale::Refuse,
+        )
+        .unwrap();
+        fs::remove_file(dir.join("A_2.ROB")).unwrap();
+        fs::create_dir(dir.join("A_2.ROB")).unwrap();
+        let e = write_all(
+            &dir,
+            &set(&["A_1.ROB", "A_2.ROB", "A.SEQ"], "new\n"),
+            "A",
+            Stale::Refuse,
+        )
+        .unwrap_err();
+        assert!(e.is_input(), "{e}");
+        assert!(e.to_string().contains("A_2.ROB: is a folder"), "{e}");
+        assert!(!e.to_string().contains(".windcell-"), "{e}");
+        assert_eq!(fs::read_to_string(dir.join("A_1.ROB")).unwrap(), "old\n");
+        assert_eq!(fs::read_to_string(dir.join("A.SEQ")).unwrap(), "old\n");
+        assert_eq!(listing(&dir), ["A.SEQ", "A_1.ROB", "A_2.ROB"]);
+    }
+
+    #[test]
+    fn stale_control_files_are_refused_or_removed_as_asked() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("out");
+        let old = set(
+            &["A_1.ROB", "A_1.IND", "A_3.ROB", "A_3.IND", "A.SEQ"],
+            "old\n",
+        );
+        write_all(&dir, &old, "A", Stale::Refuse).unwrap();
+        fs::write(dir.join("AB_3.ROB"), "other job").unwrap();
+        let new = set(&["A_1.ROB", "A_1.IND", "A.SEQ"], "new\n");
+        let e = write_all(&dir, &new, "A", Stale::Refuse).unwrap_err();
+        assert!(e.is_input());
+        assert!(
+            e.to_string()
+                .contains("A_3.IND: is one of 2 control file(s)"),
+            "{e}"
+        );
+        assert_eq!(fs::read_to_string(dir.join("A_1.ROB")).unwrap(), "old\n");
+        write_all(&dir, &new, "A", Stale::Remove).unwrap();
+        assert_eq!(listing(&dir), ["A.SEQ", "AB_3.ROB", "A_1.IND", "A_1.ROB"]);
+        assert_eq!(fs::read_to_string(dir.join("A.SEQ")).unwrap(), "new\n");
+    }
+
+    #[test]
+    fn output_paths_that_cannot_be_folders_are_input_errors() {
+        let root = tempfile::tempdir().unwrap();
+        let file = root.path().join("f");
+        fs::write(&file, "x").unwrap();
+        for dir in [file.clone(), file.join("sub"), file.join("sub/deeper")] {
+            let e = write_all(&dir, &set(&["A_1.ROB"], "x"), "A", Stale::Refuse).unwrap_err();
+            assert!(e.is_input(), "{e}");
+            assert!(e.to_string().starts_with(&dir.display().to_string()), "{e}");
+        }
+        let e = check_file(&root.path().join("f/x.stl")).unwrap_err();
+        assert!(
+            e.to_string().ends_with("lies under a file, not a folder"),
+            "{e}"
+        );
+        let e = check_file(root.path()).unwrap_err();
+        assert!(e.to_string().ends_with("is a folder"), "{e}");
+        assert_eq!(listing(root.path()), ["f"]);
+    }
+
+    #[test]
+    fn control_file_names_of_a_job() {
+        assert!(is_control_file_of(OsStr::new("CYL_3.ROB"), "CYL"));
+        assert!(is_control_file_of(OsStr::new("CYL_12.IND"), "CYL"));
+        assert!(!is_control_file_of(OsStr::new("CYL_3.SEQ"), "CYL"));
+        assert!(!is_control_file_of(OsStr::new("CYL_.ROB"), "CYL"));
+        assert!(!is_control_file_of(OsStr::new("CYL_x.ROB"), "CYL"));
+        assert!(!is_control_file_of(OsStr::new("CYLX_3.ROB"), "CYL"));
+        assert!(!is_control_file_of(OsStr::new("CY_3.ROB"), "CYL"));
+    }
+
+    #[test]
+    fn single_files_are_replaced_whole() {
+        let root = tempfile::tempdir().unwrap();
+        let path = root.path().join("m.stl");
+        write_file(&path, b"one").unwrap();
+        write_file(&path, b"two").unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"two");
+        assert_eq!(listing(root.path()), ["m.stl"]);
     }
 }

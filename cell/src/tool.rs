@@ -40,6 +40,9 @@ pub struct PlannedPath {
     pub plan: PathPlan,
     /// Mesh mandrels: the largest distance between the traced and the smoothed path, mm.
     pub smoothing_deviation_mm: Option<f64>,
+    /// Imported (DXF) paths: each drawing point's signed distance to the mandrel surface, mm,
+    /// in path order (negative inside).
+    pub surface_distances_mm: Option<Vec<f64>>,
 }
 
 /// Every path of a job, planned.
@@ -60,6 +63,34 @@ fn located(text: &str, file: &Path, source: paths::Error, span: Range<usize>) ->
     }
 }
 
+/// A problem with a file the job names at `span` of `text`: a file that cannot be read, or a
+/// problem of the whole file (a drawing without a path, a layer that is not there, a mesh with no
+/// triangles) is reported at the job's place, then the file's own message; an error at a place
+/// inside the named file keeps that place.
+fn named(text: &str, file: &Path, span: Range<usize>, error: Error) -> Error {
+    let whole_file = match &error {
+        Error::File(e) => !matches!(e, sequences::Error::Parse { .. }),
+        Error::Read { .. } => true,
+        Error::Mesh { source, .. } => matches!(
+            source,
+            paths::Error::MeshSyntax { line: None, .. }
+                | paths::Error::MeshInvalid { triangle: None, .. }
+        ),
+        _ => false,
+    };
+    if whole_file {
+        let (line, column) = sequences::error::line_column(text, span.start);
+        Error::Named {
+            job: file.to_path_buf(),
+            line,
+            column,
+            source: Box::new(error),
+        }
+    } else {
+        error
+    }
+}
+
 /// The mandrel model a job describes, with a `spine_dxf` profile read relative to the job `file`.
 /// `text` locates errors in the job file.
 pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
@@ -67,13 +98,15 @@ pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
     let knots = match &job.mandrel.spine_dxf {
         Some(dxf) => {
             let dxf_file = file.parent().unwrap_or(Path::new("")).join(dxf.get_ref());
-            let drawing = load_dxf(&dxf_file)?;
-            let layer = job
-                .mandrel
-                .spine_layer
-                .as_ref()
-                .map(|l| l.get_ref().as_str());
-            Some(drawing.profile(layer).map_err(|e| e.in_file(&dxf_file))?)
+            let drawing = load_dxf(&dxf_file).map_err(|e| named(text, file, dxf.span(), e))?;
+            let layer = job.mandrel.spine_layer.as_ref();
+            let profile = drawing
+                .profile(layer.map(|l| l.get_ref().as_str()))
+                .map_err(|e| {
+                    let span = layer.map_or(dxf.span(), |l| l.span());
+                    named(text, file, span, Error::File(e.in_file(&dxf_file)))
+                })?;
+            Some(profile)
         }
         None => None,
     };
@@ -81,10 +114,7 @@ pub fn mandrel_in(job: &Job, text: &str, file: &Path) -> Result<Tube, Error> {
 }
 
 fn load_dxf(file: &Path) -> Result<sequences::dxf::Drawing, Error> {
-    sequences::dxf::Drawing::load(file).map_err(|e| match e {
-        sequences::Error::Io { file, source } => Error::Read { file, source },
-        other => Error::File(other),
-    })
+    sequences::dxf::Drawing::load(file).map_err(Error::File)
 }
 
 /// The mandrel model a job describes (its spine from `spine_mm`).
@@ -270,6 +300,17 @@ fn error_span(job: &Job, spec: &PathSpec, error: &paths::Error) -> Range<usize> 
 /// Plans every path of `job`. `text` and `file` locate errors in the job file.
 pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
     let located = |source, span| located(text, file, source, span);
+    // The whole job's work is bounded before any of it starts.
+    let mut total = 0usize;
+    for spec in &job.paths {
+        total += *spec.segments.get_ref() as usize;
+        paths::limits::at_most(
+            "segments in all paths",
+            total as f64,
+            paths::limits::MAX_JOB_SEGMENTS as f64,
+        )
+        .map_err(|e| located(e, spec.segments.span()))?;
+    }
     let tube = mandrel_in(job, text, file)?;
     let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
         (MandrelKind::Mesh, Some(mesh)) => {
@@ -279,12 +320,15 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .weld_mm
                 .as_ref()
                 .map_or(paths::mesh::DEFAULT_WELD_MM, |w| *w.get_ref());
-            Some(crate::mesh::load(
-                &dir.join(mesh.get_ref()),
-                weld,
-                paths::mesh::Closure::Closed,
-                paths::mesh::trace::DEFAULT_CREASE_DEG,
-            )?)
+            Some(
+                crate::mesh::load(
+                    &dir.join(mesh.get_ref()),
+                    weld,
+                    paths::mesh::Closure::Closed,
+                    paths::mesh::trace::DEFAULT_CREASE_DEG,
+                )
+                .map_err(|e| named(text, file, mesh.span(), e))?,
+            )
         }
         _ => None,
     };
@@ -295,15 +339,39 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
         let segments = *spec.segments.get_ref() as usize;
+        program_fits_memory(job, spec, text, file)?;
+        let mut surface_distances_mm = None;
         let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
             let dxf_file = dir.join(dxf.get_ref());
-            let drawing = load_dxf(&dxf_file)?;
-            let raw: Vec<nalgebra::Point3<f64>> = drawing
-                .path(spec.layer.as_ref().map(|l| l.get_ref().as_str()))
-                .map_err(|e| e.in_file(&dxf_file))?
-                .into_iter()
-                .map(nalgebra::Point3::from)
-                .collect();
+            let drawing = load_dxf(&dxf_file).map_err(|e| named(text, file, dxf.span(), e))?;
+            let layer = spec.layer.as_ref();
+            let imported = crate::imported::ImportedPath::new(
+                &dxf_file,
+                &drawing,
+                layer.map(|l| l.get_ref().as_str()),
+            )
+            .map_err(|e| named(text, file, layer.map_or(dxf.span(), |l| l.span()), e))?;
+            imported.check_length()?;
+            let tolerance_mm = spec
+                .surface_tolerance_mm
+                .as_ref()
+                .map_or(sequences::job::DEFAULT_SURFACE_TOLERANCE_MM, |t| {
+                    *t.get_ref()
+                });
+            surface_distances_mm = Some(match &tracer {
+                Some(t) => imported.surface_distances(
+                    |p| {
+                        t.locate(p).map_or(f64::INFINITY, |at| {
+                            at.distance_mm.copysign((p - at.point).dot(&at.normal))
+                        })
+                    },
+                    tolerance_mm,
+                )?,
+                None => {
+                    imported.surface_distances(|p| tube.distance_to_surface_mm(p), tolerance_mm)?
+                }
+            });
+            let raw = imported.points;
             let surface = match &tracer {
                 Some(t) => t,
                 None => {
@@ -382,10 +450,19 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .map_err(|e| located(e, wind.span()))?;
                 (cut.points, Some(cut.max_deviation_mm))
             } else {
-                let path = if tube.spine().is_straight() {
+                // A tube along a measured spine is cut with horizontal end planes unless the job
+                // says otherwise (the S-bend is 0–350 mm long); its paths run from end to end.
+                let ends = match job.mandrel.ends.as_ref().map(|e| *e.get_ref()) {
+                    Some(sequences::job::Ends::Square) => geodesic::Ends::Square,
+                    _ if *job.mandrel.kind.get_ref() == MandrelKind::Cylinder => {
+                        geodesic::Ends::Square
+                    }
+                    _ => geodesic::Ends::Horizontal,
+                };
+                let path = if tube.spine().is_straight() && ends == geodesic::Ends::Square {
                     geodesic::helix(&tube, &start, HELIX_STEP_MM)
                 } else {
-                    geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
+                    geodesic::trace_to(&tube, &start, GEODESIC_STEP_MM, ends)
                 }
                 .map_err(|e| located(e, wind.span()))?;
                 let points = paths::segment::equal_length(&tube, &path, segments)
@@ -395,7 +472,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         };
         let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
             .map_err(|e| {
-                let span = error_span(job, spec, &e);
+                let span = culprit(job, &e).unwrap_or_else(|| error_span(job, spec, &e));
                 located(e, span)
             })?;
         check_speeds(job, &plan).map_err(|e| located(e, spec.program.span()))?;
@@ -404,9 +481,82 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             program: *spec.program.get_ref(),
             plan,
             smoothing_deviation_mm,
+            surface_distances_mm,
         });
     }
     Ok(JobPlan { paths: planned })
+}
+
+/// Refuses a path whose stored program (fine and medium movement) would not fit the robot's
+/// memory, at the path's `segments`, before anything is traced. Discrete movement sends each
+/// position as it is needed and stores nothing (seed 001 §5.4.1).
+fn program_fits_memory(
+    job: &Job,
+    spec: &sequences::job::PathSpec,
+    text: &str,
+    file: &Path,
+) -> Result<(), Error> {
+    let movement = *job.cell.movement.get_ref();
+    if movement == sequences::Movement::Discrete {
+        return Ok(());
+    }
+    let segments = *spec.segments.get_ref() as usize;
+    // The approach and one positioning per segment.
+    let positioning = segments + 1;
+    let max_positioning = crate::transfer::max_positioning_instructions();
+    if positioning <= max_positioning {
+        return Ok(());
+    }
+    let (line, column) = sequences::error::line_column(text, spec.segments.span().start);
+    Err(Error::ProgramMemory {
+        file: file.to_path_buf(),
+        line,
+        column,
+        program: *spec.program.get_ref(),
+        positioning,
+        control: crate::transfer::PROGRAM_CONTROL_INSTRUCTIONS,
+        max_segments: max_positioning - 1,
+        movement: movement.keyword(),
+    })
+}
+
+/// The cell of seed 001 §6.4 the examples describe: robot distance b, mandrel diameter, tow
+/// distance, eye mechanism length, mm.
+const THESIS_CELL_MM: [f64; 4] = [800.0, 63.5, 100.0, 150.0];
+
+/// The job value a reach or eq 3.7 failure points at. A wrist out of the arm's reach, or eq 3.7
+/// without a solution, comes
+/// from the robot distance b against how far the eye stands from the rotation axis (mandrel
+/// radius + tow distance + eye mechanism): of those four, the value furthest (by ratio) from the
+/// thesis cell's is the one named, the likeliest slip of the operator's hand.
+fn culprit(job: &Job, error: &paths::Error) -> Option<Range<usize>> {
+    let c = &job.cell;
+    match error {
+        paths::Error::Arm {
+            fault: paths::robot::ArmFault::OutOfReach { .. },
+            ..
+        }
+        | paths::Error::TangentUndefined { .. } => {
+            let fields = [
+                &c.robot_distance_mm,
+                &job.mandrel.diameter_mm,
+                &c.offset_mm,
+                &c.eye_mechanism_length_mm,
+            ];
+            let ratio = |v: f64, nominal: f64| {
+                let r = v.abs().max(1e-9) / nominal;
+                r.max(1.0 / r)
+            };
+            fields
+                .iter()
+                .zip(THESIS_CELL_MM)
+                .max_by(|(a, na), (b, nb)| {
+                    ratio(*a.get_ref(), *na).total_cmp(&ratio(*b.get_ref(), *nb))
+                })
+                .map(|(field, _)| field.span())
+        }
+        _ => None,
+    }
 }
 
 /// Every instruction speed as the `.ROB` file will carry it (4 decimals) lies in (0, max]: a
@@ -435,8 +585,9 @@ fn round_to(value: f64, decimals: usize) -> f64 {
     if r == 0.0 { 0.0 } else { r }
 }
 
-/// The robot control file for one planned path.
-pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
+/// The robot control file for one planned path. Fails if an instruction number does not fit the
+/// robot's 16 bits (a path of more than 65 534 segments).
+pub fn robot_file(job: &Job, path: &PlannedPath) -> Result<RobotFile, Error> {
     let c = &job.cell;
     let base = *c.base_speed_mm_s.get_ref();
     let max_pct = 100.0 * c.max_speed_mm_s.get_ref() / base;
@@ -458,8 +609,12 @@ pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
                        steps: i64| {
         let e = pose.eye_mm;
         let q = paths::wrist::components(&pose.wrist_q);
-        Instruction {
-            number: number as u16,
+        let number = u16::try_from(number).map_err(|_| Error::InstructionNumber {
+            program: path.program,
+            number,
+        })?;
+        Ok::<_, Error>(Instruction {
+            number,
             // Checked by `plan` to lie in (0, max] at this rounding.
             speed_pct: round_to(speed_pct, 4),
             position_mm: [round_to(e.x, 4), round_to(e.y, 4), round_to(e.z, 4)],
@@ -467,7 +622,7 @@ pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
             interpolation: Interpolation::Rectangular,
             reference: Reference::Absolute,
             mandrel: mandrel(profile, steps),
-        }
+        })
     };
     let plan = &path.plan;
     let mut instructions = vec![instruction(
@@ -476,7 +631,7 @@ pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
         &plan.start,
         &job_profile,
         0,
-    )];
+    )?];
     for (k, s) in plan.segments.iter().enumerate() {
         instructions.push(instruction(
             k + 2,
@@ -484,9 +639,9 @@ pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
             &s.pose,
             &s.mandrel,
             s.steps,
-        ));
+        )?);
     }
-    RobotFile {
+    Ok(RobotFile {
         header: Header {
             program: path.program,
             base_speed_mm_s: base,
@@ -496,7 +651,7 @@ pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
             sync_mandrel_deg: round_to(plan.sync_drive_rad.to_degrees(), 6),
         },
         instructions,
-    }
+    })
 }
 
 /// The mandrel control file for one planned path: one move of the path's total steps.
@@ -512,17 +667,18 @@ pub fn mandrel_file(job: &Job, path: &PlannedPath) -> MandrelFile {
     }
 }
 
-/// Every output file of a planned job: `(file name, contents)`.
-pub fn control_files(job: &Job, plan: &JobPlan) -> Vec<(PathBuf, String)> {
+/// Every output file of a planned job: `(file name, contents)`. Fails if a file cannot be
+/// written as its reader would read it back ([`sequences::Error::Unwritable`]).
+pub fn control_files(job: &Job, plan: &JobPlan) -> Result<Vec<(PathBuf, String)>, Error> {
     let mut files = Vec::new();
     for path in &plan.paths {
         files.push((
             PathBuf::from(format!("{}.ROB", path.name)),
-            robot_file(job, path).write(),
+            robot_file(job, path)?.write()?,
         ));
         files.push((
             PathBuf::from(format!("{}.IND", path.name)),
-            mandrel_file(job, path).write(),
+            mandrel_file(job, path).write()?,
         ));
     }
     let sequence = SequenceFile {
@@ -533,11 +689,11 @@ pub fn control_files(job: &Job, plan: &JobPlan) -> Vec<(PathBuf, String)> {
     };
     files.push((
         PathBuf::from(format!("{}.SEQ", job.name.get_ref())),
-        sequence.write(),
+        sequence.write()?,
     ));
     files.push((
         PathBuf::from(format!("{}.RUN", job.name.get_ref())),
-        run.write(),
+        run.write()?,
     ));
-    files
+    Ok(files)
 }

@@ -38,6 +38,67 @@ fn trace(c: &mut Criterion) {
     group.finish();
 }
 
+/// A cylinder of radius 28.5 mm and height 400 mm, `facets` around and `rings` sections, with
+/// its triangles in `order`: "split" puts the first triangle of every grid quad, then the second
+/// of every quad (the two halves of a quad half the file apart); "shuffled" is a fixed random
+/// permutation (the order of an arbitrary exporter).
+fn cylinder_in_file_order(facets: usize, rings: usize, order: &str) -> Mesh {
+    let profile: Vec<(f64, f64)> = (0..rings)
+        .map(|i| (400.0 * i as f64 / (rings - 1) as f64, 28.5))
+        .collect();
+    let mesh = triasym::revolution(&profile, facets, true).unwrap();
+    let t = mesh.triangles();
+    let quads = 2 * facets * (rings - 1);
+    let mut file: Vec<[u32; 3]> = if order == "split" {
+        let mut split: Vec<[u32; 3]> = (0..quads).step_by(2).map(|i| t[i]).collect();
+        split.extend((1..quads).step_by(2).map(|i| t[i]));
+        split.extend_from_slice(&t[quads..]);
+        split
+    } else {
+        t.to_vec()
+    };
+    if order == "shuffled" {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for i in (1..file.len()).rev() {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            file.swap(i, (state % (i as u64 + 1)) as usize);
+        }
+    }
+    Mesh::new(mesh.vertices().to_vec(), file).unwrap()
+}
+
+/// Crossings per second on a large mesh against a small one: triangles in file order against
+/// the locality order `prepare` gives them.
+fn locality(c: &mut Criterion) {
+    let mut group = c.benchmark_group("mesh");
+    let o = TraceOptions {
+        max_length_mm: 2000.0,
+        ..TraceOptions::default()
+    };
+    let start = Point3::new(28.5 * 0.05f64.cos(), 28.5 * 0.05f64.sin(), 12.3);
+    for order in ["split", "shuffled"] {
+        for (facets, rings) in [(192, 121), (768, 457)] {
+            let file = cylinder_in_file_order(facets, rings, order);
+            let adjacency = file.validate(Closure::Closed).unwrap();
+            let in_file_order = Tracer::new(file.clone(), &adjacency, DEFAULT_CREASE_DEG).unwrap();
+            for (name, tr) in [("file_order", in_file_order), ("sorted", tracer(&file))] {
+                let crossings = tr.trace_heading(&start, 1.4, 1.0, &o).unwrap().crossings;
+                group.throughput(Throughput::Elements(crossings as u64));
+                group.bench_function(
+                    format!(
+                        "trace_{order}_cylinder_{}_triangles_{name}",
+                        tr.mesh().triangles().len()
+                    ),
+                    |b| b.iter(|| black_box(tr.trace_heading(&start, 1.4, 1.0, &o).unwrap())),
+                );
+            }
+        }
+    }
+    group.finish();
+}
+
 fn load(c: &mut Criterion) {
     // 1000 facets × 500 intervals × 2 = 1 000 000 triangles, plus 2000 cap triangles.
     let profile: Vec<(f64, f64)> = (0..=500).map(|i| (i as f64 * 0.7, 28.5)).collect();
@@ -118,5 +179,5 @@ fn coverage(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, trace, load, coverage);
+criterion_group!(benches, trace, locality, load, coverage);
 criterion_main!(benches);

@@ -2,6 +2,7 @@
 
 use thiserror::Error;
 
+use crate::limits::shown;
 use crate::robot::ArmFault;
 
 /// Everything that can go wrong while building mandrel models and planning paths.
@@ -9,7 +10,7 @@ use crate::robot::ArmFault;
 #[non_exhaustive]
 pub enum Error {
     /// A length, radius, count or angle that must lie in a range does not.
-    #[error("{name} = {value} is out of range: {expected}")]
+    #[error("{name} = {} is out of range: {expected}", shown(*value))]
     OutOfRange {
         /// The quantity's name, with its unit (`radius_mm`, `wind_angle_deg`).
         name: &'static str,
@@ -18,8 +19,22 @@ pub enum Error {
         /// What would have been accepted, in words (`must be > 0`).
         expected: &'static str,
     },
+    /// A quantity that sizes an allocation or a loop is above its limit ([`crate::limits`]).
+    #[error(
+        "{name} = {} exceeds the limit of {} (docs/ARCHITECTURE.md, \"Limits\")",
+        shown(*value),
+        shown(*limit)
+    )]
+    OverLimit {
+        /// The quantity's name, with its unit.
+        name: &'static str,
+        /// The value asked for.
+        value: f64,
+        /// The largest accepted value.
+        limit: f64,
+    },
     /// Spine knots must be at strictly increasing heights, at least two of them.
-    #[error("spine knot {index} at height {height_mm} mm does not rise above the previous one")]
+    #[error("spine knot {index} at height {} mm does not rise above the previous one", shown(*height_mm))]
     SpineNotIncreasing {
         /// Index of the offending knot.
         index: usize,
@@ -29,7 +44,8 @@ pub enum Error {
     /// The spine bends more tightly than the mandrel radius, so the tube would fold onto itself.
     #[error(
         "the spine bends with a radius of {bend_radius_mm:.1} mm at {height_mm:.1} mm, tighter than \
-         the mandrel radius {radius_mm} mm (smooth the spine more)"
+         the mandrel radius {} mm (smooth the spine more)",
+        shown(*radius_mm)
     )]
     SpineTooTight {
         /// Height of the tightest bend.
@@ -41,8 +57,9 @@ pub enum Error {
     },
     /// Eq 3.7 has no solution: the robot is too close for the tangent line to reach the point.
     #[error(
-        "robot distance b = {robot_distance_mm} mm makes eq 3.7 undefined at segment {segment} \
-         (|(-r - R cos Ψ)/b| = {argument:.4} > 1)"
+        "robot distance b = {} mm makes eq 3.7 undefined at segment {segment} \
+         (|(-r - R cos Ψ)/b| = {argument:.4} > 1)",
+        shown(*robot_distance_mm)
     )]
     TangentUndefined {
         /// b, the robot pedestal to rotation axis distance.
@@ -164,11 +181,24 @@ pub enum Error {
         /// The row where elimination met a zero pivot.
         row: usize,
     },
-    /// A mesh file could not be read: the line (ASCII STL, OBJ) where known, and what is wrong.
-    #[error("{}{message}", line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    /// A mesh file could not be read: the line and column (ASCII STL, OBJ) or the byte offset
+    /// (binary STL) where known, and what is wrong.
+    #[error(
+        "{}{message}",
+        match (line, column, byte) {
+            (Some(l), Some(c), _) => format!("line {l}, column {c}: "),
+            (Some(l), None, _) => format!("line {l}: "),
+            (None, _, Some(b)) => format!("byte {b}: "),
+            _ => String::new(),
+        }
+    )]
     MeshSyntax {
         /// 1-based line of a text format, `None` for binary STL.
         line: Option<usize>,
+        /// 1-based column (in characters) on that line, where known.
+        column: Option<usize>,
+        /// 0-based byte offset in a binary file, where known.
+        byte: Option<u64>,
         /// What is wrong, in lower case.
         message: String,
     },
@@ -182,7 +212,9 @@ pub enum Error {
     },
     /// A slip ratio the friction cannot hold (seed 000 §2.9: the slippage tendency must not exceed μ).
     #[error(
-        "slip ratio λ = {lambda} exceeds the friction coefficient μ = {mu}: the fibre would slip"
+        "slip ratio λ = {} exceeds the friction coefficient μ = {}: the fibre would slip",
+        shown(*lambda),
+        shown(*mu)
     )]
     SlipExceedsFriction {
         /// The requested |λ| = |k_g / k_n|.
@@ -191,11 +223,87 @@ pub enum Error {
         mu: f64,
     },
     /// A start point too far from the mesh surface.
-    #[error("start point is {distance_mm:.3} mm from the mesh surface (more than {limit_mm} mm)")]
+    #[error(
+        "start point is {distance_mm:.3} mm from the mesh surface (more than {} mm); the nearest \
+         surface point is {:.3},{:.3},{:.3}",
+        shown(*limit_mm),
+        nearest_mm[0],
+        nearest_mm[1],
+        nearest_mm[2]
+    )]
     OffSurface {
+        /// The nearest surface point, mm (a start point that would be accepted).
+        nearest_mm: [f64; 3],
         /// Distance to the nearest surface point.
         distance_mm: f64,
         /// The largest accepted distance.
         limit_mm: f64,
+    },
+    /// The fibre's contact with the mandrel cannot be followed (placement model).
+    #[error("the fibre contact at height {height_mm:.2} mm is undefined: {reason}")]
+    ContactUndefined {
+        /// Height of the contact's spine point.
+        height_mm: f64,
+        /// Why, in words.
+        reason: &'static str,
+    },
+    /// The fibre's contact left the mandrel past one of its ends.
+    #[error("the fibre contact left the mandrel at {height_mm:.2} mm, t = {time_s:.3} s")]
+    ContactOffSurface {
+        /// When, s.
+        time_s: f64,
+        /// Height of the contact's spine point.
+        height_mm: f64,
+    },
+    /// A helical layer's pattern does not close (seed 002 Eqs. 7–8), with the nearest choices that do.
+    #[error("the winding pattern does not close: {reason}; nearest valid: {alternatives}")]
+    PatternNotClosed {
+        /// Why, in words, with the numbers.
+        reason: String,
+        /// The nearest pattern numbers, dwell and wind angle that close, in words.
+        alternatives: String,
+    },
+    /// The delivery eye's circle does not clear the laminate (seed 002 Eq. 12 needs Re > Rc).
+    #[error(
+        "layer {layer}: the eye circle radius {eye_radius_mm} mm does not clear the winding \
+         radius {winding_radius_mm:.3} mm"
+    )]
+    EyeInsideLaminate {
+        /// 1-based layer number.
+        layer: usize,
+        /// Re.
+        eye_radius_mm: f64,
+        /// The winding surface's radius at this layer (mandrel plus laminate below).
+        winding_radius_mm: f64,
+    },
+    /// A planned move needs an axis beyond its travel.
+    #[error("layer {layer}: {axis} reaches {value:.3}, beyond its travel {min}..{max}")]
+    BeyondTravel {
+        /// 1-based layer number.
+        layer: usize,
+        /// The axis name (`carriage_mm`, `cross_feed_mm`, `eye_deg`).
+        axis: &'static str,
+        /// The value reached.
+        value: f64,
+        /// Travel minimum.
+        min: f64,
+        /// Travel maximum.
+        max: f64,
+    },
+    /// A tube helical layer breaks a coverage rule (pattern number, skip index, lock, lead-in).
+    #[error("layer {layer}: {reason}")]
+    WindRule {
+        /// 1-based layer number.
+        layer: usize,
+        /// The rule broken, with the numbers and the nearest valid values.
+        reason: String,
+    },
+    /// A layer of a job could not be planned.
+    #[error("layer {layer}: {source}")]
+    Layer {
+        /// 1-based layer number.
+        layer: usize,
+        /// Why.
+        source: Box<Error>,
     },
 }

@@ -6,11 +6,17 @@
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
 pub mod calibration;
+pub mod control;
+pub mod delivery;
 pub mod error;
 pub mod eye;
 pub mod geodesic;
+pub mod limits;
 pub mod mandrel;
 pub mod mesh;
+pub mod motion;
+pub mod pattern;
+pub mod placement;
 pub mod plan;
 pub mod robot;
 pub mod segment;
@@ -19,6 +25,8 @@ pub mod spline;
 pub mod step;
 pub mod tangent;
 pub mod timing;
+pub mod trajectory;
+pub mod vessel;
 pub mod wrist;
 
 pub use calibration::Calibration;

@@ -38,6 +38,11 @@ pub fn equal_length(
             expected: "must be at least 1",
         });
     }
+    crate::limits::at_most(
+        "segments",
+        segments as f64,
+        crate::limits::MAX_SEGMENTS as f64,
+    )?;
     let length = path.length_mm();
     Ok((0..=segments)
         .map(|k| {

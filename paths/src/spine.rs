@@ -26,6 +26,11 @@ impl Spine {
                 expected: "at least 2 knots",
             });
         }
+        crate::limits::at_most(
+            "spine knot count",
+            knots.len() as f64,
+            crate::limits::MAX_SPINE_KNOTS as f64,
+        )?;
         for (index, &(z, x)) in knots.iter().enumerate() {
             if !z.is_finite() || !x.is_finite() {
                 return Err(Error::OutOfRange {

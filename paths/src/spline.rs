@@ -925,6 +925,27 @@ impl<const D: usize> UniformCubic<D> {
         Some(((a3 * t + a2) * t + a1) * t + a0)
     }
 
+    /// Position and the first three derivatives with respect to the segment parameter
+    /// `[P, dP/dt, d²P/dt², d³P/dt³]` of segment `segment` at `t ∈ [0, 1]` (clamped), or `None`
+    /// past the last segment. Divide the k-th derivative by `T^k` for a segment traversed in time
+    /// `T`: velocity, acceleration and jerk (§8.8.1: continuous up to the second derivative; the
+    /// jerk `6 a₃` is constant within a segment and steps at the joins).
+    pub fn derivatives(&self, segment: usize, t: f64) -> Option<[SVector<f64, D>; 4]> {
+        let [a0, a1, a2, a3] = self.coefficients(segment)?;
+        let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
+        Some([
+            ((a3 * t + a2) * t + a1) * t + a0,
+            (a3 * (3.0 * t) + a2 * 2.0) * t + a1,
+            a3 * (6.0 * t) + a2 * 2.0,
+            a3 * 6.0,
+        ])
+    }
+
+    /// The number of knot-points [`UniformCubic::sample`] gives: `K = (m − 3) N + 1`.
+    pub fn knot_count(&self, knots_per_segment: usize) -> usize {
+        self.segment_count() * knots_per_segment + 1
+    }
+
     /// The knot-points (§9.6, Fig 9-3): every segment sampled at `t = j/N`, `j = 0 … N−1`, plus
     /// the final point, `K = (m − 3) N + 1` points for `m` control points. `N` is the FW-CNC.PAR
     /// "number of knot points to be interpolated between two points", read as intervals per
@@ -1291,6 +1312,48 @@ mod tests {
         let tripled = UniformCubic::new(&v).unwrap();
         assert_eq!(tripled.control_points().len(), 11);
         assert_eq!(tripled.sample(4).unwrap().len(), 33);
+    }
+
+    #[test]
+    fn uniform_cubic_derivatives_match_finite_differences_and_rest_at_tripled_ends() {
+        let pts: Vec<_> = [0.0, 3.0, -2.0, 7.0, 7.5]
+            .iter()
+            .map(|&v| Vector1::new(v))
+            .collect();
+        let s = UniformCubic::new(&pts).unwrap();
+        let h = 1e-4;
+        for seg in 0..s.segment_count() {
+            for t in [0.2, 0.5, 0.8] {
+                let [p, v, a, j] = s.derivatives(seg, t).unwrap();
+                let f = |t: f64| s.eval(seg, t).unwrap().x;
+                assert_abs_diff_eq!(p.x, f(t), epsilon = 1e-12);
+                assert_abs_diff_eq!(v.x, (f(t + h) - f(t - h)) / (2.0 * h), epsilon = 1e-6);
+                assert_abs_diff_eq!(
+                    a.x,
+                    (f(t + h) - 2.0 * f(t) + f(t - h)) / (h * h),
+                    epsilon = 1e-4
+                );
+                let g = |t: f64| s.derivatives(seg, t).unwrap()[2].x;
+                assert_abs_diff_eq!(j.x, (g(t + h) - g(t - h)) / (2.0 * h), epsilon = 1e-6);
+            }
+        }
+        // Tripled ends: at rest, no acceleration, at both ends; C² at the joins.
+        let [p0, v0, a0, _] = s.derivatives(0, 0.0).unwrap();
+        assert_eq!((p0.x, v0.x, a0.x), (0.0, 0.0, 0.0));
+        let last = s.segment_count() - 1;
+        let [p1, v1, a1, _] = s.derivatives(last, 1.0).unwrap();
+        assert_abs_diff_eq!(p1.x, 7.5, epsilon = 1e-12);
+        assert_abs_diff_eq!(v1.x, 0.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(a1.x, 0.0, epsilon = 1e-12);
+        for seg in 1..s.segment_count() {
+            let end = s.derivatives(seg - 1, 1.0).unwrap();
+            let start = s.derivatives(seg, 0.0).unwrap();
+            for k in 0..3 {
+                assert_abs_diff_eq!(end[k].x, start[k].x, epsilon = 1e-12);
+            }
+        }
+        assert!(s.derivatives(s.segment_count(), 0.0).is_none());
+        assert_eq!(s.knot_count(4), s.sample(4).unwrap().len());
     }
 
     #[test]

@@ -31,6 +31,38 @@ pub enum Error {
         /// What is wrong, in lower case.
         message: String,
     },
+    /// A value the writer refuses because its reader would refuse the text written, or read it
+    /// back as a different value (an empty sequence, program 0, a speed above the maximum, a
+    /// non-finite number). `line` and `column` are where the written text would be refused.
+    #[error("cannot write the {format}: line {line}, column {column} of its text: {message}")]
+    Unwritable {
+        /// Which file format (`robot control file`, `run file`, …).
+        format: &'static str,
+        /// 1-based line of the written text.
+        line: usize,
+        /// 1-based column of the written text.
+        column: usize,
+        /// What the reader says, in lower case.
+        message: String,
+    },
+    /// A file to read is a device, FIFO, socket or folder (refused without reading it).
+    #[error("{}: is {kind}, not a regular file", file.display())]
+    NotRegularFile {
+        /// The path.
+        file: PathBuf,
+        /// What it is (`a character device`, `a folder`).
+        kind: &'static str,
+    },
+    /// A file to read is larger than the limit for its kind (docs/ARCHITECTURE.md, "Limits").
+    #[error("{}: {bytes} bytes, more than the limit of {limit_bytes} bytes", file.display())]
+    FileTooLarge {
+        /// The file.
+        file: PathBuf,
+        /// Its size (or what was read of it before reading stopped).
+        bytes: u64,
+        /// The limit.
+        limit_bytes: u64,
+    },
     /// Reading or writing a file failed.
     #[error("{}: {source}", file.display())]
     Io {
@@ -89,6 +121,62 @@ impl Error {
     }
 }
 
+/// `text`, the written form of `value`, if `parse` reads it back as `value`; otherwise the
+/// reader's complaint as [`Error::Unwritable`]. Every writer goes through this, so a file
+/// windcell writes is always one it reads.
+pub(crate) fn written<T: PartialEq>(
+    format: &'static str,
+    value: &T,
+    text: String,
+    parse: impl FnOnce(&str) -> Result<T, Error>,
+) -> Result<String, Error> {
+    match parse(&text) {
+        Ok(back) if back == *value => Ok(text),
+        Ok(_) => Err(Error::Unwritable {
+            format,
+            line: 1,
+            column: 1,
+            message: "the text reads back as a different value".into(),
+        }),
+        Err(Error::Parse {
+            line,
+            column,
+            message,
+            ..
+        }) => Err(Error::Unwritable {
+            format,
+            line,
+            column,
+            message,
+        }),
+        Err(other) => Err(other),
+    }
+}
+
+/// How a number reads in a message: plain between 1e-4 and 1e9, with at most 9 significant digits
+/// and 6 decimals (trailing zeros dropped), else in exponent form with 6 significant digits (no
+/// 300-digit numbers). The same rule as `paths::limits::shown`.
+pub fn shown(value: f64) -> String {
+    if !value.is_finite() || value == 0.0 {
+        return format!("{value}");
+    }
+    let trim = |t: String| -> String {
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
+    if (1e-4..1e9).contains(&value.abs()) {
+        let decimals = (8 - value.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        trim(format!("{value:.decimals$}"))
+    } else {
+        let e = format!("{value:.5e}");
+        let (mantissa, exponent) = e.split_once('e').unwrap_or((&e, "0"));
+        format!("{}e{exponent}", trim(mantissa.to_string()))
+    }
+}
+
 /// 1-based line and character column of byte `offset` in `text`.
 pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let mut offset = offset.min(text.len());
@@ -112,6 +200,16 @@ mod tests {
         assert_eq!(line_column(text, 6), (2, 1));
         assert_eq!(line_column(text, 9), (2, 3));
         assert_eq!(line_column(text, 1000), (3, 1));
+    }
+
+    #[test]
+    fn numbers_read_short() {
+        assert_eq!(shown(1e308), "1e308");
+        assert_eq!(shown(-2.5e-7), "-2.5e-7");
+        assert_eq!(shown(2000.0), "2000");
+        assert_eq!(shown(63.5), "63.5");
+        assert_eq!(shown(101_986_487.528_729), "101986488");
+        assert_eq!(shown(f64::NAN), "NaN");
     }
 
     #[test]

@@ -197,12 +197,27 @@ pub struct Mandrel {
     /// The DXF layer holding the spine profile (default: any).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spine_layer: Option<Spanned<String>>,
+    /// Tube: where its paths end (default `horizontal`: the planes through the spine's end
+    /// points, as a mandrel made along a measured spine is cut; `square`: the end sections
+    /// perpendicular to the spine).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ends: Option<Spanned<Ends>>,
     /// Mesh: the STL or OBJ file, relative to the job file's folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<Spanned<String>>,
     /// Mesh: vertex welding tolerance, mm (default 1e-4).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub weld_mm: Option<Spanned<f64>>,
+}
+
+/// How a tube mandrel's ends are cut.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Ends {
+    /// Horizontal planes through the spine's end points (the S-bend: 0–350 mm).
+    Horizontal,
+    /// Sections perpendicular to the spine at its end points.
+    Square,
 }
 
 /// Winding direction.
@@ -238,25 +253,81 @@ pub struct PathSpec {
     /// The DXF layer holding the path (default: any layer).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub layer: Option<Spanned<String>>,
-    /// Number of equal-length segments (50 in the thesis).
+    /// Number of equal-length segments (50 in the thesis), [`MIN_SEGMENTS`] to [`MAX_SEGMENTS`].
     pub segments: Spanned<u32>,
+    /// An imported path: the farthest any of its DXF points may lie from the mandrel surface,
+    /// mm (default [`DEFAULT_SURFACE_TOLERANCE_MM`]; only with `dxf`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_tolerance_mm: Option<Spanned<f64>>,
 }
+
+/// The fewest segments a path may have. One segment would be a single straight move of the eye
+/// from the path's start to its end: no point of the path between its ends would be placed, so
+/// nothing of its shape would be wound. Two is the least that puts a path point between the ends.
+pub const MIN_SEGMENTS: u32 = 2;
+
+/// Default of `surface_tolerance_mm`: how far an imported path point may lie from the mandrel
+/// surface, mm.
+pub const DEFAULT_SURFACE_TOLERANCE_MM: f64 = 0.5;
+
+/// Longest job name, characters (it names the control files: `NAME_255.ROB` must stay a short
+/// file name).
+pub const MAX_NAME_CHARS: usize = 64;
+/// Most segments of one path (the same limit as `paths::limits::MAX_SEGMENTS`). The robot control
+/// file numbers the approach and one instruction per segment with the robot's 16-bit instruction
+/// numbers (seed 001 §5.6.1), which this keeps far inside; stored programs (fine, medium) are
+/// held to the robot's memory as well when the job is planned (470 positioning instructions,
+/// §4.1.2).
+pub const MAX_SEGMENTS: u32 = 10_000;
+/// Largest length in a job (every `_mm` value), mm: 100 m, far beyond any winding cell.
+pub const MAX_LENGTH_MM: f64 = 100_000.0;
+/// Most spine knots (the same limit as `paths::limits::MAX_SPINE_KNOTS`; Table 6.1 has 36).
+pub const MAX_SPINE_KNOTS: usize = 1_000;
+/// Largest other magnitude in a job (speeds, accelerations, angles).
+pub const MAX_MAGNITUDE: f64 = 1e6;
 
 /// Where `span` starts, as a located error.
 pub fn error_at(text: &str, span: Range<usize>, message: impl Into<String>) -> Error {
     Error::at_offset(text, span.start, message)
 }
 
+/// Checks `value` against `ok`, that it is finite, and its magnitude against [`MAX_LENGTH_MM`]
+/// when its key names a length (ends in `_mm`, see [`key_of`]) or [`MAX_MAGNITUDE`] otherwise.
 fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), Error> {
-    if ok && value.get_ref().is_finite() {
-        Ok(())
-    } else {
-        Err(error_at(
+    let v = *value.get_ref();
+    if !(ok && v.is_finite()) {
+        return Err(error_at(
             text,
             value.span(),
-            format!("{} {what}", value.get_ref()),
-        ))
+            format!("{} {what}", crate::error::shown(v)),
+        ));
     }
+    let key = key_of(text, value);
+    let (limit, unit) = if key.ends_with("_mm") {
+        (MAX_LENGTH_MM, " mm")
+    } else {
+        (MAX_MAGNITUDE, "")
+    };
+    if v.abs() > limit {
+        return Err(error_at(
+            text,
+            value.span(),
+            format!(
+                "{key} = {} is larger than the limit of {}{unit} (docs/ARCHITECTURE.md, \"Limits\")",
+                crate::error::shown(v),
+                crate::error::shown(limit)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The key in front of `value` on its line of `text` (`diameter_mm`); a key ending in `_mm` is a
+/// length.
+fn key_of<'t>(text: &'t str, value: &Spanned<f64>) -> &'t str {
+    let before = text.get(..value.span().start).unwrap_or_default();
+    let line = before.rsplit('\n').next().unwrap_or_default();
+    line.split('=').next().unwrap_or_default().trim()
 }
 
 fn positive(text: &str, value: &Spanned<f64>, name: &str) -> Result<(), Error> {
@@ -290,20 +361,35 @@ impl Job {
 
     /// Reads and parses a job file; errors name the file.
     pub fn load(path: &Path) -> Result<(Job, String), Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::source::read_text(path, crate::source::MAX_JOB_BYTES)?;
         let job = Job::parse(&text).map_err(|e| e.in_file(path))?;
         Ok((job, text))
     }
 
-    /// Writes the job as TOML (parsing it again gives the same job).
-    pub fn write(&self) -> String {
-        toml::to_string(self).unwrap_or_default()
+    /// Writes the job as TOML (parsing it again gives the same job). Refuses
+    /// ([`Error::Unwritable`]) a job that [`Job::parse`] would refuse: a field out of range, a
+    /// mandrel field of another kind, no path, program 0, a program used twice, …
+    pub fn write(&self) -> Result<String, Error> {
+        let text = toml::to_string(self).map_err(|e| Error::Unwritable {
+            format: "job file",
+            line: 1,
+            column: 1,
+            message: e.to_string().trim().to_string(),
+        })?;
+        crate::error::written("job file", self, text, Job::parse)
     }
 
     fn validate(&self, text: &str) -> Result<(), Error> {
+        if self.name.get_ref().chars().count() > MAX_NAME_CHARS {
+            return Err(error_at(
+                text,
+                self.name.span(),
+                format!(
+                    "name has {} characters, more than the limit of {MAX_NAME_CHARS} (it names the control files)",
+                    self.name.get_ref().chars().count()
+                ),
+            ));
+        }
         if !crate::sequence::is_valid_name(self.name.get_ref()) {
             return Err(error_at(
                 text,
@@ -517,12 +603,27 @@ impl Job {
                     ));
                 }
             }
-            if *p.segments.get_ref() == 0 {
+            let segments = *p.segments.get_ref();
+            if !(MIN_SEGMENTS..=MAX_SEGMENTS).contains(&segments) {
                 return Err(error_at(
                     text,
                     p.segments.span(),
-                    "segments must be at least 1",
+                    format!(
+                        "segments = {segments} is out of range: a path has {MIN_SEGMENTS} to \
+                         {MAX_SEGMENTS} segments (one segment places no point between the \
+                         path's ends; docs/ARCHITECTURE.md, \"Limits\")"
+                    ),
                 ));
+            }
+            if let Some(tolerance) = &p.surface_tolerance_mm {
+                if p.dxf.is_none() {
+                    return Err(error_at(
+                        text,
+                        tolerance.span(),
+                        "`surface_tolerance_mm` applies only to a path imported from `dxf`",
+                    ));
+                }
+                positive(text, tolerance, "surface tolerance")?;
             }
         }
         Ok(())
@@ -551,6 +652,9 @@ impl Job {
             )),
             None => Ok(()),
         };
+        if *m.kind.get_ref() != MandrelKind::Tube {
+            forbid(m.ends.as_ref().map(Spanned::span), "ends")?;
+        }
         if *m.kind.get_ref() != MandrelKind::Mesh {
             forbid(m.mesh.as_ref().map(Spanned::span), "mesh")?;
             forbid(m.weld_mm.as_ref().map(Spanned::span), "weld_mm")?;
@@ -608,16 +712,28 @@ impl Job {
                             "spine_mm needs at least 2 knots",
                         ));
                     }
+                    if knots.len() > MAX_SPINE_KNOTS {
+                        return Err(error_at(
+                            text,
+                            spine.span(),
+                            format!(
+                                "spine_mm has {} knots, more than the limit of {MAX_SPINE_KNOTS} (docs/ARCHITECTURE.md, \"Limits\")",
+                                knots.len()
+                            ),
+                        ));
+                    }
                     for (i, k) in knots.iter().enumerate() {
                         if !k[0].is_finite()
                             || !k[1].is_finite()
+                            || k[0].abs() > MAX_LENGTH_MM
+                            || k[1].abs() > MAX_LENGTH_MM
                             || (i > 0 && k[0] <= knots[i - 1][0])
                         {
                             return Err(error_at(
                                 text,
                                 spine.span(),
                                 format!(
-                                    "spine_mm knot {} must be finite and higher than the one before",
+                                    "spine_mm knot {} must be finite, within ±100000 mm and higher than the one before",
                                     i + 1
                                 ),
                             ));
@@ -690,7 +806,7 @@ segments = 50
         assert!(r.forearm_mm.is_none());
         let k = job.cell.calibration.as_ref().unwrap();
         assert_eq!(*k.rotation_sign.as_ref().unwrap().get_ref(), -1);
-        assert_eq!(Job::parse(&job.write()).unwrap(), job);
+        assert_eq!(Job::parse(&job.write().unwrap()).unwrap(), job);
     }
 
     #[test]
@@ -702,9 +818,15 @@ segments = 50
             *job.paths[0].direction.as_ref().unwrap().get_ref(),
             Direction::Down
         );
-        let again = Job::parse(&job.write()).unwrap();
+        let again = Job::parse(&job.write().unwrap()).unwrap();
         assert_eq!(again, job);
-        assert_eq!(Job::parse(&again.write()).unwrap().write(), job.write());
+        assert_eq!(
+            Job::parse(&again.write().unwrap())
+                .unwrap()
+                .write()
+                .unwrap(),
+            job.write().unwrap()
+        );
     }
 
     fn error_for(from: &str, to: &str) -> String {
@@ -720,6 +842,21 @@ segments = 50
             ("wind_angle_deg = 48.3", "wind_angle_deg = 90.0", "27:18:"),
             ("offset_mm = 100.0", "offset_mm = 0.0", "8:13:"),
             ("segments = 50", "segments = 0", "29:12:"),
+            (
+                "segments = 50",
+                "segments = 1",
+                "29:12: segments = 1 is out of range",
+            ),
+            (
+                "segments = 50",
+                "segments = 70000",
+                "29:12: segments = 70000 is out",
+            ),
+            (
+                "segments = 50",
+                "segments = 50\nsurface_tolerance_mm = 1.0",
+                "30:24: `surface_tolerance_mm` applies only",
+            ),
             (
                 "robot_distance_mm = 800.0",
                 "robot_distance_mm = \"far\"",

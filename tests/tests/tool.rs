@@ -45,7 +45,7 @@ fn control_files_round_trip_and_agree_with_the_plan() {
     for job_path in examples() {
         let (job, text) = Job::load(&job_path).unwrap();
         assert_eq!(
-            Job::parse(&job.write()).unwrap(),
+            Job::parse(&job.write().unwrap()).unwrap(),
             job,
             "{}",
             job_path.display()
@@ -55,10 +55,11 @@ fn control_files_round_trip_and_agree_with_the_plan() {
         let b = *job.cell.robot_distance_mm.get_ref();
         let h = *job.cell.start_height_mm.get_ref();
         for path in &plan.paths {
-            let rob_text = cell::tool::robot_file(&job, path).write();
+            let rob_text = cell::tool::robot_file(&job, path).unwrap().write().unwrap();
             let rob = RobotFile::parse(&rob_text).unwrap();
-            assert_eq!(rob.write(), rob_text);
-            let ind = MandrelFile::parse(&cell::tool::mandrel_file(&job, path).write()).unwrap();
+            assert_eq!(rob.write().unwrap(), rob_text);
+            let ind =
+                MandrelFile::parse(&cell::tool::mandrel_file(&job, path).write().unwrap()).unwrap();
             // One robot instruction per segment end plus the start pose; the mandrel file's single
             // move is the sum of the per-segment moves.
             assert_eq!(rob.instructions.len(), path.plan.segments.len() + 1);

@@ -2,8 +2,13 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod argument_error;
 pub mod geodesic;
+pub mod jog;
+pub mod lathe;
 pub mod plan;
+pub mod run;
+pub mod sim_cell;
 pub mod sim_indexer;
 pub mod sim_robot;
 pub mod sweep;
@@ -63,6 +68,12 @@ pub struct Cli {
 pub enum Command {
     /// Plan a job: write .ROB, .IND, sequence and run files (the TOOL step).
     Plan(plan::PlanArgs),
+    /// Wind a batch on the cell: a job (planned first) or a sequence of control files.
+    Run(run::RunArgs),
+    /// Manual control: one robot position and one mandrel move, sent together.
+    Jog(jog::JogArgs),
+    /// Serve the simulated cell (both simulators, one clock, sync lines on a socket) on ptys.
+    SimCell(sim_cell::SimCellArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Run the ASEA robot-computer simulator on a pseudo-terminal.
@@ -73,6 +84,8 @@ pub enum Command {
     Sweep(sweep::SweepArgs),
     /// Mesh a job's tube mandrel (TRIASYM) and write it as STL.
     Triasym(triasym::TriasymArgs),
+    /// The lathe winder: run a part program on the servo axes, choose the loop gain.
+    Lathe(lathe::LatheArgs),
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
@@ -92,10 +105,14 @@ pub fn print(text: &str) -> Result<(), Failure> {
 pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
+        Command::Run(args) => run::run(args),
+        Command::Jog(args) => jog::run(args),
+        Command::SimCell(args) => sim_cell::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::SimRobot(args) => sim_robot::run(args),
         Command::Geodesic(args) => geodesic::run(args),
         Command::Sweep(args) => sweep::run(args),
         Command::Triasym(args) => triasym::run(args),
+        Command::Lathe(args) => lathe::run(args),
     }
 }

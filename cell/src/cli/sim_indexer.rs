@@ -1,4 +1,4 @@
-//! `windcell sim-indexer --pty [--dialect x|grbl]`: the mandrel indexer simulator on a
+//! `windcell sim-indexer [--pty] [--dialect x|grbl]`: the mandrel indexer simulator on a
 //! pseudo-terminal (issue 5; spec/protocols.md §6 "Simulator").
 //!
 //! Prints the slave device path on one line, serves the simulated indexer on the master side in
@@ -26,8 +26,10 @@ pub enum Dialect {
 
 /// Arguments of `windcell sim-indexer`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SimIndexerArgs {
-    /// Serve on a new pseudo-terminal and print its device path.
+    /// Serve on a new pseudo-terminal and print its device path. This is the only transport and
+    /// the default: the flag may be given or left out.
     #[arg(long)]
     pub pty: bool,
     /// Command language.
@@ -36,6 +38,10 @@ pub struct SimIndexerArgs {
     /// X-language device address (1–255).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..))]
     pub address: u8,
+    /// Log every move the indexer finishes as a JSON line (docs/file-formats.md, "Simulator
+    /// logs"; X-language only).
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<std::path::PathBuf>,
     /// Motor pull-in rate, steps/s: a start velocity above it stalls the motor.
     #[arg(long, default_value_t = PULL_IN_SPS)]
     pub pull_in_sps: f64,
@@ -43,11 +49,6 @@ pub struct SimIndexerArgs {
 
 /// Runs the simulator until SIGINT or SIGTERM.
 pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
-    if !args.pty {
-        return Err(Failure::input(
-            "sim-indexer: --pty is required (the simulator serves on a pseudo-terminal)",
-        ));
-    }
     if !(args.pull_in_sps.is_finite() && args.pull_in_sps > 0.0) {
         return Err(Failure::input(format!(
             "sim-indexer: --pull-in-sps {} must be a positive number",
@@ -68,12 +69,41 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
     let machine = Machine::new(Drive::default(), args.pull_in_sps);
     let clock = RealClock::new();
     let served = match args.dialect {
-        Dialect::X => serve(
-            master,
-            &Arc::new(Mutex::new(Card::new(machine, args.address))),
-            &clock,
-            &stop,
-        ),
+        Dialect::X => {
+            let card = Arc::new(Mutex::new(Card::new(machine, args.address)));
+            let log = match &args.log {
+                Some(p) => Some(
+                    std::fs::File::create(p)
+                        .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
+                ),
+                None => None,
+            };
+            std::thread::scope(|scope| {
+                if let Some(mut file) = log {
+                    let (card, stop, clock) = (&card, &stop, &clock);
+                    scope.spawn(move || {
+                        use mandrel_drive::sim::{Clock as _, Frontend as _};
+                        use std::io::Write as _;
+                        let mut moving = false;
+                        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                            let Ok(c) = card.lock() else { return };
+                            let m = c.machine();
+                            if moving && !m.is_moving() {
+                                let line = serde_json::json!({
+                                    "device": "indexer", "t_s": clock.now_s(),
+                                    "steps": m.steps_since_move_start(),
+                                });
+                                let _ = writeln!(file, "{line}");
+                            }
+                            moving = m.is_moving();
+                            drop(c);
+                            std::thread::sleep(std::time::Duration::from_millis(1));
+                        }
+                    });
+                }
+                serve(master, &card, &clock, &stop)
+            })
+        }
         Dialect::Grbl => serve(
             master,
             &Arc::new(Mutex::new(Controller::new(machine))),

@@ -1,4 +1,4 @@
-//! `windcell sim-robot --pty [--checksum sum8|crc16] [--nak-malformed]`: the ASEA robot-computer
+//! `windcell sim-robot [--pty] [--checksum sum8|crc16] [--nak-malformed]`: the ASEA robot-computer
 //! simulator on a pseudo-terminal (seed 001 §5.2; docs/protocol.md).
 //!
 //! Prints the slave device path on one line, serves the simulated robot computer on the master
@@ -27,8 +27,10 @@ pub enum CheckValue {
 
 /// Arguments of `windcell sim-robot`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SimRobotArgs {
-    /// Serve on a new pseudo-terminal and print its device path.
+    /// Serve on a new pseudo-terminal and print its device path. This is the only transport and
+    /// the default: the flag may be given or left out.
     #[arg(long)]
     pub pty: bool,
     /// Check value after ETX.
@@ -37,6 +39,9 @@ pub struct SimRobotArgs {
     /// Refuse (NAK) telegrams that do not parse instead of acknowledging them with an error code.
     #[arg(long)]
     pub nak_malformed: bool,
+    /// Log every move the robot finishes as a JSON line (docs/file-formats.md, "Simulator logs").
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<std::path::PathBuf>,
     /// Duration of a home synchronisation, seconds.
     #[arg(long, default_value_t = MotionParams::default().home_s)]
     pub home_s: f64,
@@ -44,11 +49,6 @@ pub struct SimRobotArgs {
 
 /// Runs the simulator until SIGINT or SIGTERM.
 pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
-    if !args.pty {
-        return Err(Failure::input(
-            "sim-robot: --pty is required (the simulator serves on a pseudo-terminal)",
-        ));
-    }
     if !(args.home_s.is_finite() && args.home_s >= 0.0) {
         return Err(Failure::input(format!(
             "sim-robot: --home-s {} must be a number of seconds, 0 or more",
@@ -89,7 +89,35 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
         )
         .with_malformed(malformed),
     );
-    let served = serve(master, &robot, &RealClock::new(), &stop);
+    let log = match &args.log {
+        Some(p) => Some(
+            std::fs::File::create(p)
+                .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
+        ),
+        None => None,
+    };
+    let clock = RealClock::new();
+    let served = std::thread::scope(|scope| {
+        if let Some(mut file) = log {
+            let (robot, stop, clock) = (&robot, &stop, &clock);
+            scope.spawn(move || {
+                use asea_protocol::clock::Clock as _;
+                use std::io::Write as _;
+                let mut watch = cell::simcell::RobotWatch::default();
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    let records = match robot.lock() {
+                        Ok(r) => watch.watch(&r.machine, clock.now_s()),
+                        Err(_) => return,
+                    };
+                    for r in records {
+                        let _ = writeln!(file, "{}", r.json());
+                    }
+                    std::thread::sleep(std::time::Duration::from_millis(1));
+                }
+            });
+        }
+        serve(master, &robot, &clock, &stop)
+    });
     // The slave end stays open until here so that the master never sees a hang-up.
     drop(slave);
     served.map_err(|e| Failure::runtime(format!("sim-robot: {e}")))

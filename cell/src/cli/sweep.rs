@@ -14,6 +14,7 @@ use super::Failure;
 
 /// Plan a coverage set: the job's first path repeated around the mandrel.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SweepArgs {
     /// The job file (TOML); its first path without `dxf` is the pattern.
     pub job: PathBuf,
@@ -26,11 +27,16 @@ pub struct SweepArgs {
     /// Print the plan as one JSON document on standard output.
     #[arg(long)]
     pub json: bool,
+    /// Control files of an earlier plan of the same job in the output folder that this plan does
+    /// not write (`NAME_3.ROB` beside a new two-path plan): `refuse` to write, or `remove` them.
+    #[arg(long, value_enum, default_value = "refuse")]
+    pub stale: output::Stale,
 }
 
 /// Runs `windcell sweep`.
 pub fn run(args: SweepArgs) -> Result<(), Failure> {
     let (mut job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    output::check_dir(&args.out).map_err(Failure::from_cell)?;
     let Some(pattern) = job.paths.iter().find(|p| p.dxf.is_none()).cloned() else {
         return Err(Failure::input(format!(
             "{}: the job has no traced [[path]] (direction, wind_angle_deg, start_angle_deg) to sweep",
@@ -57,8 +63,9 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
         })
         .collect();
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
-    let files = tool::control_files(&job, &plan);
-    output::write_all(&args.out, &files).map_err(Failure::from_cell)?;
+    let files = tool::control_files(&job, &plan).map_err(Failure::from_cell)?;
+    output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
+        .map_err(Failure::from_cell)?;
     let out = if args.json {
         let mut s = serde_json::to_string_pretty(&PlanReport::new(&job, &plan))
             .map_err(Failure::runtime)?;
@@ -71,7 +78,8 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
             .filter_map(|p| p.smoothing_deviation_mm)
             .fold(0.0f64, f64::max);
         format!(
-            "{} paths of {} segments planned, smoothing deviation ≤ {worst:.4} mm\nwrote {} files to {}\n",
+            "{} paths of {} segments planned, smoothed paths ≤ {worst:.4} mm from the traced ones\n\
+             wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
             plan.paths.len(),
             pattern.segments.get_ref(),
             files.len(),

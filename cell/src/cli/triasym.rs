@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use cell::tool;
+use cell::{output, tool};
 use clap::Args;
 use paths::mesh::{Closure, stl, triasym};
 use sequences::Job;
@@ -12,10 +12,11 @@ use super::Failure;
 
 /// Generate the triangulated mandrel of a job's spine and diameter (STL).
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct TriasymArgs {
     /// The job file (a `tube` or `mesh` mandrel: its spine and diameter are used).
     pub job: PathBuf,
-    /// The STL file to write.
+    /// The file to write: `.stl` (binary, or ASCII with --ascii) or `.obj`.
     #[arg(short = 'o', long = "out", value_name = "FILE")]
     pub out: PathBuf,
     /// Facets per circumference.
@@ -31,16 +32,40 @@ pub struct TriasymArgs {
 
 /// Runs `windcell triasym`.
 pub fn run(args: TriasymArgs) -> Result<(), Failure> {
-    let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
-    let tube = tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
-    let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(Failure::input)?;
-    mesh.validate(Closure::Closed).map_err(Failure::runtime)?;
-    let name = job.name.get_ref();
-    let is_obj = args
+    let ext = args
         .out
         .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    let bytes = if is_obj {
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if ext != "stl" && ext != "obj" {
+        let given = if ext.is_empty() {
+            "a name without an extension".to_string()
+        } else {
+            format!("`.{ext}`")
+        };
+        return Err(Failure::input(format!(
+            "{}: triasym writes .stl or .obj files, not {given}",
+            args.out.display()
+        )));
+    }
+    if ext == "obj" && args.ascii {
+        return Err(Failure::input(format!(
+            "{}: --ascii applies to STL; OBJ is always text",
+            args.out.display()
+        )));
+    }
+    output::check_file(&args.out).map_err(Failure::from_cell)?;
+    let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    let tube = tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
+    let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(|e| {
+        Failure::input(format!(
+            "triasym --facets {} --spacing-mm {}: {e}",
+            args.facets, args.spacing_mm
+        ))
+    })?;
+    mesh.validate(Closure::Closed).map_err(Failure::runtime)?;
+    let name = job.name.get_ref();
+    let bytes = if ext == "obj" {
         paths::mesh::obj::write(&mesh).into_bytes()
     } else if args.ascii {
         stl::write_ascii(&mesh, name).into_bytes()
@@ -53,16 +78,7 @@ pub fn run(args: TriasymArgs) -> Result<(), Failure> {
             ),
         )
     };
-    // Written beside the target and renamed into place: all or nothing, normal permissions.
-    let mut staging = args.out.clone().into_os_string();
-    staging.push(".partial");
-    let staging = PathBuf::from(staging);
-    std::fs::write(&staging, &bytes)
-        .and_then(|()| std::fs::rename(&staging, &args.out))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&staging);
-            Failure::runtime(format!("{}: {e}", args.out.display()))
-        })?;
+    output::write_file(&args.out, &bytes).map_err(Failure::from_cell)?;
     super::print(&format!(
         "wrote {} ({} triangles)\n",
         args.out.display(),

@@ -6,6 +6,7 @@
 //! edge once in each direction.
 
 pub mod obj;
+pub mod order;
 pub mod resegment;
 pub mod stl;
 pub mod trace;
@@ -30,6 +31,8 @@ pub const NO_NEIGHBOUR: u32 = u32::MAX;
 pub struct Mesh {
     vertices: Vec<Point3<f64>>,
     triangles: Vec<[u32; 3]>,
+    /// Index of each triangle in the file (or the list given to [`Mesh::new`]).
+    file_triangles: Vec<u32>,
 }
 
 /// Whether a mesh must be a closed surface.
@@ -81,6 +84,11 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(invalid(None, "the mesh has no triangles"));
         }
+        crate::limits::at_most(
+            "triangle count",
+            triangles.len() as f64,
+            crate::limits::MAX_TRIANGLES as f64,
+        )?;
         for (t, tri) in triangles.iter().enumerate() {
             for &i in tri {
                 let Some(v) = vertices.get(i as usize) else {
@@ -97,9 +105,11 @@ impl Mesh {
                 }
             }
         }
+        let file_triangles = (0..triangles.len() as u32).collect();
         Ok(Mesh {
             vertices,
             triangles,
+            file_triangles,
         })
     }
 
@@ -120,6 +130,12 @@ impl Mesh {
     /// The triangles (vertex indices, counter-clockwise seen from outside).
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
+    }
+
+    /// Where triangle `t` stood in the file (or the list given to [`Mesh::new`]); differs from `t`
+    /// after [`prepare`] sorted the triangles for locality ([`order`]).
+    pub fn file_triangle(&self, t: usize) -> usize {
+        self.file_triangles[t] as usize
     }
 
     /// The three corners of triangle `t`.
@@ -225,6 +241,7 @@ impl Mesh {
         Ok(Mesh {
             vertices: kept,
             triangles,
+            file_triangles: self.file_triangles.clone(),
         })
     }
 
@@ -369,18 +386,18 @@ impl Mesh {
     }
 }
 
-/// Loads a mesh the way the tracer wants it: welded at `weld_mm`, validated, and turned so the
-/// normals point outward when it is closed (negative enclosed volume). Returns the mesh and its
-/// adjacency.
+/// Loads a mesh the way the tracer wants it: welded at `weld_mm`, validated (errors name file
+/// triangles), turned so the normals point outward when it is closed (negative enclosed volume),
+/// and sorted for locality ([`order::by_locality`]; [`Mesh::file_triangle`] maps back). Returns
+/// the mesh and its adjacency.
 pub fn prepare(mesh: &Mesh, weld_mm: f64, closure: Closure) -> Result<(Mesh, Adjacency), Error> {
     let mut welded = mesh.weld(weld_mm)?;
-    let adjacency = welded.validate(closure)?;
+    let mut adjacency = welded.validate(closure)?;
     if adjacency.boundary_edges == 0 && welded.signed_volume_mm3() < 0.0 {
         welded.flip();
-        let adjacency = welded.validate(closure)?;
-        return Ok((welded, adjacency));
+        adjacency = welded.validate(closure)?;
     }
-    Ok((welded, adjacency))
+    Ok(order::by_locality(&welded, &adjacency))
 }
 
 /// `error` with the line of its triangle, when it names one and `lines` (one per triangle, from
@@ -392,6 +409,8 @@ pub fn with_line(error: Error, lines: &[usize]) -> Error {
             reason,
         } if t < lines.len() => Error::MeshSyntax {
             line: Some(lines[t]),
+            column: None,
+            byte: None,
             message: format!("triangle {t}: {reason}"),
         },
         other => other,
@@ -408,7 +427,62 @@ pub(crate) fn invalid(triangle: Option<usize>, reason: impl Into<String>) -> Err
 pub(crate) fn syntax(line: Option<usize>, message: impl Into<String>) -> Error {
     Error::MeshSyntax {
         line,
+        column: None,
+        byte: None,
         message: message.into(),
+    }
+}
+
+/// A binary-file error at byte `byte`.
+pub(crate) fn at_byte(byte: u64, message: impl Into<String>) -> Error {
+    Error::MeshSyntax {
+        line: None,
+        column: None,
+        byte: Some(byte),
+        message: message.into(),
+    }
+}
+
+/// `error` with a column, when it names a line of `text` but no column: the column of the first
+/// word it quotes in backticks that is on that line, else of the line's first word (the
+/// statement at fault).
+pub fn with_column(error: Error, text: &str) -> Error {
+    let Error::MeshSyntax {
+        line: Some(line),
+        column: None,
+        byte,
+        message,
+    } = error
+    else {
+        return error;
+    };
+    let row = text.lines().nth(line - 1).unwrap_or_default();
+    let quoted = message
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|q| !q.is_empty())
+        .find_map(|q| row.find(q));
+    let offset = quoted
+        .or_else(|| row.find(|c: char| !c.is_whitespace()))
+        .unwrap_or(0);
+    Error::MeshSyntax {
+        line: Some(line),
+        column: Some(row[..offset].chars().count() + 1),
+        byte,
+        message,
+    }
+}
+
+/// `error` with the byte offset of its triangle's record in a binary STL (84-byte header, 50
+/// bytes per triangle) when it names a triangle.
+pub fn with_byte(error: Error) -> Error {
+    match error {
+        Error::MeshInvalid {
+            triangle: Some(t),
+            reason,
+        } => at_byte(84 + 50 * t as u64, format!("triangle {t}: {reason}")),
+        other => other,
     }
 }
 

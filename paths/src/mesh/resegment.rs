@@ -12,6 +12,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::trace::{MeshPath, Stop, TraceOptions, Tracer};
 use crate::geodesic::{Direction, PathStart};
+use crate::limits;
 use crate::spline::BSpline;
 use crate::{Error, SurfacePoint, Tube};
 
@@ -31,9 +32,14 @@ pub struct Resegmented {
     pub length_mm: f64,
 }
 
+/// Resampled points, their arc lengths, and the raw points' arc lengths.
+type Resampled = (Vec<Point3<f64>>, Vec<f64>, Vec<f64>);
+
 /// Points at equal arc length along a polyline (both ends kept), at most `spacing_mm` apart, and
 /// their arc lengths.
-fn resample(raw: &[Point3<f64>], spacing_mm: f64) -> (Vec<Point3<f64>>, Vec<f64>, Vec<f64>) {
+/// The path's length and the sample count are checked against [`limits`] before anything is
+/// allocated for the samples.
+fn resample(raw: &[Point3<f64>], spacing_mm: f64) -> Result<Resampled, Error> {
     let mut cum = Vec::with_capacity(raw.len());
     let mut total = 0.0;
     cum.push(0.0);
@@ -41,7 +47,10 @@ fn resample(raw: &[Point3<f64>], spacing_mm: f64) -> (Vec<Point3<f64>>, Vec<f64>
         total += (w[1] - w[0]).norm();
         cum.push(total);
     }
-    let n = ((total / spacing_mm).ceil() as usize).max(3);
+    limits::at_most("path length_mm", total, limits::MAX_PATH_LENGTH_MM)?;
+    let n = (total / spacing_mm).ceil().max(3.0);
+    limits::at_most("path samples", n, limits::MAX_PATH_SAMPLES as f64)?;
+    let n = n as usize;
     let mut out = Vec::with_capacity(n + 1);
     let mut at = Vec::with_capacity(n + 1);
     let mut k = 0;
@@ -59,7 +68,7 @@ fn resample(raw: &[Point3<f64>], spacing_mm: f64) -> (Vec<Point3<f64>>, Vec<f64>
         out.push(raw[k] + (raw[k + 1] - raw[k]) * f);
         at.push(s);
     }
-    (out, at, cum)
+    Ok((out, at, cum))
 }
 
 /// Smooths `raw` and cuts it into `segments` equal-length pieces with end points on `tracer`'s
@@ -77,6 +86,7 @@ pub fn smooth_and_cut(
             expected: "must be at least 1",
         });
     }
+    limits::at_most("segments", segments as f64, limits::MAX_SEGMENTS as f64)?;
     if !(spacing_mm > 0.0 && spacing_mm.is_finite()) {
         return Err(Error::OutOfRange {
             name: "spacing_mm",
@@ -101,7 +111,7 @@ pub fn smooth_and_cut(
             needed: 2,
         });
     }
-    let (samples, at, cum) = resample(&clean, spacing_mm);
+    let (samples, at, cum) = resample(&clean, spacing_mm)?;
     let coords: Vec<Vector3<f64>> = samples.iter().map(|p| p.coords).collect();
     let spline = BSpline::<3>::interpolate(&coords)?;
     // Chord-length parameters of the samples (the interpolant's own).
@@ -240,5 +250,35 @@ mod tests {
         }
         assert!(smooth_and_cut(&tr, &path.points, 0, 2.0).is_err());
         assert!(smooth_and_cut(&tr, &path.points[..1], 5, 2.0).is_err());
+    }
+
+    #[test]
+    fn paths_longer_than_the_limits_are_refused_before_resampling() {
+        let profile: Vec<(f64, f64)> = (0..=10).map(|i| (10.0 * i as f64, 20.0)).collect();
+        let (m, adj) = prepare(
+            &triasym::revolution(&profile, 32, true).unwrap(),
+            DEFAULT_WELD_MM,
+            Closure::Closed,
+        )
+        .unwrap();
+        let tr = Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap();
+        let on = |z: f64| Point3::new(20.0, 0.0, z);
+        for far in [1e9, 1e308, f64::MAX] {
+            let raw = [on(10.0), on(20.0), Point3::new(20.0, far, 30.0), on(40.0)];
+            assert!(
+                matches!(
+                    smooth_and_cut(&tr, &raw, 5, DEFAULT_SPACING_MM),
+                    Err(Error::OverLimit { .. })
+                ),
+                "{far}"
+            );
+        }
+        // Samples: a 50 mm path at a spacing that needs more than the most samples.
+        let spacing = 50.0 / crate::limits::MAX_PATH_SAMPLES as f64;
+        let raw = [on(10.0), on(60.0)];
+        assert!(matches!(
+            smooth_and_cut(&tr, &raw, 2, spacing * 0.99),
+            Err(Error::OverLimit { .. })
+        ));
     }
 }

@@ -65,7 +65,7 @@ pub enum Stop {
 }
 
 /// Most edge crossings of one trace.
-pub const MAX_CROSSINGS: usize = 100_000_000;
+pub const MAX_CROSSINGS: usize = 2_000_000;
 
 impl Stop {
     /// Lower-case name.
@@ -121,6 +121,11 @@ impl TraceOptions {
                 expected: "must be ≥ 0 and finite",
             });
         }
+        crate::limits::at_most(
+            "length_mm",
+            self.max_length_mm,
+            crate::limits::MAX_PATH_LENGTH_MM,
+        )?;
         if !(self.axis.iter().all(|c| c.is_finite()) && self.axis.norm() > 1e-9) {
             return Err(Error::OutOfRange {
                 name: "axis",
@@ -416,6 +421,7 @@ impl Tracer {
         })?;
         if at.distance_mm > tolerance_mm {
             return Err(Error::OffSurface {
+                nearest_mm: at.point.coords.into(),
                 distance_mm: at.distance_mm,
                 limit_mm: tolerance_mm,
             });

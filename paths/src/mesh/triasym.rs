@@ -79,6 +79,11 @@ pub fn tube(tube: &Tube, facets: usize, spacing_mm: f64, caps: bool) -> Result<M
             expected: "must leave at most a million sections",
         });
     }
+    crate::limits::at_most(
+        "triangle count",
+        2.0 * (sections + 1.0) * facets as f64,
+        crate::limits::MAX_TRIANGLES as f64,
+    )?;
     let sections = sections as usize;
     let rings: Vec<Vec<Point3<f64>>> = (0..=sections)
         .map(|i| {

@@ -1,0 +1,219 @@
+//! Criterion: a whole S-bend batch (both paths) wound by the coordinator on the simulated cell's
+//! fast clock, in each mode; and the stop latency of a real-time discrete run.
+//! `cargo bench -p cell --bench run` (docs/benchmarks.md, "Coordinator").
+
+use std::hint::black_box;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use cell::batch;
+use cell::coordinator::{Batch, Coordinator, Devices, Event, Reach, ResumePoint, RunMode};
+use cell::device::{
+    DeviceResult, MandrelDevice, NoSync, ProtocolRobot, RobotDevice, WallClock, XIndexer,
+};
+use cell::journal::Journal;
+use cell::simcell::{SimCell, SimCellConfig};
+use cell::tool;
+use criterion::{Criterion, criterion_group, criterion_main};
+use mandrel_drive::Drive;
+use sequences::Job;
+
+fn batch(mode: RunMode) -> Batch {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml");
+    let (job, text) = Job::load(&path).unwrap();
+    let plan = tool::plan(&job, &text, &path).unwrap();
+    let files = batch::files_of_job(&tool::control_files(&job, &plan).unwrap());
+    let l = batch::from_files(&files, Some(mode), Path::new("."), Path::new("R")).unwrap();
+    Batch::new(
+        l.items,
+        l.mode,
+        l.job_id,
+        Drive::default(),
+        Reach::default(),
+    )
+    .unwrap()
+}
+
+/// Winds `b` on a fresh simulated cell; returns the cell's clock at the end, s.
+fn wind(b: &Batch, journal: &Path) -> f64 {
+    use asea_protocol::clock::Clock as _;
+    let cell = SimCell::new(&SimCellConfig::default());
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        Arc::new(AtomicBool::new(false)),
+        Journal::create(journal).unwrap(),
+        &mut sink,
+    );
+    c.run(b, &ResumePoint::default(), true, false, false)
+        .unwrap();
+    cell.clock().now_s()
+}
+
+fn bench(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("bench.journal");
+    let mut g = c.benchmark_group("sbend_batch");
+    g.sample_size(10);
+    for mode in [RunMode::Discrete, RunMode::Fine, RunMode::Medium] {
+        let b = batch(mode);
+        let cell_s = wind(&b, &journal);
+        println!("{}: {cell_s:.1} s of cell time per batch", mode.keyword());
+        g.bench_function(mode.keyword(), |bench| {
+            bench.iter(|| black_box(wind(&b, &journal)))
+        });
+    }
+    g.finish();
+}
+
+/// A device whose `stop` records when it returned (the stop command is on the wire by then).
+struct StopClock<T> {
+    inner: T,
+    done: Arc<Mutex<Option<Instant>>>,
+}
+
+macro_rules! forward {
+    ($($name:ident($($a:ident: $t:ty),*) -> $r:ty;)*) => {
+        $(fn $name(&mut self, $($a: $t),*) -> $r { self.inner.$name($($a),*) })*
+    };
+}
+
+impl RobotDevice for StopClock<Box<dyn RobotDevice>> {
+    forward! {
+        state() -> DeviceResult<cell::device::RobotState>;
+        position_mm() -> DeviceResult<[f64; 3]>;
+        set_speeds(b: asea_protocol::Speed, m: asea_protocol::Speed) -> DeviceResult<()>;
+        set_operate(on: bool) -> DeviceResult<()>;
+        start_home() -> DeviceResult<()>;
+        move_immediate(p: asea_protocol::Positioning) -> DeviceResult<()>;
+        delete_program(p: u8) -> DeviceResult<()>;
+        upload(p: u8, i: &[asea_protocol::Instruction]) -> DeviceResult<()>;
+        read_back(p: u8, i: &[asea_protocol::Instruction]) -> DeviceResult<()>;
+        run_program(p: u8) -> DeviceResult<()>;
+    }
+    fn stop(&mut self) -> DeviceResult<()> {
+        let r = self.inner.stop();
+        *self.done.lock().unwrap() = Some(Instant::now());
+        r
+    }
+}
+
+impl MandrelDevice for StopClock<Box<dyn MandrelDevice>> {
+    forward! {
+        attach() -> DeviceResult<i64>;
+        zero() -> DeviceResult<()>;
+        start_move(mv: &sequences::MandrelMove, armed: bool) -> DeviceResult<()>;
+        busy() -> DeviceResult<(bool, bool)>;
+        counter_steps() -> DeviceResult<i64>;
+        move_steps() -> DeviceResult<i64>;
+    }
+    fn stop(&mut self) -> DeviceResult<()> {
+        let r = self.inner.stop();
+        *self.done.lock().unwrap() = Some(Instant::now());
+        r
+    }
+}
+
+/// Real time: both simulators served on in-memory serial lines by their own threads (as
+/// `sim-robot --pty` and `sim-indexer --pty` serve a pty); a discrete run stopped 0.5 s in; the
+/// time from the stop request until both stop commands were sent and answered.
+fn stop_latency(c: &mut Criterion) {
+    let b = batch(RunMode::Discrete);
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("stop.journal");
+    let mut g = c.benchmark_group("stop_latency");
+    g.sample_size(10);
+    g.bench_function("discrete_real_time", |bench| {
+        bench.iter_custom(|iters| {
+            let mut total = Duration::ZERO;
+            for _ in 0..iters {
+                let (robot_host, robot_dev) = asea_protocol::link::Pipe::pair();
+                let (x_host, x_dev) = mandrel_drive::Pipe::pair();
+                let halt = Arc::new(AtomicBool::new(false));
+                let robot = Arc::new(Mutex::new(asea_protocol::sim::Robot::new(
+                    asea_protocol::FrameConfig::default(),
+                    asea_protocol::Timers::default(),
+                    asea_protocol::sim::MotionParams {
+                        home_s: 0.05,
+                        ..Default::default()
+                    },
+                )));
+                let card = Arc::new(Mutex::new(mandrel_drive::sim::xlang::Card::new(
+                    mandrel_drive::sim::Machine::new(
+                        Drive::default(),
+                        mandrel_drive::sim::machine::PULL_IN_SPS,
+                    ),
+                    1,
+                )));
+                let (h1, r1) = (halt.clone(), robot.clone());
+                let t1 = std::thread::spawn(move || {
+                    let clock = asea_protocol::clock::RealClock::new();
+                    let _ = asea_protocol::sim::serve(robot_dev, &r1, &clock, &h1);
+                });
+                let (h2, c2) = (halt.clone(), card.clone());
+                let t2 = std::thread::spawn(move || {
+                    let clock = mandrel_drive::sim::RealClock::new();
+                    let _ = mandrel_drive::sim::serve(x_dev, &c2, &clock, &h2);
+                });
+                let robot_done = Arc::new(Mutex::new(None));
+                let x_done = Arc::new(Mutex::new(None));
+                let setup = cell::transfer::IndexerSetup {
+                    drive: Drive::default(),
+                    start_velocity_command: true,
+                };
+                let dev = Devices {
+                    robot: Box::new(StopClock {
+                        inner: Box::new(ProtocolRobot::new(asea_protocol::Client::new(
+                            robot_host,
+                            asea_protocol::ClientConfig::default(),
+                        ))) as Box<dyn RobotDevice>,
+                        done: robot_done.clone(),
+                    }),
+                    mandrel: Box::new(StopClock {
+                        inner: Box::new(XIndexer::new(
+                            mandrel_drive::XClient::new(
+                                x_host,
+                                mandrel_drive::IndexerConfig {
+                                    start_velocity_command: true,
+                                    device_id: false,
+                                    ..Default::default()
+                                },
+                            ),
+                            setup,
+                        )) as Box<dyn MandrelDevice>,
+                        done: x_done.clone(),
+                    }),
+                    sync: Box::new(NoSync),
+                    time: Arc::new(WallClock::new()),
+                };
+                let stop = Arc::new(AtomicBool::new(false));
+                let flag = stop.clone();
+                let (b2, j2) = (b.clone(), journal.clone());
+                let run = std::thread::spawn(move || {
+                    let mut sink = |_e: Event| {};
+                    let mut c =
+                        Coordinator::new(dev, flag, Journal::create(&j2).unwrap(), &mut sink);
+                    c.run(&b2, &ResumePoint::default(), true, false, false)
+                        .is_err()
+                });
+                std::thread::sleep(Duration::from_millis(500));
+                let t0 = Instant::now();
+                stop.store(true, Ordering::Relaxed);
+                assert!(run.join().unwrap(), "the run was not stopped");
+                let robot_t = robot_done.lock().unwrap().unwrap();
+                let x_t = x_done.lock().unwrap().unwrap();
+                total += robot_t.max(x_t) - t0;
+                halt.store(true, Ordering::Relaxed);
+                t1.join().unwrap();
+                t2.join().unwrap();
+            }
+            total
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench, stop_latency);
+criterion_main!(benches);

@@ -1,0 +1,246 @@
+//! The cell description a run uses (docs/file-formats.md, "Cell file"): serial ports (none: the
+//! simulated cell), the mandrel drive's gearing, the sync lines. It comes from the job's `[cell]`
+//! or from `--cell CELL.toml`, which wins.
+
+use std::path::Path;
+
+use mandrel_drive::Drive;
+use paths::Gearing;
+use serde::Deserialize;
+
+use crate::Error;
+
+/// `CELL.toml`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct CellFile {
+    /// A name for the operator.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Serial ports; none named: the simulated cell.
+    #[serde(default)]
+    pub ports: PortsSection,
+    /// The mandrel drive.
+    #[serde(default)]
+    pub drive: Option<DriveSection>,
+    /// Opto-isolator delay of the simulated sync lines, s.
+    #[serde(default)]
+    pub opto_delay_s: Option<f64>,
+}
+
+/// `[ports]`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PortsSection {
+    /// The robot computer's link.
+    pub robot: Option<String>,
+    /// The indexer's link.
+    pub indexer: Option<String>,
+    /// The port whose modem-control pins carry the sync lines (RTS start out, CTS in position
+    /// in, DSR e-stop in; docs/hardware.md).
+    pub sync: Option<String>,
+}
+
+/// `[drive]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSection {
+    /// Motor steps per motor revolution.
+    pub steps_per_rev: u32,
+    /// `[motor pulley teeth, mandrel pulley teeth]`.
+    pub gear_ratio: [u32; 2],
+}
+
+/// Where the devices are.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Devices {
+    /// The simulated cell, in process.
+    Simulated,
+    /// Serial ports.
+    Serial {
+        /// Robot port.
+        robot: String,
+        /// Indexer port.
+        indexer: String,
+        /// Sync-line port (none: discrete mode only).
+        sync: Option<String>,
+    },
+}
+
+/// The cell as a run uses it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cell {
+    /// Where the description came from (`--cell FILE`, or the job).
+    pub source: String,
+    /// The devices.
+    pub devices: Devices,
+    /// The drive.
+    pub drive: Drive,
+    /// Opto delay of the simulated lines, s.
+    pub opto_delay_s: f64,
+}
+
+fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, String> {
+    Drive::new(
+        Gearing {
+            steps_per_motor_rev: steps_per_rev,
+            motor_teeth: motor,
+            mandrel_teeth: mandrel,
+        },
+        mandrel_drive::units::TRANSLATOR_LIMIT_PPS,
+    )
+    .map_err(|e| e.to_string())
+}
+
+fn devices_of(p: &PortsSection) -> Result<Devices, String> {
+    match (&p.robot, &p.indexer, &p.sync) {
+        (None, None, None) => Ok(Devices::Simulated),
+        (Some(r), Some(i), s) => Ok(Devices::Serial {
+            robot: r.clone(),
+            indexer: i.clone(),
+            sync: s.clone(),
+        }),
+        _ => Err(
+            "name the robot and indexer ports (and the sync port for program mode) or none (the simulated cell)"
+                .into(),
+        ),
+    }
+}
+
+impl Cell {
+    /// The cell of a job file's `[cell]`.
+    pub fn of_job(job: &sequences::Job, file: &Path) -> Result<Cell, Error> {
+        let c = &job.cell;
+        let bad = |m: String| Error::Run {
+            message: format!("{}: [cell]: {m}", file.display()),
+            input: true,
+        };
+        let drive = drive_of(
+            *c.drive.steps_per_rev.get_ref(),
+            *c.drive.gear_ratio.get_ref(),
+        )
+        .map_err(bad)?;
+        let devices = devices_of(&PortsSection {
+            robot: c.ports.robot.clone(),
+            indexer: c.ports.indexer.clone(),
+            sync: c.ports.sync.clone(),
+        })
+        .map_err(bad)?;
+        Ok(Cell {
+            source: format!("{} [cell]", file.display()),
+            devices,
+            drive,
+            opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+        })
+    }
+
+    /// The simulated cell with the thesis drive (a sequence run without `--cell`).
+    pub fn simulated() -> Cell {
+        Cell {
+            source: "the built-in simulated cell".into(),
+            devices: Devices::Simulated,
+            drive: Drive::default(),
+            opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+        }
+    }
+
+    /// Reads `CELL.toml`; errors name the file, line and column.
+    pub fn load(path: &Path) -> Result<Cell, Error> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Cell::parse(&text, path)
+    }
+
+    /// Parses the text of a cell file read from `path`.
+    pub fn parse(text: &str, path: &Path) -> Result<Cell, Error> {
+        let at = |offset: usize, m: String| {
+            let (line, column) = sequences::error::line_column(text, offset);
+            Error::Run {
+                message: format!("{}:{line}:{column}: {m}", path.display()),
+                input: true,
+            }
+        };
+        let file: CellFile = toml::from_str(text).map_err(|e| {
+            let offset = e.span().map_or(0, |s| s.start);
+            at(offset, e.message().to_string())
+        })?;
+        let locate = |key: &str| text.find(key).unwrap_or(0);
+        let drive = match &file.drive {
+            Some(d) => {
+                drive_of(d.steps_per_rev, d.gear_ratio).map_err(|m| at(locate("[drive]"), m))?
+            }
+            None => Drive::default(),
+        };
+        let devices = devices_of(&file.ports).map_err(|m| at(locate("[ports]"), m))?;
+        let opto_delay_s = file
+            .opto_delay_s
+            .unwrap_or(mandrel_drive::sync::OPTO_DELAY_S);
+        if !(0.0..=1.0).contains(&opto_delay_s) {
+            return Err(at(
+                locate("opto_delay_s"),
+                format!("opto_delay_s = {opto_delay_s}: expected 0–1 s"),
+            ));
+        }
+        Ok(Cell {
+            source: path.display().to_string(),
+            devices,
+            drive,
+            opto_delay_s,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn simulated_and_serial_cells_parse_and_half_named_ports_are_refused() {
+        let p = Path::new("C.toml");
+        let c = Cell::parse(
+            "name = \"sim\"\n[drive]\nsteps_per_rev = 400\ngear_ratio = [13, 60]\n",
+            p,
+        )
+        .unwrap();
+        assert_eq!(c.devices, Devices::Simulated);
+        assert_eq!(c.drive, Drive::default());
+        let c = Cell::parse(
+            "[ports]\nrobot = \"/dev/ttyS0\"\nindexer = \"/dev/ttyS1\"\nsync = \"/dev/ttyS0\"\n",
+            p,
+        )
+        .unwrap();
+        assert!(matches!(c.devices, Devices::Serial { .. }));
+        let e = Cell::parse("\n[ports]\nrobot = \"/dev/ttyS0\"\n", p).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("C.toml:2:1: name the robot and indexer ports"),
+            "{e}"
+        );
+        let e = Cell::parse("[drive]\nsteps = 400\n", p).unwrap_err();
+        assert!(e.to_string().starts_with("C.toml:2:1:"), "{e}");
+        assert!(e.is_input());
+    }
+
+    #[test]
+    fn the_example_cell_files_parse() {
+        let sim =
+            Cell::parse(include_str!("../../examples/cell-sim.toml"), Path::new("s")).unwrap();
+        assert_eq!(sim.devices, Devices::Simulated);
+        assert_eq!(sim.opto_delay_s, 20e-6);
+        let serial = Cell::parse(
+            include_str!("../../examples/cell-serial.toml"),
+            Path::new("r"),
+        )
+        .unwrap();
+        assert_eq!(
+            serial.devices,
+            Devices::Serial {
+                robot: "/dev/ttyS0".into(),
+                indexer: "/dev/ttyS1".into(),
+                sync: Some("/dev/ttyS0".into())
+            }
+        );
+    }
+}

@@ -1,0 +1,167 @@
+//! Argument errors as one line: the parser's error kinds rendered in windcell's own words (the
+//! parser's own rendering spans 3–7 lines with a usage block and tips), exit code 2.
+
+use clap::error::{ContextKind, ContextValue, ErrorKind};
+
+fn context(error: &clap::Error, kind: ContextKind) -> Option<String> {
+    match error.get(kind)? {
+        ContextValue::String(s) => Some(s.clone()),
+        ContextValue::Strings(v) => Some(v.join(", ")),
+        ContextValue::StyledStr(s) => Some(s.to_string()),
+        ContextValue::StyledStrs(v) => Some(
+            v.iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(", "),
+        ),
+        ContextValue::Number(n) => Some(n.to_string()),
+        ContextValue::Bool(b) => Some(b.to_string()),
+        _ => None,
+    }
+}
+
+/// `windcell plan` when the command line names a subcommand, else `windcell`.
+fn command(args: &[String]) -> String {
+    use clap::CommandFactory;
+    let cli = crate::cli::Cli::command();
+    match args.get(1) {
+        Some(name) if cli.find_subcommand(name).is_some() => format!("windcell {name}"),
+        _ => "windcell".to_string(),
+    }
+}
+
+/// The one-line message for a parser error (without the `windcell: ` prefix); `args` is the
+/// command line it came from.
+pub fn render(error: &clap::Error, args: &[String]) -> String {
+    let arg = context(error, ContextKind::InvalidArg).unwrap_or_default();
+    let value = context(error, ContextKind::InvalidValue).unwrap_or_default();
+    let help = format!("see `{} --help`", command(args));
+    let suggestion = context(error, ContextKind::SuggestedArg)
+        .or_else(|| context(error, ContextKind::SuggestedSubcommand))
+        .or_else(|| context(error, ContextKind::SuggestedValue))
+        .map(|s| format!("did you mean `{s}`? "))
+        .unwrap_or_default();
+    let message = match error.kind() {
+        ErrorKind::InvalidValue if value.is_empty() => format!("{arg} needs a value"),
+        ErrorKind::InvalidValue => {
+            let valid = context(error, ContextKind::ValidValue)
+                .map(|v| format!(" (one of: {v})"))
+                .unwrap_or_default();
+            format!("`{value}` is not a valid value for {arg}{valid}")
+        }
+        ErrorKind::UnknownArgument => format!("unknown argument `{arg}`"),
+        ErrorKind::InvalidSubcommand => format!(
+            "unknown command `{}`",
+            context(error, ContextKind::InvalidSubcommand).unwrap_or_default()
+        ),
+        ErrorKind::NoEquals => format!("{arg} needs `=` before its value"),
+        ErrorKind::ValueValidation => {
+            let reason = std::error::Error::source(error)
+                .map(ToString::to_string)
+                .unwrap_or_else(|| "not accepted".to_string());
+            format!("`{value}` is not a valid value for {arg}: {reason}")
+        }
+        ErrorKind::TooManyValues => format!("{arg}: one value too many (`{value}`)"),
+        ErrorKind::TooFewValues | ErrorKind::WrongNumberOfValues => {
+            let expected = context(error, ContextKind::ExpectedNumValues).unwrap_or_default();
+            let actual = context(error, ContextKind::ActualNumValues).unwrap_or_default();
+            format!("{arg} takes {expected} values, {actual} given")
+        }
+        ErrorKind::ArgumentConflict => {
+            let prior = context(error, ContextKind::PriorArg).unwrap_or_default();
+            format!("{arg} cannot be used with {prior}")
+        }
+        ErrorKind::MissingRequiredArgument => format!("missing required argument {arg}"),
+        ErrorKind::MissingSubcommand | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            "a command is needed (plan, geodesic, sweep, triasym, sim-robot, sim-indexer)"
+                .to_string()
+        }
+        _ => error
+            .to_string()
+            .lines()
+            .map(|l| l.trim().trim_start_matches("error:").trim())
+            .find(|l| !l.is_empty())
+            .unwrap_or("invalid arguments")
+            .to_string(),
+    };
+    format!("{message}; {suggestion}{help}")
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::cli::Cli;
+
+    fn rendered(args: &[&str]) -> String {
+        let error = Cli::try_parse_from(args).unwrap_err();
+        let args: Vec<String> = args.iter().map(ToString::to_string).collect();
+        render(&error, &args)
+    }
+
+    #[test]
+    fn each_kind_is_one_line_naming_the_argument() {
+        let cases: [(&[&str], &str); 7] = [
+            (
+                &["windcell", "sweep", "j.toml", "-o", "d", "--paths", "0"],
+                "`0` is not a valid value for --paths <PATHS>: 0 is not in 1..=255; see `windcell sweep --help`",
+            ),
+            (
+                &["windcell", "sim-robot", "--checksum", "md5"],
+                "`md5` is not a valid value for --checksum <CHECKSUM> (one of: sum8, crc16); see `windcell sim-robot --help`",
+            ),
+            (
+                &["windcell", "plan", "j.toml"],
+                "missing required argument --out <DIR>; see `windcell plan --help`",
+            ),
+            (
+                &["windcell", "plan", "j.toml", "-o", "d", "--jsn"],
+                "unknown argument `--jsn`; did you mean `--json`? see `windcell plan --help`",
+            ),
+            (
+                &["windcell", "pln"],
+                "unknown command `pln`; did you mean `plan`? see `windcell --help`",
+            ),
+            (
+                &["windcell"],
+                "a command is needed (plan, geodesic, sweep, triasym, sim-robot, sim-indexer); see `windcell --help`",
+            ),
+            (
+                &[
+                    "windcell",
+                    "geodesic",
+                    "m.stl",
+                    "--start",
+                    "NaN,0,10",
+                    "--heading",
+                    "0",
+                ],
+                "`NaN,0,10` is not a valid value for --start <START>: `NaN` is not finite; see `windcell geodesic --help`",
+            ),
+        ];
+        for (args, expected) in cases {
+            assert_eq!(rendered(args), expected, "{args:?}");
+        }
+    }
+
+    #[test]
+    fn negative_numbers_are_values() {
+        let cli = Cli::try_parse_from([
+            "windcell",
+            "geodesic",
+            "m.stl",
+            "--start",
+            "-1,0,10",
+            "--heading",
+            "-45",
+            "--length",
+            "-5",
+            "--lambda",
+            "-0.1",
+            "--mu",
+            "-1",
+        ]);
+        assert!(cli.is_ok(), "{}", cli.map(|_| ()).unwrap_err());
+    }
+}

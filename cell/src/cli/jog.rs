@@ -1,0 +1,155 @@
+//! `windcell jog`: manual control (seed 001 §5.3.2, §5.4): one robot position (absolute or
+//! relative, rectangular or joint, wrist pitch and roll, speed) and one mandrel instruction, sent
+//! together and each confirmed, with the run's limit checks.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use asea_protocol::{Flags, Interpolation, Pose, Positioning, Reference, Speed, Zone};
+use cell::cellfile::Cell;
+use cell::coordinator::{Coordinator, Event, Halt, Reach};
+use cell::journal::Journal;
+use clap::Args;
+use sequences::MandrelMove;
+
+use super::{Failure, print};
+
+/// Arguments of `windcell jog`.
+#[derive(Debug, Args)]
+pub struct JogArgs {
+    /// Eye position `X,Y,Z`, mm (cell frame; with `--rel` an offset from where the eye is).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        required = true,
+        allow_negative_numbers = true
+    )]
+    pub pos: Vec<f64>,
+    /// Relative to the robot's position now.
+    #[arg(long)]
+    pub rel: bool,
+    /// Robot (joint) movement instead of rectangular (a straight line).
+    #[arg(long)]
+    pub joint: bool,
+    /// Wrist pitch, degrees (App. A).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pitch_deg: f64,
+    /// Wrist roll, degrees (App. A).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub roll_deg: f64,
+    /// Speed, % of the base speed.
+    #[arg(long, default_value_t = 10.0)]
+    pub speed_pct: f64,
+    /// Base speed, mm/s (§5.4.1).
+    #[arg(long, default_value_t = 1000.0)]
+    pub base_speed_mm_s: f64,
+    /// Maximum speed, mm/s.
+    #[arg(long, default_value_t = 2000.0)]
+    pub max_speed_mm_s: f64,
+    /// Mandrel move, motor steps (0: none).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub steps: i64,
+    /// Mandrel acceleration, rev/s².
+    #[arg(long, default_value_t = 1.0)]
+    pub accel_rps2: f64,
+    /// Mandrel start/stop velocity, rev/s.
+    #[arg(long, default_value_t = 0.05)]
+    pub start_rps: f64,
+    /// Mandrel maximum velocity, rev/s.
+    #[arg(long, default_value_t = 0.1)]
+    pub max_rps: f64,
+    /// The cell (default: the built-in simulated cell, powered up for this one move).
+    #[arg(long, value_name = "CELL.toml")]
+    pub cell: Option<PathBuf>,
+}
+
+/// Runs `windcell jog`.
+pub fn run(args: JogArgs) -> Result<(), Failure> {
+    let cell = match &args.cell {
+        Some(p) => Cell::load(p).map_err(Failure::from_cell)?,
+        None => Cell::simulated(),
+    };
+    let [x, y, z] = <[f64; 3]>::try_from(args.pos.as_slice())
+        .map_err(|_| Failure::input("jog: --pos needs X,Y,Z"))?;
+    let q = paths::wrist::components(&paths::wrist::from_pitch_roll(
+        args.pitch_deg.to_radians(),
+        args.roll_deg.to_radians(),
+    ));
+    let speed = |name, v: f64| {
+        Speed::from_value(name, v)
+            .map_err(|e| Failure::input(format!("jog: {e}")))
+            .and_then(|s| {
+                if s.0 == 0 {
+                    Err(Failure::input(format!("jog: {name} rounds to zero")))
+                } else {
+                    Ok(s)
+                }
+            })
+    };
+    let p = Positioning {
+        flags: Flags {
+            interpolation: if args.joint {
+                Interpolation::Joint
+            } else {
+                Interpolation::Rectangular
+            },
+            reference: Reference::Absolute,
+            zone: Zone::Fine,
+        },
+        pose: Pose::from_mm([x, y, z], q).map_err(|e| Failure::input(format!("jog: {e}")))?,
+        speed: speed("--speed-pct", args.speed_pct / 100.0)?,
+    };
+    let speeds = (
+        speed("--base-speed-mm-s", args.base_speed_mm_s / 1000.0)?,
+        speed("--max-speed-mm-s", args.max_speed_mm_s / 1000.0)?,
+    );
+    let mandrel = (args.steps != 0).then_some(MandrelMove {
+        accel_rps2: args.accel_rps2,
+        start_stop_rps: args.start_rps,
+        max_rps: args.max_rps,
+        steps: args.steps,
+    });
+    if let Some(m) = &mandrel {
+        cell::transfer::indexer_move(
+            m,
+            &cell::transfer::IndexerSetup {
+                drive: cell.drive,
+                start_velocity_command: true,
+            },
+            None,
+        )
+        .map_err(Failure::from_cell)?;
+    }
+    if !args.rel {
+        let r = x.hypot(y);
+        let reach = Reach::default();
+        if r > reach.max_radius_mm || z < reach.z_range_mm.0 || z > reach.z_range_mm.1 {
+            return Err(Failure::input(format!(
+                "jog: the eye at ({x:.1}, {y:.1}, {z:.1}) mm is out of the arm's reach"
+            )));
+        }
+    }
+    let (devices, _sim) = super::run::devices(&cell, None)?;
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(
+        devices,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    match c.jog(speeds, p, args.rel, mandrel, Reach::default()) {
+        Ok((at, counter)) => print(&format!(
+            "robot at ({:.2}, {:.2}, {:.2}) mm; indexer counter {counter} steps\n",
+            at[0], at[1], at[2]
+        )),
+        Err(s) => Err(match s.halt {
+            Halt::Interrupted { reason } => Failure {
+                message: format!("jog interrupted ({reason})"),
+                exit_code: super::run::EXIT_INTERRUPTED,
+            },
+            Halt::Fault { message } => Failure::runtime(format!("jog: {message}")),
+        }),
+    }
+}

@@ -1,0 +1,160 @@
+//! `windcell sim-cell --pty`: the simulated cell (both simulators and their sync lines, one clock)
+//! served in real time on two pseudo-terminals, with the PC's side of the sync lines on a local
+//! socket (pseudo-terminals carry no modem lines). Prints the robot's pty, the indexer's pty and
+//! the socket, one per line.
+//!
+//! Socket protocol (one line each way, docs/file-formats.md "sim-cell sync socket"): `start 1` /
+//! `start 0` drive the start output and answer `ok`; `lines` answers
+//! `in_position <0|1> estop <0|1>`.
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use asea_protocol::clock::Clock as _;
+use asea_protocol::sim::MotionParams;
+use cell::device::{SyncLines, Timebase};
+use cell::simcell::{SimCell, SimCellConfig, SimSync};
+use clap::Args;
+use serialport::{SerialPort, TTYPort};
+
+use super::{Failure, print};
+
+/// Arguments of `windcell sim-cell`.
+#[derive(Debug, Args)]
+pub struct SimCellArgs {
+    /// Serve on new pseudo-terminals and print their paths and the sync socket.
+    #[arg(long)]
+    pub pty: bool,
+    /// Where to put the sync socket (default: a new temporary directory).
+    #[arg(long, value_name = "PATH")]
+    pub socket: Option<PathBuf>,
+    /// Log every executed instruction as a JSON line.
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// Duration of the robot's home synchronisation, seconds.
+    #[arg(long, default_value_t = MotionParams::default().home_s)]
+    pub home_s: f64,
+}
+
+fn serve_sync(stream: UnixStream, mut sync: SimSync, stop: Arc<AtomicBool>) {
+    let Ok(mut out) = stream.try_clone() else {
+        return;
+    };
+    let reader = BufReader::new(stream);
+    for line in reader.lines() {
+        let Ok(line) = line else { return };
+        if stop.load(Ordering::Relaxed) {
+            return;
+        }
+        let reply = match line.trim() {
+            "start 1" => sync.set_start(true).map(|()| "ok".to_string()),
+            "start 0" => sync.set_start(false).map(|()| "ok".to_string()),
+            "lines" => sync.in_position().and_then(|i| {
+                sync.estop()
+                    .map(|e| format!("in_position {} estop {}", u8::from(i), u8::from(e)))
+            }),
+            other => Ok(format!("? {other}")),
+        };
+        let text = reply.unwrap_or_else(|e| format!("? {e}"));
+        if writeln!(out, "{text}").is_err() {
+            return;
+        }
+    }
+}
+
+/// Runs the simulated cell until SIGINT or SIGTERM.
+pub fn run(args: SimCellArgs) -> Result<(), Failure> {
+    if !args.pty {
+        return Err(Failure::input(
+            "sim-cell: --pty is required (the cell serves on pseudo-terminals)",
+        ));
+    }
+    if !(args.home_s.is_finite() && args.home_s >= 0.0) {
+        return Err(Failure::input(format!(
+            "sim-cell: --home-s {}: expected a time ≥ 0 s",
+            args.home_s
+        )));
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone())
+            .map_err(|e| Failure::runtime(format!("sim-cell: signal handler: {e}")))?;
+    }
+    let cell = SimCell::new(&SimCellConfig {
+        robot: MotionParams {
+            home_s: args.home_s,
+            ..MotionParams::default()
+        },
+        ..SimCellConfig::default()
+    });
+    if let Some(p) = &args.log {
+        let f = std::fs::File::create(p)
+            .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?;
+        cell.log_to(f).map_err(Failure::runtime)?;
+    }
+    let pty =
+        || TTYPort::pair().map_err(|e| Failure::runtime(format!("sim-cell: pseudo-terminal: {e}")));
+    let (mut robot_master, robot_slave) = pty()?;
+    let (mut x_master, x_slave) = pty()?;
+    let name = |p: &TTYPort| {
+        p.name()
+            .ok_or_else(|| Failure::runtime("sim-cell: the pseudo-terminal has no device path"))
+    };
+    let socket = args.socket.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("windcell-sim-cell-{}.sock", std::process::id()))
+    });
+    let listener = UnixListener::bind(&socket)
+        .map_err(|e| Failure::input(format!("{}: {e}", socket.display())))?;
+    listener.set_nonblocking(true).map_err(Failure::runtime)?;
+    print(&format!(
+        "{}\n{}\n{}\n",
+        name(&robot_slave)?,
+        name(&x_slave)?,
+        socket.display()
+    ))?;
+    let mut robot_link = cell.robot_link();
+    let mut x_link = cell.indexer_link();
+    let time = cell.timebase();
+    let epoch = Instant::now();
+    let mut buf = [0u8; 256];
+    let poll = Duration::from_millis(1);
+    let result: Result<(), std::io::Error> = (|| {
+        while !stop.load(Ordering::Relaxed) {
+            if let Ok((stream, _)) = listener.accept() {
+                stream.set_nonblocking(false)?;
+                let (sync, stop) = (cell.sync_lines(), stop.clone());
+                std::thread::spawn(move || serve_sync(stream, sync, stop));
+            }
+            // Host bytes to the devices (the cell paces them at the line's baud rate).
+            let n = asea_protocol::Link::read_timeout(&mut robot_master, &mut buf, poll)?;
+            if n > 0 {
+                asea_protocol::Link::write_all(&mut robot_link, &buf[..n])?;
+            }
+            let n = mandrel_drive::Link::read_timeout(&mut x_master, &mut buf, poll)?;
+            if n > 0 {
+                mandrel_drive::Link::write_all(&mut x_link, &buf[..n])?;
+            }
+            // The cell's clock follows the wall clock.
+            let behind = epoch.elapsed().saturating_sub(cell.clock().now());
+            if !behind.is_zero() {
+                time.sleep(behind);
+            }
+            let n = asea_protocol::Link::read_timeout(&mut robot_link, &mut buf, Duration::ZERO)?;
+            if n > 0 {
+                robot_master.write_all(&buf[..n])?;
+            }
+            let n = mandrel_drive::Link::read_timeout(&mut x_link, &mut buf, Duration::ZERO)?;
+            if n > 0 {
+                x_master.write_all(&buf[..n])?;
+            }
+        }
+        Ok(())
+    })();
+    drop((robot_slave, x_slave));
+    let _ = std::fs::remove_file(&socket);
+    result.map_err(|e| Failure::runtime(format!("sim-cell: {e}")))
+}

@@ -1,0 +1,224 @@
+//! The run journal: one JSON object per line, each synced to disk before the run goes on, so that
+//! a stop, a device fault or `kill -9` leaves a record of everything confirmed
+//! (docs/file-formats.md, "Run journal").
+//!
+//! Every line carries `chain`, a 64-bit FNV-1a hash of the previous line's chain and this line's
+//! other fields: a journal edited by hand, truncated in the middle or belonging to another job is
+//! refused on `--resume` (bad input).
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+
+use serde_json::{Map, Value};
+
+/// FNV-1a, 64 bits.
+pub fn fnv1a(seed: u64, bytes: &[u8]) -> u64 {
+    let mut h = seed;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// FNV-1a's offset basis.
+pub const FNV_BASIS: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// A journal problem.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum JournalError {
+    /// The journal could not be written or read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The journal file.
+        path: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// A line is not a journal record, or its chain does not match (edited by hand).
+    #[error("{}:{line}:1: {message}", path.display())]
+    Corrupt {
+        /// The journal file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// An open journal, appending.
+#[derive(Debug)]
+pub struct Journal {
+    file: Option<File>,
+    path: PathBuf,
+    chain: u64,
+}
+
+/// The text before `,"chain":"…"}` at the end of a journal line.
+const CHAIN_KEY: &str = ",\"chain\":\"";
+
+impl Journal {
+    /// Creates (or truncates) a journal at `path`.
+    pub fn create(path: &Path) -> Result<Self, JournalError> {
+        let io = |source| JournalError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let file = File::create(path).map_err(io)?;
+        Ok(Journal {
+            file: Some(file),
+            path: path.to_path_buf(),
+            chain: FNV_BASIS,
+        })
+    }
+
+    /// Reads every record of the journal at `path`, checking the chain, and opens it for
+    /// appending after them.
+    pub fn resume(path: &Path) -> Result<(Self, Vec<Map<String, Value>>), JournalError> {
+        let records = read(path)?;
+        let chain = records
+            .last()
+            .and_then(|r| r.get("chain"))
+            .and_then(Value::as_str)
+            .and_then(|s| u64::from_str_radix(s, 16).ok())
+            .unwrap_or(FNV_BASIS);
+        let file = OpenOptions::new()
+            .append(true)
+            .open(path)
+            .map_err(|source| JournalError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        Ok((
+            Journal {
+                file: Some(file),
+                path: path.to_path_buf(),
+                chain,
+            },
+            records,
+        ))
+    }
+
+    /// A journal that keeps nothing (manual moves, `windcell jog`).
+    pub fn none() -> Self {
+        Journal {
+            file: None,
+            path: PathBuf::new(),
+            chain: FNV_BASIS,
+        }
+    }
+
+    /// The journal's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Appends `record` (a JSON object; `chain` is added) and syncs it to disk.
+    pub fn append(&mut self, record: Value) -> Result<(), JournalError> {
+        let mut map = match record {
+            Value::Object(m) => m,
+            other => {
+                let mut m = Map::new();
+                m.insert("value".into(), other);
+                m
+            }
+        };
+        map.remove("chain");
+        let body = Value::Object(map).to_string();
+        // The hash covers the text as written (a float read back need not print the same).
+        let body = body.strip_suffix('}').unwrap_or(&body);
+        let chain = fnv1a(self.chain, body.as_bytes());
+        let line = format!("{body}{CHAIN_KEY}{chain:016x}\"}}");
+        let io = |source| JournalError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        if let Some(file) = self.file.as_mut() {
+            file.write_all(format!("{line}\n").as_bytes()).map_err(io)?;
+            file.sync_data().map_err(io)?;
+        }
+        self.chain = chain;
+        Ok(())
+    }
+}
+
+/// Reads and checks every record of a journal.
+pub fn read(path: &Path) -> Result<Vec<Map<String, Value>>, JournalError> {
+    let file = File::open(path).map_err(|source| JournalError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut prev = FNV_BASIS;
+    let mut out = Vec::new();
+    for (i, line) in BufReader::new(file).lines().enumerate() {
+        let corrupt = |message: String| JournalError::Corrupt {
+            path: path.to_path_buf(),
+            line: i + 1,
+            message,
+        };
+        let line = line.map_err(|e| corrupt(e.to_string()))?;
+        if line.len() > 1 << 20 {
+            return Err(corrupt("line too long for a journal record".into()));
+        }
+        let map = match serde_json::from_str::<Value>(&line) {
+            Ok(Value::Object(m)) => m,
+            _ => return Err(corrupt("not a journal record".into())),
+        };
+        let body = line.rfind(CHAIN_KEY).map_or("", |at| &line[..at]);
+        let want = fnv1a(prev, body.as_bytes());
+        let got = map
+            .get("chain")
+            .and_then(Value::as_str)
+            .and_then(|s| u64::from_str_radix(s, 16).ok());
+        if got != Some(want) {
+            return Err(corrupt(
+                "the record's chain does not match: the journal was edited or is damaged".into(),
+            ));
+        }
+        prev = want;
+        out.push(map);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn fnv1a_matches_the_reference_vectors() {
+        // FNV-1a 64 test vectors (Fowler, Noll, Vo: "a" and "foobar").
+        assert_eq!(fnv1a(FNV_BASIS, b""), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(fnv1a(FNV_BASIS, b"a"), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(fnv1a(FNV_BASIS, b"foobar"), 0x8594_4171_f739_67e8);
+    }
+
+    #[test]
+    fn records_round_trip_and_edits_are_found() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("J.journal");
+        let mut j = Journal::create(&path).unwrap();
+        j.append(json!({"rec": "begin", "job": "abc"})).unwrap();
+        j.append(json!({"rec": "segment", "item": 0, "segment": 1}))
+            .unwrap();
+        drop(j);
+        let (mut j, recs) = Journal::resume(&path).unwrap();
+        assert_eq!(recs.len(), 2);
+        assert_eq!(recs[1]["segment"], 1);
+        j.append(json!({"rec": "segment", "item": 0, "segment": 2}))
+            .unwrap();
+        assert_eq!(read(&path).unwrap().len(), 3);
+        // One digit changed by hand.
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(&path, text.replacen("\"segment\":2", "\"segment\":3", 1)).unwrap();
+        let err = read(&path).unwrap_err();
+        assert!(
+            matches!(err, JournalError::Corrupt { line: 3, .. }),
+            "{err}"
+        );
+    }
+}

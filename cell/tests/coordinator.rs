@@ -1,0 +1,710 @@
+//! The coordinator on the simulated cell (virtual time): the App. D handshake on one start edge,
+//! whole S-bend batches in discrete, fine and medium mode, and stop + resume with the simulators'
+//! logs showing every instruction executed exactly once.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use asea_protocol::clock::Clock as _;
+use asea_protocol::sim::IN_POSITION_OUTPUT;
+use asea_protocol::{Client, ClientConfig, Instruction, State};
+use cell::batch::{self, Loaded};
+use cell::coordinator::{
+    Batch, Coordinator, Event, Halt, Reach, ResumePoint, RunMode, handshake_program, resume_point,
+};
+use cell::device::{MandrelDevice, SyncLines, XIndexer};
+use cell::journal::{self, Journal};
+use cell::simcell::{LogRecord, SimCell, SimCellConfig};
+use cell::{tool, transfer};
+use mandrel_drive::sim::Frontend;
+use mandrel_drive::sync::OPTO_DELAY_S;
+use mandrel_drive::{Drive, IndexerConfig, XClient};
+use sequences::{Job, MandrelMove};
+
+fn sbend(mode: Option<RunMode>) -> Loaded {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml");
+    let (job, text) = Job::load(&path).unwrap();
+    let plan = tool::plan(&job, &text, &path).unwrap();
+    let files = batch::files_of_job(&tool::control_files(&job, &plan).unwrap());
+    batch::from_files(&files, mode, Path::new("."), Path::new("SBEND.RUN")).unwrap()
+}
+
+fn checked(l: &Loaded) -> Batch {
+    Batch::new(
+        l.items.clone(),
+        l.mode,
+        l.job_id.clone(),
+        Drive::default(),
+        Reach::default(),
+    )
+    .unwrap()
+}
+
+/// Robot positions completed (program, instruction, target) and indexer steps completed.
+fn completed(cell: &SimCell) -> (Vec<[f64; 3]>, Vec<i64>, Vec<i64>) {
+    cell.with(|p| {
+        let mut robot = Vec::new();
+        let mut done = Vec::new();
+        let mut partial = Vec::new();
+        for r in &p.log {
+            match r {
+                LogRecord::Robot {
+                    target_mm,
+                    completed: true,
+                    ..
+                } => robot.push(*target_mm),
+                LogRecord::Indexer {
+                    steps, completed, ..
+                } => {
+                    if *completed {
+                        done.push(*steps)
+                    } else {
+                        partial.push(*steps)
+                    }
+                }
+                _ => {}
+            }
+        }
+        (robot, done, partial)
+    })
+    .unwrap()
+}
+
+fn near(a: [f64; 3], b: [f64; 3]) -> bool {
+    (0..3).all(|i| (a[i] - b[i]).abs() <= 0.05)
+}
+
+#[test]
+fn one_start_edge_starts_the_program_and_the_armed_move_within_the_opto_delay() {
+    let cell = SimCell::new(&SimCellConfig::default());
+    let clock = cell.clock().clone();
+    let mut robot = Client::with_clock(cell.robot_link(), clock.clone(), ClientConfig::default());
+    robot.operate().unwrap();
+    robot.sync_home().unwrap();
+    cell.timebase_sleep(Duration::from_secs(4));
+    assert!(robot.check_status().unwrap().homed);
+    // A three-point program from the S-bend's first path, with the handshake.
+    let l = sbend(Some(RunMode::Fine));
+    let prog = transfer::robot_program(&l.items[0].rob).unwrap();
+    let positions: Vec<Instruction> = prog.instructions[1..4].to_vec();
+    let list = handshake_program(&positions);
+    robot.set_base_speed(prog.base_speed).unwrap();
+    robot.set_max_speed(prog.max_speed).unwrap();
+    robot.upload_verified(7, &list).unwrap();
+    let drive = Drive::default();
+    let mut x = XIndexer::new(
+        XClient::new(
+            cell.indexer_link(),
+            IndexerConfig {
+                drive,
+                start_velocity_command: true,
+                device_id: false,
+                ..IndexerConfig::default()
+            },
+        ),
+        transfer::IndexerSetup {
+            drive,
+            start_velocity_command: true,
+        },
+    );
+    let mut sync = cell.sync_lines();
+    robot.run_program(7).unwrap();
+    cell.timebase_sleep(Duration::from_millis(20));
+    // The program lowered "in position" and waits for the start input.
+    assert!(!sync.in_position().unwrap());
+    let waiting = cell.with(|p| p.robot.machine.status()).unwrap();
+    assert_eq!((waiting.state, waiting.instruction), (State::Running, 2));
+    x.start_move(
+        &MandrelMove {
+            accel_rps2: 1.0,
+            start_stop_rps: 0.05,
+            max_rps: 0.1,
+            steps: -200,
+        },
+        true,
+    )
+    .unwrap();
+    cell.timebase_sleep(Duration::from_millis(50));
+    assert!(!cell.with(|p| p.card.machine().is_moving()).unwrap());
+    let robot_pose = cell.with(|p| p.robot.machine.pose().xyz_mm).unwrap();
+    // One edge.
+    let t0 = clock.now_s();
+    sync.set_start(true).unwrap();
+    let (mut robot_start, mut indexer_start) = (None, None);
+    let step = Duration::from_micros(2);
+    for _ in 0..200 {
+        cell.timebase_sleep(step);
+        let (pose, moving, instr) = cell
+            .with(|p| {
+                (
+                    p.robot.machine.pose().xyz_mm,
+                    p.card.machine().is_moving(),
+                    p.robot.machine.status().instruction,
+                )
+            })
+            .unwrap();
+        let t = clock.now_s();
+        if robot_start.is_none() && (pose != robot_pose || instr > 2) {
+            robot_start = Some(t);
+        }
+        if indexer_start.is_none() && moving {
+            indexer_start = Some(t);
+        }
+    }
+    let (r, i) = (robot_start.unwrap() - t0, indexer_start.unwrap() - t0);
+    assert!(
+        (OPTO_DELAY_S..=OPTO_DELAY_S + 5e-6).contains(&r),
+        "robot began {r} s after the edge"
+    );
+    assert!(
+        (OPTO_DELAY_S..=OPTO_DELAY_S + 5e-6).contains(&i),
+        "indexer began {i} s after the edge"
+    );
+    // In position rises only at the last point.
+    let last = positions.len() as u16 + 2;
+    loop {
+        let (instr, state, out) = cell
+            .with(|p| {
+                let s = p.robot.machine.status();
+                (
+                    s.instruction,
+                    s.state,
+                    p.robot.machine.io().output(IN_POSITION_OUTPUT),
+                )
+            })
+            .unwrap();
+        assert!(
+            !out || instr > last,
+            "in position raised at instruction {instr}"
+        );
+        if state == State::Idle {
+            assert!(out);
+            break;
+        }
+        cell.timebase_sleep(Duration::from_millis(1));
+        assert!(clock.now_s() < t0 + 60.0, "program never ended");
+    }
+}
+
+/// Runs `batch` on `cell` from `from` with a journal at `path`; `stop_after` segment or program
+/// events sets the stop request.
+fn wind(
+    cell: &SimCell,
+    b: &Batch,
+    journal: Journal,
+    from: &ResumePoint,
+    fresh: bool,
+    stop_after: Option<usize>,
+) -> Result<Vec<Event>, cell::coordinator::Stopped> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut events = Vec::new();
+    let flag = stop.clone();
+    let mut sink = |e: Event| {
+        if matches!(
+            e,
+            Event::Segment { .. } | Event::Program { done: false, .. }
+        ) {
+            let n = events
+                .iter()
+                .filter(|e| {
+                    matches!(
+                        e,
+                        Event::Segment { .. } | Event::Program { done: false, .. }
+                    )
+                })
+                .count()
+                + 1;
+            if stop_after == Some(n) {
+                flag.store(true, Ordering::Relaxed);
+            }
+        }
+        events.push(e);
+    };
+    let mut c = Coordinator::new(cell.devices(Drive::default()), stop, journal, &mut sink);
+    c.run(b, from, fresh, false, false)?;
+    drop(c);
+    Ok(events)
+}
+
+fn expected_targets(b: &Batch) -> Vec<[f64; 3]> {
+    b.items
+        .iter()
+        .flat_map(|i| i.rob.instructions.iter().map(|n| n.position_mm))
+        .collect()
+}
+
+/// Every planned target reached exactly once, in order (robot moves of zero length excepted:
+/// the first point of a path in program mode is the approach's target).
+fn check_each_once(cell: &SimCell, b: &Batch) {
+    let (robot, _, _) = completed(cell);
+    let want = expected_targets(b);
+    let firsts: Vec<[f64; 3]> = b
+        .items
+        .iter()
+        .map(|i| i.rob.instructions[0].position_mm)
+        .collect();
+    let mut k = 0;
+    let mut prev: Option<[f64; 3]> = None;
+    for t in &robot {
+        // A path's first point: the approach (an immediate move) and the program's first
+        // instruction (no motion) both reach it.
+        let approach = prev.is_some_and(|p| near(p, *t)) && firsts.iter().any(|f| near(*f, *t));
+        prev = Some(*t);
+        if approach {
+            continue;
+        }
+        if k < want.len() && near(*t, want[k]) {
+            k += 1;
+        } else {
+            assert!(
+                k > 0 && near(*t, want[k - 1]),
+                "robot target {t:?} out of order (expected {:?})",
+                want.get(k)
+            );
+            panic!("target {t:?} reached twice");
+        }
+    }
+    assert_eq!(k, want.len(), "not every target reached");
+}
+
+#[test]
+fn discrete_batch_winds_every_segment_once_and_resumes_after_a_stop() {
+    let l = sbend(Some(RunMode::Discrete));
+    let b = checked(&l);
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("SBEND.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let stopped = wind(
+        &cell,
+        &b,
+        Journal::create(&jp).unwrap(),
+        &ResumePoint::default(),
+        true,
+        Some(30),
+    )
+    .unwrap_err();
+    assert!(matches!(stopped.halt, Halt::Interrupted { .. }));
+    assert_eq!((stopped.item, stopped.segments_done), (1, 30));
+    // Both axes stopped.
+    let (r, m) = cell
+        .with(|p| (p.robot.machine.status().state, p.card.machine().is_moving()))
+        .unwrap();
+    // STOP leaves the robot in its own STOPPED state (not idle, not in position).
+    assert_eq!(r, State::Stopped);
+    cell.timebase_sleep(Duration::from_secs(2));
+    assert!(!m || !cell.with(|p| p.card.machine().is_moving()).unwrap());
+    let (journal, records) = Journal::resume(&jp).unwrap();
+    let from = resume_point(&b, &records).unwrap();
+    assert_eq!(from.segments_done, 30);
+    let events = wind(&cell, &b, journal, &from, false, None).unwrap();
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, Event::PathDone { item: 2, .. }))
+    );
+    // The robot's log: every instruction completed once, in order; the mandrel's steps add up.
+    let want: Vec<[f64; 3]> = expected_targets(&b);
+    let (robot, _, _) = completed(&cell);
+    // Discrete moves of zero length are not sent: count distinct consecutive targets.
+    let mut k = 0;
+    for t in &robot {
+        while k < want.len() && !near(*t, want[k]) {
+            // A target equal to the previous one needs no move.
+            assert!(
+                k > 0 && near(want[k], want[k - 1]),
+                "target {:?} skipped",
+                want[k]
+            );
+            k += 1;
+        }
+        assert!(k < want.len(), "extra robot move to {t:?}");
+        k += 1;
+    }
+    assert_eq!(k, want.len());
+    let counter = cell.with(|p| p.card.machine().counter_steps()).unwrap();
+    let total: i64 = b
+        .items
+        .iter()
+        .map(|i| {
+            i.rob
+                .instructions
+                .iter()
+                .map(|n| n.mandrel.steps)
+                .sum::<i64>()
+        })
+        .sum();
+    // Counter = syncs + every segment's steps; the journal knows the syncs.
+    let recs = journal::read(&jp).unwrap();
+    let syncs: Vec<i64> = recs
+        .iter()
+        .filter(|r| r["rec"] == "sync")
+        .map(|r| r["counter"].as_i64().unwrap())
+        .collect();
+    assert_eq!(syncs.len(), 2);
+    let path2: i64 = b.items[1]
+        .rob
+        .instructions
+        .iter()
+        .map(|n| n.mandrel.steps)
+        .sum();
+    assert_eq!(counter, syncs[1] + path2, "total {total}");
+}
+
+/// Sync lines that press "stop" `polls` in-position polls after the start edge.
+#[derive(Debug)]
+struct StopMidProgram {
+    inner: Box<dyn SyncLines>,
+    left: Option<i64>,
+    polls: i64,
+    flag: Arc<AtomicBool>,
+}
+
+impl SyncLines for StopMidProgram {
+    fn set_start(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        if on && self.left.is_none() {
+            self.left = Some(self.polls);
+        }
+        self.inner.set_start(on)
+    }
+    fn in_position(&mut self) -> cell::device::DeviceResult<bool> {
+        if let Some(n) = self.left.as_mut() {
+            *n -= 1;
+            if *n == 0 {
+                self.flag.store(true, Ordering::Relaxed);
+            }
+        }
+        self.inner.in_position()
+    }
+    fn estop(&mut self) -> cell::device::DeviceResult<bool> {
+        self.inner.estop()
+    }
+}
+
+#[test]
+fn fine_and_medium_batches_run_with_the_handshake_and_resume_after_a_stop_mid_program() {
+    for mode in [RunMode::Fine, RunMode::Medium] {
+        let l = sbend(Some(mode));
+        let b = checked(&l);
+        let dir = tempfile::tempdir().unwrap();
+        let jp = dir.path().join("SBEND.journal");
+        // Whole batch.
+        let cell = SimCell::new(&SimCellConfig::default());
+        wind(
+            &cell,
+            &b,
+            Journal::create(&jp).unwrap(),
+            &ResumePoint::default(),
+            true,
+            None,
+        )
+        .unwrap();
+        check_each_once(&cell, &b);
+        let t = cell.clock().now_s();
+        assert!(t < 120.0, "{mode:?}: {t} s of cell time");
+        // Stopped 8 s into the first program, then resumed with the remaining instructions.
+        let cell = SimCell::new(&SimCellConfig::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut d = cell.devices(Drive::default());
+        d.sync = Box::new(StopMidProgram {
+            inner: d.sync,
+            left: None,
+            polls: 800,
+            flag: stop.clone(),
+        });
+        let mut sink = |_e: Event| {};
+        let mut c = Coordinator::new(d, stop, Journal::create(&jp).unwrap(), &mut sink);
+        let stopped = c
+            .run(&b, &ResumePoint::default(), true, false, false)
+            .unwrap_err();
+        drop(c);
+        assert!(matches!(stopped.halt, Halt::Interrupted { .. }));
+        assert!(stopped.stop_errors.is_empty());
+        let (state, instruction) = cell
+            .with(|p| {
+                let s = p.robot.machine.status();
+                (s.state, s.instruction)
+            })
+            .unwrap();
+        assert_ne!(state, State::Running);
+        assert!(instruction > 10, "stopped at instruction {instruction}");
+        resume(&cell, &b, &jp);
+        check_each_once(&cell, &b);
+        let recs = journal::read(&jp).unwrap();
+        assert!(recs.iter().any(|r| r["rec"] == "resume_program"));
+    }
+}
+
+trait Sleep {
+    fn timebase_sleep(&self, dt: Duration);
+}
+
+impl Sleep for SimCell {
+    fn timebase_sleep(&self, dt: Duration) {
+        use cell::device::Timebase;
+        self.timebase().sleep(dt);
+    }
+}
+
+/// A device seen through a PC that can die (`kill -9`): after `left` more calls every call fails
+/// without reaching the device, stop commands included, so the devices run on by themselves.
+#[derive(Debug, Clone)]
+struct Life(Arc<std::sync::atomic::AtomicI64>);
+
+impl Life {
+    fn new() -> Self {
+        Life(Arc::new(std::sync::atomic::AtomicI64::new(i64::MAX)))
+    }
+    fn die_after(&self, calls: i64) {
+        self.0.store(calls, Ordering::Relaxed);
+    }
+    fn alive(&self) -> Result<(), cell::device::DeviceError> {
+        if self.0.fetch_sub(1, Ordering::Relaxed) <= 0 {
+            return Err(cell::device::DeviceError::RobotState {
+                what: "the coordinator process is gone".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+struct Mortal<T> {
+    inner: T,
+    life: Life,
+}
+
+impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
+    fn state(&mut self) -> cell::device::DeviceResult<cell::device::RobotState> {
+        self.life.alive()?;
+        self.inner.state()
+    }
+    fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
+        self.life.alive()?;
+        self.inner.position_mm()
+    }
+    fn set_speeds(
+        &mut self,
+        b: asea_protocol::Speed,
+        m: asea_protocol::Speed,
+    ) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.set_speeds(b, m)
+    }
+    fn set_operate(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.set_operate(on)
+    }
+    fn start_home(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.start_home()
+    }
+    fn move_immediate(&mut self, p: asea_protocol::Positioning) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.move_immediate(p)
+    }
+    fn delete_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.delete_program(p)
+    }
+    fn upload(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.upload(p, i)
+    }
+    fn read_back(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.read_back(p, i)
+    }
+    fn run_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.run_program(p)
+    }
+    fn stop(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.stop()
+    }
+}
+
+impl MandrelDevice for Mortal<Box<dyn MandrelDevice>> {
+    fn attach(&mut self) -> cell::device::DeviceResult<i64> {
+        self.life.alive()?;
+        self.inner.attach()
+    }
+    fn zero(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.zero()
+    }
+    fn start_move(&mut self, mv: &MandrelMove, armed: bool) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.start_move(mv, armed)
+    }
+    fn busy(&mut self) -> cell::device::DeviceResult<(bool, bool)> {
+        self.life.alive()?;
+        self.inner.busy()
+    }
+    fn counter_steps(&mut self) -> cell::device::DeviceResult<i64> {
+        self.life.alive()?;
+        self.inner.counter_steps()
+    }
+    fn move_steps(&mut self) -> cell::device::DeviceResult<i64> {
+        self.life.alive()?;
+        self.inner.move_steps()
+    }
+    fn stop(&mut self) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.stop()
+    }
+}
+
+/// Winds until the PC "dies" `calls` device calls after the `at`-th segment or program event;
+/// nothing stops the devices.
+fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, calls: i64) {
+    let life = Life::new();
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Mortal {
+            inner: d.robot,
+            life: life.clone(),
+        }),
+        mandrel: Box::new(Mortal {
+            inner: d.mandrel,
+            life: life.clone(),
+        }),
+        sync: d.sync,
+        time: d.time,
+    };
+    let mut n = 0;
+    let l2 = life.clone();
+    let mut sink = |e: Event| {
+        if matches!(
+            e,
+            Event::Segment { .. } | Event::Program { done: false, .. }
+        ) {
+            n += 1;
+            if n == at {
+                l2.die_after(calls);
+            }
+        }
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut c = Coordinator::new(dev, stop, Journal::create(jp).unwrap(), &mut sink);
+    let r = c.run(b, &ResumePoint::default(), true, false, false);
+    let stopped = r.unwrap_err();
+    assert!(matches!(stopped.halt, Halt::Fault { .. }), "{stopped:?}");
+}
+
+fn resume(cell: &SimCell, b: &Batch, jp: &Path) {
+    let (journal, records) = Journal::resume(jp).unwrap();
+    let from = resume_point(b, &records).unwrap();
+    wind(cell, b, journal, &from, false, None).unwrap();
+}
+
+#[test]
+fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
+    for (mode, at, calls) in [
+        (RunMode::Discrete, 20, 3),
+        (RunMode::Fine, 1, 12),
+        (RunMode::Medium, 2, 40),
+    ] {
+        let b = checked(&sbend(Some(mode)));
+        let dir = tempfile::tempdir().unwrap();
+        let jp = dir.path().join("J.journal");
+        let cell = SimCell::new(&SimCellConfig::default());
+        wind_until_killed(&cell, &b, &jp, at, calls);
+        // Nobody stops the devices: a stored program runs to its end, the indexer finishes.
+        cell.timebase_sleep(Duration::from_secs(60));
+        resume(&cell, &b, &jp);
+        check_each_once(&cell, &b);
+        let (_, _, partial) = completed(&cell);
+        assert!(
+            partial.is_empty(),
+            "{mode:?}: a mandrel move was cut: {partial:?}"
+        );
+    }
+}
+
+#[test]
+fn a_robot_that_stops_answering_stops_the_indexer_and_resume_completes() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let c2 = cell.clone();
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut n = 0;
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            n += 1;
+            if n == 12 {
+                c2.with(|p| p.robot_silent = true).unwrap();
+            }
+        }
+    };
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        stop,
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    let stopped = c
+        .run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    let Halt::Fault { message } = &stopped.halt else {
+        panic!("{stopped:?}")
+    };
+    assert!(message.starts_with("robot:"), "{message}");
+    assert_eq!(stopped.segments_done, 12);
+    // The indexer was told to stop (its stop went through; the robot's could not).
+    assert_eq!(stopped.stop_errors.len(), 1, "{:?}", stopped.stop_errors);
+    cell.timebase_sleep(Duration::from_secs(5));
+    assert!(!cell.with(|p| p.card.machine().is_moving()).unwrap());
+    cell.with(|p| p.robot_silent = false).unwrap();
+    resume(&cell, &b, &jp);
+    let (robot, _, _) = completed(&cell);
+    assert_eq!(robot.len(), expected_targets(&b).len());
+}
+
+#[test]
+fn an_indexer_stall_stops_the_robot_and_resume_completes() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let c2 = cell.clone();
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut n = 0;
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            n += 1;
+            if n == 7 {
+                // The motor can no longer pull in at the start/stop velocity.
+                c2.with(|p| p.card.machine.pull_in_sps = 1.0).unwrap();
+            }
+        }
+    };
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        stop,
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    let stopped = c
+        .run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    let Halt::Fault { message } = &stopped.halt else {
+        panic!("{stopped:?}")
+    };
+    assert!(message.contains("stall"), "{message}");
+    assert!(stopped.stop_errors.is_empty());
+    assert_ne!(
+        cell.with(|p| p.robot.machine.status().state).unwrap(),
+        State::Running
+    );
+    cell.with(|p| p.card.machine.pull_in_sps = mandrel_drive::sim::machine::PULL_IN_SPS)
+        .unwrap();
+    resume(&cell, &b, &jp);
+    let recs = journal::read(&jp).unwrap();
+    assert_eq!(recs.last().unwrap()["rec"], "done");
+}

@@ -1,0 +1,252 @@
+//! `windcell run` from the command line on the built-in simulated cell: the three modes, the
+//! console's stop and `--resume`, `--json` events, and each kind of bad input (one line, exit 2,
+//! nothing sent).
+
+mod common;
+
+use std::io::Write;
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use common::{example, stderr, windcell};
+
+fn plan_sbend(dir: &Path) {
+    let o = windcell(&[
+        "plan",
+        example("sbend.toml").to_str().unwrap(),
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+fn run(args: &[&str]) -> std::process::Output {
+    let mut all = vec!["run"];
+    all.extend_from_slice(args);
+    windcell(&all)
+}
+
+#[test]
+fn json_events_of_a_fine_run_from_a_sequence() {
+    let dir = tempfile::tempdir().unwrap();
+    plan_sbend(dir.path());
+    let seq = dir.path().join("SBEND.SEQ");
+    let log = dir.path().join("cell.log");
+    let o = run(&[
+        seq.to_str().unwrap(),
+        "--json",
+        "--log",
+        log.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let events: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let kinds: Vec<&str> = events
+        .iter()
+        .map(|e| e["event"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            "started", "program", "program", "program", "program", "done"
+        ]
+    );
+    assert_eq!(events[0]["mode"], "fine");
+    assert!(
+        events[0]["journal"]
+            .as_str()
+            .unwrap()
+            .ends_with("SBEND.journal")
+    );
+    let paths = events[5]["paths"].as_array().unwrap();
+    assert_eq!(paths.len(), 2);
+    assert_eq!(paths[1]["name"], "SBEND_2");
+    // The simulators' log: 51 + 51 robot instructions of the two programs, completed.
+    let text = std::fs::read_to_string(&log).unwrap();
+    let program_instructions = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|r| r["device"] == "robot" && r["program"] != 0 && r["completed"] == true)
+        .count();
+    assert_eq!(program_instructions, 102);
+}
+
+#[test]
+fn the_console_stop_then_resume_finishes_the_batch() {
+    let dir = tempfile::tempdir().unwrap();
+    plan_sbend(dir.path());
+    let seq = dir.path().join("SBEND.SEQ");
+    let journal = dir.path().join("SBEND.journal");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args(["run", seq.to_str().unwrap(), "--mode", "discrete"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(b"s\n").unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("stopped at path 1 (SBEND_1)"), "{err}");
+    assert!(err.contains("the console's stop"), "{err}");
+    assert!(err.contains("--resume"), "{err}");
+    let o = run(&[
+        seq.to_str().unwrap(),
+        "--mode",
+        "discrete",
+        "--resume",
+        journal.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("batch done: 2 paths"));
+    // Done is done.
+    let o = run(&[
+        seq.to_str().unwrap(),
+        "--mode",
+        "discrete",
+        "--resume",
+        journal.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+fn bad(args: &[&str], expect: &str) {
+    let o = run(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains(expect), "{args:?}: {err}");
+    assert!(o.stdout.is_empty(), "{args:?}: something was run");
+}
+
+#[test]
+fn bad_input_is_one_line_and_exit_code_2_before_anything_is_sent() {
+    let dir = tempfile::tempdir().unwrap();
+    plan_sbend(dir.path());
+    let d = dir.path();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    // A control file named in the sequence that is missing.
+    std::fs::write(d.join("MISS.SEQ"), "SBEND_1\nSBEND_9\n").unwrap();
+    bad(&[&p("MISS.SEQ"), "--mode", "discrete"], "SBEND_9.ROB");
+    // A program in the run file that the sequence does not load.
+    std::fs::write(d.join("R.RUN"), "1\n7\n").unwrap();
+    bad(
+        &[&p("SBEND.SEQ"), "--run", &p("R.RUN")],
+        "R.RUN:2:1: program 7 is not loaded by the sequence",
+    );
+    // A batch over the robot's memory: nine 51-point programs.
+    let rob = std::fs::read_to_string(d.join("SBEND_1.ROB")).unwrap();
+    let ind = std::fs::read_to_string(d.join("SBEND_1.IND")).unwrap();
+    let mut seq = String::new();
+    let mut runf = String::new();
+    for k in 1..=9 {
+        std::fs::write(
+            d.join(format!("BIG_{k}.ROB")),
+            rob.replace("program 1\n", &format!("program {k}\n")),
+        )
+        .unwrap();
+        std::fs::write(d.join(format!("BIG_{k}.IND")), &ind).unwrap();
+        seq += &format!("BIG_{k}\n");
+        runf += &format!("{k}\n");
+    }
+    std::fs::write(d.join("BIG.SEQ"), seq).unwrap();
+    std::fs::write(d.join("BIG.RUN"), runf).unwrap();
+    bad(&[&p("BIG.SEQ")], "memory units of the robot's 9400");
+    // An instruction the arm cannot reach.
+    let far: String = rob
+        .lines()
+        .map(|l| {
+            let words: Vec<&str> = l
+                .split(' ')
+                .map(|w| {
+                    if l.starts_with("instr 1 ") && w.starts_with("pos_mm=") {
+                        "pos_mm=1700,0,500"
+                    } else {
+                        w
+                    }
+                })
+                .collect();
+            words.join(" ") + "\n"
+        })
+        .collect();
+    std::fs::create_dir(d.join("far")).unwrap();
+    std::fs::write(d.join("far/FAR_1.ROB"), far).unwrap();
+    std::fs::write(d.join("far/FAR.SEQ"), "FAR_1\n").unwrap();
+    bad(
+        &[&p("far/FAR.SEQ"), "--mode", "discrete"],
+        "out of the arm's reach",
+    );
+    // A port that does not exist.
+    std::fs::write(
+        d.join("cell.toml"),
+        "[ports]\nrobot = \"/dev/windcell-none-r\"\nindexer = \"/dev/windcell-none-i\"\nsync = \"/dev/windcell-none-s\"\n",
+    )
+    .unwrap();
+    bad(
+        &[&p("SBEND.SEQ"), "--cell", &p("cell.toml")],
+        "/dev/windcell-none-r",
+    );
+    // --resume with no journal.
+    bad(
+        &[&p("SBEND.SEQ"), "--resume", &p("none.journal")],
+        "no such journal",
+    );
+    // A journal from another job, and one edited by hand.
+    let j = d.join("other.journal");
+    let mut w = cell::journal::Journal::create(&j).unwrap();
+    w.append(serde_json::json!({"rec": "begin", "job": "0123456789abcdef", "mode": "fine"}))
+        .unwrap();
+    drop(w);
+    bad(
+        &[&p("SBEND.SEQ"), "--resume", j.to_str().unwrap()],
+        "belongs to another job",
+    );
+    let text = std::fs::read_to_string(&j).unwrap();
+    std::fs::write(&j, text.replace("fine", "fast")).unwrap();
+    bad(
+        &[&p("SBEND.SEQ"), "--resume", j.to_str().unwrap()],
+        "other.journal:1:1: the record's chain does not match",
+    );
+}
+
+#[test]
+fn jog_moves_robot_and_mandrel_together_with_the_limit_checks() {
+    let o = windcell(&["jog", "--pos", "900,0,800", "--steps", "200"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        String::from_utf8_lossy(&o.stdout),
+        "robot at (900.00, 0.00, 800.00) mm; indexer counter 200 steps\n"
+    );
+    // Relative to the powered-up robot's home pose (900, 0, 800) mm.
+    let o = windcell(&["jog", "--pos", "0,-50,-100", "--rel", "--pitch-deg", "30"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).starts_with("robot at (900.00, -50.00, 700.00) mm"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    for (args, expect) in [
+        (vec!["jog", "--pos", "1700,0,500"], "out of the arm's reach"),
+        (vec!["jog", "--pos", "900,0"], "--pos needs X,Y,Z"),
+        (
+            vec![
+                "jog",
+                "--pos",
+                "900,0,800",
+                "--steps",
+                "10",
+                "--max-rps",
+                "20",
+            ],
+            "exceeds the translator limit",
+        ),
+    ] {
+        let o = windcell(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expect), "{args:?}: {}", stderr(&o));
+    }
+}

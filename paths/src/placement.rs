@@ -1,0 +1,694 @@
+//! Where the fibre lands: the placement model behind the prediction of a winding's error (seed 001
+//! §6.2, the "bow" between the desired and the wound path).
+//!
+//! The planner works forwards: for a desired surface point it finds the mandrel angle at which the
+//! robot sees the point on the tangent (eq 3.7) and puts the eye on the tow line (eqs 3.8–3.14).
+//! This module works backwards: given where the eye really is and how the mandrel really turns over
+//! time, it finds where the fibre touches the mandrel. The laid path is the locus of those contact
+//! points, in the mandrel frame.
+//!
+//! # The contact model
+//! The free fibre runs straight from the contact point `C` on the surface to the eye `E`
+//! (both in the mandrel frame) and leaves the surface tangentially: `(E − C)·n(C) = 0`, `n` the
+//! outward normal. The fibre does not slip on the resin-wet surface, so the laid fibre at `C` points
+//! along the free fibre: the contact moves along `d = E − C`, `Ċ = λ d`. Differentiating the
+//! tangency condition, with `W = ∂n/∂C` the shape operator and `Ċ·n = 0`:
+//!
+//! ```text
+//! Ė·n + λ dᵀ W d = 0    ⇒    λ = −Ė·n / (dᵀ W d)
+//! ```
+//!
+//! `dᵀ W d = −II(d)` is the normal curvature along `d` times `|d|²` (positive on a convex
+//! surface). When `λ` would be negative the eye is moving out of the tangent plane: the fibre
+//! would have to unwind, but laid fibre sticks to the resin, so the contact stays where it is and
+//! the free fibre pivots about it until the eye comes back to the tangent plane (`(E − C)·n ≤ 0`).
+//!
+//! On an analytic tube ([`Tube`]) the contact is integrated in the surface parameters `(u, v)` by
+//! fourth-order Runge–Kutta, and after each step it is put back onto the tangency condition by one
+//! Newton step along `d`, so the integration cannot drift off the silhouette.
+//!
+//! # Frames
+//! Everything here is in the **mandrel frame** ([`crate::mandrel`]). [`to_mandrel_frame`] turns a
+//! cell-frame eye position and velocity and the mandrel angle and rate into mandrel-frame ones,
+//! with the cell frame of [`crate::plan`]: `p_cell = origin + R_z(φ) p_mandrel`.
+
+use nalgebra::{Matrix2, Point3, Vector2, Vector3};
+
+use crate::mesh::trace::Tracer;
+use crate::{Error, Tube};
+
+/// The eye's position and velocity in the mandrel frame at time `t_s`.
+pub trait EyeTrack {
+    /// Eye position (mm) and velocity (mm/s), mandrel frame, at `t_s`.
+    fn at(&self, t_s: f64) -> (Point3<f64>, Vector3<f64>);
+}
+
+impl<F: Fn(f64) -> (Point3<f64>, Vector3<f64>)> EyeTrack for F {
+    fn at(&self, t_s: f64) -> (Point3<f64>, Vector3<f64>) {
+        self(t_s)
+    }
+}
+
+/// Turns an eye position and velocity in the cell frame, and the mandrel angle `phi_rad` and its
+/// rate `phi_rate_rad_s`, into the mandrel frame: `p_m = R_z(−φ)(p − origin)`,
+/// `ṗ_m = R_z(−φ) ṗ − φ̇ ẑ × p_m`.
+pub fn to_mandrel_frame(
+    origin_mm: &Vector3<f64>,
+    eye_mm: &Point3<f64>,
+    eye_velocity_mm_s: &Vector3<f64>,
+    phi_rad: f64,
+    phi_rate_rad_s: f64,
+) -> (Point3<f64>, Vector3<f64>) {
+    let (s, c) = phi_rad.sin_cos();
+    let rel = eye_mm - origin_mm;
+    let p = Point3::new(c * rel.x + s * rel.y, -s * rel.x + c * rel.y, rel.z);
+    let v = eye_velocity_mm_s;
+    let v_rot = Vector3::new(c * v.x + s * v.y, -s * v.x + c * v.y, v.z);
+    let v_m = v_rot - Vector3::new(-p.y, p.x, 0.0) * phi_rate_rad_s;
+    (p, v_m)
+}
+
+/// Whether the fibre is being laid or pivots about its last contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactState {
+    /// The free fibre is tangent at the contact, which moves along the surface.
+    Wrapping,
+    /// The eye has left the tangent plane: the contact stays, the free fibre pivots about it.
+    Pivoting,
+}
+
+/// The fibre's contact with an analytic tube, advanced in time.
+#[derive(Debug, Clone)]
+pub struct TubeContact<'a> {
+    tube: &'a Tube,
+    u: f64,
+    v: f64,
+    t_s: f64,
+    state: ContactState,
+}
+
+/// Contact geometry at one `(u, v)` for an eye at `e` moving at `e_dot`.
+struct Local {
+    /// `(u̇, v̇)` while wrapping, before the `λ ≥ 0` rule.
+    rate_per_lambda: Vector2<f64>,
+    /// `λ` of the module doc (may be negative).
+    lambda: f64,
+    /// Tangency residual `(E − C)·n`, mm.
+    residual_mm: f64,
+    /// `dᵀ W d`, the curvature term, mm.
+    curvature_mm: f64,
+}
+
+impl<'a> TubeContact<'a> {
+    /// Starts at surface parameters `(u, v)` (height of the spine point and angle around it, see
+    /// [`crate::mandrel`]) at time `t_s`, wrapping.
+    pub fn new(tube: &'a Tube, u: f64, v: f64, t_s: f64) -> Self {
+        TubeContact {
+            tube,
+            u,
+            v,
+            t_s,
+            state: ContactState::Wrapping,
+        }
+    }
+
+    /// The contact point, mandrel frame.
+    pub fn point(&self) -> Point3<f64> {
+        self.tube.point(self.u, self.v)
+    }
+
+    /// The surface parameters `(u, v)` of the contact.
+    pub fn parameters(&self) -> (f64, f64) {
+        (self.u, self.v)
+    }
+
+    /// The time the contact was last advanced to, s.
+    pub fn time_s(&self) -> f64 {
+        self.t_s
+    }
+
+    /// Whether the fibre is being laid or pivoting.
+    pub fn state(&self) -> ContactState {
+        self.state
+    }
+
+    fn local(&self, u: f64, v: f64, e: &Point3<f64>, e_dot: &Vector3<f64>) -> Result<Local, Error> {
+        let x = self.tube.point(u, v);
+        let n = self.tube.normal(u, v);
+        let dv = self.tube.derivatives(u, v);
+        let d = e - x;
+        let residual_mm = d.dot(&n);
+        let dt = d - n * residual_mm;
+        let first = Matrix2::new(
+            dv.xu.dot(&dv.xu),
+            dv.xu.dot(&dv.xv),
+            dv.xu.dot(&dv.xv),
+            dv.xv.dot(&dv.xv),
+        );
+        let ab = first
+            .try_inverse()
+            .map(|inv| inv * Vector2::new(dt.dot(&dv.xu), dt.dot(&dv.xv)))
+            .ok_or(Error::ContactUndefined {
+                height_mm: u,
+                reason: "the surface parametrisation is singular",
+            })?;
+        let (a, b) = (ab.x, ab.y);
+        let second = a * a * dv.xuu.dot(&n) + 2.0 * a * b * dv.xuv.dot(&n) + b * b * dv.xvv.dot(&n);
+        let curvature_mm = -second;
+        if curvature_mm <= 1e-12 * dt.norm_squared().max(1e-300) {
+            return Err(Error::ContactUndefined {
+                height_mm: u,
+                reason: "the free fibre runs along a flat or concave direction (it would bridge)",
+            });
+        }
+        Ok(Local {
+            rate_per_lambda: ab,
+            lambda: -e_dot.dot(&n) / curvature_mm,
+            residual_mm,
+            curvature_mm,
+        })
+    }
+
+    /// `(u̇, v̇)` at `(u, v)`, time `t`, under the current state.
+    fn rate(&self, eye: &impl EyeTrack, t: f64, u: f64, v: f64) -> Result<Vector2<f64>, Error> {
+        if self.state == ContactState::Pivoting {
+            return Ok(Vector2::zeros());
+        }
+        let (e, e_dot) = eye.at(t);
+        let l = self.local(u, v, &e, &e_dot)?;
+        Ok(l.rate_per_lambda * l.lambda.max(0.0))
+    }
+
+    /// Advances the contact to `t_end_s` in steps of at most `max_step_s`, returning the contact
+    /// point. Refuses a contact that leaves the tube's ends (`u` outside the spine's range).
+    pub fn advance(
+        &mut self,
+        eye: &impl EyeTrack,
+        t_end_s: f64,
+        max_step_s: f64,
+    ) -> Result<Point3<f64>, Error> {
+        if max_step_s.is_nan() || max_step_s <= 0.0 || !t_end_s.is_finite() {
+            return Err(Error::OutOfRange {
+                name: "max_step_s",
+                value: max_step_s,
+                expected: "must be > 0 with a finite end time",
+            });
+        }
+        let span = t_end_s - self.t_s;
+        if span <= 0.0 {
+            return Ok(self.point());
+        }
+        let steps = (span / max_step_s).ceil().max(1.0);
+        if steps > MAX_STEPS_PER_ADVANCE {
+            return Err(Error::OutOfRange {
+                name: "placement steps",
+                value: steps,
+                expected: "at most 10 000 000 per call (a larger max_step_s)",
+            });
+        }
+        let h = span / steps;
+        for _ in 0..steps as usize {
+            self.step(eye, h)?;
+        }
+        Ok(self.point())
+    }
+
+    fn step(&mut self, eye: &impl EyeTrack, h: f64) -> Result<(), Error> {
+        let t = self.t_s;
+        // The state for this step: pivot while the eye is outside the tangent plane or moving out
+        // of it; wrap otherwise.
+        let (e, e_dot) = eye.at(t);
+        let here = self.local(self.u, self.v, &e, &e_dot)?;
+        self.state = if here.residual_mm > TANGENCY_TOLERANCE_MM
+            || (here.lambda < 0.0 && here.residual_mm >= -TANGENCY_TOLERANCE_MM)
+        {
+            ContactState::Pivoting
+        } else {
+            ContactState::Wrapping
+        };
+        let (u, v) = (self.u, self.v);
+        let k1 = self.rate(eye, t, u, v)?;
+        let k2 = self.rate(eye, t + 0.5 * h, u + 0.5 * h * k1.x, v + 0.5 * h * k1.y)?;
+        let k3 = self.rate(eye, t + 0.5 * h, u + 0.5 * h * k2.x, v + 0.5 * h * k2.y)?;
+        let k4 = self.rate(eye, t + h, u + h * k3.x, v + h * k3.y)?;
+        let du = (k1 + 2.0 * k2 + 2.0 * k3 + k4) * (h / 6.0);
+        self.u += du.x;
+        self.v += du.y;
+        self.t_s = t + h;
+        // Back onto the tangency condition: one Newton step along the free fibre, forwards only
+        // while pivoting (the laid fibre never unwinds).
+        let (e, e_dot) = eye.at(self.t_s);
+        let l = self.local(self.u, self.v, &e, &e_dot)?;
+        if self.state == ContactState::Wrapping || l.residual_mm < 0.0 {
+            let correction = -l.residual_mm / l.curvature_mm;
+            self.u += l.rate_per_lambda.x * correction;
+            self.v += l.rate_per_lambda.y * correction;
+        }
+        if !(self.tube.u_min() - END_MARGIN_MM..=self.tube.u_max() + END_MARGIN_MM)
+            .contains(&self.u)
+        {
+            return Err(Error::ContactOffSurface {
+                time_s: self.t_s,
+                height_mm: self.u,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The fibre's contact with a triangulated mandrel, advanced in steps.
+///
+/// On a mesh the surface has no second derivatives to integrate with, so each step solves the
+/// tangency condition directly: from the last contact `C₀` the fibre is laid along the free
+/// fibre's direction `d̂` (projected into the tangent plane), and the new contact is the nearest
+/// surface point to `C₀ + s d̂` for the `s ≥ 0` at which `(E − C(s))·n(C(s)) = 0`, `n` the smooth
+/// (interpolated) normal of [`Tracer::normal_at`]. `s` is bracketed by doubling and found by the
+/// Illinois false-position method. Each call lays straight chords toward the eye's new position,
+/// so the laid path follows the continuous model of [`TubeContact`] to first order in how far the
+/// contact moves per call: call it at eye samples close enough that the contact moves a
+/// millimetre or less (the tests compare both models on the S-bend), on top of the mesh's own
+/// distance from the true surface.
+#[derive(Debug, Clone)]
+pub struct MeshContact<'a> {
+    tracer: &'a Tracer,
+    point: Point3<f64>,
+    normal: Vector3<f64>,
+    state: ContactState,
+}
+
+impl<'a> MeshContact<'a> {
+    /// Starts at the surface point nearest to `start` (mandrel frame).
+    pub fn new(tracer: &'a Tracer, start: &Point3<f64>) -> Result<Self, Error> {
+        let at = tracer
+            .locate(start)
+            .ok_or(Error::NonFinitePoint { index: 0 })?;
+        Ok(MeshContact {
+            tracer,
+            point: at.point,
+            normal: at.normal,
+            state: ContactState::Wrapping,
+        })
+    }
+
+    /// The contact point, mandrel frame.
+    pub fn point(&self) -> Point3<f64> {
+        self.point
+    }
+
+    /// Whether the fibre is being laid or pivoting.
+    pub fn state(&self) -> ContactState {
+        self.state
+    }
+
+    /// Moves the contact for the eye now at `eye` (mandrel frame), laying at most `max_step_mm`
+    /// per chord; returns the contact point.
+    pub fn advance(&mut self, eye: &Point3<f64>, max_step_mm: f64) -> Result<Point3<f64>, Error> {
+        if max_step_mm.is_nan() || max_step_mm <= 0.0 || !eye.iter().all(|c| c.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "max_step_mm",
+                value: max_step_mm,
+                expected: "must be > 0 with a finite eye position",
+            });
+        }
+        let residual = (eye - self.point).dot(&self.normal);
+        if residual >= -TANGENCY_TOLERANCE_MM {
+            // The eye is on or outside the tangent plane: nothing more is laid.
+            self.state = ContactState::Pivoting;
+            return Ok(self.point);
+        }
+        self.state = ContactState::Wrapping;
+        // Lay chords of at most max_step_mm until the free fibre is tangent again.
+        for _ in 0..MAX_CHORDS_PER_ADVANCE {
+            let d = eye - self.point;
+            let dt = d - self.normal * d.dot(&self.normal);
+            let len = dt.norm();
+            if len < 1e-12 {
+                return Err(Error::ContactUndefined {
+                    height_mm: self.point.z,
+                    reason: "the eye lies on the surface normal of the contact",
+                });
+            }
+            let dir = dt / len;
+            let g = |s: f64| -> Result<(f64, Point3<f64>, Vector3<f64>), Error> {
+                let at = self
+                    .tracer
+                    .locate(&(self.point + dir * s))
+                    .ok_or(Error::NonFinitePoint { index: 0 })?;
+                Ok(((eye - at.point).dot(&at.normal), at.point, at.normal))
+            };
+            let (g_step, p_step, n_step) = g(max_step_mm)?;
+            if g_step < 0.0 {
+                // Still short of tangency after a whole chord: lay it and go on.
+                self.point = p_step;
+                self.normal = n_step;
+                continue;
+            }
+            // Tangency lies within this chord: Illinois false position on [0, max_step_mm],
+            // keeping g(a) < 0 ≤ g(b).
+            let (mut a, mut ga) = (0.0, (eye - self.point).dot(&self.normal));
+            let (mut b, mut gb) = (max_step_mm, g_step);
+            let mut retained = 0i8;
+            let mut best = (p_step, n_step);
+            for _ in 0..100 {
+                let s = (a * gb - b * ga) / (gb - ga);
+                let (gs, ps, ns) = g(s)?;
+                best = (ps, ns);
+                if gs.abs() < 1e-10 || b - a < 1e-12 {
+                    break;
+                }
+                if gs < 0.0 {
+                    (a, ga) = (s, gs);
+                    if retained == -1 {
+                        gb *= 0.5;
+                    }
+                    retained = -1;
+                } else {
+                    (b, gb) = (s, gs);
+                    if retained == 1 {
+                        ga *= 0.5;
+                    }
+                    retained = 1;
+                }
+            }
+            self.point = best.0;
+            self.normal = best.1;
+            return Ok(self.point);
+        }
+        Err(Error::OutOfRange {
+            name: "placement chords",
+            value: MAX_CHORDS_PER_ADVANCE as f64,
+            expected: "the eye moved farther in one call than the chords allow (a larger max_step_mm)",
+        })
+    }
+}
+
+/// Bound on chords laid in one [`MeshContact::advance`] call.
+const MAX_CHORDS_PER_ADVANCE: usize = 100_000;
+
+/// How far the tangency residual may be from zero before the contact counts as pivoting, mm.
+const TANGENCY_TOLERANCE_MM: f64 = 1e-9;
+/// How far past the tube's ends the contact may move before it has left the mandrel, mm.
+const END_MARGIN_MM: f64 = 1.0;
+/// Bound on integration steps in one call (bounded time on any input).
+const MAX_STEPS_PER_ADVANCE: f64 = 1e7;
+
+/// The largest distance from a laid path to a desired one (the thesis's "bow", seed 001 §6.2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Deviation {
+    /// The largest distance from a laid point to the desired polyline, mm.
+    pub max_mm: f64,
+    /// Index of the laid point where it occurs.
+    pub at: usize,
+}
+
+/// The largest distance from each point of `laid` to the polyline `desired` (both mandrel frame,
+/// both ordered along the path). `None` for an empty input.
+pub fn deviation(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Option<Deviation> {
+    if laid.is_empty() || desired.is_empty() {
+        return None;
+    }
+    let mut worst = Deviation { max_mm: 0.0, at: 0 };
+    let segments = desired.len().saturating_sub(1).max(1);
+    let segment = |k: usize| (desired[k], desired[(k + 1).min(desired.len() - 1)]);
+    // Both paths run the same way: search a window of desired segments around the last match,
+    // widening it while the best lies on its edge (so a laid point is never matched to a farther
+    // segment only because the window was short).
+    let mut cursor = 0usize;
+    for (i, p) in laid.iter().enumerate() {
+        let (mut lo, mut hi) = (
+            cursor.saturating_sub(WINDOW),
+            (cursor + WINDOW).min(segments - 1),
+        );
+        let (best, best_k) = loop {
+            let (mut best, mut best_k) = (f64::INFINITY, lo);
+            for k in lo..=hi {
+                let (a, b) = segment(k);
+                let d = distance_to_segment(p, &a, &b);
+                if d < best {
+                    best = d;
+                    best_k = k;
+                }
+            }
+            let at_low_edge = best_k == lo && lo > 0;
+            let at_high_edge = best_k == hi && hi < segments - 1;
+            if !(at_low_edge || at_high_edge) {
+                break (best, best_k);
+            }
+            lo = lo.saturating_sub(WINDOW);
+            hi = (hi + WINDOW).min(segments - 1);
+        };
+        cursor = best_k;
+        if best > worst.max_mm {
+            worst = Deviation {
+                max_mm: best,
+                at: i,
+            };
+        }
+    }
+    Some(worst)
+}
+
+/// Half-width of the first search window of [`deviation`], in desired segments.
+const WINDOW: usize = 32;
+
+/// Distance from `p` to the segment `ab`.
+pub fn distance_to_segment(p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
+    let ab = b - a;
+    let len2 = ab.norm_squared();
+    let t = if len2 > 0.0 {
+        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + ab * t)).norm()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Spine;
+    use crate::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
+
+    const R: f64 = 31.75;
+
+    /// The helix at wind angle `alpha` (from the axis) on the axis-symmetric cylinder of seed 001
+    /// §6.4: `H(θ) = (r cos θ, r sin θ, z₀ + θ r / tan α)`, with its derivative in `θ`.
+    fn helix(theta: f64, alpha: f64) -> (Point3<f64>, Vector3<f64>) {
+        let (s, c) = theta.sin_cos();
+        let lead = R / alpha.tan(); // dz/dθ
+        let p = Point3::new(R * c, R * s, 10.0 + lead * theta);
+        let dp = Vector3::new(-R * s, R * c, lead);
+        (p, dp)
+    }
+
+    /// An eye that stays on the helix's tangent, `offset` ahead of the point at `θ = rate·t`.
+    fn ideal_eye(
+        alpha: f64,
+        rate: f64,
+        offset: f64,
+    ) -> impl Fn(f64) -> (Point3<f64>, Vector3<f64>) {
+        move |t: f64| {
+            let theta = rate * t;
+            let (p, dp) = helix(theta, alpha);
+            let speed = dp.norm();
+            let tangent = dp / speed;
+            // d/dθ of the unit tangent: the helix's curvature vector times its speed.
+            let (s, c) = theta.sin_cos();
+            let ddp = Vector3::new(-R * c, -R * s, 0.0);
+            let dtangent = (ddp - tangent * tangent.dot(&ddp)) / speed;
+            let e = p + tangent * offset;
+            let e_dot = (dp + dtangent * offset) * rate;
+            (e, e_dot)
+        }
+    }
+
+    fn cylinder() -> Tube {
+        Tube::cylinder(2.0 * R, 178.0, 0.0, 0.0).unwrap()
+    }
+
+    #[test]
+    fn an_ideal_eye_lays_the_helix_exactly() {
+        let tube = cylinder();
+        let alpha = 48.3f64.to_radians();
+        let rate = 2.0; // rad/s around the axis
+        let eye = ideal_eye(alpha, rate, 100.0);
+        let (p0, _) = helix(0.0, alpha);
+        let mut contact = TubeContact::new(&tube, p0.z, 0.0, 0.0);
+        let mut worst = 0.0f64;
+        for k in 1..=200 {
+            let t = k as f64 * 0.01;
+            let laid = contact.advance(&eye, t, 1e-3).unwrap();
+            let (want, _) = helix(rate * t, alpha);
+            worst = worst.max((laid - want).norm());
+            assert_eq!(contact.state(), ContactState::Wrapping);
+        }
+        assert!(worst < 1e-6, "laid path off the helix by {worst} mm");
+    }
+
+    #[test]
+    fn a_lagging_eye_lays_a_steeper_path_and_a_receding_eye_pivots() {
+        // The eye moves along the helix's tangent but with the wind angle of a steeper helix: the
+        // laid path is no longer the desired helix, and the deviation is what the check measures.
+        let tube = cylinder();
+        let alpha = 48.3f64.to_radians();
+        let eye = ideal_eye(60f64.to_radians(), 2.0, 100.0);
+        let mut contact = TubeContact::new(&tube, helix(0.0, alpha).0.z, 0.0, 0.0);
+        let mut laid = vec![contact.point()];
+        for k in 1..=100 {
+            laid.push(contact.advance(&eye, k as f64 * 0.01, 1e-3).unwrap());
+        }
+        let desired: Vec<Point3<f64>> = (0..=400)
+            .map(|k| helix(k as f64 * 0.005, alpha).0)
+            .collect();
+        let dev = deviation(&laid, &desired).unwrap();
+        assert!(dev.max_mm > 1.0, "{dev:?}");
+
+        // An eye pulled straight out along the normal: the contact must not move.
+        let start = tube.point(50.0, 0.0);
+        let away = move |t: f64| {
+            (
+                start
+                    + Vector3::new(1.0, 0.0, 0.0) * (1.0 + 10.0 * t)
+                    + Vector3::new(0.0, 50.0, 0.0),
+                Vector3::new(10.0, 0.0, 0.0),
+            )
+        };
+        let mut contact = TubeContact::new(&tube, 50.0, 0.0, 0.0);
+        let end = contact.advance(&away, 1.0, 1e-2).unwrap();
+        assert_eq!(contact.state(), ContactState::Pivoting);
+        assert!((end - start).norm() < 1e-12);
+    }
+
+    /// Brute force, independent of the integrator: at the contact's height, scan the angle around
+    /// the section for sign changes of the tangency residual and bisect them; the contact must be
+    /// one of those silhouette points, and the laid path's direction must point at the eye.
+    #[test]
+    fn contacts_agree_with_a_brute_force_tangent_search_on_the_s_bend() {
+        brute_force_on_the_s_bend(2e-4);
+    }
+
+    /// Steps 100 times longer: the Newton step after each RK4 step keeps the contact on the
+    /// silhouette.
+    #[test]
+    fn coarse_steps_stay_on_the_silhouette() {
+        brute_force_on_the_s_bend(2e-2);
+    }
+
+    fn brute_force_on_the_s_bend(max_step_s: f64) {
+        let tube = Tube::new(
+            Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
+            28.5,
+        )
+        .unwrap();
+        // An eye sweeping around and up the S-bend, 100 mm out.
+        let eye = |t: f64| {
+            let theta = 1.2 * t;
+            let z = 60.0 + 40.0 * t;
+            let off = tube.spine().offset_mm(z);
+            let (s, c) = theta.sin_cos();
+            let p = Point3::new(off + 120.0 * c, 120.0 * s, z + 30.0);
+            let [_, g, _, _] = tube.spine().eval(z);
+            let v = Vector3::new(g * 40.0 - 120.0 * 1.2 * s, 120.0 * 1.2 * c, 40.0);
+            (p, v)
+        };
+        // Start on the silhouette at the start height: brute-force the start angle too.
+        let u0 = 60.0;
+        let v0 = silhouette(&tube, u0, &eye(0.0).0)
+            .into_iter()
+            .find(|&v| {
+                // The flank where the eye's motion wraps the fibre on.
+                let n = tube.normal(u0, v);
+                eye(0.0).1.dot(&n) < 0.0
+            })
+            .expect("a wrapping flank");
+        let mut contact = TubeContact::new(&tube, u0, v0, 0.0);
+        let mut previous = contact.point();
+        for k in 1..=60 {
+            let t = k as f64 * 0.02;
+            let p = contact.advance(&eye, t, max_step_s).unwrap();
+            let (u, v) = contact.parameters();
+            let (e, _) = eye(t);
+            let candidates = silhouette(&tube, u, &e);
+            let nearest = candidates
+                .iter()
+                .map(|&w| (tube.point(u, w) - p).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                nearest < 1e-6,
+                "t = {t}: {nearest} mm from the silhouette (v = {v})"
+            );
+            let travel = p - previous;
+            let fibre = (e - p).normalize();
+            if travel.norm() > 1e-3 {
+                assert!(travel.normalize().dot(&fibre) > 0.999, "t = {t}");
+            }
+            previous = p;
+        }
+    }
+
+    /// Every `v` at height `u` where the line to `e` is tangent: sign changes of `(e − X)·n` on
+    /// a fine scan, each bisected to 1e-13 rad.
+    fn silhouette(tube: &Tube, u: f64, e: &Point3<f64>) -> Vec<f64> {
+        let f = |v: f64| (e - tube.point(u, v)).dot(&tube.normal(u, v));
+        let n = 3600;
+        let mut out = Vec::new();
+        for i in 0..n {
+            let (mut a, mut b) = (
+                -std::f64::consts::PI + std::f64::consts::TAU * i as f64 / n as f64,
+                -std::f64::consts::PI + std::f64::consts::TAU * (i + 1) as f64 / n as f64,
+            );
+            let (mut fa, fb) = (f(a), f(b));
+            if fa == 0.0 || fa * fb < 0.0 {
+                for _ in 0..200 {
+                    let m = 0.5 * (a + b);
+                    let fm = f(m);
+                    if fa * fm <= 0.0 {
+                        b = m;
+                    } else {
+                        a = m;
+                        fa = fm;
+                    }
+                    if b - a < 1e-13 {
+                        break;
+                    }
+                }
+                out.push(0.5 * (a + b));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn mandrel_frame_conversion_inverts_the_plan_frame() {
+        let origin = Vector3::new(800.0, 0.0, 300.0);
+        let p_m = Point3::new(40.0, -20.0, 55.0);
+        let phi = 0.7f64;
+        let (s, c) = phi.sin_cos();
+        let p_cell = Point3::new(c * p_m.x - s * p_m.y, s * p_m.x + c * p_m.y, p_m.z) + origin;
+        // An eye fixed in the cell while the mandrel turns at 2 rad/s: in the mandrel frame it
+        // turns at −2 rad/s about z.
+        let (back, v) = to_mandrel_frame(&origin, &p_cell, &Vector3::zeros(), phi, 2.0);
+        assert!((back - p_m).norm() < 1e-12);
+        let expected = Vector3::new(p_m.y, -p_m.x, 0.0) * 2.0;
+        assert!((v - expected).norm() < 1e-12, "{v} vs {expected}");
+    }
+
+    #[test]
+    fn deviation_is_the_largest_point_to_polyline_distance() {
+        let desired = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(10.0, 0.0, 0.0),
+            Point3::new(10.0, 10.0, 0.0),
+        ];
+        let laid = [
+            Point3::new(0.0, 0.5, 0.0),
+            Point3::new(5.0, -2.0, 0.0),
+            Point3::new(9.0, 5.0, 0.0),
+            Point3::new(12.0, 10.0, 0.0),
+        ];
+        let d = deviation(&laid, &desired).unwrap();
+        assert!((d.max_mm - 2.0).abs() < 1e-12);
+        assert_eq!(d.at, 1);
+        assert!(deviation(&[], &desired).is_none());
+    }
+}
