@@ -1018,6 +1018,71 @@ mod tests {
     }
 
     #[test]
+    fn setup_validation_names_the_bad_figure() {
+        assert!(setup().validate().is_ok());
+        let with_entry = |deg: f64| Setup {
+            entry_angle_max_rad: deg.to_radians(),
+            ..setup()
+        };
+        assert!(with_entry(89.9).validate().is_ok());
+        for bad in [0.0, -5.0, 90.5, f64::NAN] {
+            assert!(
+                matches!(
+                    with_entry(bad).validate(),
+                    Err(Error::OutOfRange {
+                        name: "entry_angle_max_deg",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+        }
+        let long_eye = Setup {
+            arm: Arm {
+                eye_mechanism_mm: 401.0,
+                ..Arm::default()
+            },
+            ..setup()
+        };
+        assert!(matches!(
+            long_eye.validate(),
+            Err(Error::OutOfRange {
+                name: "eye_mechanism_length_mm",
+                ..
+            })
+        ));
+        let tilted = Setup {
+            calibration: Calibration {
+                axis_tilt_rad: [0.0, 11f64.to_radians()],
+                ..Calibration::default()
+            },
+            ..setup()
+        };
+        assert!(tilted.validate().is_err());
+        // Speeds: the mandrel profile and both robot speeds.
+        assert!(speeds(Movement::Fine).validate().is_ok());
+        for bad in [
+            Speeds {
+                base_speed_mm_s: 0.0,
+                ..speeds(Movement::Fine)
+            },
+            Speeds {
+                max_speed_mm_s: f64::NAN,
+                ..speeds(Movement::Fine)
+            },
+            Speeds {
+                mandrel: MandrelProfile {
+                    start_stop_rps: 0.2,
+                    ..speeds(Movement::Fine).mandrel
+                },
+                ..speeds(Movement::Fine)
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
     fn robot_too_close_gives_tangent_undefined() {
         let tube = Tube::cylinder(63.5, 178.0, 3.0 * R, 3.0 * R).unwrap();
         let path = geodesic::helix(&tube, &cylinder_start(Direction::Up), 1.0).unwrap();
