@@ -79,9 +79,19 @@ fn json_report_has_every_documented_field() {
                 assert_eq!(s[key].as_array().unwrap().len(), 3, "{key}");
             }
             assert_eq!(s["wrist_q"].as_array().unwrap().len(), 4);
-            for key in ["mandrel_deg", "ideal_mandrel_deg", "speed_pct"] {
+            for key in [
+                "mandrel_deg",
+                "ideal_mandrel_deg",
+                "speed_pct",
+                "entry_angle_deg",
+                "duration_s",
+                "robot_time_s",
+                "mandrel_max_rps",
+            ] {
                 assert!(s[key].as_f64().is_some(), "{key}");
             }
+            assert_eq!(s["joints_deg"].as_array().unwrap().len(), 5);
+            assert_eq!(s["robot_paced"].as_bool(), Some(false));
             assert!(s["steps"].as_i64().is_some());
         }
         // One revolution of the mandrel per 178 mm pass at 48.3° (seed 001 §6.4), within 1 %.
@@ -97,6 +107,19 @@ fn json_report_has_every_documented_field() {
             "{drift}"
         );
         assert!(path["min_eye_clearance_mm"].as_f64().unwrap() > 0.0);
+        // The worst entry angle and the joints' extremes over the path.
+        let worst = segments
+            .iter()
+            .chain([&path["start"]])
+            .map(|s| s["entry_angle_deg"].as_f64().unwrap())
+            .fold(0.0, f64::max);
+        assert_eq!(path["max_entry_angle_deg"].as_f64(), Some(worst));
+        assert!(worst > 0.0 && worst < 30.0, "{worst}");
+        assert_eq!(path["elbow"].as_str(), Some("up"));
+        assert_eq!(path["joints_min_deg"].as_array().unwrap().len(), 5);
+        assert_eq!(path["joints_max_deg"].as_array().unwrap().len(), 5);
+        assert!(path["min_joint_margin_deg"].as_f64().unwrap() > 0.0);
+        assert!(path["robot_paced_segments"].as_array().unwrap().is_empty());
     }
 }
 
@@ -134,6 +157,47 @@ fn bad_jobs_fail_cleanly_and_write_nothing() {
             "robot_distance_mm = 800.0",
             "robot_distance_mm = \"far\"",
             ":5:21:",
+        ),
+        // The arm and the plan's guards.
+        (
+            "segments = 50",
+            "segments = 2",
+            "more than half a revolution",
+        ),
+        (
+            "segments = 50",
+            "segments = 1",
+            "more than half a revolution",
+        ),
+        (
+            "wind_angle_deg = 48.3",
+            "wind_angle_deg = 89.0",
+            "more than half a revolution",
+        ),
+        (
+            "eye_mechanism_length_mm = 150.0",
+            "eye_mechanism_length_mm = 900.0",
+            "longest eye mechanism",
+        ),
+        (
+            "mandrel_speed_rps = 0.1",
+            "mandrel_speed_rps = 3.0",
+            "rev/s would fit",
+        ),
+        (
+            "[mandrel]",
+            "[cell.robot]\nentry_angle_max_deg = 1.0\n\n[mandrel]",
+            "more than the 1° limit",
+        ),
+        (
+            "[mandrel]",
+            "[cell.robot]\npitch_deg = [-10.0, 10.0]\n\n[mandrel]",
+            "joint pitch",
+        ),
+        (
+            "robot_distance_mm = 800.0",
+            "robot_distance_mm = 1700.0",
+            "outside the arm's reach",
         ),
     ];
     let dir = tempfile::tempdir().unwrap();

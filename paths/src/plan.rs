@@ -457,25 +457,26 @@ pub fn plan(
     }
 
     // Pass 3: the segments' times and speeds.
-    let rev_per_step = step_angle / TAU;
-    let total_rev: f64 = poses
-        .iter()
-        .map(|(_, s)| s.unsigned_abs() as f64)
-        .sum::<f64>()
-        * rev_per_step;
-    let mut covered_rev = 0.0;
+    let steps_per_rev = setup.gearing.steps_per_mandrel_rev();
+    let total_steps: u64 = poses.iter().map(|(_, s)| s.unsigned_abs()).sum();
+    let mut covered = 0u64;
     let sign = i64::from(setup.calibration.rotation_sign);
     let mut segments: Vec<Segment> = Vec::with_capacity(poses.len());
     for (i, (pose, steps)) in poses.iter().enumerate() {
         let k = i + 1;
         let prev = if i == 0 { &start } else { &poses[i - 1].0 };
-        let rev = steps.unsigned_abs() as f64 * rev_per_step;
+        let n = steps.unsigned_abs();
         let mut duration_s = match speeds.movement {
-            Movement::Discrete => speeds.mandrel.duration_s(rev),
+            Movement::Discrete => speeds.mandrel.duration_s(n, steps_per_rev),
             Movement::Fine | Movement::Medium => {
-                let before = speeds.mandrel.time_at_s(covered_rev, total_rev);
-                covered_rev += rev;
-                speeds.mandrel.time_at_s(covered_rev, total_rev) - before
+                let before = speeds
+                    .mandrel
+                    .time_at_step_s(covered, total_steps, steps_per_rev);
+                covered += n;
+                speeds
+                    .mandrel
+                    .time_at_step_s(covered, total_steps, steps_per_rev)
+                    - before
             }
         };
         let travel_v = pose.eye_mm - prev.eye_mm;
@@ -496,7 +497,7 @@ pub fn plan(
         if robot_time_s > duration_s * (1.0 + 1e-12) {
             match speeds.movement {
                 Movement::Discrete => {
-                    mandrel = speeds.mandrel.slowed_to(rev, robot_time_s);
+                    mandrel = speeds.mandrel.slowed_to(n, steps_per_rev, robot_time_s);
                     duration_s = robot_time_s;
                     robot_paced = true;
                 }
@@ -812,10 +813,14 @@ mod tests {
         let fine = plan_with(tube, start, &setup(), &speeds(Movement::Fine));
         let profile = speeds(Movement::Fine).mandrel;
         // Fine: the segments split the path's one mandrel move.
-        let total_rev =
-            fine.segments.iter().map(|s| s.steps.abs()).sum::<i64>() as f64 * 13.0 / 24_000.0;
+        let spr = Gearing::default().steps_per_mandrel_rev();
+        let total = fine
+            .segments
+            .iter()
+            .map(|s| s.steps.unsigned_abs())
+            .sum::<u64>();
         let sum: f64 = fine.segments.iter().map(|s| s.duration_s).sum();
-        assert_abs_diff_eq!(sum, profile.duration_s(total_rev), epsilon = 1e-9);
+        assert_abs_diff_eq!(sum, profile.duration_s(total, spr), epsilon = 1e-9);
         for (k, s) in fine.segments.iter().enumerate() {
             let prev = if k == 0 {
                 &fine.start
@@ -831,8 +836,8 @@ mod tests {
         // Discrete: each segment is its own trapezoid.
         let discrete = plan_with(tube, start, &setup(), &speeds(Movement::Discrete));
         for s in &discrete.segments {
-            let rev = s.steps.abs() as f64 * 13.0 / 24_000.0;
-            assert_abs_diff_eq!(s.duration_s, profile.duration_s(rev), epsilon = 1e-12);
+            let n = s.steps.unsigned_abs();
+            assert_abs_diff_eq!(s.duration_s, profile.duration_s(n, spr), epsilon = 1e-12);
         }
         // A mandrel 40 times faster: fine movement is refused with the speed that fits…
         let fast = Speeds {
@@ -889,8 +894,8 @@ mod tests {
                 .min(2000.0);
             // Never faster than the arm at that pose, nor than the controller.
             assert!(s.speed_mm_s <= fastest * (1.0 + 1e-9), "{k}");
-            let rev = s.steps.abs() as f64 * 13.0 / 24_000.0;
-            assert_abs_diff_eq!(s.mandrel.duration_s(rev), s.duration_s, epsilon = 1e-9);
+            let n = s.steps.unsigned_abs();
+            assert_abs_diff_eq!(s.mandrel.duration_s(n, spr), s.duration_s, epsilon = 1e-9);
             if s.robot_paced {
                 assert!(s.mandrel.max_rps < 4.0);
                 assert_abs_diff_eq!(s.duration_s, s.robot_time_s, epsilon = 1e-12);
@@ -1010,6 +1015,71 @@ mod tests {
             nominal.start.mandrel_rad,
             epsilon = 1e-15
         );
+    }
+
+    #[test]
+    fn setup_validation_names_the_bad_figure() {
+        assert!(setup().validate().is_ok());
+        let with_entry = |deg: f64| Setup {
+            entry_angle_max_rad: deg.to_radians(),
+            ..setup()
+        };
+        assert!(with_entry(89.9).validate().is_ok());
+        for bad in [0.0, -5.0, 90.5, f64::NAN] {
+            assert!(
+                matches!(
+                    with_entry(bad).validate(),
+                    Err(Error::OutOfRange {
+                        name: "entry_angle_max_deg",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+        }
+        let long_eye = Setup {
+            arm: Arm {
+                eye_mechanism_mm: 401.0,
+                ..Arm::default()
+            },
+            ..setup()
+        };
+        assert!(matches!(
+            long_eye.validate(),
+            Err(Error::OutOfRange {
+                name: "eye_mechanism_length_mm",
+                ..
+            })
+        ));
+        let tilted = Setup {
+            calibration: Calibration {
+                axis_tilt_rad: [0.0, 11f64.to_radians()],
+                ..Calibration::default()
+            },
+            ..setup()
+        };
+        assert!(tilted.validate().is_err());
+        // Speeds: the mandrel profile and both robot speeds.
+        assert!(speeds(Movement::Fine).validate().is_ok());
+        for bad in [
+            Speeds {
+                base_speed_mm_s: 0.0,
+                ..speeds(Movement::Fine)
+            },
+            Speeds {
+                max_speed_mm_s: f64::NAN,
+                ..speeds(Movement::Fine)
+            },
+            Speeds {
+                mandrel: MandrelProfile {
+                    start_stop_rps: 0.2,
+                    ..speeds(Movement::Fine).mandrel
+                },
+                ..speeds(Movement::Fine)
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
     }
 
     #[test]
