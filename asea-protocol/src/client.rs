@@ -1,5 +1,5 @@
 //! The blocking client: one host session per telegram over any [`Link`], with a retry policy
-//! (spec/protocols.md §5.4–5.5).
+//! (docs/protocol.md §6).
 //!
 //! Within a session the [`Host`] state machine retries by itself (ENQ up to `N_ENQ`, the telegram
 //! up to `N_TX`). A whole new session is started again only for requests without side effects
@@ -142,7 +142,7 @@ impl<L: Link> Client<L, RealClock> {
 }
 
 impl Client<Box<dyn serialport::SerialPort>, RealClock> {
-    /// A client on the serial port at `path`, 9600 baud 8N1 (spec/protocols.md §5.1; see
+    /// A client on the serial port at `path`, 9600 baud 8N1 (docs/protocol.md §1; see
     /// [`crate::link::open_serial`] for other settings).
     pub fn open(path: &str, cfg: ClientConfig) -> Result<Self> {
         let port = crate::link::open_serial(

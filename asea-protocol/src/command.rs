@@ -1,4 +1,4 @@
-//! Typed telegrams and their scales (seed 001 §5.2, §5.4; spec/protocols.md §5.6–5.7 with the
+//! Typed telegrams and their scales (seed 001 §5.2, §5.4; docs/protocol.md §4, §5 with the
 //! corrections in its header).
 //!
 //! Codes 0x01–0x07 are those of spec §5.7. Codes 0x08–0x0D add what the thesis names and §5.7
@@ -915,7 +915,7 @@ impl Reply {
     }
 }
 
-/// The robot's `last_error` codes (spec/protocols.md §5.7, plus 8: memory full).
+/// The robot's `last_error` codes (docs/protocol.md §5, plus 8: memory full).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum RobotError {
     /// 1: unknown CMD.
@@ -998,7 +998,7 @@ mod tests {
         }
     }
 
-    /// spec/protocols.md §5.3: the typed STORE_POS gives the golden bytes, CS 0x3F.
+    /// docs/protocol.md §3: the typed STORE_POS gives the golden bytes, CS 0x3F.
     #[test]
     fn typed_golden_store_pos() {
         let cmd = Command::StorePos {

@@ -1,5 +1,5 @@
 //! The incremental decoder: bytes in, tokens out; framed by LEN, resynchronising after noise
-//! (spec/protocols.md §5.3 "Receiver framing is by length").
+//! (docs/protocol.md §3).
 //!
 //! Outside a frame, ENQ, ACK, NAK and EOT are control tokens, STX opens a frame and any other byte
 //! is stray. Inside a frame every byte is data: the frame ends after LEN data bytes, ETX and the

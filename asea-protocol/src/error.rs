@@ -83,7 +83,7 @@ pub enum ParseError {
     UnknownErrorCode(u8),
 }
 
-/// How a link session failed (spec/protocols.md §5.4).
+/// How a link session failed (docs/protocol.md §6).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
 pub enum LinkError {

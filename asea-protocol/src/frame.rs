@@ -1,4 +1,4 @@
-//! Framing and check values (spec/protocols.md §5.2–5.3; seed 001 §5.2).
+//! Framing and check values (docs/protocol.md §2, §3; seed 001 §5.2).
 //!
 //! ```text
 //! STX | CMD | LEN | DATA[LEN] | ETX | CS
@@ -271,7 +271,7 @@ pub fn parse(cfg: &FrameConfig, buf: &[u8]) -> Parsed {
 mod tests {
     use super::*;
 
-    /// spec/protocols.md §5.3 golden vector: STORE_POS, CS 0x3F.
+    /// docs/protocol.md §3 golden vector: STORE_POS, CS 0x3F.
     const STORE_POS: [u8; 25] = [
         0x02, // STX
         0x01, // CMD STORE_POS

@@ -1,6 +1,6 @@
 //! The ASEA robot-computer link (seed 001 §5.2; wire definition in `docs/protocol.md`).
 //!
-//! - [`frame`]: STX/ETX framing and the check value (spec/protocols.md §5.3).
+//! - [`frame`]: STX/ETX framing and the check value (docs/protocol.md §3).
 //! - [`command`]: typed telegrams and scales (seed 001 §5.4; spec §5.6–5.7).
 //! - [`decoder`]: the incremental, length-framed decoder that resynchronises after noise.
 //! - [`session`]: the host and robot session state machines, no I/O, timers as inputs (spec §5.4–5.5).

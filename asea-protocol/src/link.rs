@@ -31,7 +31,7 @@ impl<L: Link + ?Sized> Link for Box<L> {
     }
 }
 
-/// Character format on the serial line (spec/protocols.md §5.1).
+/// Character format on the serial line (docs/protocol.md §1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum CharFormat {
     /// 8 data bits, no parity, 1 stop bit (the default).

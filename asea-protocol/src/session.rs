@@ -1,5 +1,5 @@
 //! The session state machines, without I/O: bytes and the time come in, bytes and a deadline come
-//! out (spec/protocols.md §5.4–5.5; seed 001 §5.2's four phases: establish, transfer, verify,
+//! out (docs/protocol.md §6; seed 001 §5.2's four phases: establish, transfer, verify,
 //! terminate).
 //!
 //! ```text

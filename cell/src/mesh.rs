@@ -43,6 +43,29 @@ fn read_located(file: &Path) -> Result<(Mesh, Places), Error> {
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     let bytes = sequences::source::read_bytes(file, sequences::source::MAX_MESH_BYTES)?;
+    // A binary STL's header gives its triangle count: checked before the triangles are read.
+    let too_many = |count: usize, place: Option<u64>| {
+        paths::limits::at_most(
+            "triangle count",
+            count as f64,
+            paths::limits::MAX_TRIANGLES as f64,
+        )
+        .map_err(|e| match place {
+            Some(byte) => mesh_error(paths::Error::MeshSyntax {
+                line: None,
+                column: None,
+                byte: Some(byte),
+                message: e.to_string(),
+            }),
+            None => mesh_error(e),
+        })
+    };
+    if ext == "stl" && bytes.len() >= 84 {
+        let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+        if 84 + 50 * count as u64 == bytes.len() as u64 {
+            too_many(count, Some(80))?;
+        }
+    }
     let not_utf8 = |e: std::str::Utf8Error, what: &str| {
         let valid = &bytes[..e.valid_up_to()];
         let line = 1 + valid.iter().filter(|&&b| b == b'\n').count();
@@ -75,6 +98,7 @@ fn read_located(file: &Path) -> Result<(Mesh, Places), Error> {
                 },
                 lines,
             };
+            too_many(soup.len(), None)?;
             let mesh = Mesh::from_soup(&soup).map_err(|e| mesh_error(places.locate(e)))?;
             Ok((mesh, places))
         }
@@ -82,6 +106,7 @@ fn read_located(file: &Path) -> Result<(Mesh, Places), Error> {
             let text = std::str::from_utf8(&bytes).map_err(|e| not_utf8(e, "OBJ"))?;
             let (mesh, lines) =
                 obj::parse_located(text).map_err(|e| mesh_error(with_column(e, text)))?;
+            too_many(mesh.triangles().len(), None)?;
             Ok((
                 mesh,
                 Places {

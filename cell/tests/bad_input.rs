@@ -133,3 +133,25 @@ fn the_rules_catch_what_they_name() {
     let (good, t, peak) = run_limited(&["--version".into()], Path::new("."));
     assert!(broken_rule(&good, t, peak, "").is_some());
 }
+
+#[test]
+fn a_binary_stl_over_the_triangle_limit_is_refused_at_its_count() {
+    // 500 001 triangles: the header's count is checked before the triangles are read.
+    let tmp = tempfile::tempdir().unwrap();
+    let count: u32 = 500_001;
+    let mut bytes = vec![b' '; 80];
+    bytes.extend_from_slice(&count.to_le_bytes());
+    bytes.resize(84 + 50 * count as usize, 0);
+    std::fs::write(tmp.path().join("big.stl"), bytes).unwrap();
+    let args: Vec<String> = ["geodesic", "big.stl", "--start", "0,0,0", "--heading", "0"]
+        .iter()
+        .map(ToString::to_string)
+        .collect();
+    let (output, elapsed, peak) = run_limited(&args, tmp.path());
+    let expect = "big.stl: byte 80: triangle count = 500001 exceeds the limit of 500000";
+    assert_eq!(
+        broken_rule(&output, elapsed, peak, expect),
+        None,
+        "{output:?}"
+    );
+}

@@ -1,4 +1,4 @@
-//! The indexer seam the coordinator drives (spec/protocols.md §6), for both dialects over a
+//! The indexer seam the coordinator drives (docs/mandrel-drive.md), for both dialects over a
 //! [`Link`]: commands built from physical units at the mandrel through [`Drive`], replies checked,
 //! timeouts and typed errors.
 
@@ -86,7 +86,7 @@ pub struct IndexerStatus {
     pub position_steps: Option<i64>,
 }
 
-/// The device-level seam the coordinator drives (spec/protocols.md §6).
+/// The device-level seam the coordinator drives (docs/mandrel-drive.md).
 pub trait Indexer {
     /// Resets the controller and sets resolution, limits and reply format.
     fn init(&mut self) -> Result<()>;

@@ -1,4 +1,4 @@
-//! A GRBL 1.1 / grblHAL class controller turning the mandrel as its A axis (spec/protocols.md §2.4).
+//! A GRBL 1.1 / grblHAL class controller turning the mandrel as its A axis (docs/mandrel-drive.md).
 //!
 //! Lines end in LF and get `ok` or `error:N`; real-time bytes (`?`, `!`, `~`, `0x18`, `0x85`) are
 //! never acknowledged. The A axis is set up in degrees at the mandrel: `$103` steps/deg,

@@ -2,7 +2,7 @@
 //!
 //! - [`units`]: physical units at the mandrel → motor steps, through [`paths::Gearing`].
 //! - [`profile`]: the trapezoid with a start/stop velocity jump, analytic duration.
-//! - [`xlang`], [`grbl`]: typed commands and replies of the two dialects (spec/protocols.md §2.2, §2.4).
+//! - [`xlang`], [`grbl`]: typed commands and replies of the two dialects (docs/mandrel-drive.md).
 //! - [`link`]: the byte link (serial port, in-memory pipe).
 //! - [`client`]: the [`Indexer`] seam (spec §6) for both dialects.
 //! - [`sim`]: indexer + translator + motor + gear simulator with a front end per dialect.

@@ -2,7 +2,7 @@
 //!
 //! "The stepper motor will start to operate if the velocity has reached the start velocity, and
 //! stop operating when it reaches the stop velocity": the step rate jumps from 0 to `v0`, ramps at
-//! `a` to `vmax`, ramps back down to `v0` and stops (spec/protocols.md §6, simulator).
+//! `a` to `vmax`, ramps back down to `v0` and stops (docs/mandrel-drive.md, simulator).
 
 use crate::error::{Error, Result};
 use crate::units::Drive;

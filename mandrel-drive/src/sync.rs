@@ -1,5 +1,5 @@
 //! The opto-isolated sync lines between robot, PC and indexer (seed 001 App. D, Figure D.1;
-//! spec/protocols.md §2.3).
+//! docs/hardware.md).
 //!
 //! "Robot in position" is an input to the PC (the robot's 24 V output through an opto-isolator);
 //! "start" is an output from the PC to robot and indexer together. [`Wire`] simulates one line with

@@ -1,4 +1,4 @@
-//! The Compumotor X-language subset (spec/protocols.md §2.2, §6; OEM Series Software Reference
+//! The Compumotor X-language subset (docs/mandrel-drive.md; OEM Series Software Reference
 //! Guide, 88-013785-01 C): typed commands, their text, and reply parsing.
 //!
 //! A command is `<a>CMD<args>` ended by CR, `a` the device address 1–255 (absent = every unit).

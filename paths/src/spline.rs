@@ -8,7 +8,7 @@
 //! AutoCAD ("smoothed out by spline fitting ... divided into equal length segments").
 //!
 //! [`UniformCubic`] is the lathe winder's approximating uniform cubic B-spline of seed 000
-//! (Haq 1994 §8.7, §8.8.1, §9.6; `spec/notes-000-lathe-controller.md` §3.7–3.9): the part-program
+//! (Haq 1994 §8.7, §8.8.1, §9.6): the part-program
 //! points are the control points, the first and last are tripled, and each segment is sampled at
 //! `N` knot-points ("knot" meaning a sample point, as in the thesis glossary).
 

@@ -23,7 +23,7 @@ use crate::{Error, MandrelMove};
 /// The format version written on the first line.
 pub const VERSION: i64 = 1;
 
-/// How the robot moves between points (seed 001 §5.3.2, §5.4.2; `spec/protocols.md` corrections).
+/// How the robot moves between points (seed 001 §5.3.2, §5.4.2; docs/protocol.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Movement {

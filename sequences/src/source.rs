@@ -12,8 +12,9 @@ use crate::Error;
 pub const MAX_JOB_BYTES: u64 = 1 << 20;
 /// Largest DXF drawing, bytes.
 pub const MAX_DXF_BYTES: u64 = 16 << 20;
-/// Largest mesh file (STL or OBJ), bytes: a binary STL of 1 million triangles is 50 MB.
-pub const MAX_MESH_BYTES: u64 = 64 << 20;
+/// Largest mesh file (STL or OBJ), bytes: a binary STL of 500 000 triangles (windcell's limit)
+/// is 25 MB; ASCII STL takes about 250 bytes per triangle.
+pub const MAX_MESH_BYTES: u64 = 32 << 20;
 
 /// What kind of file system object `path` names, in words, when it is not a regular file.
 fn not_regular(file_type: std::fs::FileType) -> Option<&'static str> {

@@ -708,7 +708,7 @@ impl Machine {
 /// by more than 0.01).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Malformed {
-    /// Acknowledge it and set `last_error` (spec/protocols.md §5.5: NAK only for link errors).
+    /// Acknowledge it and set `last_error` (docs/protocol.md §6: NAK only for link errors).
     #[default]
     AckWithError,
     /// Treat it as a transmission error: NAK, so that the host retransmits. Most corruptions

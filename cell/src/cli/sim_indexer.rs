@@ -1,5 +1,5 @@
 //! `windcell sim-indexer [--pty] [--dialect x|grbl]`: the mandrel indexer simulator on a
-//! pseudo-terminal (issue 5; spec/protocols.md §6 "Simulator").
+//! pseudo-terminal (docs/mandrel-drive.md).
 //!
 //! Prints the slave device path on one line, serves the simulated indexer on the master side in
 //! real time until SIGINT or SIGTERM, then exits 0.

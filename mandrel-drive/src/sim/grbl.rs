@@ -1,5 +1,5 @@
 //! The GRBL front end of the simulator: a GRBL 1.1 class controller with the mandrel on its A
-//! axis (spec/protocols.md §2.4).
+//! axis (docs/mandrel-drive.md).
 //!
 //! Lines are answered `ok` when planned or `error:N`; motion lines run one after the other from
 //! rest (GRBL has no start velocity); `?` reports `<State|MPos:x,y,z,a|FS:f,0>`; `!` holds with

@@ -1,5 +1,5 @@
 //! The indexer simulator: indexer card, translator, stepper motor and belt, on a clock, with a
-//! front end per dialect (spec/protocols.md §6 "Simulator"; seed 001 §4.1.4–4.1.8, §5.3.2).
+//! front end per dialect (docs/mandrel-drive.md; seed 001 §4.1.4–4.1.8, §5.3.2).
 
 pub mod clock;
 pub mod grbl;

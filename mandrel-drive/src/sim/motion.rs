@@ -1,4 +1,4 @@
-//! Pulse-by-pulse motion of the indexer's rate generator (seed 001 §5.3.2, spec/protocols.md §6).
+//! Pulse-by-pulse motion of the indexer's rate generator (seed 001 §5.3.2, docs/mandrel-drive.md).
 //!
 //! Each step is integrated exactly under constant acceleration: a step that takes the rate from
 //! `v` to `v' = sqrt(v² ± 2a)` lasts `2 / (v + v')`. Deceleration to the stop velocity starts at the

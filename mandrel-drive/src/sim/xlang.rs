@@ -1,5 +1,5 @@
 //! The X-language front end of the simulator: an indexer card on a serial line
-//! (spec/protocols.md §2.2 and §6 "Simulator"; seed 001 §4.1.8).
+//! (docs/mandrel-drive.md; seed 001 §4.1.8).
 //!
 //! Echo on by default, `*` replies (with a 3-digit device ID after `SSD1`), a command buffer in
 //! which `G` in preset mode holds the following commands until the move is done, `CR` sending

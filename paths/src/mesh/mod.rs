@@ -84,11 +84,6 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(invalid(None, "the mesh has no triangles"));
         }
-        crate::limits::at_most(
-            "triangle count",
-            triangles.len() as f64,
-            crate::limits::MAX_TRIANGLES as f64,
-        )?;
         for (t, tri) in triangles.iter().enumerate() {
             for &i in tri {
                 let Some(v) = vertices.get(i as usize) else {
