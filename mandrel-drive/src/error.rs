@@ -90,6 +90,9 @@ pub enum Error {
         /// How long the client waited.
         waited_ms: u64,
     },
+    /// The exchange was cancelled through the client's [`crate::client::Cancel`] token.
+    #[error("cancelled")]
+    Cancelled,
     /// The gearing is invalid.
     #[error("gearing: {0}")]
     Gearing(#[from] paths::Error),
