@@ -62,13 +62,14 @@ pub fn zone(movement: Movement) -> Option<Zone> {
     }
 }
 
-/// Control instructions a stored program adds after its positionings: "in position" and `End`
+/// Control instructions a stored program adds to its positionings: the start handshake
+/// ([`PROLOGUE_LEN`]: "in position" low, wait for the start input), then "in position" and `End`
 /// (see [`robot_program`]).
-pub const PROGRAM_CONTROL_INSTRUCTIONS: usize = 2;
+pub const PROGRAM_CONTROL_INSTRUCTIONS: usize = PROLOGUE_LEN as usize + 2;
 
 /// The most positioning instructions one stored program can hold beside its
 /// [`PROGRAM_CONTROL_INSTRUCTIONS`] in the robot's memory (seed 001 §4.1.2: 470 positioning, or
-/// 300 positioning and 200 control; the simulator's units): 468.
+/// 300 positioning and 200 control; the simulator's units): 466.
 pub fn max_positioning_instructions() -> usize {
     use asea_protocol::sim::{CONTROL_UNITS, MEMORY_UNITS, POSITION_UNITS};
     let control = PROGRAM_CONTROL_INSTRUCTIONS as u32 * CONTROL_UNITS;

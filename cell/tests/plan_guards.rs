@@ -241,8 +241,8 @@ fn segment_counts_the_robot_cannot_number_or_hold_are_refused_at_segments() {
         ("one", "1", "segments = 1 is out of range"),
         (
             "memory",
-            "468",
-            "program 1 needs 469 positioning and 2 control instructions, more than the robot's \
+            "466",
+            "program 1 needs 467 positioning and 4 control instructions, more than the robot's \
              memory holds",
         ),
     ] {

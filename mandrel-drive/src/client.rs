@@ -2,6 +2,8 @@
 //! [`Link`]: commands built from physical units at the mandrel through [`Drive`], replies checked,
 //! timeouts and typed errors.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result};
@@ -124,10 +126,41 @@ pub trait Indexer {
     }
 }
 
+/// Longest wait of one read: a cancelled exchange ends within this.
+pub const POLL_PERIOD: Duration = Duration::from_millis(50);
+
+/// A token that cancels a client's blocking exchanges from another thread or task: the read
+/// under way returns [`Error::Cancelled`] within [`POLL_PERIOD`]. The stop commands (`S`, `K`) are
+/// written without waiting and go through while it is set.
+#[derive(Debug, Clone, Default)]
+pub struct Cancel(Arc<AtomicBool>);
+
+impl Cancel {
+    /// A token not set.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Cancels the exchange under way and every later one until [`Cancel::reset`].
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+    /// Lets exchanges run again.
+    pub fn reset(&self) {
+        self.0.store(false, Ordering::SeqCst);
+    }
+    /// True while set.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+}
+
 /// Reads lines ending in `end` (other line-end bytes dropped) from a link with a deadline.
 #[derive(Debug, Default)]
 struct LineReader {
     pending: Vec<u8>,
+    cancel: Cancel,
+    /// Set while a stop is exchanged: it goes through a cancelled client.
+    ignore_cancel: bool,
 }
 
 /// Longest line we accept before calling it garbage.
@@ -158,6 +191,9 @@ impl LineReader {
                     reason: "line too long",
                 });
             }
+            if !self.ignore_cancel && self.cancel.is_cancelled() {
+                return Err(Error::Cancelled);
+            }
             let now = Instant::now();
             if now >= deadline {
                 return Err(Error::Timeout {
@@ -166,7 +202,7 @@ impl LineReader {
                 });
             }
             let mut buf = [0u8; 128];
-            let n = link.read_timeout(&mut buf, deadline - now)?;
+            let n = link.read_timeout(&mut buf, (deadline - now).min(POLL_PERIOD))?;
             self.pending.extend_from_slice(buf.get(..n).unwrap_or(&[]));
         }
     }
@@ -203,6 +239,66 @@ impl<L: Link> XClient<L> {
         &self.cfg
     }
 
+    /// The token that cancels this client's exchanges (clone it into another thread).
+    pub fn cancel_token(&self) -> Cancel {
+        self.reader.cancel.clone()
+    }
+
+    /// Attaches to an indexer that may have been running (a restarted coordinator): no reset
+    /// (`Z`) and no zeroing (`PZ`), so the step counter keeps the mandrel's position. Echo and
+    /// the device-ID prefix are set to what this client expects, then the state and position are
+    /// read. The position is `None` while the indexer is busy (it answers `PR` only when its
+    /// buffer reaches it).
+    pub fn attach(&mut self) -> Result<IndexerStatus> {
+        self.link.discard_input()?;
+        self.reader.pending.clear();
+        // Echo off first: whatever the echo state was, the next commands' echo is known.
+        let off = xlang::encode(Some(self.cfg.address), &Command::Echo(false));
+        self.link.write_all(format!("{off}\r").as_bytes())?;
+        std::thread::sleep(self.cfg.reply_timeout.min(Duration::from_millis(100)));
+        self.link.discard_input()?;
+        self.echo = false;
+        self.device_id = false;
+        self.completions = 0;
+        self.send(&Command::Echo(true))?;
+        self.echo = true;
+        if self.cfg.device_id {
+            self.send(&Command::DeviceId(true))?;
+        }
+        self.send(&Command::Resolution(
+            self.cfg.drive.gearing.steps_per_motor_rev,
+        ))?;
+        self.status()
+    }
+
+    /// Arms a preset move on the trigger input (X-language `TR1` before `G`): the move waits in
+    /// the indexer's buffer until the start line is high, so that robot and mandrel start on the
+    /// same edge (seed 001 §5.6.4 step 10, App. D). The start line must be low when it is armed.
+    /// No `CR` notification follows (poll [`Indexer::status`]).
+    pub fn arm_move(&mut self, steps: i64, mode: PosMode) -> Result<()> {
+        self.completions = 0;
+        self.send(&Command::Preset)?;
+        self.send(&match mode {
+            PosMode::Absolute => Command::Absolute,
+            PosMode::Incremental => Command::Incremental,
+        })?;
+        self.send(&Command::Distance(steps))?;
+        self.send(&Command::Trigger("1".into()))?;
+        self.send(&Command::Go)?;
+        let (busy, attention) = self.ready_status()?;
+        if attention {
+            return Err(Error::Stalled);
+        }
+        if !busy {
+            return Err(Error::BadReply {
+                command: "TR1 G".into(),
+                reply: "*R".into(),
+                reason: "the armed move is not waiting for its trigger",
+            });
+        }
+        Ok(())
+    }
+
     fn line(&mut self, command: &str) -> Result<Vec<u8>> {
         self.reader.next_line(
             &mut self.link,
@@ -215,6 +311,9 @@ impl<L: Link> XClient<L> {
 
     /// Sends one command, swallows and checks its echo, and returns its reply if it has one.
     pub fn send(&mut self, cmd: &Command) -> Result<Option<Reply>> {
+        if !self.reader.ignore_cancel && self.reader.cancel.is_cancelled() {
+            return Err(Error::Cancelled);
+        }
         let text = xlang::encode(Some(self.cfg.address), cmd);
         let mut wire = text.clone().into_bytes();
         wire.push(b'\r');
@@ -367,7 +466,7 @@ impl<L: Link> Indexer for XClient<L> {
         self.link.write_all(format!("{z}\r").as_bytes())?;
         std::thread::sleep(self.cfg.reset_wait);
         self.link.discard_input()?;
-        self.reader = LineReader::default();
+        self.reader.pending.clear();
         self.echo = true;
         self.device_id = false;
         self.completions = 0;
@@ -467,11 +566,16 @@ impl<L: Link> Indexer for XClient<L> {
     }
 
     fn stop(&mut self, kind: StopKind) -> Result<()> {
-        self.send(&match kind {
+        // What a cancelled exchange left on the line is stale.
+        self.link.discard_input()?;
+        self.reader.pending.clear();
+        self.reader.ignore_cancel = true;
+        let r = self.send(&match kind {
             StopKind::Decelerate => Command::Stop,
             StopKind::Kill => Command::Kill,
-        })?;
-        Ok(())
+        });
+        self.reader.ignore_cancel = false;
+        r.map(|_| ())
     }
 
     fn status(&mut self) -> Result<IndexerStatus> {
@@ -560,7 +664,7 @@ impl<L: Link> GrblClient<L> {
             }
         }
         self.link.discard_input()?;
-        self.reader = LineReader::default();
+        self.reader.pending.clear();
         Ok(())
     }
 
@@ -583,7 +687,7 @@ impl<L: Link> GrblClient<L> {
 impl<L: Link> Indexer for GrblClient<L> {
     fn init(&mut self) -> Result<()> {
         self.link.discard_input()?;
-        self.reader = LineReader::default();
+        self.reader.pending.clear();
         self.reset()?;
         let spd = self.cfg.drive.steps_per_deg();
         self.send(&grbl::Command::StepsPerDeg(spd))?;

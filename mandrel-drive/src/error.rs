@@ -108,6 +108,9 @@ pub enum Error {
         /// How far it moved looking for it.
         searched_counts: i64,
     },
+    /// The exchange was cancelled through the client's [`crate::client::Cancel`] token.
+    #[error("cancelled")]
+    Cancelled,
     /// The gearing is invalid.
     #[error("gearing: {0}")]
     Gearing(#[from] paths::Error),

@@ -1,10 +1,14 @@
 //! The simulated drive: indexer card, translator, motor and belt (seed 001 §4.1.4–4.1.8).
 //!
 //! The indexer holds the profile, mode, direction and distance, and emits pulses through
-//! [`Motion`]. The translator refuses a rate above its pulse limit (seed 001 §4.1.5: 10 000
-//! pulses/s). The motor follows the pulses unless the start velocity exceeds its pull-in rate, in
-//! which case it stalls: the indexer still counts steps, the mandrel does not turn, and the move
-//! is reported as failed. The belt turns motor steps into the mandrel angle.
+//! [`Motion`]. The translator passes at most its pulse limit (seed 001 §4.1.5: "capable of
+//! producing up to 10,000 pulses per second"); above it pulses are **lost silently**, as on a real
+//! translator: the indexer counts every commanded step, the motor turns only the fraction the
+//! translator passed, and nothing on the serial line says so ([`Machine::lost_steps`] is the
+//! simulator's truth for tests and prediction). The motor follows the pulses unless the start
+//! velocity exceeds its pull-in rate, in which case it stalls: the indexer still counts steps,
+//! the mandrel does not turn, and the move is reported as failed. The belt turns motor steps into
+//! the mandrel angle.
 
 use std::f64::consts::TAU;
 
@@ -67,6 +71,9 @@ pub struct Machine {
     motor_steps: i64,
     motion: Option<(Motion, i64)>,
     stalled: bool,
+    /// Fraction of a step the translator has passed but the motor not yet taken (lost pulses).
+    passed_frac: f64,
+    lost_steps: u64,
     now_s: f64,
     completed_s: Option<f64>,
 }
@@ -88,6 +95,8 @@ impl Machine {
             motor_steps: 0,
             motion: None,
             stalled: false,
+            passed_frac: 0.0,
+            lost_steps: 0,
             now_s: 0.0,
             completed_s: None,
         }
@@ -100,10 +109,31 @@ impl Machine {
         }
         self.now_s = t_s;
         if let Some((m, dir)) = self.motion.as_mut() {
-            let n = (m.advance(t_s) as i64).saturating_mul(*dir);
+            let t_prev = m.last_step_s();
+            let pulses = m.advance(t_s);
+            let n = (pulses as i64).saturating_mul(*dir);
             self.counter_steps = self.counter_steps.saturating_add(n);
+            // Above the translator's limit only `limit / rate` of the pulses reach the motor; the
+            // rate is the mean over this interval's pulses (exact when the clock is sampled finer
+            // than the ramps).
+            let span = m.last_step_s() - t_prev;
+            let rate = if pulses > 0 && span > 0.0 {
+                pulses as f64 / span
+            } else {
+                m.rate_sps()
+            };
+            let limit = self.drive.pulse_limit_pps;
+            let passed = if rate > limit * (1.0 + 1e-6) {
+                self.passed_frac += pulses as f64 * limit / rate;
+                let whole = self.passed_frac.floor();
+                self.passed_frac -= whole;
+                self.lost_steps += pulses - (whole as u64).min(pulses);
+                whole as i64
+            } else {
+                pulses as i64
+            };
             if !self.stalled {
-                self.motor_steps = self.motor_steps.saturating_add(n);
+                self.motor_steps = self.motor_steps.saturating_add(passed.saturating_mul(*dir));
             }
             if m.is_done() {
                 self.completed_s = Some(m.last_step_s());
@@ -112,17 +142,18 @@ impl Machine {
         }
     }
 
-    fn check(&self, rate_sps: f64) -> Result<(), Refusal> {
+    fn check(&self, _rate_sps: f64) -> Result<(), Refusal> {
         if self.now_s < self.reset_until_s {
             return Err(Refusal::Busy);
         }
-        if rate_sps > self.drive.pulse_limit_pps {
-            return Err(Refusal::PulseRate {
-                requested_pps: rate_sps,
-                limit_pps: self.drive.pulse_limit_pps,
-            });
-        }
+        // A rate above the translator's limit is not refused: the pulses beyond it are lost.
         Ok(())
+    }
+
+    /// Commanded steps the translator dropped because they came faster than its pulse limit (the
+    /// simulator's truth; no dialect reports it).
+    pub fn lost_steps(&self) -> u64 {
+        self.lost_steps
     }
 
     /// Clock time of the last step of the last finished preset move (its completion).
@@ -287,13 +318,32 @@ mod tests {
         );
     }
 
+    /// Above 10 000 pulses/s (seed 001 §4.1.5) the translator passes 10 000 of every rate's
+    /// pulses per second: at a steady 12 500 pulses/s the motor takes 4 of every 5 commanded
+    /// steps, while the indexer counts them all.
     #[test]
-    fn over_pulse_limit_is_refused() {
+    fn over_the_pulse_limit_steps_are_lost_silently() {
         let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
-        m.profile.vmax_sps = 12_000.0;
-        let e = m.start_preset(100).unwrap_err();
-        assert!(e.to_string().contains("10000 pulses/s"), "{e}");
-        assert!(!m.is_moving());
+        m.profile = StepProfile {
+            v0_sps: 0.0,
+            vmax_sps: 12_500.0,
+            accel_sps2: 1.0e9,
+        };
+        m.start_preset(125_000).unwrap();
+        run(&mut m);
+        assert_eq!(m.counter_steps(), 125_000);
+        let lost = m.lost_steps() as f64;
+        assert!((lost - 25_000.0).abs() < 10.0, "{lost}");
+        assert_eq!(m.motor_steps() + m.lost_steps() as i64, 125_000);
+        assert!(!m.is_stalled());
+        // At the limit nothing is lost.
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile.vmax_sps = 10_000.0;
+        m.profile.accel_sps2 = 1.0e9;
+        m.start_preset(20_000).unwrap();
+        run(&mut m);
+        assert_eq!(m.lost_steps(), 0);
+        assert_eq!(m.motor_steps(), 20_000);
     }
 
     #[test]

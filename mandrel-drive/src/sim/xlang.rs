@@ -399,17 +399,27 @@ mod tests {
         assert_eq!(String::from_utf8_lossy(&c.take_output()), "*-0000000300\r");
     }
 
+    /// Above the translator's 10 000 pulses/s the card still runs the move and reports it done
+    /// and ready, as a real indexer would: the lost steps show only in the simulator's truth.
     #[test]
-    fn over_the_limit_is_refused_with_the_limit_named() {
+    fn over_the_limit_steps_are_lost_without_a_word() {
         let mut c = card();
         say(&mut c, "1SSA1\r", 0.0);
-        let out = say(&mut c, "1V30 1D100 1G\r", 0.0); // 30 rev/s × 400 = 12 000 pulses/s
-        assert!(
-            out.contains("exceeds the translator limit of 10000 pulses/s"),
-            "{out}"
+        // 30 rev/s × 400 = 12 000 pulses/s.
+        let out = say(&mut c, "1A999 1V30 1D40000 1G\r", 0.0);
+        assert!(!out.contains('?'), "{out}");
+        let mut t = 0.0;
+        while t < 10.0 {
+            t += 0.001;
+            c.poll(t);
+        }
+        assert_eq!(say(&mut c, "1R\r", 10.0), "*R\r");
+        assert_eq!(c.machine.counter_steps(), 40_000);
+        assert!(c.machine.lost_steps() > 5_000, "{}", c.machine.lost_steps());
+        assert_eq!(
+            c.machine.motor_steps() + c.machine.lost_steps() as i64,
+            40_000
         );
-        assert_eq!(say(&mut c, "1R\r", 0.0), "*S\r");
-        assert_eq!(c.machine.counter_steps(), 0);
     }
 
     #[test]
