@@ -31,6 +31,12 @@ pub enum Error {
         /// What the mesh reader said.
         source: paths::Error,
     },
+    /// The check's recording could not be written.
+    #[error("recording: {message}")]
+    Record {
+        /// What the MCAP writer said.
+        message: String,
+    },
     /// An input file could not be read.
     #[error("{}: {source}", file.display())]
     Read {

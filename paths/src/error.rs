@@ -93,6 +93,17 @@ pub enum Error {
         /// Which limit (`horizontal reach`, `height range`, `wrist pitch range`).
         limit: &'static str,
     },
+    /// The payout eye's point lies inside the mandrel: the plan cannot be wound (seed 001 §5.7).
+    #[error(
+        "program {program}: the payout eye passes {:.3} mm inside the mandrel (raise offset_mm)",
+        -clearance_mm
+    )]
+    EyeInsideMandrel {
+        /// The path's program number.
+        program: u8,
+        /// The eye point's least distance to the surface, mm (negative).
+        clearance_mm: f64,
+    },
     /// The arm cannot take a pose: out of reach, off the arm plane, a joint out of range or a
     /// joint jump between consecutive poses.
     #[error("{}{fault}", segment.map(|s| format!("segment {s}: ")).unwrap_or_default())]

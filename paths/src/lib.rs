@@ -4,6 +4,7 @@
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
+pub mod clearance;
 pub mod control;
 pub mod delivery;
 pub mod error;
@@ -12,9 +13,9 @@ pub mod geodesic;
 pub mod limits;
 pub mod mandrel;
 pub mod mesh;
-pub mod placement;
 pub mod motion;
 pub mod pattern;
+pub mod placement;
 pub mod plan;
 pub mod robot;
 pub mod segment;
