@@ -3,9 +3,11 @@
 
 pub mod batch;
 pub mod cellfile;
+pub mod check;
 pub mod coordinator;
 pub mod device;
 pub mod error;
+pub mod figure;
 pub mod gcode;
 pub mod imported;
 pub mod journal;
@@ -14,6 +16,7 @@ pub mod mesh;
 pub mod output;
 pub mod record;
 pub mod report;
+pub mod scene;
 pub mod simcell;
 pub mod tool;
 pub mod trace_plot;

@@ -6,6 +6,7 @@
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
 pub mod calibration;
+pub mod clearance;
 pub mod control;
 pub mod delivery;
 pub mod error;

@@ -58,6 +58,44 @@ pub struct Cell {
     /// Serial ports; absent means the built-in simulated cell.
     #[serde(default, skip_serializing_if = "Ports::is_empty")]
     pub ports: Ports,
+    /// The payout-eye mechanism for the clearance check; absent means the defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eye: Option<Eye>,
+    /// Obstacles in the cell frame (floor, mandrel-drive frame, fences), `[[cell.obstacle]]`.
+    #[serde(default, rename = "obstacle", skip_serializing_if = "Vec::is_empty")]
+    pub obstacles: Vec<Obstacle>,
+}
+
+/// The payout-eye mechanism as the clearance check sees it (seed 001 §5.7): a capsule from the
+/// eye back along the tool axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Eye {
+    /// From the eye to the wrist, mm (default: `eye_mechanism_length_mm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length_mm: Option<Spanned<f64>>,
+    /// Capsule radius, mm (default 10).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_mm: Option<Spanned<f64>>,
+    /// Depth inside the mandrel at which the free fibre snags, mm (default 0.01).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub snag_tolerance_mm: Option<Spanned<f64>>,
+    /// The eye's home position, cell frame, mm: where the approach to the first path starts
+    /// (absent: that approach is not checked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub home_mm: Option<Spanned<[f64; 3]>>,
+}
+
+/// An axis-aligned box in the cell frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Obstacle {
+    /// What it is (`floor`, `drive frame`).
+    pub name: Spanned<String>,
+    /// Least corner, mm.
+    pub min_mm: Spanned<[f64; 3]>,
+    /// Greatest corner, mm.
+    pub max_mm: Spanned<[f64; 3]>,
 }
 
 /// The mandrel drive (seed 001 §4.1.4–4.1.6).
@@ -445,6 +483,35 @@ impl Job {
                 d.start_stop_rps.span(),
                 "start_stop_rps exceeds mandrel_speed_rps",
             ));
+        }
+        if let Some(eye) = &c.eye {
+            if let Some(l) = &eye.length_mm {
+                positive(text, l, "eye mechanism length")?;
+            }
+            if let Some(r) = &eye.radius_mm {
+                positive(text, r, "eye radius")?;
+            }
+            if let Some(t) = &eye.snag_tolerance_mm {
+                positive(text, t, "snag tolerance")?;
+            }
+            if let Some(h) = &eye.home_mm
+                && !h.get_ref().iter().all(|v| v.is_finite())
+            {
+                return Err(error_at(text, h.span(), "home_mm must be finite"));
+            }
+        }
+        for o in &c.obstacles {
+            let (lo, hi) = (o.min_mm.get_ref(), o.max_mm.get_ref());
+            if !lo.iter().chain(hi).all(|v| v.is_finite()) || (0..3).any(|k| lo[k] > hi[k]) {
+                return Err(error_at(
+                    text,
+                    o.max_mm.span(),
+                    "max_mm must be finite and not below min_mm on any axis",
+                ));
+            }
+            if o.name.get_ref().is_empty() {
+                return Err(error_at(text, o.name.span(), "an obstacle needs a name"));
+            }
         }
         if let Some(r) = &c.robot {
             for length in [

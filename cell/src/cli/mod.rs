@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod argument_error;
+pub mod check;
 pub mod geodesic;
 pub mod jog;
 pub mod lathe;
@@ -68,6 +69,8 @@ pub struct Cli {
 pub enum Command {
     /// Plan a job: write .ROB, .IND, sequence and run files (the TOOL step).
     Plan(plan::PlanArgs),
+    /// Check a job for collisions of the eye and the arm and snags of the free fibre (exit 3).
+    Check(check::CheckArgs),
     /// Wind a batch on the cell: a job (planned first) or a sequence of control files.
     Run(run::RunArgs),
     /// Manual control: one robot position and one mandrel move, sent together.
@@ -105,6 +108,7 @@ pub fn print(text: &str) -> Result<(), Failure> {
 pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
+        Command::Check(args) => check::run(args),
         Command::Run(args) => run::run(args),
         Command::Jog(args) => jog::run(args),
         Command::SimCell(args) => sim_cell::run(args),

@@ -1,0 +1,564 @@
+//! The clearance sweep of a whole job: every segment of every path, and the moves between paths.
+//!
+//! # Motion between segment ends
+//! Over segment `k` (from the pose at point `k − 1` to the pose at point `k`, time `τ ∈ [0, 1]`
+//! of its duration) the eye moves on the straight line between its cell-frame positions (the
+//! robot's rectangular interpolation), the wrist turns by spherical interpolation of its
+//! quaternions, the mandrel turns linearly between its commanded angles, and the tangent point
+//! moves along the chord between the two tangent points, projected onto the surface.
+//!
+//! # What each check finds, and what it can miss
+//! - **Eye mechanism** (a capsule from the eye back along the tool axis) against the mandrel
+//!   (mandrel frame) and the obstacles (cell frame), and the **arm's links** against both:
+//!   continuous in time. Every point of the part moves at most `L` mm per unit `τ` (eye travel, plus
+//!   the mechanism length times the wrist's turn, plus the mandrel's turn times the largest radius
+//!   from its axis), so clearance is `L`-Lipschitz in `τ`, and [`certified_min`] finds every dip
+//!   below zero deeper than [`super::RESOLUTION_MM`] and the least clearance to 1 % of itself
+//!   (0.001 mm near contact). The arm's links take `L` from the joint travel times the arm's reach
+//!   (doubled, since joints do not move linearly in `τ`).
+//! - **Free fibre** (the tow line from the tangent point to the eye) against the mandrel:
+//!   its clearance sits at 0 along the whole sweep (the fibre touches at its tangent point), so a
+//!   Lipschitz bound would need thousands of evaluations per segment. It is **sampled**: at both
+//!   segment ends and at instants no more than [`TOW_SAMPLE_MM`] of eye travel (mandrel frame)
+//!   apart; each sampled tow line is checked exactly along its length. Between two samples every
+//!   point of the tow line moves at most `TOW_SAMPLE_MM` (the tangent point moves less than the
+//!   eye), so a snag deeper than `snag_tolerance_mm + TOW_SAMPLE_MM / 2` cannot fall between two
+//!   samples unseen; a shallower one can.
+//! - **Approach and link moves** (home → first point of path 1, last point of path `n` → first
+//!   point of path `n + 1`): the eye and the arm, continuous as above, the mandrel turning from
+//!   the previous path's last angle to the next path's start (the synchronisation of §5.6 step 8).
+//!   No fibre is checked on them. They are reported as segment 0 of the path they lead into.
+
+use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
+
+use super::minimum::Minimum;
+use super::{EyeMechanism, Obstacle, RESOLUTION_MM, Solid, certified_min};
+use crate::plan::{PathPlan, Pose};
+use crate::robot::{Arm, ElbowBranch};
+use crate::{Error, Setup};
+
+/// Largest eye travel (mandrel frame) between two sampled tow lines, mm.
+pub const TOW_SAMPLE_MM: f64 = 0.5;
+
+/// Links of the arm checked against the mandrel and the obstacles (the pedestal stands on the
+/// floor and the eye mechanism is the eye's capsule, so they are checked against the mandrel
+/// only, and not at all, respectively).
+const LINK_NAMES: [&str; 5] = ["pedestal", "upper arm", "forearm", "wrist", "eye mechanism"];
+
+/// What was checked: the cell around the paths.
+#[derive(Debug, Clone, Copy)]
+pub struct Cell<'a> {
+    /// Robot distance and mandrel height (the mandrel frame's place in the cell frame).
+    pub setup: &'a Setup,
+    /// The payout-eye mechanism.
+    pub eye: EyeMechanism,
+    /// Depth inside the mandrel at which the free fibre snags, mm.
+    pub snag_tolerance_mm: f64,
+    /// Boxes in the cell frame.
+    pub obstacles: &'a [Obstacle],
+    /// The eye's home position (cell frame), the start of the approach to path 1; `None` skips
+    /// that approach.
+    pub home_mm: Option<Point3<f64>>,
+    /// Speed of approach and link moves, mm/s.
+    pub approach_speed_mm_s: f64,
+    /// The arm and its elbow branch; `None` checks no links.
+    pub arm: Option<(&'a Arm, ElbowBranch)>,
+}
+
+/// The part that comes too close.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Part {
+    /// The payout-eye mechanism's capsule.
+    EyeMechanism,
+    /// The free fibre between the tangent point and the eye.
+    FreeFibre,
+    /// One of the arm's links.
+    Link(&'static str),
+}
+
+impl Part {
+    /// The part in words.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Part::EyeMechanism => "eye mechanism",
+            Part::FreeFibre => "free fibre",
+            Part::Link(name) => name,
+        }
+    }
+}
+
+/// A collision or a snag.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finding {
+    /// Path, from 1 in the job's order.
+    pub path: usize,
+    /// Segment, from 1; 0 is the approach or link move into the path.
+    pub segment: usize,
+    /// Time from the path's first point, s (negative on the approach).
+    pub time_s: f64,
+    /// Clearance there, mm (negative: inside).
+    pub clearance_mm: f64,
+    /// What hit.
+    pub part: Part,
+    /// What it hit: `mandrel` or an obstacle's name.
+    pub against: String,
+    /// The eye there, cell frame.
+    pub eye_mm: Point3<f64>,
+    /// The unit tool axis there (eye toward the tangent point), cell frame.
+    pub axis: Vector3<f64>,
+    /// The mandrel angle there, rad.
+    pub mandrel_rad: f64,
+}
+
+/// The least clearances over one segment (or approach move).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentClearance {
+    /// Segment, from 1; 0 is the approach or link move.
+    pub segment: usize,
+    /// Start time from the path's first point, s.
+    pub start_s: f64,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Eye mechanism against the mandrel and the obstacles, mm.
+    pub eye_mm: f64,
+    /// Free fibre against the mandrel (0 when it only touches at its tangent point; negative
+    /// inside), mm; `None` on approach moves.
+    pub tow_mm: Option<f64>,
+    /// Arm links against the mandrel and the obstacles, mm; `None` without an arm.
+    pub arm_mm: Option<f64>,
+}
+
+/// A pose within a move, for drawing the worst one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Instant {
+    /// Path from 1, segment (0 = approach), and `τ` in the segment.
+    pub path: usize,
+    /// Segment.
+    pub segment: usize,
+    /// Fraction of the segment's time.
+    pub tau: f64,
+    /// Eye, cell frame.
+    pub eye_mm: Point3<f64>,
+    /// Unit tool axis, from the eye toward the tangent point, cell frame.
+    pub axis: Vector3<f64>,
+    /// Mandrel angle, rad.
+    pub mandrel_rad: f64,
+    /// The least clearance of the eye and the arm there, mm.
+    pub clearance_mm: f64,
+}
+
+/// Everything the sweep found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// Per path, its approach (segment 0) and then its segments.
+    pub paths: Vec<Vec<SegmentClearance>>,
+    /// Every finding, in path, segment and time order (at most one per part and thing hit per
+    /// segment: the first).
+    pub findings: Vec<Finding>,
+    /// The pose with the least eye or arm clearance.
+    pub worst: Option<Instant>,
+}
+
+impl Report {
+    /// True when nothing was found.
+    pub fn is_clear(&self) -> bool {
+        self.findings.is_empty()
+    }
+}
+
+/// One end of a move.
+#[derive(Debug, Clone, Copy)]
+struct End {
+    eye: Point3<f64>,
+    q: UnitQuaternion<f64>,
+    phi: f64,
+    tangent: Option<Point3<f64>>,
+}
+
+impl End {
+    fn of(pose: &Pose) -> End {
+        End {
+            eye: pose.eye_mm,
+            q: pose.wrist_q,
+            phi: pose.mandrel_rad,
+            tangent: Some(pose.tangent_point_mm),
+        }
+    }
+}
+
+/// The tool axis (eye → tangent point) of a wrist orientation: its `z` axis.
+fn axis_of(q: &UnitQuaternion<f64>) -> Vector3<f64> {
+    q * Vector3::z()
+}
+
+/// The cell and the solid, with the frame change.
+struct Context<'a> {
+    cell: &'a Cell<'a>,
+    solid: &'a dyn Solid,
+    origin: Vector3<f64>,
+}
+
+impl Context<'_> {
+    fn to_mandrel(&self, p: &Point3<f64>, phi: f64) -> Point3<f64> {
+        let (s, c) = phi.sin_cos();
+        let w = p - self.origin;
+        Point3::new(c * w.x + s * w.y, -s * w.x + c * w.y, w.z)
+    }
+
+    /// Least clearance of a cell-frame capsule against the mandrel at angle `phi` and the
+    /// obstacles, with what it was against.
+    fn capsule(
+        &self,
+        a: &Point3<f64>,
+        b: &Point3<f64>,
+        radius: f64,
+        phi: f64,
+        obstacles: bool,
+    ) -> (f64, usize) {
+        let mut best = (
+            self.solid
+                .segment_min_mm(&self.to_mandrel(a, phi), &self.to_mandrel(b, phi))
+                - radius,
+            0,
+        );
+        if obstacles {
+            for (i, o) in self.cell.obstacles.iter().enumerate() {
+                let d = o.distance_to_segment_mm(a, b) - radius;
+                if d < best.0 {
+                    best = (d, i + 1);
+                }
+            }
+        }
+        best
+    }
+
+    fn against(&self, index: usize) -> String {
+        if index == 0 {
+            "mandrel".to_string()
+        } else {
+            self.cell.obstacles[index - 1].name.clone()
+        }
+    }
+
+    /// The joints' link capsules for an eye and tool axis: the roll axis is the tool axis
+    /// projected into the arm plane (the vertical plane through the pedestal axis and the eye; a
+    /// five-axis arm has no wrist yaw, seed 001 §4.1.1).
+    fn links(
+        &self,
+        eye: &Point3<f64>,
+        axis: &Vector3<f64>,
+    ) -> Result<Option<(crate::Joints, [super::Capsule; 5])>, Error> {
+        let Some((arm, branch)) = self.cell.arm else {
+            return Ok(None);
+        };
+        let rho = eye.x.hypot(eye.y);
+        let across = if rho > 1e-9 {
+            Vector3::new(-eye.y / rho, eye.x / rho, 0.0)
+        } else {
+            Vector3::zeros()
+        };
+        let in_plane = axis - across * axis.dot(&across);
+        let roll_axis = Unit::try_new(in_plane, 1e-9).ok_or(Error::OutOfRange {
+            name: "tool axis",
+            value: axis.dot(&across),
+            expected: "must not be normal to the arm plane",
+        })?;
+        let joints = arm.inverse(eye, &roll_axis, 0.0, branch)?;
+        Ok(Some((joints, arm.links(&joints))))
+    }
+
+    /// Least clearance of the arm's links (pedestal against the mandrel only; upper arm, forearm
+    /// and wrist against the mandrel and the obstacles), with the link and what it was against.
+    fn arm(
+        &self,
+        eye: &Point3<f64>,
+        axis: &Vector3<f64>,
+        phi: f64,
+    ) -> Result<Option<(f64, usize, usize)>, Error> {
+        let Some((_, links)) = self.links(eye, axis)? else {
+            return Ok(None);
+        };
+        let mut best = (f64::INFINITY, 0, 0);
+        for (i, link) in links.iter().enumerate().take(4) {
+            let (d, against) = self.capsule(&link.a, &link.b, link.radius_mm, phi, i > 0);
+            if d < best.0 {
+                best = (d, i, against);
+            }
+        }
+        Ok(Some(best))
+    }
+}
+
+/// Checks every path of a job (`paths` in order) against `solid`, the mandrel in its own frame.
+/// Errors only when the arm cannot take a pose on the way.
+pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<Report, Error> {
+    let ctx = Context {
+        cell,
+        solid,
+        origin: Vector3::new(
+            cell.setup.robot_distance_mm,
+            0.0,
+            cell.setup.mandrel_height_mm,
+        ),
+    };
+    let mut report = Report {
+        paths: Vec::with_capacity(paths.len()),
+        findings: Vec::new(),
+        worst: None,
+    };
+    let mut previous: Option<End> = cell.home_mm.map(|home| End {
+        eye: home,
+        q: paths
+            .first()
+            .map_or(UnitQuaternion::identity(), |p| p.start.wrist_q),
+        phi: paths.first().map_or(0.0, |p| p.start.mandrel_rad),
+        tangent: None,
+    });
+    for (n, plan) in paths.iter().enumerate() {
+        let mut rows = Vec::with_capacity(plan.segments.len() + 1);
+        let start = End::of(&plan.start);
+        // Approach or link move: no fibre.
+        match previous {
+            Some(from) => {
+                let mut to = start;
+                to.tangent = None;
+                // The mandrel turns the short way to the next start.
+                let mut from = from;
+                from.tangent = None;
+                let turn = (to.phi - from.phi).rem_euclid(std::f64::consts::TAU);
+                let turn = if turn > std::f64::consts::PI {
+                    turn - std::f64::consts::TAU
+                } else {
+                    turn
+                };
+                from.phi = to.phi - turn;
+                let duration = (to.eye - from.eye).norm() / cell.approach_speed_mm_s;
+                let row = check_move(&ctx, &from, &to, n + 1, 0, -duration, duration, &mut report)?;
+                rows.push(row);
+            }
+            None => rows.push(SegmentClearance {
+                segment: 0,
+                start_s: 0.0,
+                duration_s: 0.0,
+                eye_mm: f64::INFINITY,
+                tow_mm: None,
+                arm_mm: None,
+            }),
+        }
+        let mut from = start;
+        let mut t = 0.0;
+        for (k, segment) in plan.segments.iter().enumerate() {
+            let to = End::of(&segment.pose);
+            let row = check_move(
+                &ctx,
+                &from,
+                &to,
+                n + 1,
+                k + 1,
+                t,
+                segment.duration_s,
+                &mut report,
+            )?;
+            rows.push(row);
+            t += segment.duration_s;
+            from = to;
+        }
+        previous = Some(from);
+        report.paths.push(rows);
+    }
+    Ok(report)
+}
+
+/// Checks one move, adds its findings, returns its row.
+#[allow(clippy::too_many_arguments)]
+fn check_move(
+    ctx: &Context<'_>,
+    from: &End,
+    to: &End,
+    path: usize,
+    segment: usize,
+    start_s: f64,
+    duration_s: f64,
+    report: &mut Report,
+) -> Result<SegmentClearance, Error> {
+    let first_segment = segment == 1;
+    let cell = ctx.cell;
+    let eye_len = cell.eye.length_mm;
+    let at = |tau: f64| {
+        let eye = from.eye + (to.eye - from.eye) * tau;
+        let q = from.q.try_slerp(&to.q, tau, 1e-12).unwrap_or(to.q);
+        let phi = from.phi + (to.phi - from.phi) * tau;
+        (eye, axis_of(&q), phi)
+    };
+    // Lipschitz bound of the eye capsule's points in τ.
+    let horizontal = |p: &Point3<f64>| (p.x - ctx.origin.x).hypot(p.y - ctx.origin.y);
+    let d_phi = (to.phi - from.phi).abs();
+    let turn = from.q.angle_to(&to.q);
+    let reach = horizontal(&from.eye).max(horizontal(&to.eye)) + eye_len;
+    let travel = (to.eye - from.eye).norm();
+    let l_eye = travel + eye_len * turn + d_phi * reach;
+    let time = |tau: f64| start_s + tau * duration_s;
+    let record = |report: &mut Report, tau: f64, clearance: f64, part: Part, against: String| {
+        let (eye_mm, axis, mandrel_rad) = at(tau);
+        report.findings.push(Finding {
+            path,
+            segment,
+            time_s: time(tau),
+            clearance_mm: clearance,
+            part,
+            against,
+            eye_mm,
+            axis,
+            mandrel_rad,
+        });
+    };
+
+    // Eye mechanism.
+    let mut eye_fn = |tau: f64| {
+        let (eye, axis, phi) = at(tau);
+        ctx.capsule(&eye, &(eye - axis * eye_len), cell.eye.radius_mm, phi, true)
+            .0
+    };
+    let eye = certified_min(&mut eye_fn, l_eye, RESOLUTION_MM, 0.0);
+    if let Some((tau, d)) = eye.first_below {
+        // Name what the first contact was against.
+        let (e, axis, phi) = at(tau);
+        let (_, against) = ctx.capsule(&e, &(e - axis * eye_len), cell.eye.radius_mm, phi, true);
+        let against = ctx.against(against);
+        record(report, tau, d, Part::EyeMechanism, against);
+    }
+    note_worst(report, &eye, path, segment, &at);
+
+    // Free fibre, sampled.
+    let tow_mm = match (from.tangent, to.tangent) {
+        (Some(t0), Some(t1)) => {
+            let e0 = ctx.to_mandrel(&from.eye, from.phi);
+            let e1 = ctx.to_mandrel(&to.eye, to.phi);
+            let swept = (e1 - e0).norm() + d_phi * reach;
+            let count = (swept / TOW_SAMPLE_MM).ceil().max(1.0) as usize;
+            let skip = 0.5 * cell.snag_tolerance_mm;
+            let mut least = f64::INFINITY;
+            let mut first: Option<(f64, f64)> = None;
+            // The start pose's tow line runs along the first chord (the plan's start convention,
+            // eqs 3.8–3.14 need a previous point), under the surface by that chord's sagitta:
+            // the first segment's fibre is checked at its end only.
+            let from_sample = if first_segment { count } else { 0 };
+            for i in from_sample..=count {
+                let tau = i as f64 / count as f64;
+                let (eye, _, phi) = at(tau);
+                let e = ctx.to_mandrel(&eye, phi);
+                let t = if i == 0 {
+                    t0
+                } else if i == count {
+                    t1
+                } else {
+                    ctx.solid.surface_point(&(t0 + (t1 - t0) * tau))
+                };
+                let Some(dir) = (e - t).try_normalize(1e-9) else {
+                    continue;
+                };
+                // Within half the tolerance of the tangent point the fibre cannot be deeper than
+                // the tolerance (signed distance is 1-Lipschitz), so the check starts there.
+                let (d, below) =
+                    ctx.solid
+                        .inside_beyond(&(t + dir * skip), &e, cell.snag_tolerance_mm);
+                least = least.min(d);
+                if let (None, Some((_, depth))) = (first, below) {
+                    first = Some((tau, depth));
+                }
+            }
+            if let Some((tau, d)) = first {
+                record(report, tau, d, Part::FreeFibre, "mandrel".to_string());
+            }
+            Some(least)
+        }
+        _ => None,
+    };
+
+    // Arm links.
+    let arm_mm = if cell.arm.is_some() {
+        let (_, axis0, _) = at(0.0);
+        let (_, axis1, _) = at(1.0);
+        let j0 = ctx.links(&from.eye, &axis0)?.map(|(j, _)| j);
+        let j1 = ctx.links(&to.eye, &axis1)?.map(|(j, _)| j);
+        let (arm, _) = cell.arm.ok_or(Error::OutOfRange {
+            name: "arm",
+            value: 0.0,
+            expected: "must be given",
+        })?;
+        let joint_travel: f64 = match (j0, j1) {
+            (Some(a), Some(b)) => a
+                .to_array()
+                .iter()
+                .zip(b.to_array())
+                .map(|(x, y)| (x - y).abs())
+                .sum(),
+            _ => 0.0,
+        };
+        let arm_reach = arm.shoulder_height_mm + arm.upper_arm_mm + arm.forearm_mm + eye_len;
+        let l_arm = 2.0 * joint_travel * arm_reach + d_phi * (ctx.origin.x + arm_reach);
+        let mut failure: Option<Error> = None;
+        let mut arm_fn = |tau: f64| {
+            let (eye, axis, phi) = at(tau);
+            match ctx.arm(&eye, &axis, phi) {
+                Ok(Some((d, _, _))) => d,
+                Ok(None) => f64::INFINITY,
+                Err(e) => {
+                    failure.get_or_insert(e);
+                    f64::INFINITY
+                }
+            }
+        };
+        let m = certified_min(&mut arm_fn, l_arm, RESOLUTION_MM, 0.0);
+
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        if let Some((tau, d)) = m.first_below {
+            let (eye, axis, phi) = at(tau);
+            if let Some((_, link, against)) = ctx.arm(&eye, &axis, phi)? {
+                record(
+                    report,
+                    tau,
+                    d,
+                    Part::Link(LINK_NAMES[link]),
+                    ctx.against(against),
+                );
+            }
+        }
+        note_worst(report, &m, path, segment, &at);
+        Some(m.value)
+    } else {
+        None
+    };
+
+    Ok(SegmentClearance {
+        segment,
+        start_s,
+        duration_s,
+        eye_mm: eye.value,
+        tow_mm,
+        arm_mm,
+    })
+}
+
+fn note_worst(
+    report: &mut Report,
+    m: &Minimum,
+    path: usize,
+    segment: usize,
+    at: &dyn Fn(f64) -> (Point3<f64>, Vector3<f64>, f64),
+) {
+    if report.worst.is_none_or(|w| m.value < w.clearance_mm) {
+        let (eye_mm, axis, mandrel_rad) = at(m.at);
+        report.worst = Some(Instant {
+            path,
+            segment,
+            tau: m.at,
+            eye_mm,
+            axis,
+            mandrel_rad,
+            clearance_mm: m.value,
+        });
+    }
+}
