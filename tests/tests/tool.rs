@@ -13,6 +13,11 @@ fn examples() -> Vec<PathBuf> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        // Cell files (`windcell run --cell`), not jobs.
+        .filter(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("cell-"))
+        })
         .collect();
     jobs.sort();
     jobs
