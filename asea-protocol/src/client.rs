@@ -3,9 +3,17 @@
 //!
 //! Within a session the [`Host`] state machine retries by itself (ENQ up to `N_ENQ`, the telegram
 //! up to `N_TX`). A whole new session is started again only for requests without side effects
-//! (ENQUIRE, READ_BACK): re-sending a command in a new session after an unacknowledged one could
-//! execute it twice, so commands are sent once and a failure is reported to the caller.
+//! (ENQUIRE, READ_BACK, PROGRAM_INFO). A command is sent again only once the robot's status proves
+//! that it was not executed ([`Client::command_confirmed`]); stored instructions are proven by
+//! reading them back ([`Client::store_verified`]). The guarantee of each command class is the
+//! table in docs/protocol.md §7.
+//!
+//! Every exchange can be cancelled from another thread with the [`Cancel`] token
+//! ([`Client::cancel_token`]): the exchange under way ends with an EOT and [`Error::Cancelled`]
+//! within [`POLL_PERIOD`], and [`Client::stop`] still goes through while the token is set.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use crate::clock::{Clock, RealClock};
@@ -25,6 +33,12 @@ pub struct RetryPolicy {
     pub request_sessions: u32,
     /// Re-stores of one instruction during [`Client::verify`].
     pub restores: u32,
+    /// Attempts of one confirmed command ([`Client::command_confirmed`]); each attempt after the
+    /// first follows a status that proves the previous one was not executed.
+    pub command_attempts: u32,
+    /// Uploads of one program of a batch ([`Client::upload_batch`]) when its program information
+    /// shows instructions the upload did not write.
+    pub program_uploads: u32,
 }
 
 impl Default for RetryPolicy {
@@ -32,7 +46,40 @@ impl Default for RetryPolicy {
         RetryPolicy {
             request_sessions: 3,
             restores: 3,
+            command_attempts: 3,
+            program_uploads: 3,
         }
+    }
+}
+
+/// Longest wait of one read: a cancelled exchange ends within this (plus one byte write).
+pub const POLL_PERIOD: Duration = Duration::from_millis(50);
+
+/// Status replies in a row that must agree (on every field but state and instruction, which
+/// move while the arm runs) before the client acts on them: one corrupted reply that a one-byte
+/// sum lets through cannot make a command look unexecuted (and be sent twice) or hide an error.
+pub const AGREE_STATUS: u32 = 2;
+
+/// A token that cancels the client's exchanges from another thread or task.
+#[derive(Debug, Clone, Default)]
+pub struct Cancel(Arc<AtomicBool>);
+
+impl Cancel {
+    /// A token not set.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Cancels the exchange under way and every later one until [`Cancel::reset`].
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+    /// Lets exchanges run again.
+    pub fn reset(&self) {
+        self.0.store(false, Ordering::SeqCst);
+    }
+    /// True while set.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
     }
 }
 
@@ -61,6 +108,9 @@ pub struct VerifyReport {
     pub checked: usize,
     /// Instructions stored again because they read back differently.
     pub restored: usize,
+    /// Errors the robot raised during the upload that belong to no instruction of it (corrupted
+    /// twins it refused), acknowledged.
+    pub refused_twins: u64,
 }
 
 /// The blocking robot client.
@@ -71,6 +121,17 @@ pub struct Client<L, C = RealClock> {
     host: Host,
     cfg: ClientConfig,
     buf: Vec<u8>,
+    cancel: Cancel,
+    /// While true the cancel token is ignored (STOP).
+    uncancellable: bool,
+    /// The robot's error sequence number as last accounted for: errors up to it are reported.
+    seen_error_seq: Option<u8>,
+    /// Errors the robot raised that this client has seen (reported or acknowledged), counted by
+    /// sequence number.
+    errors_seen: u64,
+    /// The robot's execution count after the last confirmed command, while nothing else with an
+    /// effect was sent since (stores make it unknown).
+    last_executed: Option<u16>,
 }
 
 impl<L: Link> Client<L, RealClock> {
@@ -102,7 +163,23 @@ impl<L: Link, C: Clock> Client<L, C> {
             host: Host::new(cfg.frame, cfg.timers),
             cfg,
             buf: vec![0u8; 256],
+            cancel: Cancel::new(),
+            uncancellable: false,
+            seen_error_seq: None,
+            errors_seen: 0,
+            last_executed: None,
         }
+    }
+
+    /// Errors the robot raised that this client has seen since it was made (by the robot's error
+    /// sequence number, so errors that overwrote each other between two reads count each).
+    pub fn errors_seen(&self) -> u64 {
+        self.errors_seen
+    }
+
+    /// The token that cancels this client's exchanges (clone it into another thread).
+    pub fn cancel_token(&self) -> Cancel {
+        self.cancel.clone()
     }
 
     /// Link counters.
@@ -145,11 +222,21 @@ impl<L: Link, C: Clock> Client<L, C> {
             if let Some(outcome) = self.host.take_outcome() {
                 return outcome.map_err(Error::from);
             }
+            if !self.uncancellable && self.cancel.is_cancelled() {
+                self.host.abort(self.clock.now());
+                let out = self.host.take_output();
+                if !out.is_empty() {
+                    self.link.write_all(&out)?;
+                    self.host.on_sent(self.clock.now());
+                }
+                return Err(Error::Cancelled);
+            }
             let now = self.clock.now();
             let wait = match self.host.deadline() {
                 Some(d) => d.saturating_sub(now),
-                None => Duration::from_millis(50),
-            };
+                None => POLL_PERIOD,
+            }
+            .min(POLL_PERIOD);
             if wait.is_zero() {
                 self.host.on_time(now);
                 continue;
@@ -165,9 +252,12 @@ impl<L: Link, C: Clock> Client<L, C> {
         }
     }
 
-    /// Sends `cmd` in one session. `Ok` means the robot acknowledged it: it is executed exactly
-    /// once. An error means it was not acknowledged: it may have been executed once, never twice.
-    /// Semantic errors are the robot's `last_error`, read with [`Client::check_status`].
+    /// Sends `cmd` in one session, once. `Ok` means the robot acknowledged a telegram: on a CRC-16
+    /// link with the ACK window that is `cmd`, executed once; on the thesis's one-byte sum it may
+    /// have been a corrupted twin (docs/protocol.md §7). An error means it was not acknowledged:
+    /// it may have been executed once, never twice by this call. Semantic errors are latched by
+    /// the robot and read with [`Client::check_status`]. [`Client::command_confirmed`] and
+    /// [`Client::store_verified`] prove what was executed.
     pub fn send(&mut self, cmd: &Command) -> Result<()> {
         self.session(cmd).map(|_| ())
     }
@@ -184,7 +274,12 @@ impl<L: Link, C: Clock> Client<L, C> {
                 Ok(Some(frame)) => match Reply::from_frame(&frame) {
                     Ok(reply) => return Ok(reply),
                     // A reply that passed the check value but does not parse was corrupted.
-                    Err(e) => last = Some(Error::Parse(e)),
+                    Err(source) => {
+                        last = Some(Error::Reply {
+                            telegram: request_name(cmd),
+                            source,
+                        })
+                    }
                 },
                 Ok(None) => last = Some(Error::UnexpectedReply("no reply telegram")),
                 Err(Error::Link(e)) => last = Some(Error::Link(e)),
@@ -194,7 +289,7 @@ impl<L: Link, C: Clock> Client<L, C> {
         Err(last.unwrap_or(Error::UnexpectedReply("no reply")))
     }
 
-    /// ENQUIRE status (reading it clears the robot's `last_error`).
+    /// ENQUIRE status, one reply (reading it does not clear the robot's latched error).
     pub fn status(&mut self) -> Result<Status> {
         match self.request(&Command::Enquire(Selector::Status))? {
             Reply::Status(s) => Ok(s),
@@ -204,20 +299,163 @@ impl<L: Link, C: Clock> Client<L, C> {
         }
     }
 
-    /// ENQUIRE status and turn a nonzero `last_error` into [`Error::Robot`].
-    pub fn check_status(&mut self) -> Result<Status> {
-        let s = self.status()?;
-        match RobotError::from_code(s.last_error) {
-            None if s.last_error == 0 => Ok(s),
-            None => Err(Error::Robot {
-                code: s.last_error,
-                message: "unknown error code",
-            }),
-            Some(e) => Err(Error::Robot {
-                code: e.code(),
-                message: e.message(),
-            }),
+    /// ENQUIRE status until [`AGREE_STATUS`] replies in a row agree on everything but the state
+    /// and the instruction (at most [`CONFIRMING_READS`] reads).
+    pub fn status_agreed(&mut self) -> Result<Status> {
+        let key = |s: &Status| {
+            (
+                s.mode,
+                s.program,
+                s.last_error,
+                s.homed,
+                s.error_seq,
+                s.executed,
+                s.last_digest,
+            )
+        };
+        let mut run: Option<(Status, u32)> = None;
+        let mut last_error = None;
+        for _ in 0..CONFIRMING_READS {
+            match self.status() {
+                Ok(s) => {
+                    let n = match &run {
+                        Some((prev, n)) if key(prev) == key(&s) => n + 1,
+                        _ => 1,
+                    };
+                    if n >= AGREE_STATUS {
+                        return Ok(s);
+                    }
+                    run = Some((s, n));
+                }
+                Err(e) if is_link_noise(&e) => last_error = Some(e),
+                Err(e) => return Err(e),
+            }
         }
+        Err(last_error.unwrap_or(Error::UnexpectedReply("status replies never agreed")))
+    }
+
+    /// Reads the status ([`Client::status_agreed`]) and reports a latched error the client has
+    /// not reported yet as [`Error::Robot`], after acknowledging it (ACK_ERROR with its sequence
+    /// number). The robot keeps an error latched until acknowledged, so a lost, corrupted or
+    /// duplicated status reply cannot erase it: it is reported at the next check. An error
+    /// already reported whose acknowledgement was lost is acknowledged again, not reported twice.
+    pub fn check_status(&mut self) -> Result<Status> {
+        let s = self.status_agreed()?;
+        self.account_errors(&s).map(|()| s)
+    }
+
+    /// Reports and acknowledges the errors `s` shows beyond those already accounted for.
+    fn account_errors(&mut self, s: &Status) -> Result<()> {
+        let new = self
+            .seen_error_seq
+            .map_or(s.last_error != 0, |seen| seen != s.error_seq);
+        if new && s.last_error == 0 {
+            // Only this client acknowledges errors, so a new error number without its code is a
+            // corrupted reply (or another host's doing): the error, if there is one, is still
+            // latched and the next read reports it.
+            return Ok(());
+        }
+        let count = self
+            .seen_error_seq
+            .map_or(u8::from(s.last_error != 0), |seen| {
+                s.error_seq.wrapping_sub(seen)
+            });
+        self.errors_seen += u64::from(count);
+        self.seen_error_seq = Some(s.error_seq);
+        if s.last_error != 0 {
+            // Idempotent: it clears only the error with this number; if it is lost the error stays
+            // latched and the next check acknowledges it again.
+            let _ = self.send(&Command::AckError { seq: s.error_seq });
+        }
+        if !new {
+            return Ok(());
+        }
+        let code = s.last_error;
+        let message = RobotError::from_code(code).map_or("unknown", RobotError::message);
+        Err(Error::Robot {
+            code,
+            message,
+            program: s.program,
+            instruction: s.instruction,
+            count,
+        })
+    }
+
+    /// Sends a command with an effect and proves what the robot did by its status (seed 001
+    /// §5.3.1: "a continuous check of the communication link is possible with the ENQUIRE
+    /// command"): the execution count must have advanced by exactly one, with the digest of the
+    /// telegram sent, and `effect` must hold for the status after it. A count that did not move
+    /// proves the command not executed; only then is it sent again (at most
+    /// [`RetryPolicy::command_attempts`] times in all). A count that moved by more than one, or
+    /// the digest of another telegram, is [`Error::Foreign`]; an error the robot raised is
+    /// [`Error::Robot`] (acknowledged); a wrong effect is [`Error::Effect`]. Never sent blindly.
+    pub fn command_confirmed(
+        &mut self,
+        cmd: &Command,
+        effect: fn(&Command, &Status) -> std::result::Result<(), &'static str>,
+    ) -> Result<Status> {
+        let bytes = cmd.encode(&self.cfg.frame)?;
+        let data = bytes
+            .get(3..3 + usize::from(bytes.get(2).copied().unwrap_or(0)))
+            .unwrap_or_default();
+        let sent = crate::frame::telegram_digest(cmd.code(), data);
+        let name = command_name(cmd);
+        let mut before = self.status_agreed()?;
+        // Errors from before this command are not its errors: report them first.
+        self.account_errors(&before)?;
+        // Anything executed since the last confirmed command that this client did not send.
+        if let Some(last) = self.last_executed.take()
+            && last != before.executed
+        {
+            return Err(Error::Foreign {
+                command: "(between commands)",
+                executed: before.executed.wrapping_sub(last),
+                digest: before.last_digest,
+                sent: 0,
+            });
+        }
+        let attempts = self.cfg.retry.command_attempts.max(1);
+        for _ in 0..attempts {
+            match self.send(cmd) {
+                Err(Error::Cancelled) => return Err(Error::Cancelled),
+                Err(Error::Io(e)) => return Err(Error::Io(e)),
+                // A link failure leaves the command's fate unknown: the status decides.
+                _ => {}
+            }
+            let after = self.status_agreed()?;
+            let executed = after.executed.wrapping_sub(before.executed);
+            match executed {
+                0 => {
+                    before = after;
+                    continue;
+                }
+                1 if after.last_digest == sent => {
+                    self.last_executed = Some(after.executed);
+                    self.account_errors(&after)?;
+                    return match effect(cmd, &after) {
+                        Ok(()) => Ok(after),
+                        Err(expected) => Err(Error::Effect {
+                            command: name,
+                            expected,
+                            found: format!("{after:?}"),
+                        }),
+                    };
+                }
+                _ => {
+                    // Errors stay latched for the next check to report.
+                    return Err(Error::Foreign {
+                        command: name,
+                        executed,
+                        digest: after.last_digest,
+                        sent,
+                    });
+                }
+            }
+        }
+        Err(Error::NotExecuted {
+            command: name,
+            attempts,
+        })
     }
 
     /// ENQUIRE position.
@@ -245,53 +483,176 @@ impl<L: Link, C: Clock> Client<L, C> {
         }
     }
 
-    /// Standby mode.
-    pub fn standby(&mut self) -> Result<()> {
-        self.send(&Command::Standby)
+    /// Standby mode, confirmed ([`Client::command_confirmed`]: the status shows STANDBY).
+    pub fn standby(&mut self) -> Result<Status> {
+        self.command_confirmed(&Command::Standby, effect_of)
     }
 
-    /// Operate mode.
-    pub fn operate(&mut self) -> Result<()> {
-        self.send(&Command::Operate)
+    /// Operate mode, confirmed (the status shows OPERATE).
+    pub fn operate(&mut self) -> Result<Status> {
+        self.command_confirmed(&Command::Operate, effect_of)
     }
 
-    /// Home synchronisation.
-    pub fn sync_home(&mut self) -> Result<()> {
-        self.send(&Command::SyncHome)
+    /// Home synchronisation, confirmed (homing under way, or homed).
+    pub fn sync_home(&mut self) -> Result<Status> {
+        self.command_confirmed(&Command::SyncHome, effect_of)
     }
 
-    /// Runs a stored program.
-    pub fn run_program(&mut self, program: u8) -> Result<()> {
-        self.send(&Command::RunProgram { program })
+    /// Runs a stored program, confirmed (running it, or idle after a standby dry run). A program
+    /// the robot refuses is [`Error::Robot`] with the instruction it stopped at (a pose the arm
+    /// cannot take: code 9).
+    pub fn run_program(&mut self, program: u8) -> Result<Status> {
+        self.command_confirmed(&Command::RunProgram { program }, effect_of)
     }
 
-    /// Stops motion.
-    pub fn stop(&mut self) -> Result<()> {
-        self.send(&Command::Stop)
+    /// Stops motion, confirmed (the state is STOPPED). It goes through while the cancel token is
+    /// set: this is what a cancelled coordinator sends.
+    pub fn stop(&mut self) -> Result<Status> {
+        self.uncancellable = true;
+        let r = self.command_confirmed(&Command::Stop, effect_of);
+        self.uncancellable = false;
+        r
     }
 
-    /// Deletes a program.
-    pub fn delete_program(&mut self, program: u8) -> Result<()> {
-        self.send(&Command::DeleteProgram { program })
+    /// Deletes a program, confirmed (executed once; a program that did not exist is error 5).
+    pub fn delete_program(&mut self, program: u8) -> Result<Status> {
+        self.command_confirmed(&Command::DeleteProgram { program }, effect_of)
     }
 
-    /// A discrete-mode move, executed at once.
-    pub fn move_immediate(&mut self, p: Positioning) -> Result<()> {
-        self.send(&Command::MoveImmediate(p))
+    /// A discrete-mode move, executed at once, confirmed (the arm is moving, or idle in
+    /// standby). A robot busy with another move or program refuses it: [`Error::Robot`] code 7.
+    pub fn move_immediate(&mut self, p: Positioning) -> Result<Status> {
+        self.command_confirmed(&Command::MoveImmediate(p), effect_of)
     }
 
-    /// Base speed, m/s.
-    pub fn set_base_speed(&mut self, speed: Speed) -> Result<()> {
-        self.send(&Command::SetBaseSpeed(speed))
+    /// Base speed, m/s, confirmed (executed once).
+    pub fn set_base_speed(&mut self, speed: Speed) -> Result<Status> {
+        self.command_confirmed(&Command::SetBaseSpeed(speed), effect_of)
     }
 
-    /// Maximum speed, m/s.
-    pub fn set_max_speed(&mut self, speed: Speed) -> Result<()> {
-        self.send(&Command::SetMaxSpeed(speed))
+    /// Maximum speed, m/s, confirmed (executed once).
+    pub fn set_max_speed(&mut self, speed: Speed) -> Result<Status> {
+        self.command_confirmed(&Command::SetMaxSpeed(speed), effect_of)
     }
 
-    /// Stores one instruction (positioning or control) as `instruction` of `program`.
+    /// PROGRAM_INFO until [`AGREE_STORED`] answers in a row agree: (instructions in `program`,
+    /// its highest instruction number, instructions in the whole memory).
+    pub fn program_info(&mut self, program: u8) -> Result<(u16, u16, u16)> {
+        let mut run: Option<((u16, u16, u16), u32)> = None;
+        let mut last_error = None;
+        for _ in 0..CONFIRMING_READS {
+            match self.request(&Command::ProgramInfo { program }) {
+                Ok(Reply::ProgramInfo {
+                    program: p,
+                    count,
+                    highest,
+                    total,
+                }) if p == program => {
+                    let info = (count, highest, total);
+                    let n = match &run {
+                        Some((prev, n)) if *prev == info => n + 1,
+                        _ => 1,
+                    };
+                    if n >= AGREE_STORED {
+                        return Ok(info);
+                    }
+                    run = Some((info, n));
+                }
+                Ok(_) => {
+                    last_error = Some(Error::UnexpectedReply("program info of another program"))
+                }
+                Err(e) if is_link_noise(&e) => last_error = Some(e),
+                Err(e) => return Err(e),
+            }
+        }
+        Err(last_error.unwrap_or(Error::UnexpectedReply("program info never agreed")))
+    }
+
+    /// Uploads a batch of programs (seed 001 §5.6.4: every control file of the sequence file into
+    /// memory before the run file starts): each with [`Client::upload_verified`], then every
+    /// program of the batch read back once more (a corrupted twin stored for one program can
+    /// overwrite another), then PROGRAM_INFO for each: a program holding more than its
+    /// instructions (a twin with a corrupted instruction number) is deleted and uploaded again,
+    /// and a memory total above what the batch and the memory's earlier contents account for (a
+    /// twin with a corrupted program number) is [`Error::ForeignStore`]. On `Ok` every program of
+    /// the batch holds exactly its instructions and nothing else was stored.
+    pub fn upload_batch(&mut self, batch: &[(u8, &[Instruction])]) -> Result<VerifyReport> {
+        let mut report = VerifyReport::default();
+        // Clear the batch's programs; what the memory holds then is outside the batch.
+        let mut programs: Vec<u8> = batch.iter().map(|(p, _)| *p).collect();
+        programs.sort_unstable();
+        programs.dedup();
+        let mut outside = 0;
+        for program in &programs {
+            let (count, _, total) = self.program_info(*program)?;
+            if count > 0 {
+                self.delete_quietly(*program)?;
+            }
+            outside = total.saturating_sub(count);
+        }
+        for (program, instructions) in batch {
+            let r = self.upload_verified(*program, instructions)?;
+            report.checked += r.checked;
+            report.restored += r.restored;
+            report.refused_twins += r.refused_twins;
+        }
+        for (program, instructions) in batch {
+            for (n, i) in (1u16..).zip(instructions.iter()) {
+                report.checked += 1;
+                report.restored += self.settle(*program, n, i)?;
+            }
+        }
+        let expected: u16 = batch
+            .iter()
+            .map(|(_, i)| u16::try_from(i.len()).unwrap_or(u16::MAX))
+            .fold(0, u16::saturating_add);
+        for (program, instructions) in batch {
+            let len = u16::try_from(instructions.len()).unwrap_or(u16::MAX);
+            let mut uploads = 1;
+            loop {
+                let (count, highest, total) = self.program_info(*program)?;
+                if count == len && highest == len {
+                    let _ = total;
+                    break;
+                }
+                if uploads >= self.cfg.retry.program_uploads {
+                    return Err(Error::ExtraSlots {
+                        program: *program,
+                        count,
+                        expected: len,
+                    });
+                }
+                uploads += 1;
+                self.delete_quietly(*program)?;
+                let r = self.upload_verified(*program, instructions)?;
+                report.checked += r.checked;
+                report.restored += r.restored;
+                report.refused_twins += r.refused_twins;
+            }
+        }
+        let (_, _, total) = self.program_info(batch.first().map_or(1, |(p, _)| *p))?;
+        if total != expected.saturating_add(outside) {
+            return Err(Error::ForeignStore {
+                total,
+                expected: expected.saturating_add(outside),
+            });
+        }
+        Ok(report)
+    }
+
+    /// Deletes `program`, confirmed; a program that was already gone is no error here.
+    fn delete_quietly(&mut self, program: u8) -> Result<()> {
+        match self.delete_program(program) {
+            Ok(_) => Ok(()),
+            Err(Error::Robot { code, .. }) if code == RobotError::NoProgram.code() => Ok(()),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Stores one instruction (positioning or control) as `instruction` of `program`, sent once
+    /// ([`Client::send`]); [`Client::store_verified`] proves it.
     pub fn store(&mut self, program: u8, instruction: u16, i: &Instruction) -> Result<()> {
+        self.last_executed = None;
         self.send(&store_command(program, instruction, i))
     }
 
@@ -331,9 +692,16 @@ impl<L: Link, C: Clock> Client<L, C> {
             report.checked += 1;
             report.restored += self.settle(program, n, i)?;
         }
-        // Every instruction is confirmed, so a `last_error` now can only come from a corrupted
-        // twin the robot refused; read it to clear it.
-        let _ = self.status();
+        // Every instruction is confirmed, so a new latched error now can only come from a
+        // corrupted twin the robot refused: acknowledge it and count it in the report (a twin
+        // that was stored is found by [`Client::upload_batch`]).
+        let seen = self.errors_seen;
+        match self.check_status() {
+            Ok(_) | Err(Error::Robot { .. }) => {}
+            Err(e) if is_link_noise(&e) => {}
+            Err(e) => return Err(e),
+        }
+        report.refused_twins += self.errors_seen - seen;
         Ok(report)
     }
 
@@ -350,10 +718,22 @@ impl<L: Link, C: Clock> Client<L, C> {
         }
         // A store the robot keeps refusing (memory full, a value out of range) reads back
         // differently every time: name the robot's reason when it gives one.
-        if matches!(last, Some(Error::Verify { .. }))
-            && let Err(robot @ Error::Robot { .. }) = self.check_status()
-        {
-            return Err(robot);
+        if matches!(last, Some(Error::Verify { .. })) {
+            match self.check_status() {
+                Err(robot @ Error::Robot { .. }) => return Err(robot),
+                // Reported earlier (a failed store's error): name it again here.
+                Ok(s) if s.last_error != 0 => {
+                    return Err(Error::Robot {
+                        code: s.last_error,
+                        message: RobotError::from_code(s.last_error)
+                            .map_or("unknown", RobotError::message),
+                        program,
+                        instruction,
+                        count: 0,
+                    });
+                }
+                _ => {}
+            }
         }
         Err(last.unwrap_or(Error::Verify {
             program,
@@ -463,8 +843,63 @@ impl<L: Link, C: Clock> Client<L, C> {
 fn is_link_noise(e: &Error) -> bool {
     matches!(
         e,
-        Error::Link(_) | Error::Parse(_) | Error::UnexpectedReply(_)
+        Error::Link(_) | Error::Parse(_) | Error::Reply { .. } | Error::UnexpectedReply(_)
     )
+}
+
+/// The name of a request telegram in errors.
+fn request_name(cmd: &Command) -> &'static str {
+    match cmd {
+        Command::Enquire(Selector::Status) => "ENQUIRE status",
+        Command::Enquire(Selector::Position) => "ENQUIRE position",
+        Command::ReadBack { .. } => "READ_BACK",
+        Command::ProgramInfo { .. } => "PROGRAM_INFO",
+        other => command_name(other),
+    }
+}
+
+/// The name of a command (docs/protocol.md §5).
+pub fn command_name(cmd: &Command) -> &'static str {
+    crate::command::COMMANDS
+        .iter()
+        .find(|c| c.code == cmd.code())
+        .map_or("?", |c| c.name)
+}
+
+/// The observable effect each command class must show in the status after it was executed once
+/// (docs/protocol.md §7): `Err` names what is missing.
+pub fn effect_of(cmd: &Command, s: &Status) -> std::result::Result<(), &'static str> {
+    use crate::command::{Mode, State};
+    let ok = match cmd {
+        Command::Standby => s.mode == Mode::Standby,
+        Command::Operate => s.mode == Mode::Operate,
+        Command::SyncHome => s.state == State::Homing || (s.homed && s.state == State::Idle),
+        Command::RunProgram { program } => match s.mode {
+            Mode::Operate => {
+                s.program == *program && s.state == State::Running || s.state == State::Idle
+            }
+            Mode::Standby => s.state == State::Idle,
+        },
+        Command::Stop => s.state == State::Stopped,
+        Command::MoveImmediate(_) => match s.mode {
+            Mode::Operate => matches!(s.state, State::Running | State::Idle),
+            Mode::Standby => s.state == State::Idle,
+        },
+        _ => true,
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(match cmd {
+            Command::Standby => "mode STANDBY",
+            Command::Operate => "mode OPERATE",
+            Command::SyncHome => "homing or homed",
+            Command::RunProgram { .. } => "the program running",
+            Command::Stop => "state STOPPED",
+            Command::MoveImmediate(_) => "the arm moving or at rest",
+            _ => "its effect",
+        })
+    }
 }
 
 /// The telegram that stores `i` as `instruction` of `program`.

@@ -29,7 +29,8 @@ fn out_of_range(name: &'static str, value: f64, expected: &'static str) -> Encod
     }
 }
 
-/// A Cartesian coordinate on the wire: i16 at 0.0625 mm per LSB, ±2047.9375 mm.
+/// A Cartesian coordinate on the wire: i16 at 0.0625 mm per LSB, ±2047.9375 mm (spec/protocols.md
+/// §5.6: the range is symmetric, so the raw value −32768 is refused).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Length(pub i16);
 
@@ -37,10 +38,15 @@ impl Length {
     /// Rounds `mm` to the nearest LSB; outside the range (or not finite) is an error.
     pub fn from_mm(name: &'static str, mm: f64) -> Result<Self, EncodeError> {
         let raw = (mm / LENGTH_MM_PER_LSB).round();
-        if !(f64::from(i16::MIN)..=f64::from(i16::MAX)).contains(&raw) {
-            return Err(out_of_range(name, mm, "-2048.0 to 2047.9375 mm"));
+        if !(-f64::from(i16::MAX)..=f64::from(i16::MAX)).contains(&raw) {
+            return Err(out_of_range(name, mm, "-2047.9375 to 2047.9375 mm"));
         }
         Ok(Length(raw as i16))
+    }
+    /// True when the raw value lies in the wire range ±2047.9375 mm (spec/protocols.md §5.6);
+    /// −32768 (−2048.0 mm) is outside it.
+    pub fn in_range(self) -> bool {
+        self.0 != i16::MIN
     }
     /// Millimetres.
     pub fn mm(self) -> f64 {
@@ -239,14 +245,18 @@ impl Pose {
             out.extend_from_slice(&c.to_be_bytes());
         }
     }
-    fn read(d: &[u8]) -> Pose {
+    fn read(d: &[u8]) -> Result<Pose, ParseError> {
         let w = |i: usize| i16::from_be_bytes([d[2 * i], d[2 * i + 1]]);
-        Pose {
+        let p = Pose {
             x: Length(w(0)),
             y: Length(w(1)),
             z: Length(w(2)),
             q: Quaternion([w(3), w(4), w(5), w(6)]),
+        };
+        if ![p.x, p.y, p.z].iter().all(|l| l.in_range()) {
+            return Err(ParseError::Field("position outside ±2047.9375 mm"));
         }
+        Ok(p)
     }
 }
 
@@ -272,7 +282,7 @@ impl Positioning {
     fn read(d: &[u8]) -> Result<Self, ParseError> {
         Ok(Positioning {
             flags: Flags::from_byte(d[0])?,
-            pose: Pose::read(&d[1..15]),
+            pose: Pose::read(&d[1..15])?,
             speed: Speed(u16::from_be_bytes([d[15], d[16]])),
         })
     }
@@ -401,6 +411,20 @@ pub enum Command {
         /// Instruction number.
         instruction: u16,
     },
+    /// 0x0E: acknowledge the latched error whose sequence number is `seq` (from the status
+    /// reply); the robot clears `last_error` only if `seq` is still the latest error's number,
+    /// so a repeated or late acknowledgement never clears a newer error.
+    AckError {
+        /// [`Status::error_seq`] of the error being acknowledged.
+        seq: u8,
+    },
+    /// 0x0F: how many instructions `program` holds and its highest instruction number, and how
+    /// many the whole memory holds; answered in a reverse session (0x8F). After an upload it
+    /// shows whether a corrupted twin left an instruction in a slot the upload never wrote.
+    ProgramInfo {
+        /// Program number.
+        program: u8,
+    },
 }
 
 /// A table row: the code, name, data length and reply of one command.
@@ -429,7 +453,7 @@ const fn info(code: u8, name: &'static str, len: usize, reply: Option<u8>) -> Co
 }
 
 /// Every command code.
-pub const COMMANDS: [CommandInfo; 13] = [
+pub const COMMANDS: [CommandInfo; 15] = [
     info(0x01, "STORE_POS", 20, None),
     info(0x02, "RUN_PROGRAM", 1, None),
     info(0x03, "MODE_STANDBY", 0, None),
@@ -443,6 +467,8 @@ pub const COMMANDS: [CommandInfo; 13] = [
     info(0x0B, "SET_MAX_SPEED", 2, None),
     info(0x0C, "STOP", 0, None),
     info(0x0D, "READ_BACK", 3, Some(REPLY_READ_BACK)),
+    info(0x0E, "ACK_ERROR", 1, None),
+    info(0x0F, "PROGRAM_INFO", 1, Some(REPLY_PROGRAM_INFO)),
 ];
 
 /// Codes reserved for the thesis commands not yet transcribed.
@@ -451,6 +477,8 @@ pub const RESERVED_CODES: std::ops::RangeInclusive<u8> = 0x10..=0x2F;
 pub const REPLY_ENQUIRE: u8 = 0x86;
 /// Reply code to READ_BACK.
 pub const REPLY_READ_BACK: u8 = 0x8D;
+/// Reply code to PROGRAM_INFO.
+pub const REPLY_PROGRAM_INFO: u8 = 0x8F;
 
 fn check_prog(p: u8) -> Result<u8, ParseError> {
     if p == 0 {
@@ -485,12 +513,17 @@ impl Command {
             Command::SetMaxSpeed(_) => 0x0B,
             Command::Stop => 0x0C,
             Command::ReadBack { .. } => 0x0D,
+            Command::AckError { .. } => 0x0E,
+            Command::ProgramInfo { .. } => 0x0F,
         }
     }
 
     /// True if the robot answers in a reverse session.
     pub fn expects_reply(&self) -> bool {
-        matches!(self, Command::Enquire(_) | Command::ReadBack { .. })
+        matches!(
+            self,
+            Command::Enquire(_) | Command::ReadBack { .. } | Command::ProgramInfo { .. }
+        )
     }
 
     /// Appends the DATA bytes.
@@ -508,6 +541,8 @@ impl Command {
             Command::RunProgram { program } | Command::DeleteProgram { program } => {
                 out.push(*program)
             }
+            Command::AckError { seq } => out.push(*seq),
+            Command::ProgramInfo { program } => out.push(*program),
             Command::Standby | Command::Operate | Command::SyncHome | Command::Stop => {}
             Command::Enquire(s) => out.push(match s {
                 Selector::Status => 0,
@@ -601,6 +636,10 @@ impl Command {
             0x0A => Command::SetBaseSpeed(Speed(u16_at(0))),
             0x0B => Command::SetMaxSpeed(Speed(u16_at(0))),
             0x0C => Command::Stop,
+            0x0E => Command::AckError { seq: d[0] },
+            0x0F => Command::ProgramInfo {
+                program: check_prog(d[0])?,
+            },
             _ => Command::ReadBack {
                 program: check_prog(d[0])?,
                 instruction: check_instr(u16_at(1))?,
@@ -643,6 +682,9 @@ pub enum State {
     Homing,
     /// Stopped on an error.
     Error,
+    /// Halted by STOP: the arm has decelerated (or is decelerating) to rest where it was and the
+    /// program has ended; "in position" stays low.
+    Stopped,
 }
 
 /// ENQUIRE status reply.
@@ -656,11 +698,26 @@ pub struct Status {
     pub program: u8,
     /// Current instruction, 0 if none.
     pub instruction: u16,
-    /// Last error code ([`crate::RobotError`]); reading clears it.
+    /// The latched error code ([`crate::RobotError`]), 0 if none. It stays until the host
+    /// acknowledges it with [`Command::AckError`] (reading the status does not clear it).
     pub last_error: u8,
     /// Homed since power-up.
     pub homed: bool,
+    /// Sequence number of the latest error (wraps at 256): it changes with every error the robot
+    /// raises, so the host tells a new error from one it has already seen.
+    pub error_seq: u8,
+    /// Count of telegrams with an effect (every command but ENQUIRE, READ_BACK, PROGRAM_INFO and
+    /// ACK_ERROR, which only clears the error latch) the robot has
+    /// executed since power-up, wrapping at 65 536: the host compares it before and after a
+    /// command to see whether the command was executed, and how often.
+    pub executed: u16,
+    /// CRC-16/CCITT-FALSE of the last such telegram's CMD, LEN and DATA
+    /// ([`crate::frame::telegram_digest`]): which telegram the robot executed last.
+    pub last_digest: u16,
 }
+
+/// DATA length of the ENQUIRE status reply.
+pub const STATUS_REPLY_LEN: usize = 13;
 
 /// A telegram from the robot computer to the PC (in a reverse session).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -669,6 +726,17 @@ pub enum Reply {
     Status(Status),
     /// 0x86, selector 1.
     Position(Pose),
+    /// 0x8F: what a program and the memory hold.
+    ProgramInfo {
+        /// Program.
+        program: u8,
+        /// Instructions stored in it.
+        count: u16,
+        /// Its highest instruction number (0 if empty).
+        highest: u16,
+        /// Instructions stored in all programs.
+        total: u16,
+    },
     /// 0x8D: the stored instruction, `None` if there is none.
     ReadBack {
         /// Program.
@@ -686,6 +754,7 @@ impl Reply {
         match self {
             Reply::Status(_) | Reply::Position(_) => REPLY_ENQUIRE,
             Reply::ReadBack { .. } => REPLY_READ_BACK,
+            Reply::ProgramInfo { .. } => REPLY_PROGRAM_INFO,
         }
     }
 
@@ -704,15 +773,30 @@ impl Reply {
                     State::Running => 1,
                     State::Homing => 2,
                     State::Error => 3,
+                    State::Stopped => 4,
                 });
                 out.push(s.program);
                 out.extend_from_slice(&s.instruction.to_be_bytes());
                 out.push(s.last_error);
                 out.push(u8::from(s.homed));
+                out.push(s.error_seq);
+                out.extend_from_slice(&s.executed.to_be_bytes());
+                out.extend_from_slice(&s.last_digest.to_be_bytes());
             }
             Reply::Position(p) => {
                 out.push(1);
                 p.write(&mut out);
+            }
+            Reply::ProgramInfo {
+                program,
+                count,
+                highest,
+                total,
+            } => {
+                out.push(*program);
+                for v in [count, highest, total] {
+                    out.extend_from_slice(&v.to_be_bytes());
+                }
             }
             Reply::ReadBack {
                 program,
@@ -752,8 +836,11 @@ impl Reply {
         };
         match (f.code, d.first()) {
             (REPLY_ENQUIRE, Some(0)) => {
-                if d.len() != 8 {
-                    return Err(len_err(8));
+                if d.len() != STATUS_REPLY_LEN {
+                    return Err(len_err(STATUS_REPLY_LEN));
+                }
+                if d[6] != 0 && RobotError::from_code(d[6]).is_none() {
+                    return Err(ParseError::UnknownErrorCode(d[6]));
                 }
                 Ok(Reply::Status(Status {
                     mode: match d[1] {
@@ -766,6 +853,7 @@ impl Reply {
                         1 => State::Running,
                         2 => State::Homing,
                         3 => State::Error,
+                        4 => State::Stopped,
                         _ => return Err(ParseError::Field("status state")),
                     },
                     program: d[3],
@@ -776,13 +864,16 @@ impl Reply {
                         1 => true,
                         _ => return Err(ParseError::Field("status homed")),
                     },
+                    error_seq: d[8],
+                    executed: u16::from_be_bytes([d[9], d[10]]),
+                    last_digest: u16::from_be_bytes([d[11], d[12]]),
                 }))
             }
             (REPLY_ENQUIRE, Some(1)) => {
                 if d.len() != 15 {
                     return Err(len_err(15));
                 }
-                Ok(Reply::Position(Pose::read(&d[1..])))
+                Ok(Reply::Position(Pose::read(&d[1..])?))
             }
             (REPLY_ENQUIRE, _) => Err(ParseError::Field("enquire reply selector")),
             (REPLY_READ_BACK, _) => {
@@ -805,6 +896,18 @@ impl Reply {
                     program,
                     instruction,
                     stored,
+                })
+            }
+            (REPLY_PROGRAM_INFO, _) => {
+                if d.len() != 7 {
+                    return Err(len_err(7));
+                }
+                let at = |i: usize| u16::from_be_bytes([d[i], d[i + 1]]);
+                Ok(Reply::ProgramInfo {
+                    program: check_prog(d[0])?,
+                    count: at(1),
+                    highest: at(3),
+                    total: at(5),
                 })
             }
             (code, _) => Err(ParseError::UnknownCode(code)),
@@ -831,11 +934,14 @@ pub enum RobotError {
     Busy = 7,
     /// 8: memory full (seed 001 §4.1.2: 470 positioning, or 300 positioning + 200 control).
     MemoryFull = 8,
+    /// 9: a pose the arm cannot take (outside its reach or joint limits, or needing a wrist yaw
+    /// the 5-axis IRB 6/2 does not have: seed 001 §4.1.1).
+    Kinematics = 9,
 }
 
 impl RobotError {
     /// Every code.
-    pub const ALL: [RobotError; 8] = [
+    pub const ALL: [RobotError; 9] = [
         RobotError::UnknownCommand,
         RobotError::Length,
         RobotError::Range,
@@ -844,6 +950,7 @@ impl RobotError {
         RobotError::NotHomed,
         RobotError::Busy,
         RobotError::MemoryFull,
+        RobotError::Kinematics,
     ];
     /// The wire code.
     pub fn code(self) -> u8 {
@@ -864,6 +971,7 @@ impl RobotError {
             RobotError::NotHomed => "not synchronised to home",
             RobotError::Busy => "busy: a program or move is running",
             RobotError::MemoryFull => "program memory full",
+            RobotError::Kinematics => "pose outside the arm's reach or joint limits",
         }
     }
     /// The error a parse failure maps to.
@@ -871,7 +979,7 @@ impl RobotError {
         match e {
             ParseError::UnknownCode(_) => RobotError::UnknownCommand,
             ParseError::Length { .. } => RobotError::Length,
-            ParseError::Field(_) => RobotError::Range,
+            ParseError::Field(_) | ParseError::UnknownErrorCode(_) => RobotError::Range,
         }
     }
 }
@@ -929,12 +1037,19 @@ mod tests {
             speed: Speed(0x2000),
         };
         let b = Command::MoveImmediate(p).encode(&c).unwrap();
+        // All 22 bytes: ETX, and CS = (0x08 + 0x11 + 0x03 + 0x10 + 0xFF + 0xF0 + 0x40 + 0x20 +
+        // 0x03) mod 256 = 0x27E mod 256 = 0x7E.
         assert_eq!(
-            &b[..20],
+            b,
             [
                 0x02, 0x08, 0x11, 0x03, 0x00, 0x10, 0x00, 0x00, 0xFF, 0xF0, 0x40, 0x00, 0x00, 0x00,
-                0x00, 0x00, 0x00, 0x00, 0x20, 0x00
+                0x00, 0x00, 0x00, 0x00, 0x20, 0x00, 0x03, 0x7E
             ]
+        );
+        // ACK_ERROR 5: 02 0E 01 05 03 CS = 0x0E + 0x01 + 0x05 + 0x03 = 0x17.
+        assert_eq!(
+            Command::AckError { seq: 5 }.encode(&c).unwrap(),
+            [0x02, 0x0E, 0x01, 0x05, 0x03, 0x17]
         );
         // STORE_CONTROL program 2, instruction 7, set output 1 on: 02 09 06 02 00 07 01 01 01 03 CS
         let b = Command::StoreControl {
@@ -967,7 +1082,9 @@ mod tests {
     fn out_of_range_is_an_error_not_a_clamp() {
         assert!(Length::from_mm("x", 2048.0).is_err());
         assert!(Length::from_mm("x", -2048.05).is_err());
-        assert_eq!(Length::from_mm("x", -2048.0).unwrap(), Length(i16::MIN));
+        // spec/protocols.md §5.6: the range is ±2047.9375 mm, so −2048.0 is refused.
+        assert!(Length::from_mm("x", -2048.0).is_err());
+        assert_eq!(Length::from_mm("x", -2047.9375).unwrap(), Length(-i16::MAX));
         assert_eq!(Length::from_mm("x", 2047.9375).unwrap(), Length(i16::MAX));
         assert!(Length::from_mm("x", f64::NAN).is_err());
         assert!(Speed::from_value("s", -0.001).is_err());
@@ -1017,7 +1134,7 @@ mod tests {
             0u8..2,
             0u8..2,
             0u8..3,
-            any::<[i16; 3]>(),
+            proptest::array::uniform3(-i16::MAX..=i16::MAX),
             any::<[i16; 4]>(),
             any::<u16>(),
         )
@@ -1071,6 +1188,8 @@ mod tests {
             any::<u16>().prop_map(|s| Command::SetBaseSpeed(Speed(s))),
             any::<u16>().prop_map(|s| Command::SetMaxSpeed(Speed(s))),
             Just(Command::Stop),
+            any::<u8>().prop_map(|seq| Command::AckError { seq }),
+            (1u8..).prop_map(|program| Command::ProgramInfo { program }),
             (1u8.., 1u16..).prop_map(|(program, instruction)| Command::ReadBack {
                 program,
                 instruction
@@ -1081,24 +1200,47 @@ mod tests {
     fn arb_reply() -> impl Strategy<Value = Reply> {
         prop_oneof![
             (
-                any::<bool>(),
-                0u8..4,
-                any::<u8>(),
-                any::<u16>(),
-                any::<u8>(),
-                any::<bool>()
+                (any::<bool>(), 0u8..5, any::<u8>(), any::<u16>()),
+                (
+                    0u8..10,
+                    any::<bool>(),
+                    any::<u8>(),
+                    any::<u16>(),
+                    any::<u16>()
+                ),
             )
-                .prop_map(|(op, st, program, instruction, last_error, homed)| {
-                    Reply::Status(Status {
-                        mode: if op { Mode::Operate } else { Mode::Standby },
-                        state: [State::Idle, State::Running, State::Homing, State::Error]
-                            [usize::from(st)],
-                        program,
-                        instruction,
-                        last_error,
-                        homed,
-                    })
-                }),
+                .prop_map(
+                    |(
+                        (op, st, program, instruction),
+                        (last_error, homed, error_seq, executed, last_digest),
+                    )| {
+                        Reply::Status(Status {
+                            mode: if op { Mode::Operate } else { Mode::Standby },
+                            state: [
+                                State::Idle,
+                                State::Running,
+                                State::Homing,
+                                State::Error,
+                                State::Stopped,
+                            ][usize::from(st)],
+                            program,
+                            instruction,
+                            last_error,
+                            homed,
+                            error_seq,
+                            executed,
+                            last_digest,
+                        })
+                    }
+                ),
+            (1u8.., any::<u16>(), any::<u16>(), any::<u16>()).prop_map(
+                |(program, count, highest, total)| Reply::ProgramInfo {
+                    program,
+                    count,
+                    highest,
+                    total
+                }
+            ),
             arb_positioning().prop_map(|p| Reply::Position(p.pose)),
             (
                 1u8..,

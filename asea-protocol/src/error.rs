@@ -78,6 +78,9 @@ pub enum ParseError {
     /// A field with an invalid value (reserved bits, zero program number, bad selector, …).
     #[error("invalid {0}")]
     Field(&'static str),
+    /// A status reply whose `last_error` is no code of [`crate::RobotError`].
+    #[error("unknown robot error code {0}")]
+    UnknownErrorCode(u8),
 }
 
 /// How a link session failed (spec/protocols.md §5.4).
@@ -133,13 +136,90 @@ pub enum Error {
     /// A reply of the wrong kind.
     #[error("unexpected reply: {0}")]
     UnexpectedReply(&'static str),
-    /// The robot reported an error through ENQUIRE STATUS.
-    #[error("robot error {code}: {message}")]
+    /// The robot reported an error through ENQUIRE STATUS (and the client acknowledged it).
+    #[error(
+        "robot error {code}: {message} (program {program}, instruction {instruction}; {count} new error(s))"
+    )]
     Robot {
         /// The `last_error` code.
         code: u8,
         /// Its meaning.
         message: &'static str,
+        /// The program the robot was at (0 if none).
+        program: u8,
+        /// The instruction the robot was at: for a program check, the instruction it refused.
+        instruction: u16,
+        /// Errors raised since the last one reported ([`crate::Status::error_seq`] advanced by this
+        /// much); more than 1 means earlier codes were overwritten by this one.
+        count: u8,
+    },
+    /// A reply telegram that passed the check value but does not parse, named.
+    #[error("bad {telegram} reply: {source}")]
+    Reply {
+        /// The request it answered.
+        telegram: &'static str,
+        /// Why it does not parse.
+        source: ParseError,
+    },
+    /// The exchange was cancelled through the client's [`crate::client::Cancel`] token.
+    #[error("cancelled")]
+    Cancelled,
+    /// The robot's execution count shows that a command was not executed exactly once: a
+    /// corrupted twin or an unsent telegram was executed (or the command twice). Reported, never
+    /// repaired by sending again.
+    #[error(
+        "{command}: the robot executed {executed} telegram(s) with an effect where 1 was sent (last digest {digest:04X}, sent {sent:04X})"
+    )]
+    Foreign {
+        /// The command sent.
+        command: &'static str,
+        /// Telegrams with an effect executed meanwhile.
+        executed: u16,
+        /// Digest of the last executed telegram.
+        digest: u16,
+        /// Digest of the telegram sent.
+        sent: u16,
+    },
+    /// A command was executed once but its effect is not what it should be.
+    #[error("{command}: executed, but {expected} is not so ({found})")]
+    Effect {
+        /// The command sent.
+        command: &'static str,
+        /// The effect looked for.
+        expected: &'static str,
+        /// What the robot reports.
+        found: String,
+    },
+    /// A program of a batch upload holds more instructions than were uploaded, after every
+    /// re-upload the policy allows.
+    #[error("program {program} holds {count} instructions, {expected} uploaded")]
+    ExtraSlots {
+        /// Program number.
+        program: u8,
+        /// Instructions it holds.
+        count: u16,
+        /// Instructions uploaded.
+        expected: u16,
+    },
+    /// The memory holds instructions that neither the batch nor the memory's earlier contents
+    /// account for: a corrupted twin stored into a program outside the batch.
+    #[error(
+        "memory holds {total} instructions, {expected} expected: a store landed outside the batch"
+    )]
+    ForeignStore {
+        /// Instructions in memory.
+        total: u16,
+        /// Instructions accounted for.
+        expected: u16,
+    },
+    /// A command was not executed after every attempt the policy allows (each attempt proven
+    /// not executed before the next).
+    #[error("{command}: not executed after {attempts} attempts")]
+    NotExecuted {
+        /// The command sent.
+        command: &'static str,
+        /// Attempts made.
+        attempts: u32,
     },
     /// A read-back differs from what was stored, after every re-store.
     #[error("program {program} instruction {instruction} does not read back as stored")]

@@ -285,6 +285,20 @@ impl Host {
         std::mem::take(&mut self.out)
     }
 
+    /// Abandons the session under way at `now` (a cancelled exchange): an EOT ends it on the line
+    /// (ISO 1745 interruption), so that the robot returns to neutral and the next session (STOP)
+    /// finds the link free after `T_GAP`.
+    pub fn abort(&mut self, now: Duration) {
+        self.out.clear();
+        if self.state != HostState::Idle {
+            self.out.push(EOT);
+        }
+        self.state = HostState::Idle;
+        self.deadline = None;
+        self.outcome = None;
+        self.ready_at = now + self.timers.t_gap;
+    }
+
     /// Tells the host that what [`Host::take_output`] returned has left the line at `now`, so
     /// that `T_GAP` is counted from the end of the EOT.
     pub fn on_sent(&mut self, now: Duration) {
@@ -579,6 +593,12 @@ impl RobotSession {
     /// Counters since creation.
     pub fn stats(&self) -> Stats {
         self.stats
+    }
+
+    /// True from the ENQ that opens a session (either way) to the EOT or timeout that ends it:
+    /// the time the robot computer spends on the link.
+    pub fn in_session(&self) -> bool {
+        self.state != RobotState::Idle
     }
 
     /// Bytes to send now.

@@ -23,7 +23,7 @@ fn plan_examples(c: &mut Criterion) {
             b.iter(|| {
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
                 let plan = cell::tool::plan(&job, &text, &job_path).unwrap();
-                let files = cell::tool::control_files(&job, &plan);
+                let files = cell::tool::control_files(&job, &plan).unwrap();
                 cell::output::write_all(
                     &out.path().join("plan"),
                     &files,

@@ -202,14 +202,13 @@ impl<L: RobotLink, C: RobotClock> ProtocolRobot<L, C> {
         ProtocolRobot { client }
     }
 
-    /// Sends a command and checks the robot's error latch afterwards (the spec's rule for
-    /// motion and mode commands, docs/protocol.md).
-    fn confirmed<T>(
+    /// A command confirmed by the client (docs/protocol.md §7: executed once, proven by the
+    /// status; a latched robot error is reported and acknowledged).
+    fn confirmed(
         &mut self,
-        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<T>,
+        f: impl FnOnce(&mut Client<L, C>) -> asea_protocol::Result<asea_protocol::Status>,
     ) -> DeviceResult<()> {
         f(&mut self.client)?;
-        self.client.check_status()?;
         Ok(())
     }
 }
@@ -252,19 +251,14 @@ impl<L: RobotLink, C: RobotClock> RobotDevice for ProtocolRobot<L, C> {
     }
 
     fn delete_program(&mut self, program: u8) -> DeviceResult<()> {
-        // "No such program" (error 5) is what we wanted: the robot reports it, the status check
-        // acknowledges it.
-        let no_program = |e: &asea_protocol::Error| {
-            matches!(e, asea_protocol::Error::Robot { code, .. }
-                if *code == asea_protocol::RobotError::NoProgram.code())
-        };
         match self.client.delete_program(program) {
-            Err(e) if !no_program(&e) => return Err(e.into()),
-            _ => {}
-        }
-        match self.client.check_status() {
-            Err(e) if !no_program(&e) => Err(e.into()),
-            _ => Ok(()),
+            // "No such program" is what we wanted (the client acknowledged the error).
+            Err(asea_protocol::Error::Robot { code, .. })
+                if code == asea_protocol::RobotError::NoProgram.code() =>
+            {
+                Ok(())
+            }
+            r => r.map(|_| ()).map_err(Into::into),
         }
     }
 

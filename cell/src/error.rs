@@ -23,8 +23,88 @@ pub enum Error {
         /// What the geometry said.
         source: paths::Error,
     },
-    /// A mesh file is malformed or not a usable surface (the source names the line or triangle).
-    #[error("{}: {source}", file.display())]
+    /// An imported path is longer than its samples may cover: refused at the drawing's
+    /// coordinate that makes it so, before any sample is allocated.
+    #[error(
+        "{}:{line}:{column}: path point {point} at {} mm makes the path longer than the limit of \
+         {} mm (a wrong coordinate or unit? docs/ARCHITECTURE.md, \"Limits\")",
+        file.display(), short(*value_mm), short(*limit_mm)
+    )]
+    PathTooLong {
+        /// The DXF file.
+        file: PathBuf,
+        /// 1-based line of the coordinate.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// The point, 1-based in path order.
+        point: usize,
+        /// The coordinate, mm.
+        value_mm: f64,
+        /// The longest path accepted, mm.
+        limit_mm: f64,
+    },
+    /// An imported path's point lies farther from the mandrel surface than the job allows.
+    #[error(
+        "{}:{line}:{column}: path point {point} lies {} mm from the mandrel surface, more than \
+         surface_tolerance_mm = {tolerance_mm} mm (worst point {} mm; the drawing is read in {units})",
+        file.display(), short(*distance_mm), short(*worst_mm)
+    )]
+    OffSurface {
+        /// The DXF file.
+        file: PathBuf,
+        /// 1-based line of the point's x value.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// The point, 1-based in path order.
+        point: usize,
+        /// Its signed distance to the surface, mm (negative inside).
+        distance_mm: f64,
+        /// The largest |distance| of any point, mm.
+        worst_mm: f64,
+        /// The job's limit, mm.
+        tolerance_mm: f64,
+        /// The drawing's units, in words.
+        units: String,
+    },
+    /// A path's stored program does not fit the robot's memory (seed 001 §4.1.2).
+    #[error(
+        "{}:{line}:{column}: program {program} needs {positioning} positioning and {control} \
+         control instructions, more than the robot's memory holds (470 positioning, or 300 \
+         positioning and 200 control; seed 001 §4.1.2): at most {max_segments} segments in \
+         {movement} movement",
+        file.display()
+    )]
+    ProgramMemory {
+        /// The job file.
+        file: PathBuf,
+        /// 1-based line of the path's `segments`.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// Program number.
+        program: u8,
+        /// Positioning instructions the program needs.
+        positioning: usize,
+        /// Control instructions the program needs.
+        control: usize,
+        /// The most segments that fit.
+        max_segments: usize,
+        /// `fine` or `medium`.
+        movement: &'static str,
+    },
+    /// An instruction number that does not fit the robot's 16 bits (1–65535).
+    #[error("program {program}: instruction number {number} does not fit 1–65535")]
+    InstructionNumber {
+        /// Program number.
+        program: u8,
+        /// The number that does not fit.
+        number: usize,
+    },
+    /// A mesh file is malformed or not a usable surface: `FILE:LINE:COL: message` for the text
+    /// formats, `FILE: byte N: message` for binary STL, where the reader knows the place.
+    #[error("{}", mesh_place(file, source))]
     Mesh {
         /// The mesh file.
         file: PathBuf,
@@ -66,6 +146,12 @@ pub enum Error {
         /// Program number of the .ROB file.
         program: u8,
     },
+    /// The lathe winder's controller refused a setting or stopped (a limit switch).
+    #[error("lathe controller: {source}")]
+    Lathe {
+        /// What the controller said.
+        source: mandrel_drive::Error,
+    },
     /// A file the job names (`mesh`, `dxf`, `spine_dxf`) cannot be used: the job line and column
     /// that name it, then the file's own problem.
     #[error("{}:{line}:{column}: {source}", job.display())]
@@ -96,6 +182,14 @@ pub enum Error {
         message: String,
         /// True for bad input.
         input: bool,
+    },
+    /// A recording (MCAP file or live server) could not be opened or finished.
+    #[error("{}: recording failed: {message}", path.display())]
+    Record {
+        /// The MCAP file (or the live server's address).
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
     },
     /// Writing output failed.
     #[error("{}: {source}", path.display())]
@@ -134,12 +228,44 @@ impl Error {
             Error::File(_)
                 | Error::OutputPath { .. }
                 | Error::Plan { .. }
+                | Error::PathTooLong { .. }
+                | Error::OffSurface { .. }
+                | Error::ProgramMemory { .. }
+                | Error::InstructionNumber { .. }
                 | Error::Mesh { .. }
                 | Error::Read { .. }
                 | Error::RobotTransfer { .. }
                 | Error::IndexerTransfer { .. }
+                | Error::Lathe {
+                    source: mandrel_drive::Error::OutOfRange { .. }
+                }
                 | Error::Run { input: true, .. }
         )
+    }
+}
+
+/// A length for a message: plain below a million, in exponent form above (`1e308`, not 309
+/// digits).
+fn short(mm: f64) -> String {
+    if mm.abs() < 1e6 {
+        format!("{:.3}", mm)
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_string()
+    } else {
+        format!("{mm:e}")
+    }
+}
+
+fn mesh_place(file: &std::path::Path, source: &paths::Error) -> String {
+    match source {
+        paths::Error::MeshSyntax {
+            line: Some(line),
+            column: Some(column),
+            message,
+            ..
+        } => format!("{}:{line}:{column}: {message}", file.display()),
+        other => format!("{}: {other}", file.display()),
     }
 }
 

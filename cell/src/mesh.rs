@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use paths::mesh::trace::Tracer;
-use paths::mesh::{Closure, Mesh, obj, prepare, stl, with_line};
+use paths::mesh::{Closure, Mesh, obj, prepare, stl, with_byte, with_column, with_line};
 
 use crate::Error;
 
@@ -13,8 +13,27 @@ pub fn read(file: &Path) -> Result<Mesh, Error> {
     read_located(file).map(|(mesh, _)| mesh)
 }
 
-/// Like [`read`], with the line of each triangle for the text formats (empty for binary STL).
-fn read_located(file: &Path) -> Result<(Mesh, Vec<usize>), Error> {
+/// Where a mesh file's triangles are: the line of each for the text formats (with the text, for
+/// columns), nothing for binary STL (its records are at fixed byte offsets).
+#[derive(Debug, Default)]
+struct Places {
+    lines: Option<Vec<usize>>,
+    text: String,
+}
+
+impl Places {
+    /// `error` at its line and column (text) or byte offset (binary), where it names a triangle
+    /// or a line.
+    fn locate(&self, error: paths::Error) -> paths::Error {
+        match &self.lines {
+            Some(lines) => with_column(with_line(error, lines), &self.text),
+            None => with_byte(error),
+        }
+    }
+}
+
+/// Like [`read`], with the places of its triangles.
+fn read_located(file: &Path) -> Result<(Mesh, Places), Error> {
     let mesh_error = |source| Error::Mesh {
         file: file.to_path_buf(),
         source,
@@ -24,28 +43,57 @@ fn read_located(file: &Path) -> Result<(Mesh, Vec<usize>), Error> {
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     let bytes = sequences::source::read_bytes(file, sequences::source::MAX_MESH_BYTES)?;
+    let not_utf8 = |e: std::str::Utf8Error, what: &str| {
+        let valid = &bytes[..e.valid_up_to()];
+        let line = 1 + valid.iter().filter(|&&b| b == b'\n').count();
+        let line_start = valid.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+        let column = 1 + String::from_utf8_lossy(&valid[line_start..])
+            .chars()
+            .count();
+        mesh_error(paths::Error::MeshSyntax {
+            line: Some(line),
+            column: Some(column),
+            byte: Some(e.valid_up_to() as u64),
+            message: format!("{what} with bytes that are not UTF-8 text"),
+        })
+    };
     match ext.as_str() {
         "stl" => {
-            let (soup, lines) = stl::parse_located(&bytes).map_err(mesh_error)?;
-            let lines = lines.unwrap_or_default();
-            let mesh = Mesh::from_soup(&soup).map_err(|e| mesh_error(with_line(e, &lines)))?;
-            Ok((mesh, lines))
+            let text = || std::str::from_utf8(&bytes).unwrap_or_default().to_string();
+            let (soup, lines) = stl::parse_located(&bytes).map_err(|e| {
+                let places = Places {
+                    lines: Some(Vec::new()),
+                    text: text(),
+                };
+                mesh_error(places.locate(e))
+            })?;
+            let places = Places {
+                text: if lines.is_some() {
+                    text()
+                } else {
+                    String::new()
+                },
+                lines,
+            };
+            let mesh = Mesh::from_soup(&soup).map_err(|e| mesh_error(places.locate(e)))?;
+            Ok((mesh, places))
         }
         "obj" => {
-            let text = std::str::from_utf8(&bytes).map_err(|e| {
-                let line = 1 + bytes[..e.valid_up_to()]
-                    .iter()
-                    .filter(|&&b| b == b'\n')
-                    .count();
-                mesh_error(paths::Error::MeshSyntax {
-                    line: Some(line),
-                    message: "OBJ with bytes that are not UTF-8 text".into(),
-                })
-            })?;
-            obj::parse_located(text).map_err(mesh_error)
+            let text = std::str::from_utf8(&bytes).map_err(|e| not_utf8(e, "OBJ"))?;
+            let (mesh, lines) =
+                obj::parse_located(text).map_err(|e| mesh_error(with_column(e, text)))?;
+            Ok((
+                mesh,
+                Places {
+                    lines: Some(lines),
+                    text: text.to_string(),
+                },
+            ))
         }
         _ => Err(mesh_error(paths::Error::MeshSyntax {
             line: None,
+            column: None,
+            byte: None,
             message: format!("unknown mesh format `.{ext}` (expected .stl or .obj)"),
         })),
     }
@@ -58,8 +106,8 @@ pub fn load(file: &Path, weld_mm: f64, closure: Closure, crease_deg: f64) -> Res
         file: file.to_path_buf(),
         source,
     };
-    let (mesh, lines) = read_located(file)?;
+    let (mesh, places) = read_located(file)?;
     let (mesh, adjacency) =
-        prepare(&mesh, weld_mm, closure).map_err(|e| mesh_error(with_line(e, &lines)))?;
+        prepare(&mesh, weld_mm, closure).map_err(|e| mesh_error(places.locate(e)))?;
     Tracer::new(mesh, &adjacency, crease_deg).map_err(mesh_error)
 }

@@ -8,8 +8,10 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use paths::geodesic::{self, PathStart};
-use paths::{PathPlan, Robot, Setup, Speeds, Spine, Tube};
-use sequences::job::{Direction, Job, MandrelKind};
+use paths::plan::ENTRY_ANGLE_MAX_DEG;
+use paths::{Arm, Calibration, MandrelProfile, PathPlan, Setup, Speeds, Spine, Tube};
+use sequences::Movement;
+use sequences::job::{Direction, Job, MandrelKind, PathSpec};
 use sequences::rob::{Header, Instruction, Interpolation, Reference};
 use sequences::{MandrelFile, MandrelMove, RobotFile, RunFile, SequenceFile};
 
@@ -38,6 +40,9 @@ pub struct PlannedPath {
     pub plan: PathPlan,
     /// Mesh mandrels: the largest distance between the traced and the smoothed path, mm.
     pub smoothing_deviation_mm: Option<f64>,
+    /// Imported (DXF) paths: each drawing point's signed distance to the mandrel surface, mm,
+    /// in path order (negative inside).
+    pub surface_distances_mm: Option<Vec<f64>>,
 }
 
 /// Every path of a job, planned.
@@ -151,24 +156,78 @@ fn mandrel_with(
     }
 }
 
+/// The arm a job describes: `[cell.robot]` over the IRB 6/2 defaults, with the job's eye
+/// mechanism.
+pub fn arm(job: &Job) -> Arm {
+    let c = &job.cell;
+    let mut arm = Arm {
+        eye_mechanism_mm: *c.eye_mechanism_length_mm.get_ref(),
+        ..Arm::default()
+    };
+    let Some(r) = &c.robot else {
+        return arm;
+    };
+    let value = |field: &Option<toml::Spanned<f64>>, default: f64| {
+        field.as_ref().map_or(default, |v| *v.get_ref())
+    };
+    arm.shoulder_height_mm = value(&r.shoulder_height_mm, arm.shoulder_height_mm);
+    arm.upper_arm_mm = value(&r.upper_arm_mm, arm.upper_arm_mm);
+    arm.forearm_mm = value(&r.forearm_mm, arm.forearm_mm);
+    arm.eye_mechanism_max_mm = value(&r.eye_mechanism_max_mm, arm.eye_mechanism_max_mm);
+    for (limit, range) in arm.joints.iter_mut().zip([
+        &r.base_yaw_deg,
+        &r.shoulder_deg,
+        &r.elbow_deg,
+        &r.pitch_deg,
+        &r.roll_deg,
+    ]) {
+        if let Some(range) = range {
+            let [lo, hi] = *range.get_ref();
+            limit.min_rad = lo.to_radians();
+            limit.max_rad = hi.to_radians();
+        }
+    }
+    if let Some(speeds) = &r.joint_speed_deg_s {
+        for (limit, speed) in arm.joints.iter_mut().zip(speeds.get_ref()) {
+            limit.max_speed_rad_s = speed.to_radians();
+        }
+    }
+    arm
+}
+
 /// The cell setup and speeds a job describes.
 pub fn setup(job: &Job) -> (Setup, Speeds) {
     let c = &job.cell;
     let [motor_teeth, mandrel_teeth] = *c.drive.gear_ratio.get_ref();
-    let robot = c.robot.as_ref().map_or_else(Robot::default, |r| Robot {
-        reach_min_mm: *r.reach_min_mm.get_ref(),
-        reach_max_mm: *r.reach_max_mm.get_ref(),
-        z_min_mm: *r.z_min_mm.get_ref(),
-        z_max_mm: *r.z_max_mm.get_ref(),
-        max_speed_mm_s: *r.max_speed_mm_s.get_ref(),
-    });
+    let entry_angle_max_deg = c
+        .robot
+        .as_ref()
+        .and_then(|r| r.entry_angle_max_deg.as_ref())
+        .map_or(ENTRY_ANGLE_MAX_DEG, |a| *a.get_ref());
+    let calibration = c
+        .calibration
+        .as_ref()
+        .map_or_else(Calibration::default, |k| {
+            let pair =
+                |v: &Option<toml::Spanned<[f64; 2]>>| v.as_ref().map_or([0.0; 2], |v| *v.get_ref());
+            Calibration {
+                axis_offset_mm: pair(&k.axis_offset_mm),
+                axis_tilt_rad: pair(&k.axis_tilt_deg).map(f64::to_radians),
+                zero_angle_rad: k
+                    .zero_angle_deg
+                    .as_ref()
+                    .map_or(0.0, |z| z.get_ref().to_radians()),
+                rotation_sign: k.rotation_sign.as_ref().map_or(1, |s| *s.get_ref()),
+            }
+        });
     (
         Setup {
             robot_distance_mm: *c.robot_distance_mm.get_ref(),
             mandrel_height_mm: *c.start_height_mm.get_ref(),
             offset_mm: *c.offset_mm.get_ref(),
-            eye_mechanism_length_mm: *c.eye_mechanism_length_mm.get_ref(),
-            robot,
+            arm: arm(job),
+            entry_angle_max_rad: entry_angle_max_deg.to_radians(),
+            calibration,
             gearing: paths::Gearing {
                 steps_per_motor_rev: *c.drive.steps_per_rev.get_ref(),
                 motor_teeth,
@@ -176,16 +235,82 @@ pub fn setup(job: &Job) -> (Setup, Speeds) {
             },
         },
         Speeds {
-            mandrel_rps: *c.mandrel_speed_rps.get_ref(),
+            mandrel: MandrelProfile {
+                accel_rps2: *c.drive.accel_rps2.get_ref(),
+                start_stop_rps: *c.drive.start_stop_rps.get_ref(),
+                max_rps: *c.mandrel_speed_rps.get_ref(),
+            },
             base_speed_mm_s: *c.base_speed_mm_s.get_ref(),
             max_speed_mm_s: *c.max_speed_mm_s.get_ref(),
+            movement: match c.movement.get_ref() {
+                Movement::Discrete => paths::Movement::Discrete,
+                Movement::Fine => paths::Movement::Fine,
+                Movement::Medium => paths::Movement::Medium,
+            },
         },
     )
+}
+
+/// Where in the job file a planning error belongs: the field whose value the error is about
+/// (the path's `program` for a pose the arm cannot take).
+fn error_span(job: &Job, spec: &PathSpec, error: &paths::Error) -> Range<usize> {
+    let c = &job.cell;
+    let entry_limit = c
+        .robot
+        .as_ref()
+        .and_then(|r| r.entry_angle_max_deg.as_ref())
+        .map(|a| a.span());
+    let robot_table = c.robot.as_ref().and(Some(c.robot_distance_mm.span()));
+    let calibration = c.calibration.as_ref().and_then(|k| {
+        k.axis_tilt_deg
+            .as_ref()
+            .map(|v| v.span())
+            .or(k.axis_offset_mm.as_ref().map(|v| v.span()))
+            .or(k.rotation_sign.as_ref().map(|v| v.span()))
+            .or(k.zero_angle_deg.as_ref().map(|v| v.span()))
+    });
+    match error {
+        paths::Error::TangentUndefined { .. } => c.robot_distance_mm.span(),
+        paths::Error::EntryAngle { .. } => entry_limit.unwrap_or(spec.program.span()),
+        paths::Error::SegmentTurnsTooFar { .. } => spec.segments.span(),
+        paths::Error::RobotTooSlow { .. } => c.mandrel_speed_rps.span(),
+        paths::Error::EyeInsideMandrel { .. } => c.offset_mm.span(),
+        paths::Error::OutOfRange { name, .. } => match *name {
+            "eye_mechanism_length_mm" => c.eye_mechanism_length_mm.span(),
+            "entry_angle_max_deg" => entry_limit.unwrap_or(spec.program.span()),
+            "axis_tilt_deg" | "axis_offset_mm" | "rotation_sign" | "zero_angle_deg" => {
+                calibration.unwrap_or(spec.program.span())
+            }
+            "shoulder_height_mm"
+            | "upper_arm_mm"
+            | "forearm_mm"
+            | "eye_mechanism_max_mm"
+            | "joint_speed_deg_s"
+            | "base_yaw_deg"
+            | "shoulder_deg"
+            | "elbow_deg"
+            | "pitch_deg"
+            | "roll_deg" => robot_table.unwrap_or(spec.program.span()),
+            _ => spec.program.span(),
+        },
+        _ => spec.program.span(),
+    }
 }
 
 /// Plans every path of `job`. `text` and `file` locate errors in the job file.
 pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
     let located = |source, span| located(text, file, source, span);
+    // The whole job's work is bounded before any of it starts.
+    let mut total = 0usize;
+    for spec in &job.paths {
+        total += *spec.segments.get_ref() as usize;
+        paths::limits::at_most(
+            "segments in all paths",
+            total as f64,
+            paths::limits::MAX_JOB_SEGMENTS as f64,
+        )
+        .map_err(|e| located(e, spec.segments.span()))?;
+    }
     let tube = mandrel_in(job, text, file)?;
     let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
         (MandrelKind::Mesh, Some(mesh)) => {
@@ -214,19 +339,39 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
         let segments = *spec.segments.get_ref() as usize;
+        program_fits_memory(job, spec, text, file)?;
+        let mut surface_distances_mm = None;
         let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
             let dxf_file = dir.join(dxf.get_ref());
             let drawing = load_dxf(&dxf_file).map_err(|e| named(text, file, dxf.span(), e))?;
             let layer = spec.layer.as_ref();
-            let raw: Vec<nalgebra::Point3<f64>> = drawing
-                .path(layer.map(|l| l.get_ref().as_str()))
-                .map_err(|e| {
-                    let span = layer.map_or(dxf.span(), |l| l.span());
-                    named(text, file, span, Error::File(e.in_file(&dxf_file)))
-                })?
-                .into_iter()
-                .map(nalgebra::Point3::from)
-                .collect();
+            let imported = crate::imported::ImportedPath::new(
+                &dxf_file,
+                &drawing,
+                layer.map(|l| l.get_ref().as_str()),
+            )
+            .map_err(|e| named(text, file, layer.map_or(dxf.span(), |l| l.span()), e))?;
+            imported.check_length()?;
+            let tolerance_mm = spec
+                .surface_tolerance_mm
+                .as_ref()
+                .map_or(sequences::job::DEFAULT_SURFACE_TOLERANCE_MM, |t| {
+                    *t.get_ref()
+                });
+            surface_distances_mm = Some(match &tracer {
+                Some(t) => imported.surface_distances(
+                    |p| {
+                        t.locate(p).map_or(f64::INFINITY, |at| {
+                            at.distance_mm.copysign((p - at.point).dot(&at.normal))
+                        })
+                    },
+                    tolerance_mm,
+                )?,
+                None => {
+                    imported.surface_distances(|p| tube.distance_to_surface_mm(p), tolerance_mm)?
+                }
+            });
+            let raw = imported.points;
             let surface = match &tracer {
                 Some(t) => t,
                 None => {
@@ -305,10 +450,19 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .map_err(|e| located(e, wind.span()))?;
                 (cut.points, Some(cut.max_deviation_mm))
             } else {
-                let path = if tube.spine().is_straight() {
+                // A tube along a measured spine is cut with horizontal end planes unless the job
+                // says otherwise (the S-bend is 0–350 mm long); its paths run from end to end.
+                let ends = match job.mandrel.ends.as_ref().map(|e| *e.get_ref()) {
+                    Some(sequences::job::Ends::Square) => geodesic::Ends::Square,
+                    _ if *job.mandrel.kind.get_ref() == MandrelKind::Cylinder => {
+                        geodesic::Ends::Square
+                    }
+                    _ => geodesic::Ends::Horizontal,
+                };
+                let path = if tube.spine().is_straight() && ends == geodesic::Ends::Square {
                     geodesic::helix(&tube, &start, HELIX_STEP_MM)
                 } else {
-                    geodesic::trace(&tube, &start, GEODESIC_STEP_MM)
+                    geodesic::trace_to(&tube, &start, GEODESIC_STEP_MM, ends)
                 }
                 .map_err(|e| located(e, wind.span()))?;
                 let points = paths::segment::equal_length(&tube, &path, segments)
@@ -318,35 +472,71 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         };
         let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
             .map_err(|e| {
-                let span = culprit(job, &e).unwrap_or(spec.program.span());
+                let span = culprit(job, &e).unwrap_or_else(|| error_span(job, spec, &e));
                 located(e, span)
             })?;
+        check_speeds(job, &plan).map_err(|e| located(e, spec.program.span()))?;
         planned.push(PlannedPath {
             name: format!("{}_{}", job.name.get_ref(), spec.program.get_ref()),
             program: *spec.program.get_ref(),
             plan,
             smoothing_deviation_mm,
+            surface_distances_mm,
         });
     }
     Ok(JobPlan { paths: planned })
+}
+
+/// Refuses a path whose stored program (fine and medium movement) would not fit the robot's
+/// memory, at the path's `segments`, before anything is traced. Discrete movement sends each
+/// position as it is needed and stores nothing (seed 001 §5.4.1).
+fn program_fits_memory(
+    job: &Job,
+    spec: &sequences::job::PathSpec,
+    text: &str,
+    file: &Path,
+) -> Result<(), Error> {
+    let movement = *job.cell.movement.get_ref();
+    if movement == sequences::Movement::Discrete {
+        return Ok(());
+    }
+    let segments = *spec.segments.get_ref() as usize;
+    // The approach and one positioning per segment.
+    let positioning = segments + 1;
+    let max_positioning = crate::transfer::max_positioning_instructions();
+    if positioning <= max_positioning {
+        return Ok(());
+    }
+    let (line, column) = sequences::error::line_column(text, spec.segments.span().start);
+    Err(Error::ProgramMemory {
+        file: file.to_path_buf(),
+        line,
+        column,
+        program: *spec.program.get_ref(),
+        positioning,
+        control: crate::transfer::PROGRAM_CONTROL_INSTRUCTIONS,
+        max_segments: max_positioning - 1,
+        movement: movement.keyword(),
+    })
 }
 
 /// The cell of seed 001 §6.4 the examples describe: robot distance b, mandrel diameter, tow
 /// distance, eye mechanism length, mm.
 const THESIS_CELL_MM: [f64; 4] = [800.0, 63.5, 100.0, 150.0];
 
-/// The job value a reach or eq 3.7 failure points at. A height outside the robot's range is the
-/// start height's doing. A horizontal distance out of reach, or eq 3.7 without a solution, comes
+/// The job value a reach or eq 3.7 failure points at. A wrist out of the arm's reach, or eq 3.7
+/// without a solution, comes
 /// from the robot distance b against how far the eye stands from the rotation axis (mandrel
 /// radius + tow distance + eye mechanism): of those four, the value furthest (by ratio) from the
 /// thesis cell's is the one named, the likeliest slip of the operator's hand.
 fn culprit(job: &Job, error: &paths::Error) -> Option<Range<usize>> {
     let c = &job.cell;
     match error {
-        paths::Error::OutOfReach { limit, .. } if *limit == "height range" => {
-            Some(c.start_height_mm.span())
+        paths::Error::Arm {
+            fault: paths::robot::ArmFault::OutOfReach { .. },
+            ..
         }
-        paths::Error::OutOfReach { .. } | paths::Error::TangentUndefined { .. } => {
+        | paths::Error::TangentUndefined { .. } => {
             let fields = [
                 &c.robot_distance_mm,
                 &job.mandrel.diameter_mm,
@@ -369,6 +559,25 @@ fn culprit(job: &Job, error: &paths::Error) -> Option<Range<usize>> {
     }
 }
 
+/// Every instruction speed as the `.ROB` file will carry it (4 decimals) lies in (0, max]: a
+/// segment too slow to write, or faster than the controller's maximum, is an error, never a clamp.
+fn check_speeds(job: &Job, plan: &PathPlan) -> Result<(), paths::Error> {
+    let c = &job.cell;
+    let max_pct = 100.0 * c.max_speed_mm_s.get_ref() / c.base_speed_mm_s.get_ref();
+    for s in &plan.segments {
+        let written = round_to(s.speed_pct, 4);
+        if !(written > 0.0 && written <= max_pct * (1.0 + 1e-12)) {
+            return Err(paths::Error::OutOfRange {
+                name: "speed_pct",
+                value: s.speed_pct,
+                expected: "an instruction speed must round to more than 0 and at most the \
+                           maximum speed (4 decimals in the .ROB file)",
+            });
+        }
+    }
+    Ok(())
+}
+
 /// `value` rounded to `decimals` decimal places, as the nearest `f64` to that decimal (so it
 /// prints short), with no negative zero.
 fn round_to(value: f64, decimals: usize) -> f64 {
@@ -376,50 +585,73 @@ fn round_to(value: f64, decimals: usize) -> f64 {
     if r == 0.0 { 0.0 } else { r }
 }
 
-/// The robot control file for one planned path.
-pub fn robot_file(job: &Job, path: &PlannedPath) -> RobotFile {
+/// The robot control file for one planned path. Fails if an instruction number does not fit the
+/// robot's 16 bits (a path of more than 65 534 segments).
+pub fn robot_file(job: &Job, path: &PlannedPath) -> Result<RobotFile, Error> {
     let c = &job.cell;
     let base = *c.base_speed_mm_s.get_ref();
     let max_pct = 100.0 * c.max_speed_mm_s.get_ref() / base;
-    let mandrel = |steps: i64| MandrelMove {
+    let mandrel = |profile: &MandrelProfile, steps: i64| MandrelMove {
+        accel_rps2: profile.accel_rps2,
+        start_stop_rps: profile.start_stop_rps,
+        max_rps: profile.max_rps,
+        steps,
+    };
+    let job_profile = MandrelProfile {
         accel_rps2: *c.drive.accel_rps2.get_ref(),
         start_stop_rps: *c.drive.start_stop_rps.get_ref(),
         max_rps: *c.mandrel_speed_rps.get_ref(),
-        steps,
     };
-    let instruction = |number: usize, speed_pct: f64, pose: &paths::Pose, steps: i64| {
+    let instruction = |number: usize,
+                       speed_pct: f64,
+                       pose: &paths::Pose,
+                       profile: &MandrelProfile,
+                       steps: i64| {
         let e = pose.eye_mm;
         let q = paths::wrist::components(&pose.wrist_q);
-        Instruction {
-            number: number as u16,
-            speed_pct: round_to(speed_pct, 4).clamp(1e-4, max_pct),
+        let number = u16::try_from(number).map_err(|_| Error::InstructionNumber {
+            program: path.program,
+            number,
+        })?;
+        Ok::<_, Error>(Instruction {
+            number,
+            // Checked by `plan` to lie in (0, max] at this rounding.
+            speed_pct: round_to(speed_pct, 4),
             position_mm: [round_to(e.x, 4), round_to(e.y, 4), round_to(e.z, 4)],
             q: q.map(|c| round_to(c, 9)),
             interpolation: Interpolation::Rectangular,
             reference: Reference::Absolute,
-            mandrel: mandrel(steps),
-        }
+            mandrel: mandrel(profile, steps),
+        })
     };
     let plan = &path.plan;
     let mut instructions = vec![instruction(
         1,
         APPROACH_SPEED_PCT.min(max_pct),
         &plan.start,
+        &job_profile,
         0,
-    )];
+    )?];
     for (k, s) in plan.segments.iter().enumerate() {
-        instructions.push(instruction(k + 2, s.speed_pct, &s.pose, s.steps));
+        instructions.push(instruction(
+            k + 2,
+            s.speed_pct,
+            &s.pose,
+            &s.mandrel,
+            s.steps,
+        )?);
     }
-    RobotFile {
+    Ok(RobotFile {
         header: Header {
             program: path.program,
             base_speed_mm_s: base,
             max_speed_mm_s: *c.max_speed_mm_s.get_ref(),
             movement: *c.movement.get_ref(),
-            sync_mandrel_deg: round_to(plan.start.mandrel_rad.to_degrees(), 6),
+            // The indexer's position at the start pose, in its own sense of rotation.
+            sync_mandrel_deg: round_to(plan.sync_drive_rad.to_degrees(), 6),
         },
         instructions,
-    }
+    })
 }
 
 /// The mandrel control file for one planned path: one move of the path's total steps.
@@ -435,17 +667,18 @@ pub fn mandrel_file(job: &Job, path: &PlannedPath) -> MandrelFile {
     }
 }
 
-/// Every output file of a planned job: `(file name, contents)`.
-pub fn control_files(job: &Job, plan: &JobPlan) -> Vec<(PathBuf, String)> {
+/// Every output file of a planned job: `(file name, contents)`. Fails if a file cannot be
+/// written as its reader would read it back ([`sequences::Error::Unwritable`]).
+pub fn control_files(job: &Job, plan: &JobPlan) -> Result<Vec<(PathBuf, String)>, Error> {
     let mut files = Vec::new();
     for path in &plan.paths {
         files.push((
             PathBuf::from(format!("{}.ROB", path.name)),
-            robot_file(job, path).write(),
+            robot_file(job, path)?.write()?,
         ));
         files.push((
             PathBuf::from(format!("{}.IND", path.name)),
-            mandrel_file(job, path).write(),
+            mandrel_file(job, path).write()?,
         ));
     }
     let sequence = SequenceFile {
@@ -456,11 +689,11 @@ pub fn control_files(job: &Job, plan: &JobPlan) -> Vec<(PathBuf, String)> {
     };
     files.push((
         PathBuf::from(format!("{}.SEQ", job.name.get_ref())),
-        sequence.write(),
+        sequence.write()?,
     ));
     files.push((
         PathBuf::from(format!("{}.RUN", job.name.get_ref())),
-        run.write(),
+        run.write()?,
     ));
-    files
+    Ok(files)
 }

@@ -4,7 +4,7 @@
 //! **Robot** (`docs/protocol.md` §4, §5). Each `instr` becomes a positioning instruction:
 //!
 //! - `pos_mm` → x, y, z at 0.0625 mm per LSB (seed 001 §5.4.1), rounded to the nearest LSB;
-//!   outside ±2048 mm is an error, never a clamp.
+//!   outside ±2047.9375 mm (−2048.0 refused, spec §5.6) is an error, never a clamp.
 //! - `q` (scalar first, App. A) → the Q1.14 quaternion, normalised, canonical sign (q1 ≥ 0).
 //! - `move=rect|joint` → rectangular or joint ("robot") interpolation; `ref=abs|rel` → absolute
 //!   or relative (§5.3.2).
@@ -17,8 +17,11 @@
 //! - the header's base and maximum speeds → SET_BASE_SPEED and SET_MAX_SPEED in m/s at 1/8192
 //!   m/s per LSB.
 //!
-//! A stored program ends with "in position" (output [`IN_POSITION_OUTPUT`] raised, App. D) and
-//! `End`, so the PC sees on the sync line when the robot has reached the last point.
+//! A stored program opens with the start handshake ([`PROLOGUE_LEN`] control instructions: "in
+//! position" output [`IN_POSITION_OUTPUT`] lowered, then a wait for the PC's start on input
+//! [`START_INPUT`]; seed 001 §5.6.4 steps 10–11, App. D), so the `.ROB` instruction `n` is stored
+//! as instruction `n + PROLOGUE_LEN`. It ends with "in position" raised and `End`, so the PC sees
+//! on the sync line when the robot has reached the last point.
 //!
 //! **Indexer** (`docs/mandrel-drive.md`). A mandrel move (`accel_rps2`, `start_rps`, `max_rps`,
 //! `steps`, all at the mandrel) is checked by [`mandrel_drive::Profile::validate`] (signs,
@@ -27,7 +30,10 @@
 //! a preset incremental move of the file's steps (`MN MPI D<steps> G`) and the move-complete
 //! notification `CR`.
 
-use asea_protocol::sim::IN_POSITION_OUTPUT;
+use asea_protocol::sim::{IN_POSITION_OUTPUT, START_INPUT};
+
+/// Control instructions stored ahead of the first point: lower "in position", wait for start.
+pub const PROLOGUE_LEN: u16 = 2;
 use asea_protocol::{
     Command, Control, EncodeError, Flags, Instruction, Interpolation, Pose, Positioning, Reference,
     Speed, Zone,
@@ -54,6 +60,19 @@ pub fn zone(movement: Movement) -> Option<Zone> {
         Movement::Fine => Some(Zone::Fine),
         Movement::Medium => Some(Zone::Medium),
     }
+}
+
+/// Control instructions a stored program adds after its positionings: "in position" and `End`
+/// (see [`robot_program`]).
+pub const PROGRAM_CONTROL_INSTRUCTIONS: usize = 2;
+
+/// The most positioning instructions one stored program can hold beside its
+/// [`PROGRAM_CONTROL_INSTRUCTIONS`] in the robot's memory (seed 001 §4.1.2: 470 positioning, or
+/// 300 positioning and 200 control; the simulator's units): 468.
+pub fn max_positioning_instructions() -> usize {
+    use asea_protocol::sim::{CONTROL_UNITS, MEMORY_UNITS, POSITION_UNITS};
+    let control = PROGRAM_CONTROL_INSTRUCTIONS as u32 * CONTROL_UNITS;
+    ((MEMORY_UNITS - control) / POSITION_UNITS) as usize
 }
 
 /// A robot control file as the robot's telegrams.
@@ -139,7 +158,15 @@ pub fn robot_program(file: &RobotFile) -> Result<RobotProgram, Error> {
     let program = file.header.program;
     let zone = zone(file.header.movement).ok_or(Error::DiscreteProgram { program })?;
     let (base_speed, max_speed) = speeds(&file.header)?;
-    let mut instructions = Vec::with_capacity(file.instructions.len() + 2);
+    let mut instructions = Vec::with_capacity(file.instructions.len() + 4);
+    instructions.push(Instruction::Control(Control::SetOutput {
+        line: IN_POSITION_OUTPUT,
+        on: false,
+    }));
+    instructions.push(Instruction::Control(Control::WaitInput {
+        line: START_INPUT,
+        on: true,
+    }));
     for i in &file.instructions {
         let p = positioning(i, zone).map_err(|source| Error::RobotTransfer {
             program,
@@ -302,7 +329,7 @@ movement medium
 sync_mandrel_deg 91.2
 instr 1 speed_pct=10 pos_mm=724.1,20.15,227.93 q=0.9102,-0.0352,0.4124,0.0159 move=rect ref=abs accel_rps2=1 start_rps=0.05 max_rps=0.1 steps=0
 instr 2 speed_pct=1.03 pos_mm=730.0625,-25.3,240.5 q=-0.5,0.5,0.5,-0.5 move=joint ref=rel accel_rps2=1 start_rps=0.05 max_rps=0.1 steps=-75
-instr 3 speed_pct=200 pos_mm=-2048,2047.9375,0 q=1,0,0,0 move=rect ref=abs accel_rps2=1 start_rps=0.05 max_rps=0.1 steps=12
+instr 3 speed_pct=200 pos_mm=-2047.9375,2047.9375,0 q=1,0,0,0 move=rect ref=abs accel_rps2=1 start_rps=0.05 max_rps=0.1 steps=12
 end
 ";
 
@@ -352,11 +379,24 @@ end
         let f = file();
         let prog = robot_program(&f).unwrap();
         assert_eq!(prog.program, 3);
-        assert_eq!(prog.instructions.len(), f.instructions.len() + 2);
+        assert_eq!(prog.instructions.len(), f.instructions.len() + 4);
+        assert_eq!(
+            prog.instructions[..2],
+            [
+                Instruction::Control(Control::SetOutput {
+                    line: IN_POSITION_OUTPUT,
+                    on: false
+                }),
+                Instruction::Control(Control::WaitInput {
+                    line: START_INPUT,
+                    on: true
+                })
+            ]
+        );
         assert_eq!(prog.base_speed, Speed(8192));
         assert_eq!(prog.max_speed, Speed(16384));
         assert_eq!(
-            prog.instructions[3..],
+            prog.instructions[5..],
             [
                 Instruction::Control(Control::SetOutput {
                     line: IN_POSITION_OUTPUT,
@@ -365,7 +405,7 @@ end
                 Instruction::Control(Control::End)
             ]
         );
-        for (i, t) in f.instructions.iter().zip(&prog.instructions) {
+        for (i, t) in f.instructions.iter().zip(&prog.instructions[2..]) {
             let Instruction::Position(p) = t else {
                 panic!("instruction {} is not a positioning", i.number);
             };
@@ -433,13 +473,13 @@ end
 
     #[test]
     fn position_out_of_range_names_the_instruction() {
-        let text = ROB.replace("pos_mm=-2048,", "pos_mm=-2048.04,");
+        let text = ROB.replace("pos_mm=-2047.9375,", "pos_mm=-2048,");
         let f = RobotFile::parse(&text).unwrap();
         let e = robot_program(&f).unwrap_err();
         assert!(e.is_input());
         assert_eq!(
             e.to_string(),
-            "program 3: instruction 3: x = -2048.04 out of range (-2048.0 to 2047.9375 mm)"
+            "program 3: instruction 3: x = -2048 out of range (-2047.9375 to 2047.9375 mm)"
         );
         let text = ROB.replace("227.93 q", "2048 q");
         let e = immediate_moves(&RobotFile::parse(&text).unwrap()).unwrap_err();

@@ -120,7 +120,11 @@ fn bad_jobs_fail_cleanly_and_write_nothing() {
         ),
         ("wind_angle_deg = 48.3", "wind_angle_deg = 0.0", "(0°, 90°)"),
         ("offset_mm = 100.0", "offset_mm = -5.0", ":9:13:"),
-        ("segments = 50", "segments = 0", "at least 1"),
+        (
+            "segments = 50",
+            "segments = 0",
+            "a path has 2 to 10000 segments",
+        ),
         (
             "robot_distance_mm = 800.0",
             "robot_distance_mm = 60.0",

@@ -3,7 +3,7 @@
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use common::{example, stderr, windcell};
 
@@ -86,7 +86,11 @@ fn geodesic_prints_points_and_faces_and_stops_at_the_end_cap() {
     ]);
     assert!(r.status.success(), "{}", stderr(&r));
     let text = String::from_utf8(r.stdout).unwrap();
-    assert!(text.trim_end().ends_with("stopped at a height"), "{text}");
+    assert!(
+        text.trim_end()
+            .ends_with("stopped at the edge of the --heights range"),
+        "{text}"
+    );
     // Smoothed and cut into equal lengths on the surface.
     let r = windcell(&[
         "geodesic",
@@ -127,13 +131,10 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
     let empty = dir.path().join("empty.stl");
     std::fs::write(&empty, "").unwrap();
     let cases: [(&Path, &str); 4] = [
-        (&stl, "bad.stl: line 5: `oops` is not a number"),
-        (&obj, "bad.obj: line 5: vertex 7 does not exist"),
-        (
-            &open,
-            "open.obj: line 6: triangle 1: inconsistent orientation",
-        ),
-        (&empty, "empty.stl: the file is empty"),
+        (&stl, "bad.stl:5:15: `oops` is not a number"),
+        (&obj, "bad.obj:5:7: `7`: vertex 7 does not exist"),
+        (&open, "open.obj:6:1: triangle 1: inconsistent orientation"),
+        (&empty, "empty.stl: byte 0: the file is empty"),
     ];
     for (file, message) in cases {
         let r = windcell(&[
@@ -185,8 +186,19 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(r.status.code(), Some(2));
-    assert!(stderr(&r).contains("bad.stl: line 5"), "{}", stderr(&r));
+    assert!(stderr(&r).contains("bad.stl:5:15: "), "{}", stderr(&r));
     assert!(!out.exists());
+}
+
+/// The S-bend tube job cut square at its ends, like the TRIASYM mesh's end caps, as `sbend.toml`
+/// in `dir`.
+fn square_ended_sbend(dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(example("sbend.toml"))
+        .unwrap()
+        .replacen("kind = \"tube\"", "kind = \"tube\"\nends = \"square\"", 1);
+    let file = dir.join("sbend.toml");
+    std::fs::write(&file, text).unwrap();
+    file
 }
 
 #[test]
@@ -194,7 +206,8 @@ fn plan_runs_the_tool_step_from_the_sbend_stl_like_the_analytic_tube() {
     let dir = tempfile::tempdir().unwrap();
     let steps = |name: &str| planned_steps(&example(name), &dir.path().join(name));
     let mesh = steps("sbend-mesh.toml");
-    let tube = steps("sbend.toml");
+    // The mesh's ends are sections perpendicular to the spine: compare with the tube cut so.
+    let tube = planned_steps(&square_ended_sbend(dir.path()), &dir.path().join("square"));
     assert_eq!(mesh.len(), tube.len());
     for (m, t) in mesh.iter().zip(&tube) {
         assert!((m - t).abs() <= 5, "{m} vs {t} steps");
@@ -243,13 +256,21 @@ fn plan_takes_a_dxf_path_on_mesh_and_tube_mandrels() {
             layer: "FIBRE".into(),
             points,
             closed: false,
+            places: Vec::new(),
         }],
+        units: None,
     };
     std::fs::write(dir.path().join("path.dxf"), drawing.write().unwrap()).unwrap();
     std::fs::copy(example("sbend.stl"), dir.path().join("sbend.stl")).unwrap();
     let imported = "[[path]]\nprogram = 3\ndxf = \"path.dxf\"\nlayer = \"FIBRE\"\nsegments = 50\n";
+    // The traced path (program 1) ends where the drawn one does: on square ends.
+    let square = std::fs::read_to_string(square_ended_sbend(dir.path())).unwrap();
     for name in ["sbend-mesh.toml", "sbend.toml"] {
-        let job = std::fs::read_to_string(example(name)).unwrap() + "\n" + imported;
+        let job = match name {
+            "sbend.toml" => square.clone(),
+            _ => std::fs::read_to_string(example(name)).unwrap(),
+        } + "\n"
+            + imported;
         let job_file = dir.path().join(name);
         std::fs::write(&job_file, job).unwrap();
         let steps = planned_steps(&job_file, &dir.path().join(format!("out-{name}")));
@@ -323,7 +344,9 @@ fn spine_profile_from_dxf_plans_like_spine_mm() {
                 .map(|&(z, x)| [z, x, 0.0])
                 .collect(),
             closed: false,
+            places: Vec::new(),
         }],
+        units: None,
     };
     std::fs::write(dir.path().join("spine.dxf"), drawing.write().unwrap()).unwrap();
     let text = std::fs::read_to_string(example("sbend.toml")).unwrap();

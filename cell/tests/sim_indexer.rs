@@ -46,8 +46,9 @@ fn serves_both_dialects_and_stops_on_sigterm() {
 }
 
 #[test]
-fn without_pty_is_bad_input() {
-    let out = common::windcell(&["sim-indexer"]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(common::stderr(&out).contains("--pty"));
+fn serves_on_a_pty_without_the_flag_too() {
+    // The pseudo-terminal is the only transport, so it is the default.
+    let (child, path) = common::serve_on_pty(&["sim-indexer"]);
+    assert!(std::path::Path::new(&path).exists(), "{path}");
+    common::stop_cleanly(child);
 }

@@ -90,6 +90,24 @@ pub enum Error {
         /// How long the client waited.
         waited_ms: u64,
     },
+    /// A lathe axis ran onto a hardware limit switch; the drives were stopped (seed 000 §9.11).
+    #[error("axis {axis} hit its {side} limit switch at {position_counts} counts; drives stopped")]
+    LimitTripped {
+        /// The axis letter.
+        axis: char,
+        /// `low` or `high`.
+        side: &'static str,
+        /// Where it was, counts from machine zero.
+        position_counts: i64,
+    },
+    /// Machine-zero search found no home switch within the travel searched (seed 003 §4.2).
+    #[error("axis {axis}: no home switch within {searched_counts} counts")]
+    HomeNotFound {
+        /// The axis letter.
+        axis: char,
+        /// How far it moved looking for it.
+        searched_counts: i64,
+    },
     /// The gearing is invalid.
     #[error("gearing: {0}")]
     Gearing(#[from] paths::Error),

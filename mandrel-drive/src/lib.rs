@@ -6,13 +6,19 @@
 //! - [`link`]: the byte link (serial port, in-memory pipe).
 //! - [`client`]: the [`Indexer`] seam (spec §6) for both dialects.
 //! - [`sim`]: indexer + translator + motor + gear simulator with a front end per dialect.
+//! - [`lathe`]: the lathe winder's PD axis controller, machine-zero search, electronic gearing and
+//!   the interrupt clocks (simulated, wall clock with jitter).
+//! - [`servo`]: the lathe winder's DC servo axes (plant, DAC, encoders, limit switches) behind the
+//!   [`servo::AxisIo`] seam (seed 000 Ch. 6–7).
 //! - [`sync`]: the opto-isolated "robot in position" and "start" lines (seed 001 App. D).
 
 pub mod client;
 pub mod error;
 pub mod grbl;
+pub mod lathe;
 pub mod link;
 pub mod profile;
+pub mod servo;
 pub mod sim;
 pub mod sync;
 pub mod units;

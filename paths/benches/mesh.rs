@@ -9,8 +9,9 @@ use nalgebra::{Point3, Vector3};
 use paths::geodesic::{Direction, PathStart};
 use paths::mesh::trace::{DEFAULT_CREASE_DEG, Mode, TraceOptions, Tracer};
 use paths::mesh::{Closure, DEFAULT_WELD_MM, Mesh, prepare, resegment, stl, triasym};
+use paths::plan::ENTRY_ANGLE_MAX_DEG;
 use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
-use paths::{Gearing, Robot, Setup, Speeds, Spine, Tube};
+use paths::{Arm, Calibration, Gearing, MandrelProfile, Movement, Setup, Speeds, Spine, Tube};
 
 fn tracer(mesh: &Mesh) -> Tracer {
     let (m, adj) = prepare(mesh, DEFAULT_WELD_MM, Closure::Closed).unwrap();
@@ -131,14 +132,20 @@ fn coverage(c: &mut Criterion) {
         robot_distance_mm: 800.0,
         mandrel_height_mm: 300.0,
         offset_mm: 100.0,
-        eye_mechanism_length_mm: 150.0,
-        robot: Robot::default(),
+        arm: Arm::default(),
+        entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
+        calibration: Calibration::default(),
         gearing: Gearing::default(),
     };
     let speeds = Speeds {
-        mandrel_rps: 0.1,
+        mandrel: MandrelProfile {
+            accel_rps2: 1.0,
+            start_stop_rps: 0.05,
+            max_rps: 0.1,
+        },
         base_speed_mm_s: 1000.0,
         max_speed_mm_s: 2000.0,
+        movement: Movement::Fine,
     };
     let mut group = c.benchmark_group("mesh");
     group.sample_size(10);

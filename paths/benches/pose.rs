@@ -1,12 +1,14 @@
-//! Eye-pose throughput: eq 3.7, the eye (eqs 3.8–3.14), the cell-frame transform, the App. A
-//! quaternion, steps and speed for every segment end of a planned path (issue target: at least
-//! 5 million poses per second on one core). Run with `cargo bench -p paths --bench pose`.
+//! Eye-pose throughput: eq 3.7, the eye (eqs 3.8–3.14), the cell-frame transform, the arm's
+//! inverse kinematics, joint-range, continuity and entry-angle checks, the App. A quaternion with
+//! the base yaw, steps, trapezoid timing and the arm's speed limit for every segment end of a
+//! planned path (target: at least 2 million poses per second on one core). Run with `cargo bench -p paths --bench pose`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use paths::geodesic::{self, Direction, PathStart};
+use paths::plan::ENTRY_ANGLE_MAX_DEG;
 use paths::segment::equal_length;
 use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
-use paths::{Gearing, Robot, Setup, Speeds, Spine, Tube};
+use paths::{Arm, Calibration, Gearing, MandrelProfile, Movement, Setup, Speeds, Spine, Tube};
 use std::hint::black_box;
 
 fn poses(c: &mut Criterion) {
@@ -14,14 +16,20 @@ fn poses(c: &mut Criterion) {
         robot_distance_mm: 800.0,
         mandrel_height_mm: 300.0,
         offset_mm: 100.0,
-        eye_mechanism_length_mm: 150.0,
-        robot: Robot::default(),
+        arm: Arm::default(),
+        entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
+        calibration: Calibration::default(),
         gearing: Gearing::default(),
     };
     let speeds = Speeds {
-        mandrel_rps: 0.1,
+        mandrel: MandrelProfile {
+            accel_rps2: 1.0,
+            start_stop_rps: 0.05,
+            max_rps: 0.1,
+        },
         base_speed_mm_s: 1000.0,
         max_speed_mm_s: 2000.0,
+        movement: Movement::Fine,
     };
     let tube = Tube::new(
         Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),

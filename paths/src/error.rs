@@ -77,21 +77,56 @@ pub enum Error {
         /// Where along the spine it turned.
         height_mm: f64,
     },
-    /// A payout-eye position lies outside the robot's working range.
+    /// A segment turns the mandrel more than half a revolution: its end angles cannot say which
+    /// way the mandrel went, and the robot's straight move cannot follow the fibre.
     #[error(
-        "segment {segment}: payout eye at ({x_mm:.1}, {y_mm:.1}, {z_mm:.1}) mm is outside the robot's {limit}"
+        "segment {segment} turns the mandrel {turn_deg:.1}°, more than half a revolution \
+         (use more segments or a smaller wind angle)"
     )]
-    OutOfReach {
+    SegmentTurnsTooFar {
+        /// The segment index (1-based).
+        segment: usize,
+        /// The segment's ideal mandrel turn.
+        turn_deg: f64,
+    },
+    /// The tow line enters the eye at a larger angle to its roll axis than the eye accepts.
+    #[error(
+        "segment {segment}: the fibre enters the eye at {angle_deg:.2}° to its roll axis, more than \
+         the {limit_deg}° limit (entry_angle_max_deg)"
+    )]
+    EntryAngle {
         /// The segment end point index (0 = start point).
         segment: usize,
-        /// Eye x in the cell frame.
-        x_mm: f64,
-        /// Eye y in the cell frame.
-        y_mm: f64,
-        /// Eye z in the cell frame.
-        z_mm: f64,
-        /// Which limit (`horizontal reach`, `height range`, `wrist pitch range`).
-        limit: &'static str,
+        /// The entry angle.
+        angle_deg: f64,
+        /// The limit.
+        limit_deg: f64,
+    },
+    /// The payout eye would lie inside (or on) the mandrel.
+    #[error("segment {segment}: the payout eye is {clearance_mm:.3} mm inside the mandrel surface", clearance_mm = -clearance_mm)]
+    EyeInsideMandrel {
+        /// The segment end point index (0 = start point).
+        segment: usize,
+        /// The eye's distance to the surface (≤ 0).
+        clearance_mm: f64,
+    },
+    /// In fine or medium movement the robot cannot cover a segment in the mandrel's time.
+    #[error(
+        "segment {segment}: the eye would have to move at {speed_mm_s:.0} mm/s; the robot needs \
+         {robot_time_s:.4} s at its fastest for this pose but the mandrel takes {duration_s:.4} s \
+         (a mandrel speed of at most {mandrel_rps_fit:.4} rev/s would fit)"
+    )]
+    RobotTooSlow {
+        /// The segment index (1-based).
+        segment: usize,
+        /// The eye speed the mandrel's time asks for.
+        speed_mm_s: f64,
+        /// The robot's least time for the segment.
+        robot_time_s: f64,
+        /// The mandrel's time for the segment.
+        duration_s: f64,
+        /// The mandrel speed that scales this segment's time up to the robot's.
+        mandrel_rps_fit: f64,
     },
     /// The arm cannot take a pose: out of reach, off the arm plane, a joint out of range or a
     /// joint jump between consecutive poses.
@@ -146,11 +181,24 @@ pub enum Error {
         /// The row where elimination met a zero pivot.
         row: usize,
     },
-    /// A mesh file could not be read: the line (ASCII STL, OBJ) where known, and what is wrong.
-    #[error("{}{message}", line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    /// A mesh file could not be read: the line and column (ASCII STL, OBJ) or the byte offset
+    /// (binary STL) where known, and what is wrong.
+    #[error(
+        "{}{message}",
+        match (line, column, byte) {
+            (Some(l), Some(c), _) => format!("line {l}, column {c}: "),
+            (Some(l), None, _) => format!("line {l}: "),
+            (None, _, Some(b)) => format!("byte {b}: "),
+            _ => String::new(),
+        }
+    )]
     MeshSyntax {
         /// 1-based line of a text format, `None` for binary STL.
         line: Option<usize>,
+        /// 1-based column (in characters) on that line, where known.
+        column: Option<usize>,
+        /// 0-based byte offset in a binary file, where known.
+        byte: Option<u64>,
         /// What is wrong, in lower case.
         message: String,
     },
@@ -175,8 +223,17 @@ pub enum Error {
         mu: f64,
     },
     /// A start point too far from the mesh surface.
-    #[error("start point is {distance_mm:.3} mm from the mesh surface (more than {limit_mm} mm)")]
+    #[error(
+        "start point is {distance_mm:.3} mm from the mesh surface (more than {} mm); the nearest \
+         surface point is {:.3},{:.3},{:.3}",
+        shown(*limit_mm),
+        nearest_mm[0],
+        nearest_mm[1],
+        nearest_mm[2]
+    )]
     OffSurface {
+        /// The nearest surface point, mm (a start point that would be accepted).
+        nearest_mm: [f64; 3],
         /// Distance to the nearest surface point.
         distance_mm: f64,
         /// The largest accepted distance.
@@ -240,5 +297,13 @@ pub enum Error {
         layer: usize,
         /// The rule broken, with the numbers and the nearest valid values.
         reason: String,
+    },
+    /// A layer of a job could not be planned.
+    #[error("layer {layer}: {source}")]
+    Layer {
+        /// 1-based layer number.
+        layer: usize,
+        /// Why.
+        source: Box<Error>,
     },
 }

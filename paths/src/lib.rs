@@ -1,9 +1,11 @@
 //! Mandrel geometry and motion maths for windcell: analytic mandrels, fibre paths, equal-length
 //! segmentation, the tangent angle (seed 001 eq 3.7), payout-eye poses (eqs 3.8–3.14), wrist
-//! quaternions (App. A), mandrel step planning and the robot's working range. No I/O.
+//! quaternions (App. A), the five-axis arm's kinematics and limits, mandrel step planning and
+//! timing, and the cell's calibration. No I/O.
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
+pub mod calibration;
 pub mod control;
 pub mod delivery;
 pub mod error;
@@ -22,17 +24,20 @@ pub mod spine;
 pub mod spline;
 pub mod step;
 pub mod tangent;
+pub mod timing;
 pub mod trajectory;
 pub mod vessel;
 pub mod wrist;
 
+pub use calibration::Calibration;
 pub use error::Error;
 pub use geodesic::{Direction, PathStart, SurfacePath};
 pub use mandrel::{Section, Tube};
 pub use mesh::Mesh;
-pub use plan::{PathPlan, Pose, Segment, Setup, Speeds};
-pub use robot::{Arm, ArmFault, ArmPose, Capsule, ElbowBranch, Joint, Joints, Robot};
+pub use plan::{Movement, PathPlan, Pose, Segment, Setup, Speeds};
+pub use robot::{Arm, ArmFault, ArmPose, Capsule, ElbowBranch, Joint, Joints};
 pub use segment::SurfacePoint;
 pub use spine::Spine;
 pub use spline::{BSpline, UniformCubic};
 pub use step::Gearing;
+pub use timing::MandrelProfile;

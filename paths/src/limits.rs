@@ -7,6 +7,9 @@ use crate::Error;
 
 /// Most equal-length segments of one path (the thesis uses 50; a robot program holds far fewer).
 pub const MAX_SEGMENTS: usize = 10_000;
+/// Most segments of all paths of one job or coverage set together (a plan costs about 60 µs and
+/// 350 bytes per segment on a mesh mandrel, and its control files about 170 bytes).
+pub const MAX_JOB_SEGMENTS: usize = 50_000;
 /// Longest fibre path, mm (100 m: a path that long winds a mandrel hundreds of times).
 pub const MAX_PATH_LENGTH_MM: f64 = 100_000.0;
 /// Most samples of one path (integrator steps, helix samples, resampled points).
@@ -25,16 +28,17 @@ pub fn at_most(name: &'static str, value: f64, limit: f64) -> Result<(), Error> 
     }
 }
 
-/// How a number reads in a message: plain with up to 6 decimals (trailing zeros dropped) between
-/// 1e-4 and 1e9, else in exponent form with 6 significant digits, so no message carries a
-/// 300-digit number.
+/// How a number reads in a message: plain between 1e-4 and 1e9, with at most 9 significant digits
+/// and 6 decimals (trailing zeros dropped), else in exponent form with 6 significant digits, so no
+/// message carries a 300-digit number.
 pub fn shown(value: f64) -> String {
     let magnitude = value.abs();
     if !value.is_finite() || value == 0.0 {
         return format!("{value}");
     }
     let text = if (1e-4..1e9).contains(&magnitude) {
-        format!("{value:.6}")
+        let decimals = (8 - magnitude.log10().floor() as i32).clamp(0, 6) as usize;
+        format!("{value:.decimals$}")
     } else {
         let e = format!("{value:.5e}");
         let (mantissa, exponent) = e.split_once('e').unwrap_or((&e, "0"));
@@ -64,6 +68,8 @@ mod tests {
         assert_eq!(shown(0.1 + 0.2), "0.3");
         assert_eq!(shown(89.99999), "89.99999");
         assert_eq!(shown(123_456_789.0), "123456789");
+        assert_eq!(shown(101_986_487.528_729), "101986488");
+        assert_eq!(shown(1_234.567_891_23), "1234.56789");
         assert_eq!(shown(1.234_567_89e9), "1.23457e9");
         assert_eq!(shown(0.0), "0");
         assert_eq!(shown(f64::NAN), "NaN");

@@ -1,26 +1,62 @@
 //! The TOOL step for one path (seed 001 §5.6): from equal-length surface points to robot poses,
-//! mandrel angles, step counts and robot speeds.
+//! arm joints, mandrel angles, step counts, segment times and robot speeds.
 //!
 //! # Frames
 //! - **mandrel frame**: fixed to the mandrel (see [`crate::mandrel`]).
 //! - **drive frame**: the mandrel frame turned by the mandrel angle `φ` about `z` (see
 //!   [`crate::tangent`]); the robot pedestal stands at `(−b, 0)`.
-//! - **cell frame**: the robot base at the origin, `z` up, the rotation axis vertical through
-//!   `(b, 0)`, the mandrel frame's origin at height `mandrel_height_mm`:
-//!   `p_cell = (b, 0, h) + R_z(φ) p_mandrel`.
+//! - **cell frame**: the robot base at the origin, `z` up, the rotation axis through `(b, 0)` at
+//!   the mandrel frame's origin height `h`, as measured ([`crate::calibration`]; nominally
+//!   vertical: `p_cell = (b, 0, h) + R_z(φ) p_mandrel`).
 //!
+//! # The eye pose the arm can take
 //! The eye is placed for the **commanded** (step-quantised) mandrel angle, so that robot and
-//! mandrel agree on where the fibre is; tangency with the robot line is then exact to within half a
-//! step of mandrel rotation.
+//! mandrel agree on where the fibre is. The arm has no wrist yaw, so the eye's roll axis lies in
+//! the vertical plane through the pedestal axis and the eye ([`crate::robot`]); the tow line (eye
+//! to tangent point) generally does not. The roll axis is the tow line's projection onto that
+//! plane, which makes the **fibre entry angle** (tow line to roll axis) the least the arm allows:
+//! `asin |t·n|`, `n` the plane's normal. The tow line then lies in the plane of the roll axis and
+//! `n`, so the roll that turns the eye's rocker arm (§4.1.3) into the fibre's plane is 90° (App. A's
+//! `Φ`; any roll serves when the entry angle is 0). The elbow branch is chosen at the start point
+//! (up if it reaches the pose within the joint ranges, else down) and kept; every pose is checked
+//! against the joint ranges and against a joint jump from the previous one.
+//!
+//! # Mandrel angle
+//! Eq 3.7 gives the mandrel angle modulo a revolution. It is unwrapped by the path's own angle
+//! around the spine ([`SurfacePoint::around_rad`], continuous along the path): `φ = β − α` with
+//! `α` that angle and `β` the tangency angle, which lies within a quarter revolution of `±90°`.
+//! A segment that turns the mandrel more than half a revolution is refused (its robot move could
+//! not follow the fibre).
+//!
+//! # Time and speed
+//! Each mandrel move is the indexer's trapezoid ([`crate::timing`]). In **discrete** movement each
+//! segment is its own move and both devices start and stop together at every point (§6.4.1): the
+//! segment lasts the mandrel move's time, or the robot's least time when that is longer — then the
+//! segment's mandrel move is slowed to the robot's time ([`MandrelProfile::slowed_to`]) and the
+//! segment says so. In **fine** and **medium** movement the mandrel turns through the path in one
+//! move and the robot must keep up: each segment lasts the time the one move takes between the
+//! segment's end angles, and a segment the robot cannot cover in that time is an error naming the
+//! mandrel speed that would fit. The robot's least time for a segment is the longest of: the eye's
+//! travel at the arm's fastest speed at either end pose in that direction
+//! ([`Arm::max_tool_speed_mm_s`], 630–2300 mm/s for the IRB 6/2), the travel at the controller's
+//! maximum speed, and the joint move at the joint speed limits.
 
-use std::f64::consts::TAU;
+use std::f64::consts::{FRAC_PI_2, TAU};
 
 use nalgebra::{Point3, Unit, UnitQuaternion, Vector2, Vector3};
 
+use crate::calibration::{Calibration, CellTransform};
+use crate::robot::{Arm, ArmFault, ElbowBranch, Joints};
 use crate::segment::SurfacePoint;
 use crate::step::{Gearing, RemainderCarrier};
 use crate::tangent::{self, Flank};
-use crate::{Error, Robot, eye, wrist};
+use crate::timing::MandrelProfile;
+use crate::{Error, eye, wrist};
+
+/// The default largest fibre entry angle (tow line to the eye's roll axis), degrees. Assumption:
+/// the thesis gives no figure; the spring-loaded rocker arm (§4.1.3) is taken to guide the tow
+/// up to 30° off its axis.
+pub const ENTRY_ANGLE_MAX_DEG: f64 = 30.0;
 
 /// Where the robot and mandrel stand and how the eye is carried.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,32 +67,55 @@ pub struct Setup {
     pub mandrel_height_mm: f64,
     /// Tow distance from the tangent point to the eye (100 mm in the experiments, §6.4).
     pub offset_mm: f64,
-    /// Length of the payout-eye mechanism from the wrist to the eye (§5.6 f).
-    pub eye_mechanism_length_mm: f64,
-    /// The robot's working range.
-    pub robot: Robot,
+    /// The arm, with the eye-mechanism length (§5.6 f) in [`Arm::eye_mechanism_mm`].
+    pub arm: Arm,
+    /// Largest fibre entry angle, rad ([`ENTRY_ANGLE_MAX_DEG`] by default).
+    pub entry_angle_max_rad: f64,
+    /// The measured cell.
+    pub calibration: Calibration,
     /// The mandrel drive train.
     pub gearing: Gearing,
+}
+
+/// How robot and mandrel move together (seed 001 §5.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Movement {
+    /// Robot and mandrel start and stop together at every point (§5.4.1, §6.4.1).
+    Discrete,
+    /// The robot flies through a 1 mm zone of each point while the mandrel turns (§5.4.2).
+    Fine,
+    /// As fine, with a wider zone.
+    Medium,
 }
 
 /// Winding speeds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Speeds {
-    /// Mandrel speed, rev/s (§5.6 e).
-    pub mandrel_rps: f64,
+    /// The mandrel moves' profile: maximum velocity (§5.6 e), acceleration, start/stop velocity.
+    pub mandrel: MandrelProfile,
     /// The robot's base speed; instruction speeds are percentages of it (§5.4.1).
     pub base_speed_mm_s: f64,
-    /// The robot's maximum speed; no instruction asks for more.
+    /// The robot controller's maximum speed; no instruction asks for more.
     pub max_speed_mm_s: f64,
+    /// Discrete, fine or medium.
+    pub movement: Movement,
 }
 
 impl Setup {
-    /// Checks every length.
+    /// Checks every length, the arm and the calibration.
     pub fn validate(&self) -> Result<(), Error> {
         positive("robot_distance_mm", self.robot_distance_mm)?;
         positive("offset_mm", self.offset_mm)?;
-        non_negative("eye_mechanism_length_mm", self.eye_mechanism_length_mm)?;
         finite("mandrel_height_mm", self.mandrel_height_mm)?;
+        if !(self.entry_angle_max_rad > 0.0 && self.entry_angle_max_rad <= FRAC_PI_2) {
+            return Err(Error::OutOfRange {
+                name: "entry_angle_max_deg",
+                value: self.entry_angle_max_rad.to_degrees(),
+                expected: "must lie in (0°, 90°]",
+            });
+        }
+        self.arm.validate()?;
+        self.calibration.validate()?;
         self.gearing.validate()
     }
 }
@@ -64,7 +123,7 @@ impl Setup {
 impl Speeds {
     /// Checks every speed.
     pub fn validate(&self) -> Result<(), Error> {
-        positive("mandrel_speed_rps", self.mandrel_rps)?;
+        self.mandrel.validate()?;
         positive("base_speed_mm_s", self.base_speed_mm_s)?;
         positive("max_speed_mm_s", self.max_speed_mm_s)
     }
@@ -94,18 +153,6 @@ fn positive(name: &'static str, value: f64) -> Result<(), Error> {
     }
 }
 
-fn non_negative(name: &'static str, value: f64) -> Result<(), Error> {
-    if value >= 0.0 && value.is_finite() {
-        Ok(())
-    } else {
-        Err(Error::OutOfRange {
-            name,
-            value,
-            expected: "must be ≥ 0",
-        })
-    }
-}
-
 /// The robot and mandrel pose at one segment end.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pose {
@@ -117,12 +164,18 @@ pub struct Pose {
     pub eye_mandrel_mm: Point3<f64>,
     /// The eye, cell frame (at the commanded mandrel angle).
     pub eye_mm: Point3<f64>,
-    /// Wrist orientation (tool `z` from the eye to the tangent point), sign-continuous; its pitch
-    /// and roll are [`wrist::pitch_roll`].
+    /// The arm's joints for this pose.
+    pub joints: Joints,
+    /// Fibre entry angle: the tow line (eye to tangent point) against the eye's roll axis, rad.
+    pub entry_angle_rad: f64,
+    /// Wrist orientation, cell frame: App. A's pitch-then-roll composed with the base yaw
+    /// (`R_z(q1) R_y(θ) R_x(Φ)`, its `x` axis the roll axis); a continuous function of the joints,
+    /// so it never flips sign along a path.
     pub wrist_q: UnitQuaternion<f64>,
     /// Eq 3.7 mandrel angle, unwrapped along the path.
     pub ideal_mandrel_rad: f64,
-    /// Commanded mandrel angle: the start angle plus the commanded steps.
+    /// Commanded mandrel angle (counter-clockwise from above): the start angle plus the
+    /// commanded steps.
     pub mandrel_rad: f64,
 }
 
@@ -131,14 +184,22 @@ pub struct Pose {
 pub struct Segment {
     /// The pose at the segment's end.
     pub pose: Pose,
-    /// Motor steps for this segment.
+    /// Indexer steps for this segment, in the indexer's sense of rotation
+    /// ([`Calibration::rotation_sign`]).
     pub steps: i64,
-    /// Time the mandrel takes for the segment at the mandrel speed, s.
+    /// The segment's time, s: both devices' in discrete movement, the mandrel's in fine/medium.
     pub duration_s: f64,
+    /// The robot's least time for the segment at the arm's and controller's speed limits, s.
+    pub robot_time_s: f64,
+    /// The eye's speed, mm/s.
+    pub speed_mm_s: f64,
     /// Robot speed as a percentage of the base speed.
     pub speed_pct: f64,
-    /// True when the eye would have to move faster than the maximum speed to keep pace.
-    pub speed_limited: bool,
+    /// This segment's mandrel move (discrete: slowed below the job's profile when the robot sets
+    /// the time).
+    pub mandrel: MandrelProfile,
+    /// Discrete movement: the robot's time set the segment's time and the mandrel move was slowed.
+    pub robot_paced: bool,
 }
 
 /// The plan for one path.
@@ -148,14 +209,55 @@ pub struct PathPlan {
     pub start: Pose,
     /// One entry per segment.
     pub segments: Vec<Segment>,
+    /// The indexer position at the start pose, in its own sense of rotation from its zero, rad.
+    pub sync_drive_rad: f64,
+    /// The elbow branch used for the whole path.
+    pub elbow: ElbowBranch,
     /// Worst |commanded − ideal| mandrel angle over the segment ends.
     pub max_drift_rad: f64,
     /// Least distance from the eye to the mandrel surface.
     pub min_eye_clearance_mm: f64,
+    /// Worst fibre entry angle over the path's poses, rad.
+    pub max_entry_angle_rad: f64,
+}
+
+/// Per-point results of the first pass.
+#[derive(Debug, Clone, Copy)]
+struct Prepared {
+    eye: Point3<f64>,
+    cos: f64,
+    sin: f64,
+    ideal: f64,
+}
+
+/// An arm fault at pose `segment`.
+fn arm_error(error: Error, segment: usize) -> Error {
+    match error {
+        Error::Arm { fault, .. } => Error::Arm {
+            segment: Some(segment),
+            fault,
+        },
+        other => other,
+    }
+}
+
+/// The eye's direction at the start: the path's tangent at the first point, from the one-sided
+/// fourth-order difference `−25p0 + 48p1 − 36p2 + 16p3 − 3p4` of equal-length points (lower
+/// orders for shorter paths, the chord `p1 − p0` for one segment), in the surface's tangent plane.
+fn start_tangent(points: &[SurfacePoint]) -> Vector3<f64> {
+    let p = |k: usize| points[k].point.coords;
+    let t = match points.len() {
+        2 => p(1) - p(0),
+        3 => -3.0 * p(0) + 4.0 * p(1) - p(2),
+        4 => -11.0 * p(0) + 18.0 * p(1) - 9.0 * p(2) + 2.0 * p(3),
+        _ => -25.0 * p(0) + 48.0 * p(1) - 36.0 * p(2) + 16.0 * p(3) - 3.0 * p(4),
+    };
+    let n = points[0].normal;
+    t - n * t.dot(&n)
 }
 
 /// Plans one path through `points` (equal-length segment ends on the mandrel, mandrel frame).
-/// `clearance_mm` gives a point's distance to the mandrel surface.
+/// `clearance_mm` gives a point's distance to the mandrel surface (negative inside).
 pub fn plan(
     points: &[SurfacePoint],
     clearance_mm: impl Fn(&Point3<f64>) -> f64,
@@ -171,7 +273,10 @@ pub fn plan(
             expected: "must be at least 1",
         });
     }
-    let b = setup.robot_distance_mm;
+    let cell: CellTransform = setup
+        .calibration
+        .transform(setup.robot_distance_mm, setup.mandrel_height_mm);
+    let b = cell.robot_distance_mm;
 
     // The flank that keeps the eye between the robot and the mandrel: the fibre must travel toward
     // the robot, i.e. along the counter-clockwise horizontal tangent on the left flank.
@@ -182,19 +287,25 @@ pub fn plan(
     } else {
         Flank::Right
     };
+    let beta_mid = match flank {
+        Flank::Left => FRAC_PI_2,
+        Flank::Right => -FRAC_PI_2,
+    };
 
-    // Pass 1: the eye in the mandrel frame (eqs 3.8–3.14; the start eye lies along the first
-    // chord) and eq 3.7's angle at every point, unwrapped so the mandrel turns continuously.
+    // Pass 1: the eye in the mandrel frame (eqs 3.8–3.14; the start eye on the path's tangent) and
+    // eq 3.7's angle at every point, unwrapped by the path's own angle around the spine.
     let mut prepared: Vec<Prepared> = Vec::with_capacity(points.len());
     for (k, p) in points.iter().enumerate() {
-        let (from, to) = if k == 0 { (0, 1) } else { (k - 1, k) };
-        let eye = eye::position(&points[from].point, &points[to].point, setup.offset_mm)
-            .ok_or(Error::DegenerateSegment { segment: k.max(1) })?;
         let eye = if k == 0 {
-            points[0].point + (eye - points[1].point)
+            eye::position(
+                &(p.point - start_tangent(points)),
+                &p.point,
+                setup.offset_mm,
+            )
         } else {
-            eye
-        };
+            eye::position(&points[k - 1].point, &p.point, setup.offset_mm)
+        }
+        .ok_or(Error::DegenerateSegment { segment: k.max(1) })?;
         let point_xy = Vector2::new(p.point.x, p.point.y);
         let normal_xy = Vector2::new(p.normal.x, p.normal.y);
         let angle = tangent::solve(point_xy, normal_xy, b, flank).map_err(|argument| {
@@ -204,9 +315,17 @@ pub fn plan(
                 argument: argument.abs(),
             }
         })?;
-        let mut ideal = angle.rad;
+        // φ = β − α: β within a quarter revolution of ±90°, α the path's own continuous angle.
+        let reference = beta_mid - p.around_rad;
+        let ideal = angle.rad + TAU * ((reference - angle.rad) / TAU).round();
         if let Some(previous) = prepared.last() {
-            ideal += TAU * ((previous.ideal - ideal) / TAU).round();
+            let turn = ideal - previous.ideal;
+            if turn.abs() > std::f64::consts::PI {
+                return Err(Error::SegmentTurnsTooFar {
+                    segment: k,
+                    turn_deg: turn.to_degrees(),
+                });
+            }
         }
         prepared.push(Prepared {
             eye,
@@ -216,13 +335,18 @@ pub fn plan(
         });
     }
 
-    // Pass 2: steps (remainder carried), the commanded angle, the cell-frame pose, the speed.
-    let origin = Vector3::new(b, 0.0, setup.mandrel_height_mm);
+    // Pass 2: steps (remainder carried), the commanded angle, the cell-frame pose, the arm.
     let step_angle = setup.gearing.step_angle_rad();
-    let max_speed = speeds.max_speed_mm_s.min(setup.robot.max_speed_mm_s);
+    let arm = &setup.arm;
     let phi0 = prepared[0].ideal;
     let mut min_clearance = f64::INFINITY;
-    let mut pose_at = |k: usize, commanded: f64, previous_q: Option<&UnitQuaternion<f64>>| {
+    let mut max_entry = 0.0f64;
+    let pose_at = |k: usize,
+                   commanded: f64,
+                   branch: ElbowBranch,
+                   previous: Option<&Pose>,
+                   min_clearance: &mut f64,
+                   max_entry: &mut f64| {
         let prep = &prepared[k];
         // R_z(commanded) = R_z(ideal) R_z(δ), |δ| ≤ half a step: sin δ, cos δ by their series
         // (the next terms are below 1e-17 for a step of 0.2°).
@@ -234,73 +358,189 @@ pub fn plan(
             prep.sin * cos_d + prep.cos * sin_d,
         );
         let rotate =
-            |p: &Point3<f64>| Point3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z) + origin;
+            |p: &Point3<f64>| cell.to_cell(&Point3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z));
         let eye_mm = rotate(&prep.eye);
-        let tow = Unit::new_normalize(rotate(&points[k].point) - eye_mm);
-        let wrist_q = match previous_q {
-            Some(prev) => wrist::continuous(wrist::toward(&tow), prev),
-            None => wrist::toward(&tow),
-        };
-        setup.robot.check(&eye_mm, k)?;
-        setup.robot.check(
-            &(eye_mm - tow.into_inner() * setup.eye_mechanism_length_mm),
-            k,
-        )?;
-        min_clearance = min_clearance.min(clearance_mm(&prep.eye));
+        let tow = (rotate(&points[k].point) - eye_mm).normalize();
+        // The arm plane through the pedestal axis and the eye; the roll axis is the tow line's
+        // projection onto it.
+        let radial = eye_mm.coords.xy();
+        let rho = radial.norm();
+        if rho < 1e-9 {
+            return Err(Error::Arm {
+                segment: Some(k),
+                fault: ArmFault::WristOnPedestalAxis,
+            });
+        }
+        let normal = Vector3::new(-radial.y / rho, radial.x / rho, 0.0);
+        let out = tow.dot(&normal);
+        let roll_axis = Unit::new_normalize(tow - normal * out);
+        let entry_angle_rad = out.abs().min(1.0).asin();
+        let joints = arm
+            .inverse(&eye_mm, &roll_axis, FRAC_PI_2, branch)
+            .and_then(|j| arm.check_joints(&j).map(|()| j))
+            .map_err(|e| arm_error(e, k))?;
+        if let Some(prev) = previous {
+            arm.check_continuity(&prev.joints, &joints)
+                .map_err(|e| arm_error(e, k))?;
+        }
+        if entry_angle_rad > setup.entry_angle_max_rad {
+            return Err(Error::EntryAngle {
+                segment: k,
+                angle_deg: entry_angle_rad.to_degrees(),
+                limit_deg: setup.entry_angle_max_rad.to_degrees(),
+            });
+        }
+        let clearance = clearance_mm(&prep.eye);
+        if clearance <= 0.0 || clearance.is_nan() {
+            return Err(Error::EyeInsideMandrel {
+                segment: k,
+                clearance_mm: clearance,
+            });
+        }
+        *min_clearance = min_clearance.min(clearance);
+        *max_entry = max_entry.max(entry_angle_rad);
+        // A continuous function of the joints (half-angle sines and cosines, never wrapped), so
+        // joints checked for continuity give quaternions that never flip sign between poses.
+        let wrist_q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), joints.base_yaw_rad)
+            * wrist::from_pitch_roll(joints.app_a_pitch_rad(), joints.roll_rad);
         Ok::<Pose, Error>(Pose {
             tangent_point_mm: points[k].point,
             normal: points[k].normal,
             eye_mandrel_mm: prep.eye,
             eye_mm,
+            joints,
+            entry_angle_rad,
             wrist_q,
             ideal_mandrel_rad: prep.ideal,
             mandrel_rad: commanded,
         })
     };
-    let start = pose_at(0, phi0, None)?;
+    // The elbow branch: up if it takes the start pose within the ranges, else down; kept.
+    let (start, elbow) = match pose_at(
+        0,
+        phi0,
+        ElbowBranch::Up,
+        None,
+        &mut min_clearance,
+        &mut max_entry,
+    ) {
+        Ok(pose) => (pose, ElbowBranch::Up),
+        Err(up) => match pose_at(
+            0,
+            phi0,
+            ElbowBranch::Down,
+            None,
+            &mut min_clearance,
+            &mut max_entry,
+        ) {
+            Ok(pose) => (pose, ElbowBranch::Down),
+            Err(_) => return Err(up),
+        },
+    };
     let mut carrier = RemainderCarrier::default();
     let mut max_drift_rad = 0.0f64;
-    let mut segments: Vec<Segment> = Vec::with_capacity(points.len() - 1);
+    let mut poses: Vec<(Pose, i64)> = Vec::with_capacity(points.len() - 1);
     for (k, prep) in prepared.iter().enumerate().skip(1) {
         let steps = carrier.next(setup.gearing.steps(prep.ideal - phi0));
         let commanded = phi0 + carrier.commanded as f64 * step_angle;
         max_drift_rad = max_drift_rad.max((commanded - prep.ideal).abs());
-        let prev = segments.last().map_or(&start, |s| &s.pose);
-        let pose = pose_at(k, commanded, Some(&prev.wrist_q))?;
-        let travel = (pose.eye_mm - prev.eye_mm).norm();
-        let duration_s = (commanded - prev.mandrel_rad).abs() / (TAU * speeds.mandrel_rps);
-        let wanted = if travel < 1e-9 {
+        let prev = poses.last().map_or(&start, |(p, _)| p);
+        let pose = pose_at(
+            k,
+            commanded,
+            elbow,
+            Some(prev),
+            &mut min_clearance,
+            &mut max_entry,
+        )?;
+        poses.push((pose, steps));
+    }
+
+    // Pass 3: the segments' times and speeds.
+    let rev_per_step = step_angle / TAU;
+    let total_rev: f64 = poses
+        .iter()
+        .map(|(_, s)| s.unsigned_abs() as f64)
+        .sum::<f64>()
+        * rev_per_step;
+    let mut covered_rev = 0.0;
+    let sign = i64::from(setup.calibration.rotation_sign);
+    let mut segments: Vec<Segment> = Vec::with_capacity(poses.len());
+    for (i, (pose, steps)) in poses.iter().enumerate() {
+        let k = i + 1;
+        let prev = if i == 0 { &start } else { &poses[i - 1].0 };
+        let rev = steps.unsigned_abs() as f64 * rev_per_step;
+        let mut duration_s = match speeds.movement {
+            Movement::Discrete => speeds.mandrel.duration_s(rev),
+            Movement::Fine | Movement::Medium => {
+                let before = speeds.mandrel.time_at_s(covered_rev, total_rev);
+                covered_rev += rev;
+                speeds.mandrel.time_at_s(covered_rev, total_rev) - before
+            }
+        };
+        let travel_v = pose.eye_mm - prev.eye_mm;
+        let travel = travel_v.norm();
+        let linear_s = if travel > 1e-9 {
+            let dir = Unit::new_unchecked(travel_v / travel);
+            let fastest = arm
+                .max_tool_speed_mm_s(&prev.joints, &dir)
+                .min(arm.max_tool_speed_mm_s(&pose.joints, &dir))
+                .min(speeds.max_speed_mm_s);
+            travel / fastest
+        } else {
+            0.0
+        };
+        let robot_time_s = linear_s.max(arm.joint_time_s(&prev.joints, &pose.joints));
+        let mut mandrel = speeds.mandrel;
+        let mut robot_paced = false;
+        if robot_time_s > duration_s * (1.0 + 1e-12) {
+            match speeds.movement {
+                Movement::Discrete => {
+                    mandrel = speeds.mandrel.slowed_to(rev, robot_time_s);
+                    duration_s = robot_time_s;
+                    robot_paced = true;
+                }
+                Movement::Fine | Movement::Medium => {
+                    return Err(Error::RobotTooSlow {
+                        segment: k,
+                        speed_mm_s: if duration_s > 0.0 {
+                            travel / duration_s
+                        } else {
+                            f64::INFINITY
+                        },
+                        robot_time_s,
+                        duration_s,
+                        mandrel_rps_fit: speeds.mandrel.max_rps * duration_s / robot_time_s,
+                    });
+                }
+            }
+        }
+        let speed_mm_s = if travel < 1e-9 || duration_s <= 0.0 {
             // Nothing to travel: any speed arrives at once; ask for the base speed.
             speeds.base_speed_mm_s
-        } else if duration_s > 0.0 {
-            travel / duration_s
         } else {
-            f64::INFINITY
+            travel / duration_s
         };
-        let speed = wanted.min(max_speed);
         segments.push(Segment {
-            pose,
-            steps,
+            pose: *pose,
+            steps: sign * steps,
             duration_s,
-            speed_pct: 100.0 * speed / speeds.base_speed_mm_s,
-            speed_limited: wanted > max_speed,
+            robot_time_s,
+            speed_mm_s,
+            speed_pct: 100.0 * speed_mm_s / speeds.base_speed_mm_s,
+            mandrel,
+            robot_paced,
         });
     }
     Ok(PathPlan {
+        sync_drive_rad: setup.calibration.drive_angle_rad(start.mandrel_rad),
         start,
         segments,
+        elbow,
         max_drift_rad,
         min_eye_clearance_mm: min_clearance,
+        max_entry_angle_rad: max_entry,
     })
-}
-
-/// Per-point results of the first pass.
-#[derive(Debug, Clone, Copy)]
-struct Prepared {
-    eye: Point3<f64>,
-    cos: f64,
-    sin: f64,
-    ideal: f64,
 }
 
 #[cfg(test)]
@@ -314,35 +554,67 @@ mod tests {
     use nalgebra::Rotation3;
     use std::f64::consts::PI;
 
+    const R: f64 = 31.75;
+
     fn setup() -> Setup {
         Setup {
             robot_distance_mm: 800.0,
             mandrel_height_mm: 300.0,
             offset_mm: 100.0,
-            eye_mechanism_length_mm: 150.0,
-            robot: Robot::default(),
+            arm: Arm::default(),
+            entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
+            calibration: Calibration::default(),
             gearing: Gearing::default(),
         }
     }
 
-    fn speeds() -> Speeds {
+    fn speeds(movement: Movement) -> Speeds {
         Speeds {
-            mandrel_rps: 0.1,
+            mandrel: MandrelProfile {
+                accel_rps2: 1.0,
+                start_stop_rps: 0.05,
+                max_rps: 0.1,
+            },
             base_speed_mm_s: 1000.0,
             max_speed_mm_s: 2000.0,
+            movement,
         }
     }
 
-    fn plan_tube(tube: &Tube, start: PathStart) -> PathPlan {
-        let path = geodesic::trace(tube, &start, 0.25).unwrap();
-        let points = equal_length(tube, &path, 50).unwrap();
-        plan(
-            &points,
-            |p| tube.distance_to_surface_mm(p),
-            &setup(),
-            &speeds(),
+    fn tubes() -> [Tube; 4] {
+        [
+            Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap(),
+            Tube::cylinder(63.5, 178.0, 3.0 * R, 3.0 * R).unwrap(),
+            Tube::cylinder(63.5, 178.0, R, 3.0 * R).unwrap(),
+            sbend(),
+        ]
+    }
+
+    fn sbend() -> Tube {
+        Tube::new(
+            Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
+            28.5,
         )
         .unwrap()
+    }
+
+    fn points(tube: &Tube, start: &PathStart, segments: usize) -> Vec<SurfacePoint> {
+        let path = if tube.spine().is_straight() {
+            geodesic::helix(tube, start, 1.0)
+        } else {
+            geodesic::trace(tube, start, 0.25)
+        }
+        .unwrap();
+        equal_length(tube, &path, segments).unwrap()
+    }
+
+    fn plan_with(tube: &Tube, start: PathStart, setup: &Setup, speeds: &Speeds) -> PathPlan {
+        let points = points(tube, &start, 50);
+        plan(&points, |p| tube.distance_to_surface_mm(p), setup, speeds).unwrap()
+    }
+
+    fn plan_tube(tube: &Tube, start: PathStart) -> PathPlan {
+        plan_with(tube, start, &setup(), &speeds(Movement::Fine))
     }
 
     fn cylinder_start(direction: Direction) -> PathStart {
@@ -353,23 +625,22 @@ mod tests {
         }
     }
 
+    fn poses(p: &PathPlan) -> impl Iterator<Item = &Pose> {
+        std::iter::once(&p.start).chain(p.segments.iter().map(|s| &s.pose))
+    }
+
+    /// The tangent point in the cell frame (nominal cell).
+    fn tangent_cell(pose: &Pose) -> Point3<f64> {
+        Rotation3::from_axis_angle(&Vector3::z_axis(), pose.mandrel_rad) * pose.tangent_point_mm
+            + Vector3::new(800.0, 0.0, 300.0)
+    }
+
     #[test]
     fn every_pose_is_tangent_and_the_eye_faces_the_robot() {
-        let r = 31.75;
-        let tubes = [
-            Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap(),
-            Tube::cylinder(63.5, 178.0, 3.0 * r, 3.0 * r).unwrap(),
-            Tube::cylinder(63.5, 178.0, r, 3.0 * r).unwrap(),
-            Tube::new(
-                Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
-                28.5,
-            )
-            .unwrap(),
-        ];
-        for tube in &tubes {
+        for tube in &tubes() {
             for dir in [Direction::Down, Direction::Up] {
                 let p = plan_tube(tube, cylinder_start(dir));
-                for pose in std::iter::once(&p.start).chain(p.segments.iter().map(|s| &s.pose)) {
+                for pose in poses(&p) {
                     // Tangent: the horizontal line from the pedestal to the point is ⟂ the normal.
                     let rot =
                         Rotation3::from_axis_angle(&Vector3::z_axis(), pose.ideal_mandrel_rad);
@@ -379,10 +650,7 @@ mod tests {
                     let nh = Vector2::new(n.x, n.y).normalize();
                     assert_abs_diff_eq!(line.dot(&nh) / line.norm(), 0.0, epsilon = 1e-9);
                     // The eye is nearer the robot than the tangent point, and 100 mm from it.
-                    let tangent_cell =
-                        Rotation3::from_axis_angle(&Vector3::z_axis(), pose.mandrel_rad)
-                            * pose.tangent_point_mm;
-                    assert!(pose.eye_mm.x < tangent_cell.x + 800.0);
+                    assert!(pose.eye_mm.x < tangent_cell(pose).x);
                     assert_abs_diff_eq!(
                         (pose.eye_mandrel_mm - pose.tangent_point_mm).norm(),
                         100.0,
@@ -396,62 +664,357 @@ mod tests {
     }
 
     #[test]
-    fn quaternions_never_flip_and_steps_sum_to_the_rotation() {
-        let tube = Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap();
-        let p = plan_tube(&tube, cylinder_start(Direction::Down));
-        let mut prev = p.start.wrist_q;
-        for s in &p.segments {
-            assert!(s.pose.wrist_q.coords.dot(&prev.coords) >= 0.0);
-            prev = s.pose.wrist_q;
+    fn the_arm_holds_the_eye_with_the_roll_axis_in_its_plane_and_the_wrist_behind() {
+        let arm = Arm::default();
+        for tube in &tubes() {
+            for dir in [Direction::Down, Direction::Up] {
+                let p = plan_tube(tube, cylinder_start(dir));
+                let mut worst = 0.0f64;
+                let mut previous: Option<&Pose> = None;
+                for pose in poses(&p) {
+                    let fk = arm.forward(&pose.joints);
+                    // The joints put the eye where the plan says.
+                    assert_abs_diff_eq!(fk.eye_mm, pose.eye_mm, epsilon = 1e-9);
+                    // The roll axis lies in the vertical plane through the pedestal axis and eye.
+                    let radial = pose.eye_mm.coords.xy().normalize();
+                    let normal = Vector3::new(-radial.y, radial.x, 0.0);
+                    assert!(fk.roll_axis.dot(&normal).abs() < 1e-12);
+                    // The entry angle is the angle between the tow line and the roll axis.
+                    let tow = (tangent_cell(pose) - pose.eye_mm).normalize();
+                    let angle = tow
+                        .cross(&fk.roll_axis)
+                        .norm()
+                        .atan2(tow.dot(&fk.roll_axis));
+                    assert_abs_diff_eq!(angle, pose.entry_angle_rad, epsilon = 1e-9);
+                    worst = worst.max(angle);
+                    // The wrist is behind the eye, away from the mandrel: farther from the
+                    // rotation axis than the eye, by about the eye mechanism.
+                    let axis = Point3::new(800.0, 0.0, fk.wrist_mm.z);
+                    let from_axis = |q: &Point3<f64>| (q - axis).xy().norm();
+                    assert!(from_axis(&fk.wrist_mm) > from_axis(&pose.eye_mm) + 10.0);
+                    // The telegram's quaternion is the arm's orientation (yaw, App. A pitch and
+                    // roll), with no sign flip between poses.
+                    let gap = (pose.wrist_q.coords - fk.orientation.coords)
+                        .norm()
+                        .min((pose.wrist_q.coords + fk.orientation.coords).norm());
+                    assert!(gap < 1e-12);
+                    assert_abs_diff_eq!(
+                        pose.wrist_q * Vector3::x(),
+                        fk.roll_axis.into_inner(),
+                        epsilon = 1e-12
+                    );
+                    if let Some(prev) = previous {
+                        assert!(pose.wrist_q.coords.dot(&prev.wrist_q.coords) > 0.9);
+                    }
+                    // The rocker arm's plane (tool x–z) holds the tow line.
+                    assert!((pose.wrist_q * Vector3::y()).dot(&tow).abs() < 1e-9);
+                    // One elbow branch for the whole path.
+                    assert!(pose.joints.elbow_rad < FRAC_PI_2);
+                    assert!(arm.check_joints(&pose.joints).is_ok());
+                    previous = Some(pose);
+                }
+                assert_eq!(p.elbow, ElbowBranch::Up);
+                assert_abs_diff_eq!(p.max_entry_angle_rad, worst, epsilon = 1e-15);
+            }
         }
-        let total: i64 = p.segments.iter().map(|s| s.steps).sum();
-        // One turn of the path is one turn of the mandrel on the axis (R = 0), clockwise.
-        assert!((total as f64 + 1846.15).abs() < 20.0, "{total}");
-        assert!(p.segments.iter().all(|s| s.steps < 0));
     }
 
     #[test]
-    fn speed_follows_the_mandrel_and_is_capped_at_the_maximum() {
-        let r = 31.75;
-        let tube = Tube::cylinder(63.5, 178.0, 3.0 * r, 3.0 * r).unwrap();
-        let path = geodesic::helix(&tube, &cylinder_start(Direction::Down), 1.0).unwrap();
-        let points = equal_length(&tube, &path, 50).unwrap();
-        let slow = plan(
-            &points,
-            |p| tube.distance_to_surface_mm(p),
-            &setup(),
-            &speeds(),
-        )
-        .unwrap();
-        let fast_speeds = Speeds {
-            mandrel_rps: 5.0,
-            ..speeds()
+    fn steps_sum_to_the_rotation_for_any_segment_count_that_fits() {
+        // On the axis the mandrel turns back the path's own turn around the axis:
+        // tan(48.3°) · 178 / 31.75 rad, clockwise, 1846.15 steps per revolution.
+        let tube = &tubes()[0];
+        let expected = -(48.3f64.to_radians().tan() * 178.0 / R) / TAU * (400.0 * 60.0 / 13.0);
+        // Few segments put the eye far off the tangent (eqs 3.8–3.14 follow the chord): lift the
+        // entry-angle limit, this test is about the steps.
+        let wide = Setup {
+            entry_angle_max_rad: 80f64.to_radians(),
+            ..setup()
         };
-        let fast = plan(
-            &points,
-            |p| tube.distance_to_surface_mm(p),
+        for segments in [5, 7, 13, 50] {
+            let pts = points(tube, &cylinder_start(Direction::Down), segments);
+            let p = plan(
+                &pts,
+                |q| tube.distance_to_surface_mm(q),
+                &wide,
+                &speeds(Movement::Discrete),
+            )
+            .unwrap();
+            let total: i64 = p.segments.iter().map(|s| s.steps).sum();
+            assert!(
+                (total as f64 - expected).abs() <= 1.0,
+                "{segments}: {total} vs {expected}"
+            );
+            assert!(p.segments.iter().all(|s| s.steps < 0));
+        }
+    }
+
+    #[test]
+    fn a_segment_turning_more_than_half_a_revolution_is_refused() {
+        let tube = &tubes()[0];
+        // Two segments: each turns about 180.4°.
+        let pts = points(tube, &cylinder_start(Direction::Down), 2);
+        let err = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
             &setup(),
-            &fast_speeds,
+            &speeds(Movement::Fine),
+        )
+        .unwrap_err();
+        match err {
+            Error::SegmentTurnsTooFar { segment, turn_deg } => {
+                assert_eq!(segment, 1);
+                assert!(turn_deg < -180.0 && turn_deg > -182.0, "{turn_deg}");
+            }
+            other => panic!("{other}"),
+        }
+        // 89°: about 51 revolutions in 50 segments.
+        let steep = PathStart {
+            wind_angle_rad: 89f64.to_radians(),
+            ..cylinder_start(Direction::Down)
+        };
+        let pts = points(tube, &steep, 50);
+        let err = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
+            &setup(),
+            &speeds(Movement::Fine),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(err, Error::SegmentTurnsTooFar { segment: 1, .. }),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn the_start_eye_lies_on_the_paths_tangent() {
+        let tube = &tubes()[0];
+        let wind = 48.3f64.to_radians();
+        let p = plan_tube(tube, cylinder_start(Direction::Down));
+        // The helix's tangent at the top point (0°): down the axis at the wind angle, turning
+        // counter-clockwise seen from above.
+        let exact = Vector3::new(0.0, wind.sin(), -wind.cos());
+        let dir = (p.start.eye_mandrel_mm - p.start.tangent_point_mm) / 100.0;
+        assert!(dir.cross(&exact).norm() < 1e-4, "{dir:?}");
+        // The tow line never dips into the cylinder: its least distance to the axis is r.
+        let (a, b) = (p.start.eye_mandrel_mm, p.start.tangent_point_mm);
+        for i in 0..=100 {
+            let q = a + (b - a) * (i as f64 / 100.0);
+            assert!(q.coords.xy().norm() >= R - 1e-9);
+        }
+    }
+
+    #[test]
+    fn speed_comes_from_the_trapezoid_and_the_arm_limits_it() {
+        let tube = &tubes()[1];
+        let start = cylinder_start(Direction::Down);
+        let fine = plan_with(tube, start, &setup(), &speeds(Movement::Fine));
+        let profile = speeds(Movement::Fine).mandrel;
+        // Fine: the segments split the path's one mandrel move.
+        let total_rev =
+            fine.segments.iter().map(|s| s.steps.abs()).sum::<i64>() as f64 * 13.0 / 24_000.0;
+        let sum: f64 = fine.segments.iter().map(|s| s.duration_s).sum();
+        assert_abs_diff_eq!(sum, profile.duration_s(total_rev), epsilon = 1e-9);
+        for (k, s) in fine.segments.iter().enumerate() {
+            let prev = if k == 0 {
+                &fine.start
+            } else {
+                &fine.segments[k - 1].pose
+            };
+            let v = (s.pose.eye_mm - prev.eye_mm).norm() / s.duration_s;
+            assert_abs_diff_eq!(s.speed_mm_s, v, epsilon = 1e-9);
+            assert_abs_diff_eq!(s.speed_pct, v / 10.0, epsilon = 1e-9);
+            assert!(s.robot_time_s <= s.duration_s);
+            assert!(!s.robot_paced);
+        }
+        // Discrete: each segment is its own trapezoid.
+        let discrete = plan_with(tube, start, &setup(), &speeds(Movement::Discrete));
+        for s in &discrete.segments {
+            let rev = s.steps.abs() as f64 * 13.0 / 24_000.0;
+            assert_abs_diff_eq!(s.duration_s, profile.duration_s(rev), epsilon = 1e-12);
+        }
+        // A mandrel 40 times faster: fine movement is refused with the speed that fits…
+        let fast = Speeds {
+            mandrel: MandrelProfile {
+                max_rps: 4.0,
+                accel_rps2: 1000.0,
+                start_stop_rps: 0.05,
+            },
+            ..speeds(Movement::Fine)
+        };
+        let pts = points(tube, &start, 50);
+        let err = plan(&pts, |q| tube.distance_to_surface_mm(q), &setup(), &fast).unwrap_err();
+        match err {
+            Error::RobotTooSlow {
+                robot_time_s,
+                duration_s,
+                mandrel_rps_fit,
+                ..
+            } => {
+                assert!(robot_time_s > duration_s);
+                assert_abs_diff_eq!(
+                    mandrel_rps_fit,
+                    4.0 * duration_s / robot_time_s,
+                    epsilon = 1e-12
+                );
+            }
+            other => panic!("{other}"),
+        }
+        // …and discrete movement slows the mandrel on the robot's segments to the robot's time.
+        let fast_discrete = Speeds {
+            movement: Movement::Discrete,
+            ..fast
+        };
+        let p = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
+            &setup(),
+            &fast_discrete,
         )
         .unwrap();
-        for (a, b) in slow.segments.iter().zip(&fast.segments) {
-            let travel = (a.pose.eye_mm - fast.start.eye_mm).norm();
-            let _ = travel;
-            assert!(!a.speed_limited);
-            assert!(b.speed_pct <= 200.0 + 1e-9);
-            assert!(b.speed_pct >= a.speed_pct);
+        let arm = Arm::default();
+        assert!(p.segments.iter().any(|s| s.robot_paced));
+        for (k, s) in p.segments.iter().enumerate() {
+            let prev = if k == 0 {
+                &p.start
+            } else {
+                &p.segments[k - 1].pose
+            };
+            let travel = s.pose.eye_mm - prev.eye_mm;
+            let dir = Unit::new_normalize(travel);
+            let fastest = arm
+                .max_tool_speed_mm_s(&prev.joints, &dir)
+                .min(arm.max_tool_speed_mm_s(&s.pose.joints, &dir))
+                .min(2000.0);
+            // Never faster than the arm at that pose, nor than the controller.
+            assert!(s.speed_mm_s <= fastest * (1.0 + 1e-9), "{k}");
+            let rev = s.steps.abs() as f64 * 13.0 / 24_000.0;
+            assert_abs_diff_eq!(s.mandrel.duration_s(rev), s.duration_s, epsilon = 1e-9);
+            if s.robot_paced {
+                assert!(s.mandrel.max_rps < 4.0);
+                assert_abs_diff_eq!(s.duration_s, s.robot_time_s, epsilon = 1e-12);
+            } else {
+                assert_eq!(s.mandrel, fast.mandrel);
+            }
         }
-        assert!(fast.segments.iter().any(|s| s.speed_limited));
-        let s = &slow.segments[10];
-        let prev = &slow.segments[9];
-        let v = (s.pose.eye_mm - prev.pose.eye_mm).norm() / s.duration_s;
-        assert_abs_diff_eq!(s.speed_pct, v / 10.0, epsilon = 1e-9);
+    }
+
+    #[test]
+    fn entry_angle_and_eye_guards() {
+        let tube = &tubes()[2];
+        let pts = points(tube, &cylinder_start(Direction::Up), 50);
+        let p = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
+            &setup(),
+            &speeds(Movement::Fine),
+        )
+        .unwrap();
+        let tight = Setup {
+            entry_angle_max_rad: 0.5 * p.max_entry_angle_rad,
+            ..setup()
+        };
+        let err = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
+            &tight,
+            &speeds(Movement::Fine),
+        )
+        .unwrap_err();
+        assert!(matches!(err, Error::EntryAngle { .. }), "{err}");
+        let err = plan(&pts, |_| -0.5, &setup(), &speeds(Movement::Fine)).unwrap_err();
+        assert!(
+            matches!(err, Error::EyeInsideMandrel { segment: 0, clearance_mm } if clearance_mm == -0.5),
+            "{err}"
+        );
+        // A robot too far away for its links.
+        let far = Setup {
+            robot_distance_mm: 1600.0,
+            ..setup()
+        };
+        let err = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
+            &far,
+            &speeds(Movement::Fine),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::Arm {
+                    segment: Some(0),
+                    fault: ArmFault::OutOfReach { .. }
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn calibration_moves_the_cell_frame_and_the_drive_sense() {
+        let tube = &tubes()[1];
+        let pts = points(tube, &cylinder_start(Direction::Down), 50);
+        let moved = Setup {
+            calibration: Calibration {
+                axis_offset_mm: [3.0, 7.0],
+                ..Calibration::default()
+            },
+            ..setup()
+        };
+        let measured = Setup {
+            calibration: Calibration {
+                zero_angle_rad: 0.25,
+                rotation_sign: -1,
+                ..moved.calibration
+            },
+            ..setup()
+        };
+        let nominal = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
+            &moved,
+            &speeds(Movement::Fine),
+        )
+        .unwrap();
+        let p = plan(
+            &pts,
+            |q| tube.distance_to_surface_mm(q),
+            &measured,
+            &speeds(Movement::Fine),
+        )
+        .unwrap();
+        let axis = Vector3::new(803.0, 7.0, 300.0);
+        for pose in poses(&p) {
+            // Tangent in the measured cell: the horizontal line from the pedestal axis to the
+            // point is ⟂ the normal, both in the cell frame.
+            let heading = 7f64.atan2(803.0);
+            let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), pose.mandrel_rad + heading);
+            let pt = rot * pose.tangent_point_mm + axis;
+            let n = rot * pose.normal;
+            let along = pt.coords.xy().normalize().dot(&n.xy().normalize());
+            assert!(along.abs() < 2e-3, "{along}"); // within half a step of rotation
+            assert!(pose.eye_mm.coords.xy().norm() < pt.coords.xy().norm());
+        }
+        for (a, b) in p.segments.iter().zip(&nominal.segments) {
+            assert_eq!(a.steps, -b.steps);
+        }
+        assert_abs_diff_eq!(
+            p.sync_drive_rad,
+            -(p.start.mandrel_rad - 0.25),
+            epsilon = 1e-15
+        );
+        assert_abs_diff_eq!(
+            nominal.sync_drive_rad,
+            nominal.start.mandrel_rad,
+            epsilon = 1e-15
+        );
     }
 
     #[test]
     fn robot_too_close_gives_tangent_undefined() {
-        let r = 31.75;
-        let tube = Tube::cylinder(63.5, 178.0, 3.0 * r, 3.0 * r).unwrap();
+        let tube = Tube::cylinder(63.5, 178.0, 3.0 * R, 3.0 * R).unwrap();
         let path = geodesic::helix(&tube, &cylinder_start(Direction::Up), 1.0).unwrap();
         let points = equal_length(&tube, &path, 50).unwrap();
         let close = Setup {
@@ -462,7 +1025,7 @@ mod tests {
             &points,
             |p| tube.distance_to_surface_mm(p),
             &close,
-            &speeds(),
+            &speeds(Movement::Fine),
         )
         .unwrap_err();
         assert!(matches!(err, Error::TangentUndefined { .. }), "{err}");
@@ -470,11 +1033,7 @@ mod tests {
 
     #[test]
     fn sbend_start_is_at_90_deg_and_45_deg_to_the_spine() {
-        let tube = Tube::new(
-            Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let tube = sbend();
         let start = PathStart {
             angle_rad: PI / 2.0,
             wind_angle_rad: PI / 4.0,
@@ -483,5 +1042,10 @@ mod tests {
         let p = plan_tube(&tube, start);
         assert_abs_diff_eq!(p.start.tangent_point_mm.y, 28.5, epsilon = 1e-9);
         assert_eq!(p.segments.len(), 50);
+        // The eye leaves the start point along the fibre, at 45° to the spine's tangent there.
+        let fibre = (p.start.eye_mandrel_mm - p.start.tangent_point_mm).normalize();
+        let spine = tube.spine_tangent(tube.u_min());
+        let angle = fibre.dot(&spine).clamp(-1.0, 1.0).acos().to_degrees();
+        assert!((angle - 45.0).abs() < 0.05, "{angle}");
     }
 }

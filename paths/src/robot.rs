@@ -10,21 +10,25 @@
 //!    wrist) about `z`; its horizontal unit vector is `r̂ = (cos q1, sin q1, 0)`.
 //! 2. `shoulder_rad`: the upper arm's angle from the vertical, positive leaning toward `r̂`. The
 //!    shoulder axis lies on the pedestal axis at `shoulder_height_mm`.
-//! 3. `elbow_rad`: the forearm's angle above the perpendicular to the upper arm (0 with the upper
-//!    arm vertical puts the forearm horizontal).
-//! 4. `pitch_rad`: the roll axis's angle below the forearm, in the arm plane.
+//! 3. `elbow_rad`: the forearm's elevation above the horizontal.
+//! 4. `pitch_rad`: the roll axis's angle below the horizontal, in the arm plane (App. A's pitch θ).
+//!
+//! Axes 3 and 4 are measured against the horizontal, not against the previous link: the IRB 6/2
+//! drives its arms "using harmonic drives and linkages" (§4.1.1), parallel linkages from motors on
+//! the base, so each of these joints sets its link's angle to the ground (assumption: the seed
+//! names the linkages but not their geometry).
 //! 5. `roll_rad`: the turn about the roll axis, which sets the plane of the eye's rocker arm.
 //!
 //! In the arm plane, with angles measured from `r̂` toward `z`, the upper arm points at
-//! `π/2 − q2`, the forearm at `a_f = q3 − q2` and the roll axis at `a_r = a_f − q4`. The wrist
+//! `π/2 − q2`, the forearm at `a_f = q3` and the roll axis at `a_r = −q4`. The wrist
 //! (pitch axis) is at the forearm's end; the eye sits on the roll axis `eye_mechanism_mm` beyond
 //! it. With no wrist yaw, **the roll axis always lies in the arm plane**: the only orientations a
 //! 5-axis arm can take are those whose roll axis lies in the vertical plane through the pedestal
 //! axis and the eye.
 //!
 //! The orientation is App. A's pitch-then-roll in the arm frame, turned by the base yaw:
-//! `q = R_z(q1) · R_y(θ) · R_x(Φ)` with `θ = −a_r` the roll axis's absolute pitch (positive nose
-//! down) and `Φ = q5`; the tool `x` axis is the roll axis ([`ArmPose::orientation`]).
+//! `q = R_z(q1) · R_y(θ) · R_x(Φ)` with `θ = q4` the roll axis's pitch (positive nose down) and
+//! `Φ = q5`; the tool `x` axis is the roll axis ([`ArmPose::orientation`]).
 //!
 //! # API
 //! - [`Arm`]: geometry, joint limits and speeds; `Arm::default()` is the IRB 6/2 (see its
@@ -45,58 +49,6 @@ use std::fmt;
 use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
 
 use crate::{Error, wrist};
-
-/// Working range of the payout eye and of the wrist that carries it, in the cell frame (origin on
-/// the pedestal axis at the base, `z` up).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Robot {
-    /// Least horizontal distance from the pedestal axis.
-    pub reach_min_mm: f64,
-    /// Greatest horizontal distance from the pedestal axis.
-    pub reach_max_mm: f64,
-    /// Lowest height.
-    pub z_min_mm: f64,
-    /// Highest height.
-    pub z_max_mm: f64,
-    /// Fastest tool speed (arm extended).
-    pub max_speed_mm_s: f64,
-}
-
-impl Default for Robot {
-    fn default() -> Self {
-        Robot {
-            reach_min_mm: 250.0,
-            reach_max_mm: 1200.0,
-            z_min_mm: -300.0,
-            z_max_mm: 1300.0,
-            max_speed_mm_s: 2300.0,
-        }
-    }
-}
-
-impl Robot {
-    /// Checks that a point lies in the working range; `segment` is for the error.
-    pub fn check(&self, p: &Point3<f64>, segment: usize) -> Result<(), Error> {
-        // Squared radii: no square root on the planner's hot path.
-        let horizontal_sq = p.x * p.x + p.y * p.y;
-        let limit = if horizontal_sq < self.reach_min_mm * self.reach_min_mm
-            || horizontal_sq > self.reach_max_mm * self.reach_max_mm
-        {
-            "horizontal reach"
-        } else if p.z < self.z_min_mm || p.z > self.z_max_mm {
-            "height range"
-        } else {
-            return Ok(());
-        };
-        Err(Error::OutOfReach {
-            segment,
-            x_mm: p.x,
-            y_mm: p.y,
-            z_mm: p.z,
-            limit,
-        })
-    }
-}
 
 /// One of the five joints.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -148,9 +100,9 @@ pub struct Joints {
     pub base_yaw_rad: f64,
     /// Axis 2, upper arm from the vertical.
     pub shoulder_rad: f64,
-    /// Axis 3, forearm above the upper arm's perpendicular.
+    /// Axis 3, forearm elevation above the horizontal.
     pub elbow_rad: f64,
-    /// Axis 4, roll axis below the forearm.
+    /// Axis 4, roll axis below the horizontal (App. A's pitch θ).
     pub pitch_rad: f64,
     /// Axis 5, turn about the roll axis.
     pub roll_rad: f64,
@@ -173,19 +125,20 @@ impl Joints {
         self.to_array().map(f64::to_degrees)
     }
 
-    /// App. A's pitch θ (about the arm frame's `y`, positive nose down): the roll axis's absolute
-    /// angle below the horizontal.
+    /// App. A's pitch θ (about the arm frame's `y`, positive nose down): the roll axis's angle
+    /// below the horizontal, which axis 4's linkage sets directly.
     pub fn app_a_pitch_rad(&self) -> f64 {
-        self.pitch_rad - self.elbow_rad + self.shoulder_rad
+        self.pitch_rad
     }
 }
 
 /// Which of the two arm configurations reaches a wrist position.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ElbowBranch {
-    /// The elbow above the line from the shoulder to the wrist (`elbow_rad < π/2`).
+    /// The elbow above the line from the shoulder to the wrist: the forearm bends down from the
+    /// upper arm's direction (`π/2 − shoulder − elbow` in (0, π) after wrapping).
     Up,
-    /// The elbow below it (`elbow_rad > π/2`).
+    /// The elbow below it (the bend in (−π, 0)).
     Down,
 }
 
@@ -346,10 +299,11 @@ impl Default for Arm {
     /// yaw) and the tool speeds, 2300 mm/s with the arm extended and 630 mm/s retracted; nothing
     /// else. Every other figure here is an **assumption** for an arm of this class, to be replaced
     /// by the real robot's in `[cell.robot]`:
-    /// - shoulder 500 mm above the base, upper arm 450 mm, forearm 670 mm (assumption; reach
+    /// - shoulder 300 mm above the base, upper arm 450 mm, forearm 670 mm (assumption; reach
     ///   about 1.1 m from the shoulder);
-    /// - ranges: base yaw ±170°, shoulder −45°..+60°, elbow −70°..+45°, pitch ±120°, roll ±200°
-    ///   (assumption);
+    /// - ranges: base yaw ±170°, shoulder −40°..+60° from the vertical (leaning toward the
+    ///   mandrel positive), forearm elevation −60°..+30°,
+    ///   pitch ±90°, roll ±180° (assumption);
     /// - base yaw speed `2300 mm/s ÷ 1120 mm = 117.7°/s`, so that the base yaw carries the wrist
     ///   stretched out horizontally at §4.1.1's 2300 mm/s; the same joint speed gives 630 mm/s at
     ///   307 mm from the pedestal axis, the arm retracted (derived from §4.1.1);
@@ -360,7 +314,7 @@ impl Default for Arm {
     /// - a joint jump between consecutive poses above 45° is a branch switch (assumption).
     fn default() -> Self {
         Arm {
-            shoulder_height_mm: 500.0,
+            shoulder_height_mm: 300.0,
             upper_arm_mm: 450.0,
             forearm_mm: 670.0,
             eye_mechanism_mm: 150.0,
@@ -371,10 +325,10 @@ impl Default for Arm {
                     max_rad: 170f64.to_radians(),
                     max_speed_rad_s: 2300.0 / IRB6_REACH_MM,
                 },
-                JointLimit::degrees(-45.0, 60.0, 60.0),
-                JointLimit::degrees(-70.0, 45.0, 70.0),
-                JointLimit::degrees(-120.0, 120.0, 195.0),
-                JointLimit::degrees(-200.0, 200.0, 240.0),
+                JointLimit::degrees(-40.0, 60.0, 60.0),
+                JointLimit::degrees(-60.0, 30.0, 70.0),
+                JointLimit::degrees(-90.0, 90.0, 195.0),
+                JointLimit::degrees(-180.0, 180.0, 240.0),
             ],
             link_radii_mm: [250.0, 100.0, 80.0, 70.0, 25.0],
             joint_jump_max_rad: 45f64.to_radians(),
@@ -456,9 +410,8 @@ impl Arm {
     pub fn forward(&self, j: &Joints) -> ArmPose {
         let (s1, c1) = j.base_yaw_rad.sin_cos();
         let (s2, c2) = j.shoulder_rad.sin_cos();
-        let a_f = j.elbow_rad - j.shoulder_rad;
-        let (sf, cf) = a_f.sin_cos();
-        let a_r = a_f - j.pitch_rad;
+        let (sf, cf) = j.elbow_rad.sin_cos();
+        let a_r = -j.pitch_rad;
         let (sr, cr) = a_r.sin_cos();
         let wrist_rho = self.upper_arm_mm * s2 + self.forearm_mm * cf;
         let wrist_z = self.shoulder_height_mm + self.upper_arm_mm * c2 + self.forearm_mm * sf;
@@ -521,8 +474,8 @@ impl Arm {
         Ok(Joints {
             base_yaw_rad: s1.atan2(c1),
             shoulder_rad: shoulder,
-            elbow_rad: wrap(a_f + shoulder),
-            pitch_rad: wrap(a_f - a_r),
+            elbow_rad: wrap(a_f),
+            pitch_rad: wrap(-a_r),
             roll_rad,
         })
     }
@@ -616,7 +569,7 @@ impl Arm {
     }
 
     /// The fastest the eye can move along `direction` at the pose `j`, mm/s, with the wrist held
-    /// fixed in the arm frame (the roll axis keeps its angle to the forearm's plane): the joint
+    /// fixed in the arm frame (the roll axis keeps its pitch and roll): the joint
     /// rates for a unit eye velocity come from the arm's Jacobian, and the speed is the least
     /// `max_speed / |rate|` over the joints. 0 at a singular pose (arm stretched or folded) when
     /// the direction needs the singular one.
@@ -640,18 +593,16 @@ impl Arm {
     pub fn joint_rates(&self, j: &Joints, v: &Vector3<f64>) -> [f64; 5] {
         let (s1, c1) = j.base_yaw_rad.sin_cos();
         let (s2, c2) = j.shoulder_rad.sin_cos();
-        let a_f = j.elbow_rad - j.shoulder_rad;
-        let (sf, cf) = a_f.sin_cos();
-        let a_r = a_f - j.pitch_rad;
+        let (sf, cf) = j.elbow_rad.sin_cos();
         let (l1, l2) = (self.upper_arm_mm, self.forearm_mm);
-        let eye_rho = l1 * s2 + l2 * cf + self.eye_mechanism_mm * a_r.cos();
+        let eye_rho = l1 * s2 + l2 * cf + self.eye_mechanism_mm * j.pitch_rad.cos();
         let v_t = -s1 * v.x + c1 * v.y;
         let v_r = c1 * v.x + s1 * v.y;
         let v_z = v.z;
         let yaw_rate = if v_t == 0.0 { 0.0 } else { v_t / eye_rho.abs() };
-        // In the arm plane: ∂(ρ, z)/∂q2 = (l1 c2 + l2 sf, −l1 s2 − l2 cf), ∂/∂q3 = (−l2 sf, l2 cf);
-        // the determinant is l1 l2 cos q3.
-        let (j2r, j2z) = (l1 * c2 + l2 * sf, -l1 * s2 - l2 * cf);
+        // In the arm plane: ∂(ρ, z)/∂q2 = (l1 c2, −l1 s2), ∂/∂q3 = (−l2 sf, l2 cf); the
+        // determinant is l1 l2 cos(q2 + q3), 0 with the arm stretched or folded.
+        let (j2r, j2z) = (l1 * c2, -l1 * s2);
         let (j3r, j3z) = (-l2 * sf, l2 * cf);
         let det = j2r * j3z - j3r * j2z;
         let (q2, q3) = if v_r == 0.0 && v_z == 0.0 {
@@ -661,7 +612,8 @@ impl Arm {
         } else {
             ((v_r * j3z - j3r * v_z) / det, (j2r * v_z - v_r * j2z) / det)
         };
-        [yaw_rate, q2, q3, q3 - q2, 0.0]
+        // The wrist keeps its pitch (axis 4 is referred to the horizontal) and roll.
+        [yaw_rate, q2, q3, 0.0, 0.0]
     }
 }
 
@@ -698,7 +650,7 @@ mod tests {
         Joints {
             base_yaw_rad: 0.0,
             shoulder_rad: FRAC_PI_2,
-            elbow_rad: FRAC_PI_2,
+            elbow_rad: 0.0,
             pitch_rad: 0.0,
             roll_rad: 0.0,
         }
@@ -709,16 +661,16 @@ mod tests {
         let arm = Arm::default();
         // All joints at 0: upper arm vertical, forearm and roll axis horizontal along +x.
         let p = arm.forward(&Joints::default());
-        assert_abs_diff_eq!(p.wrist_mm, Point3::new(670.0, 0.0, 950.0), epsilon = 1e-12);
-        assert_abs_diff_eq!(p.eye_mm, Point3::new(820.0, 0.0, 950.0), epsilon = 1e-12);
+        assert_abs_diff_eq!(p.wrist_mm, Point3::new(670.0, 0.0, 750.0), epsilon = 1e-12);
+        assert_abs_diff_eq!(p.eye_mm, Point3::new(820.0, 0.0, 750.0), epsilon = 1e-12);
         // Stretched out and turned 90°: along +y at shoulder height.
         let j = Joints {
             base_yaw_rad: FRAC_PI_2,
             ..stretched()
         };
         let p = arm.forward(&j);
-        assert_abs_diff_eq!(p.wrist_mm, Point3::new(0.0, 1120.0, 500.0), epsilon = 1e-9);
-        assert_abs_diff_eq!(p.eye_mm, Point3::new(0.0, 1270.0, 500.0), epsilon = 1e-9);
+        assert_abs_diff_eq!(p.wrist_mm, Point3::new(0.0, 1120.0, 300.0), epsilon = 1e-9);
+        assert_abs_diff_eq!(p.eye_mm, Point3::new(0.0, 1270.0, 300.0), epsilon = 1e-9);
         // Pitch 90° points the roll axis straight down; the orientation's x axis follows it.
         let j = Joints {
             pitch_rad: FRAC_PI_2,
@@ -726,7 +678,7 @@ mod tests {
         };
         let p = arm.forward(&j);
         assert_abs_diff_eq!(p.roll_axis.into_inner(), -Vector3::z(), epsilon = 1e-12);
-        assert_abs_diff_eq!(p.eye_mm, Point3::new(670.0, 0.0, 800.0), epsilon = 1e-9);
+        assert_abs_diff_eq!(p.eye_mm, Point3::new(670.0, 0.0, 600.0), epsilon = 1e-9);
         assert_abs_diff_eq!(p.orientation * Vector3::x(), -Vector3::z(), epsilon = 1e-12);
         // The orientation is App. A's quaternion (θ = 90°, Φ) turned by the base yaw.
         let j = Joints {
@@ -749,7 +701,7 @@ mod tests {
             let j = Joints {
                 base_yaw_rad: rng.uniform(-3.0, 3.0),
                 shoulder_rad: rng.uniform(-1.0, 1.2),
-                elbow_rad: rng.uniform(-1.4, 3.0),
+                elbow_rad: rng.uniform(-1.5, 2.5),
                 pitch_rad: rng.uniform(-2.5, 2.5),
                 roll_rad: rng.uniform(-3.0, 3.0),
             };
@@ -758,10 +710,12 @@ mod tests {
             // axis (behind it the same pose is reached with the base turned half a revolution).
             let (s1, c1) = j.base_yaw_rad.sin_cos();
             let ahead_mm = c1 * pose.wrist_mm.x + s1 * pose.wrist_mm.y;
-            if (j.elbow_rad - FRAC_PI_2).abs() < 0.02 || ahead_mm < 50.0 {
+            // The elbow's bend from the upper arm's direction to the forearm's.
+            let bend = wrap(FRAC_PI_2 - j.shoulder_rad - j.elbow_rad);
+            if bend.abs() < 0.02 || bend.abs() > PI - 0.02 || ahead_mm < 50.0 {
                 continue;
             }
-            let branch = if j.elbow_rad < FRAC_PI_2 {
+            let branch = if bend > 0.0 {
                 ElbowBranch::Up
             } else {
                 ElbowBranch::Down
@@ -802,7 +756,7 @@ mod tests {
         ));
         // Too close to the shoulder for the two links (|450 − 670| = 220 mm).
         let err = arm
-            .inverse(&Point3::new(300.0, 0.0, 500.0), &x, 0.0, ElbowBranch::Up)
+            .inverse(&Point3::new(250.0, 0.0, 400.0), &x, 0.0, ElbowBranch::Up)
             .unwrap_err();
         assert!(matches!(
             err,
@@ -850,7 +804,7 @@ mod tests {
         let arm = Arm::default();
         assert!(arm.check_joints(&Joints::default()).is_ok());
         let j = Joints {
-            elbow_rad: 50f64.to_radians(),
+            elbow_rad: 35f64.to_radians(),
             ..Joints::default()
         };
         match arm.check_joints(&j).unwrap_err() {
@@ -859,7 +813,7 @@ mod tests {
                 ..
             } => {
                 assert_eq!(joint, Joint::Elbow);
-                assert_abs_diff_eq!(max_deg, 45.0, epsilon = 1e-9);
+                assert_abs_diff_eq!(max_deg, 30.0, epsilon = 1e-9);
             }
             other => panic!("{other}"),
         }
@@ -933,7 +887,7 @@ mod tests {
             let j = Joints {
                 base_yaw_rad: rng.uniform(-2.0, 2.0),
                 shoulder_rad: rng.uniform(-0.5, 0.9),
-                elbow_rad: rng.uniform(-1.0, 0.6),
+                elbow_rad: rng.uniform(-0.8, 0.4),
                 pitch_rad: rng.uniform(-1.5, 1.5),
                 roll_rad: rng.uniform(-1.0, 1.0),
             };
@@ -987,7 +941,7 @@ mod tests {
             assert_abs_diff_eq!(pair[0].b, pair[1].a, epsilon = 1e-12);
         }
         assert_abs_diff_eq!(links[4].b, pose.eye_mm, epsilon = 1e-12);
-        for (link, length) in links.iter().zip([500.0, 450.0, 670.0, 0.0, 150.0]) {
+        for (link, length) in links.iter().zip([300.0, 450.0, 670.0, 0.0, 150.0]) {
             assert_abs_diff_eq!((link.b - link.a).norm(), length, epsilon = 1e-9);
         }
         assert_eq!(links.map(|l| l.radius_mm), arm.link_radii_mm);

@@ -12,6 +12,16 @@ pub struct SurfacePoint {
     pub point: Point3<f64>,
     /// The outward unit normal.
     pub normal: Vector3<f64>,
+    /// The angle of the normal's horizontal part about the mandrel frame's `z` axis, continuous
+    /// along the path (not wrapped): the path's own angle, by which the planner unwraps the
+    /// mandrel angle. Rad.
+    pub around_rad: f64,
+}
+
+/// `atan2(n_y, n_x)` moved by whole revolutions to lie within half a revolution of `near_rad`.
+pub fn around_near(normal: &Vector3<f64>, near_rad: f64) -> f64 {
+    let raw = normal.y.atan2(normal.x);
+    raw + std::f64::consts::TAU * ((near_rad - raw) / std::f64::consts::TAU).round()
 }
 
 /// Cuts `path` into `segments` pieces of equal arc length and returns the `segments + 1` end
@@ -37,9 +47,13 @@ pub fn equal_length(
     Ok((0..=segments)
         .map(|k| {
             let (u, v) = path.at(length * k as f64 / segments as f64);
+            let normal = tube.normal(u, v);
+            // v, the angle around the spine, is continuous along the traced path; the normal's
+            // angle stays within a quarter revolution of it on any tube the spine check accepts.
             SurfacePoint {
                 point: tube.point(u, v),
-                normal: tube.normal(u, v),
+                normal,
+                around_rad: around_near(&normal, v),
             }
         })
         .collect())

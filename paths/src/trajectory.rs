@@ -294,7 +294,11 @@ impl<const D: usize> Planner<D> {
                     let r = (total - t).max(0.0);
                     1.0 - 0.5 * a_max * r * r
                 };
-                out.push(w[0] + delta * s.clamp(0.0, 1.0));
+                out.push(if k == steps {
+                    w[1]
+                } else {
+                    w[0] + delta * s.clamp(0.0, 1.0)
+                });
             }
         }
         Ok(out)

@@ -109,6 +109,8 @@ pub struct TubeHelical {
     pub lead_in_mm: f64,
     /// Mandrel turn at the end of a pass while the eye swings back, degrees.
     pub lead_out_deg: f64,
+    /// Whether the layer begins with a lock turn at the near end.
+    pub initial_lock: bool,
 }
 
 /// One layer of a job.
@@ -267,7 +269,15 @@ impl Job {
                     winding_radius_mm: radius,
                 });
             }
-            let planned = self.check_layer(number, layer, radius)?;
+            let planned = self
+                .check_layer(number, layer, radius)
+                .map_err(|e| match e {
+                    e @ (Error::WindRule { .. } | Error::EyeInsideLaminate { .. }) => e,
+                    e => Error::Layer {
+                        layer: number,
+                        source: Box::new(e),
+                    },
+                })?;
             if self.build_up {
                 radius += self.tow.thickness_mm
                     * match planned.detail {
@@ -308,7 +318,8 @@ impl Job {
                 },
             ) => {
                 let pattern = Pattern::plan(radius, polar_radius_mm, length, band, request)?;
-                let (start, stroke) = self.dome_stroke(radius, polar_radius_mm, &pattern)?;
+                let (start, stroke) =
+                    self.dome_stroke(number, radius, polar_radius_mm, &pattern)?;
                 let beta = pattern.wind_angle_deg.to_radians();
                 let cycles = u64::from(pattern.cycles_per_layer());
                 let per_stroke = length / beta.cos() + PI * radius;
@@ -400,6 +411,7 @@ impl Job {
     /// The forward stroke of a dome layer: its start (near pole station) and its points.
     fn dome_stroke(
         &self,
+        layer: usize,
         radius: f64,
         polar: f64,
         pattern: &Pattern,
@@ -407,7 +419,7 @@ impl Job {
         let re = self.machine.eye_radius_mm;
         let axes = self.machine.axes;
         let path = EyePath::on_circle(radius, polar, re).ok_or(Error::EyeInsideLaminate {
-            layer: 0,
+            layer,
             eye_radius_mm: re,
             winding_radius_mm: radius,
         })?;
@@ -417,7 +429,7 @@ impl Job {
             } else {
                 path.dome_fixed_radius(alpha, re)
                     .ok_or(Error::EyeInsideLaminate {
-                        layer: 0,
+                        layer,
                         eye_radius_mm: re,
                         winding_radius_mm: radius,
                     })
@@ -592,7 +604,7 @@ impl Job {
         }
         let passes = 2.0 * f64::from(circuits);
         let patterns = f64::from(circuits / t.pattern_number);
-        let total_turn = 2.0 * t.lock_deg
+        let total_turn = if t.initial_lock { 2.0 } else { 1.0 } * t.lock_deg
             + passes * (pass_deg + turnaround)
             + f64::from(circuits) * f64::from(t.skip_index) * 360.0 / f64::from(t.pattern_number)
             + patterns * 360.0 / f64::from(circuits);
@@ -867,10 +879,12 @@ fn emit_tube<S: MotionSink>(
         f64::INFINITY,
     )?;
     // The lock at the near end before the first pass.
-    c.feed(Axes {
-        mandrel_deg: c.at.mandrel_deg + t.lock_deg,
-        ..c.at
-    })?;
+    if t.initial_lock {
+        c.feed(Axes {
+            mandrel_deg: c.at.mandrel_deg + t.lock_deg,
+            ..c.at
+        })?;
+    }
     let mut pending = 0.0;
     let slot = 360.0 / f64::from(t.pattern_number);
     let step = 360.0 / f64::from(circuits);

@@ -5,12 +5,14 @@
 //! A DXF file is a sequence of group-code/value pairs, each on two lines: an integer code, then
 //! its value. Only the ENTITIES section is read; other sections are skipped. POINT, LINE,
 //! POLYLINE (with its VERTEX … SEQEND entities) and LWPOLYLINE become [`Entity`] values holding
-//! 3D points in drawing units (millimetres) in file order, with their layer; every other entity
-//! is skipped. Errors name the line and column of the offending code or value.
+//! 3D points in drawing units in file order, with their layer and the place of every coordinate;
+//! every other entity is skipped. From the HEADER section only `$INSUNITS` is read: the drawing's
+//! units ([`Units`]); [`Drawing::path`] and [`Drawing::profile`] give millimetres. Errors name
+//! the line and column of the offending code or value.
 //!
-//! [`Drawing::write`] writes the same four entities in a minimal ENTITIES-only file, so that
-//! parsing, writing and parsing again gives an equal drawing. The format is documented in
-//! `docs/file-formats.md` ("DXF").
+//! [`Drawing::write`] writes the same four entities (and `$INSUNITS` when the drawing has units)
+//! in a minimal file, so that parsing, writing and parsing again gives an equal drawing. The
+//! format is documented in `docs/file-formats.md` ("DXF").
 
 use std::path::Path;
 
@@ -42,24 +44,131 @@ impl Kind {
     }
 }
 
+/// Where a value sits in the file: 1-based line, and the 1-based column where its text starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Place {
+    /// 1-based line.
+    pub line: usize,
+    /// 1-based column.
+    pub column: usize,
+}
+
+/// The drawing units of `$INSUNITS` (HEADER section, group code 70) that windcell reads. A
+/// drawing without `$INSUNITS`, or with `0` ("unitless"), is read in millimetres.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Units {
+    /// `0`: no units given; read as millimetres.
+    Unitless,
+    /// `1`: inches (25.4 mm).
+    Inches,
+    /// `2`: feet (304.8 mm).
+    Feet,
+    /// `4`: millimetres.
+    Millimetres,
+    /// `5`: centimetres.
+    Centimetres,
+    /// `6`: metres.
+    Metres,
+}
+
+impl Units {
+    /// Every unit windcell reads.
+    pub const ALL: [Units; 6] = [
+        Units::Unitless,
+        Units::Inches,
+        Units::Feet,
+        Units::Millimetres,
+        Units::Centimetres,
+        Units::Metres,
+    ];
+
+    /// The `$INSUNITS` code.
+    pub fn code(self) -> i64 {
+        match self {
+            Units::Unitless => 0,
+            Units::Inches => 1,
+            Units::Feet => 2,
+            Units::Millimetres => 4,
+            Units::Centimetres => 5,
+            Units::Metres => 6,
+        }
+    }
+
+    /// The unit of a `$INSUNITS` code; `None` for a code windcell does not read.
+    pub fn from_code(code: i64) -> Option<Self> {
+        Units::ALL.into_iter().find(|u| u.code() == code)
+    }
+
+    /// Millimetres per drawing unit (1 for [`Units::Unitless`]).
+    pub fn mm_per_unit(self) -> f64 {
+        match self {
+            Units::Unitless | Units::Millimetres => 1.0,
+            Units::Inches => 25.4,
+            Units::Feet => 304.8,
+            Units::Centimetres => 10.0,
+            Units::Metres => 1000.0,
+        }
+    }
+
+    /// The unit's name in messages (`millimetres`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Units::Unitless => "unitless (read as millimetres)",
+            Units::Inches => "inches",
+            Units::Feet => "feet",
+            Units::Millimetres => "millimetres",
+            Units::Centimetres => "centimetres",
+            Units::Metres => "metres",
+        }
+    }
+}
+
 /// One entity of the ENTITIES section as a polyline of 3D points.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// `places` records where each coordinate was read; it takes no part in equality (a drawing
+/// written and read again is equal to the one written).
+#[derive(Debug, Clone)]
 pub struct Entity {
     /// What it was in the file.
     pub kind: Kind,
     /// Its layer (group code 8; `0` when absent).
     pub layer: String,
-    /// Its points in world coordinates, drawing units (mm), in file order.
+    /// Its points in world coordinates, drawing units, in file order.
     pub points: Vec<[f64; 3]>,
     /// A closed POLYLINE or LWPOLYLINE (flag bit 1): the last point joins the first.
     pub closed: bool,
+    /// For a parsed entity, one entry per point: where its x, y and z values were read (a
+    /// coordinate the file leaves out, such as a default z, is placed at the entity's name).
+    /// Empty for an entity built in code.
+    pub places: Vec<[Place; 3]>,
 }
 
-/// The entities of a DXF drawing that windcell reads, in file order.
+impl PartialEq for Entity {
+    fn eq(&self, other: &Self) -> bool {
+        self.kind == other.kind
+            && self.layer == other.layer
+            && self.points == other.points
+            && self.closed == other.closed
+    }
+}
+
+/// The entities of a DXF drawing that windcell reads, in file order, and its units.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Drawing {
     /// POINT, LINE, POLYLINE and LWPOLYLINE entities.
     pub entities: Vec<Entity>,
+    /// `$INSUNITS` of the HEADER section; `None` when the drawing does not give it (read as
+    /// millimetres).
+    pub units: Option<Units>,
+}
+
+/// One point of a drawing's path in millimetres, with where its coordinates were read.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathPoint {
+    /// The point, millimetres (drawing units scaled by `$INSUNITS`).
+    pub mm: [f64; 3],
+    /// Where its x, y and z values were read; `None` for an entity built in code.
+    pub places: Option<[Place; 3]>,
 }
 
 /// One group-code/value pair and where its value sits.
@@ -80,6 +189,13 @@ impl Pair<'_> {
         Error::at(self.line, self.column, message)
     }
 
+    fn place(&self) -> Place {
+        Place {
+            line: self.line,
+            column: self.column,
+        }
+    }
+
     fn is(&self, code: i32, value: &str) -> bool {
         self.code == code && self.value == value
     }
@@ -87,7 +203,11 @@ impl Pair<'_> {
     fn f64(&self) -> Result<f64, Error> {
         match self.value.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(self.error(format!(
+            Ok(_) => Err(self.error(format!(
+                "group code {} holds `{}`, which is not a finite number",
+                self.code, self.value
+            ))),
+            Err(_) => Err(self.error(format!(
                 "group code {} expects a number, found `{}`",
                 self.code, self.value
             ))),
@@ -165,6 +285,7 @@ impl Drawing {
     pub fn parse(text: &str) -> Result<Self, Error> {
         let pairs = pairs(text)?;
         let mut entities = Vec::new();
+        let mut units = None;
         let mut i = 0;
         while let Some(pair) = pairs.get(i) {
             if pair.is(0, "EOF") {
@@ -201,12 +322,19 @@ impl Drawing {
                         name.value
                     ))
                 })?;
-            if name.value == "ENTITIES" {
-                read_entities(&pairs[i + 2..end], &mut entities)?;
+            match name.value {
+                "ENTITIES" => read_entities(&pairs[i + 2..end], &mut entities)?,
+                "HEADER" => units = read_units(&pairs[i + 2..end])?.or(units),
+                _ => {}
             }
             i = end + 1;
         }
-        Ok(Drawing { entities })
+        Ok(Drawing { entities, units })
+    }
+
+    /// Millimetres per drawing unit: from `$INSUNITS`, 1 when the drawing does not give it.
+    pub fn mm_per_unit(&self) -> f64 {
+        self.units.map_or(1.0, Units::mm_per_unit)
     }
 
     /// Reads and parses a DXF file; errors name the file.
@@ -227,6 +355,13 @@ impl Drawing {
         let mut pair = |code: i32, value: &str| {
             out.push_str(&format!("{code:>3}\n{value}\n"));
         };
+        if let Some(units) = self.units {
+            pair(0, "SECTION");
+            pair(2, "HEADER");
+            pair(9, "$INSUNITS");
+            pair(70, &units.code().to_string());
+            pair(0, "ENDSEC");
+        }
         pair(0, "SECTION");
         pair(2, "ENTITIES");
         for (index, e) in self.entities.iter().enumerate() {
@@ -317,32 +452,36 @@ impl Drawing {
             .filter(move |e| layer.is_none_or(|l| e.layer == l))
     }
 
-    /// The fibre path the drawing holds (on `layer`, or anywhere): its one POLYLINE or
-    /// LWPOLYLINE (a closed one ends back at its first point); failing that, its POINTs in file
-    /// order, as the thesis exported segment end points from AutoCAD (seed 001 §5.5, Fig 5.8);
-    /// failing that, a chain of LINEs each starting where the previous one ended (within
-    /// 1 µm). At least two points.
+    /// The fibre path the drawing holds (on `layer`, or anywhere), in millimetres: its one
+    /// POLYLINE or LWPOLYLINE (a closed one ends back at its first point); failing that, its
+    /// POINTs in file order, as the thesis exported segment end points from AutoCAD (seed 001
+    /// §5.5, Fig 5.8); failing that, a chain of LINEs each starting where the previous one ended
+    /// (within 1 µm of drawing units). At least two points.
     pub fn path(&self, layer: Option<&str>) -> Result<Vec<[f64; 3]>, Error> {
+        Ok(self.path_points(layer)?.into_iter().map(|p| p.mm).collect())
+    }
+
+    /// [`Drawing::path`] with the place of every coordinate in the file.
+    pub fn path_points(&self, layer: Option<&str>) -> Result<Vec<PathPoint>, Error> {
         let place = layer.map_or(String::new(), |l| format!(" on layer `{l}`"));
         let polylines: Vec<&Entity> = self
             .on(layer)
             .filter(|e| matches!(e.kind, Kind::Polyline | Kind::LwPolyline))
             .collect();
-        let points: Vec<[f64; 3]> = match polylines.as_slice() {
+        let points: Vec<(&Entity, usize)> = match polylines.as_slice() {
             [one] => {
-                let mut points = one.points.clone();
-                if one.closed
-                    && let Some(&first) = points.first()
-                {
-                    points.push(first);
+                let mut points: Vec<(&Entity, usize)> =
+                    (0..one.points.len()).map(|k| (*one, k)).collect();
+                if one.closed && !one.points.is_empty() {
+                    points.push((*one, 0));
                 }
                 points
             }
             [] => {
-                let points: Vec<[f64; 3]> = self
+                let points: Vec<(&Entity, usize)> = self
                     .on(layer)
                     .filter(|e| e.kind == Kind::Point)
-                    .flat_map(|e| e.points.iter().copied())
+                    .flat_map(|e| (0..e.points.len()).map(move |k| (e, k)))
                     .collect();
                 if points.is_empty() {
                     line_chain(self.on(layer).filter(|e| e.kind == Kind::Line), &place)?
@@ -363,10 +502,17 @@ impl Drawing {
                  least two points"
             )));
         }
-        Ok(points)
+        let scale = self.mm_per_unit();
+        Ok(points
+            .into_iter()
+            .map(|(e, k)| PathPoint {
+                mm: e.points[k].map(|c| c * scale),
+                places: e.places.get(k).copied(),
+            })
+            .collect())
     }
 
-    /// The spine profile the drawing holds: its path (see [`Drawing::path`]) read as
+    /// The spine profile the drawing holds: its path (see [`Drawing::path`], millimetres) read as
     /// `(height_mm, offset_mm)` = the drawing's `(x, y)`, heights strictly increasing (seed 001
     /// §6.4, Table 6.1: offsets of the spine against the distance along the mandrel).
     pub fn profile(&self, layer: Option<&str>) -> Result<Vec<(f64, f64)>, Error> {
@@ -388,17 +534,18 @@ impl Drawing {
     }
 }
 
-/// The points of LINEs joined end to start.
+/// The points of LINEs joined end to start, as (entity, point index) pairs.
 fn line_chain<'a>(
     lines: impl Iterator<Item = &'a Entity>,
     place: &str,
-) -> Result<Vec<[f64; 3]>, Error> {
-    let mut out: Vec<[f64; 3]> = Vec::new();
+) -> Result<Vec<(&'a Entity, usize)>, Error> {
+    let mut out: Vec<(&'a Entity, usize)> = Vec::new();
     for (index, line) in lines.enumerate() {
-        let [start, end] = line.points[..] else {
+        let [start, _] = line.points[..] else {
             continue;
         };
-        if let Some(last) = out.last() {
+        if let Some(&(e, k)) = out.last() {
+            let last = e.points[k];
             let gap = (0..3)
                 .map(|k| (last[k] - start[k]).powi(2))
                 .sum::<f64>()
@@ -410,11 +557,35 @@ fn line_chain<'a>(
                 )));
             }
         } else {
-            out.push(start);
+            out.push((line, 0));
         }
-        out.push(end);
+        out.push((line, 1));
     }
     Ok(out)
+}
+
+/// `$INSUNITS` of the HEADER section's pairs, if it is there.
+fn read_units(pairs: &[Pair<'_>]) -> Result<Option<Units>, Error> {
+    let Some(k) = pairs.iter().position(|p| p.is(9, "$INSUNITS")) else {
+        return Ok(None);
+    };
+    let value = match pairs.get(k + 1) {
+        Some(p) if p.code == 70 => p,
+        Some(p) => {
+            return Err(p.error(format!(
+                "$INSUNITS expects group code 70, found group code {}",
+                p.code
+            )));
+        }
+        None => return Err(pairs[k].error("$INSUNITS has no value")),
+    };
+    let code = value.int()?;
+    Units::from_code(code).map(Some).ok_or_else(|| {
+        value.error(format!(
+            "$INSUNITS {code} is a unit windcell does not read (0 unitless, 1 inches, 2 feet, \
+             4 millimetres, 5 centimetres, 6 metres)"
+        ))
+    })
 }
 
 /// Reads the entities between `2 ENTITIES` and `0 ENDSEC`.
@@ -435,18 +606,27 @@ fn read_entities(pairs: &[Pair<'_>], out: &mut Vec<Entity>) -> Result<(), Error>
         let body = &pairs[i + 1..body_end];
         i = body_end;
         match head.value {
-            "POINT" => out.push(Entity {
-                kind: Kind::Point,
-                layer: layer(body),
-                points: vec![xyz(head, body, 10)?],
-                closed: false,
-            }),
-            "LINE" => out.push(Entity {
-                kind: Kind::Line,
-                layer: layer(body),
-                points: vec![xyz(head, body, 10)?, xyz(head, body, 11)?],
-                closed: false,
-            }),
+            "POINT" => {
+                let (point, places) = xyz(head, body, 10)?;
+                out.push(Entity {
+                    kind: Kind::Point,
+                    layer: layer(body),
+                    points: vec![point],
+                    closed: false,
+                    places: vec![places],
+                });
+            }
+            "LINE" => {
+                let (start, start_places) = xyz(head, body, 10)?;
+                let (end, end_places) = xyz(head, body, 11)?;
+                out.push(Entity {
+                    kind: Kind::Line,
+                    layer: layer(body),
+                    points: vec![start, end],
+                    closed: false,
+                    places: vec![start_places, end_places],
+                });
+            }
             "LWPOLYLINE" => out.push(lwpolyline(head, body)?),
             "POLYLINE" => {
                 let (entity, next) = polyline(head, body, pairs, i)?;
@@ -473,13 +653,18 @@ fn layer(body: &[Pair<'_>]) -> String {
         .map_or_else(|| "0".to_string(), |p| p.value.to_string())
 }
 
-/// The point of codes `base`, `base + 10`, `base + 20` (z defaults to 0).
-fn xyz(head: &Pair<'_>, body: &[Pair<'_>], base: i32) -> Result<[f64; 3], Error> {
+/// The point of codes `base`, `base + 10`, `base + 20` (z defaults to 0, placed at `head`) and
+/// where each coordinate was read.
+fn xyz(head: &Pair<'_>, body: &[Pair<'_>], base: i32) -> Result<([f64; 3], [Place; 3]), Error> {
     let mut out = [0.0; 3];
+    let mut places = [head.place(); 3];
     for (k, slot) in out.iter_mut().enumerate() {
         let code = base + 10 * k as i32;
         match body.iter().rfind(|p| p.code == code) {
-            Some(p) => *slot = p.f64()?,
+            Some(p) => {
+                *slot = p.f64()?;
+                places[k] = p.place();
+            }
             None if k == 2 => {}
             None => {
                 return Err(Error::at(
@@ -495,7 +680,7 @@ fn xyz(head: &Pair<'_>, body: &[Pair<'_>], base: i32) -> Result<[f64; 3], Error>
             }
         }
     }
-    Ok(out)
+    Ok((out, places))
 }
 
 fn flags(body: &[Pair<'_>]) -> Result<i64, Error> {
@@ -534,11 +719,11 @@ fn no_bulge(head: &Pair<'_>, body: &[Pair<'_>]) -> Result<(), Error> {
 fn lwpolyline(head: &Pair<'_>, body: &[Pair<'_>]) -> Result<Entity, Error> {
     world_extrusion(head, body)?;
     no_bulge(head, body)?;
-    let elevation = body
-        .iter()
-        .rfind(|p| p.code == 38)
-        .map_or(Ok(0.0), Pair::f64)?;
+    let elevation_pair = body.iter().rfind(|p| p.code == 38);
+    let elevation = elevation_pair.map_or(Ok(0.0), Pair::f64)?;
+    let elevation_place = elevation_pair.map_or(head.place(), Pair::place);
     let mut points: Vec<[f64; 3]> = Vec::new();
+    let mut places: Vec<[Place; 3]> = Vec::new();
     let mut pending_x: Option<&Pair<'_>> = None;
     for p in body {
         match p.code {
@@ -553,6 +738,7 @@ fn lwpolyline(head: &Pair<'_>, body: &[Pair<'_>]) -> Result<Entity, Error> {
                     return Err(p.error("vertex y (group code 20) without an x (group code 10)"));
                 };
                 points.push([x.f64()?, p.f64()?, elevation]);
+                places.push([x.place(), p.place(), elevation_place]);
             }
             _ => {}
         }
@@ -574,6 +760,7 @@ fn lwpolyline(head: &Pair<'_>, body: &[Pair<'_>]) -> Result<Entity, Error> {
         layer: layer(body),
         points,
         closed: flags(body)? & 1 != 0,
+        places,
     })
 }
 
@@ -592,11 +779,11 @@ fn polyline(
     if !is_3d && !is_mesh {
         world_extrusion(head, body)?;
     }
-    let elevation = body
-        .iter()
-        .rfind(|p| p.code == 30)
-        .map_or(Ok(0.0), Pair::f64)?;
+    let elevation_pair = body.iter().rfind(|p| p.code == 30);
+    let elevation = elevation_pair.map_or(Ok(0.0), Pair::f64)?;
+    let elevation_place = elevation_pair.map_or(head.place(), Pair::place);
     let mut points = Vec::new();
+    let mut places = Vec::new();
     loop {
         let Some(vertex) = pairs.get(i) else {
             return Err(head.error(format!(
@@ -618,11 +805,13 @@ fn polyline(
                     continue;
                 }
                 no_bulge(vertex, vbody)?;
-                let mut p = xyz(vertex, vbody, 10)?;
+                let (mut p, mut place) = xyz(vertex, vbody, 10)?;
                 if !is_3d {
                     p[2] = elevation;
+                    place[2] = elevation_place;
                 }
                 points.push(p);
+                places.push(place);
             }
             other => {
                 return Err(vertex.error(format!(
@@ -637,6 +826,7 @@ fn polyline(
         layer: layer(body),
         points,
         closed: polyline_flags & 1 != 0,
+        places,
     });
     Ok((entity, i))
 }
@@ -800,6 +990,7 @@ mod tests {
                 layer: "0".into(),
                 points: vec![[k as f64, 0.0, 0.0], [k as f64 + 1.0, 0.0, 0.0]],
                 closed: false,
+                places: Vec::new(),
             });
         }
         assert_eq!(d.path(None).unwrap().len(), 4);
@@ -912,26 +1103,31 @@ mod tests {
                     layer: "P".into(),
                     points: vec![[0.1, -31.75, 1e-7]],
                     closed: false,
+                    places: Vec::new(),
                 },
                 Entity {
                     kind: Kind::Polyline,
                     layer: "FIBRE 1".into(),
                     points: vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.5]],
                     closed: true,
+                    places: Vec::new(),
                 },
                 Entity {
                     kind: Kind::LwPolyline,
                     layer: "SPINE".into(),
                     points: vec![[0.0, 0.0, 2.0], [10.0, 0.4, 2.0]],
                     closed: false,
+                    places: Vec::new(),
                 },
                 Entity {
                     kind: Kind::Line,
                     layer: "0".into(),
                     points: vec![[0.0; 3], [1.0; 3]],
                     closed: false,
+                    places: Vec::new(),
                 },
             ],
+            units: Some(Units::Metres),
         };
         let text = d.write().unwrap();
         assert_eq!(Drawing::parse(&text).unwrap(), d);
@@ -941,6 +1137,137 @@ mod tests {
         let mut bad = d;
         bad.entities[0].layer = "a\nb".into();
         assert!(bad.write().is_err());
+    }
+
+    /// A path of two POINTs in a drawing whose HEADER gives `$INSUNITS` = `code`.
+    fn with_units(code: &str) -> String {
+        dxf(&[
+            (0, "SECTION"),
+            (2, "HEADER"),
+            (9, "$ACADVER"),
+            (1, "AC1015"),
+            (9, "$INSUNITS"),
+            (70, code),
+            (0, "ENDSEC"),
+            (0, "SECTION"),
+            (2, "ENTITIES"),
+            (0, "POINT"),
+            (10, "0.0285"),
+            (20, "0"),
+            (30, "0.35"),
+            (0, "POINT"),
+            (10, "0"),
+            (20, "0.0285"),
+            (30, "0.1"),
+            (0, "ENDSEC"),
+            (0, "EOF"),
+        ])
+    }
+
+    #[test]
+    fn insunits_scales_paths_to_millimetres() {
+        let metres = Drawing::parse(&with_units("6")).unwrap();
+        assert_eq!(metres.units, Some(Units::Metres));
+        let path = metres.path(None).unwrap();
+        // 0.0285 m = 28.5 mm, 0.35 m = 350 mm (to rounding of the decimal scale).
+        for (got, want) in path[0].iter().zip([28.5, 0.0, 350.0]) {
+            assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+        }
+        let inches = Drawing::parse(&with_units("1"))
+            .unwrap()
+            .path(None)
+            .unwrap();
+        assert!((inches[0][0] - 0.0285 * 25.4).abs() < 1e-12);
+        for (code, scale) in [("0", 1.0), ("4", 1.0), ("5", 10.0), ("2", 304.8)] {
+            let p = Drawing::parse(&with_units(code))
+                .unwrap()
+                .path(None)
+                .unwrap();
+            assert!((p[1][2] - 0.1 * scale).abs() < 1e-12, "{code}");
+        }
+        // Absent: millimetres, as drawn.
+        let absent = with_units("4").replace("  9\n$INSUNITS\n 70\n4\n", "");
+        let absent = absent.replace("9\n$INSUNITS\n70\n4\n", "");
+        let d = Drawing::parse(&absent).unwrap();
+        assert_eq!(d.units, None);
+        assert_eq!(d.path(None).unwrap()[0], [0.0285, 0.0, 0.35]);
+        // A spine profile is scaled the same way.
+        let spine = Drawing {
+            entities: vec![Entity {
+                kind: Kind::LwPolyline,
+                layer: "SPINE".into(),
+                points: vec![[0.0, 0.0, 0.0], [0.5, 0.25, 0.0]],
+                closed: false,
+                places: Vec::new(),
+            }],
+            units: Some(Units::Centimetres),
+        };
+        assert_eq!(spine.profile(None).unwrap(), vec![(0.0, 0.0), (5.0, 2.5)]);
+    }
+
+    #[test]
+    fn unknown_units_are_refused_at_their_value() {
+        // Line 12 holds the value of code 70 after `9 $INSUNITS`.
+        let e = Drawing::parse(&with_units("13")).unwrap_err().to_string();
+        assert!(e.starts_with("12:1: $INSUNITS 13 is a unit"), "{e}");
+        let e = Drawing::parse(&with_units("m")).unwrap_err().to_string();
+        assert!(e.starts_with("12:1:"), "{e}");
+        let wrong_code = with_units("6").replace("70\n6\n", "40\n6\n");
+        let e = Drawing::parse(&wrong_code).unwrap_err().to_string();
+        assert!(e.starts_with("12:1:") && e.contains("group code 70"), "{e}");
+    }
+
+    #[test]
+    fn path_points_know_where_each_coordinate_was_read() {
+        let d = Drawing::parse(PATH_POINTS).unwrap();
+        let points = d.path_points(None).unwrap();
+        // First POINT: x on line 20, y on 22, z on 24 (values after `0 POINT`, `8 PATH`).
+        let places = points[0].places.unwrap();
+        assert_eq!(places.map(|p| p.line), [20, 22, 24]);
+        assert_eq!(places[0].column, 1);
+        // A POINT without z places its z at the entity name.
+        let no_z = dxf(&[
+            (0, "SECTION"),
+            (2, "ENTITIES"),
+            (0, "POINT"),
+            (10, "1"),
+            (20, "2"),
+            (0, "POINT"),
+            (10, "3"),
+            (20, "4"),
+            (0, "ENDSEC"),
+            (0, "EOF"),
+        ]);
+        let points = Drawing::parse(&no_z).unwrap().path_points(None).unwrap();
+        assert_eq!(points[1].places.unwrap().map(|p| p.line), [14, 16, 12]);
+        // An LWPOLYLINE's z is its elevation's place; a closed one repeats its first point.
+        let lw = dxf(&[
+            (0, "SECTION"),
+            (2, "ENTITIES"),
+            (0, "LWPOLYLINE"),
+            (70, "1"),
+            (38, "5"),
+            (10, "0"),
+            (20, "0"),
+            (10, "1"),
+            (20, "0"),
+            (0, "ENDSEC"),
+            (0, "EOF"),
+        ]);
+        let points = Drawing::parse(&lw).unwrap().path_points(None).unwrap();
+        assert_eq!(points.len(), 3);
+        assert_eq!(points[1].places.unwrap().map(|p| p.line), [16, 18, 10]);
+        assert_eq!(points[2], points[0]);
+    }
+
+    #[test]
+    fn non_finite_coordinates_are_refused_where_they_stand() {
+        for bad in ["NaN", "inf", "-inf", "1e309"] {
+            let text = PATH_POINTS.replacen("\n-2.0\n", &format!("\n{bad}\n"), 1);
+            let e = Drawing::parse(&text).unwrap_err().to_string();
+            assert!(e.starts_with("22:1: group code 20 holds"), "{bad}: {e}");
+            assert!(e.contains("not a finite number"), "{e}");
+        }
     }
 
     fn entity() -> impl Strategy<Value = Entity> {
@@ -975,14 +1302,18 @@ mod tests {
                     layer,
                     points,
                     closed,
+                    places: Vec::new(),
                 }
             })
     }
 
     proptest! {
         #[test]
-        fn random_drawings_round_trip(entities in prop::collection::vec(entity(), 0..6)) {
-            let d = Drawing { entities };
+        fn random_drawings_round_trip(
+            entities in prop::collection::vec(entity(), 0..6),
+            units in prop::option::of(prop::sample::select(Units::ALL.to_vec())),
+        ) {
+            let d = Drawing { entities, units };
             let text = d.write().unwrap();
             prop_assert_eq!(Drawing::parse(&text).unwrap(), d.clone());
             prop_assert_eq!(Drawing::parse(&text.replace('\n', "\r\n")).unwrap(), d);
@@ -999,7 +1330,7 @@ mod tests {
             cut in 0usize..2000,
             junk in "[0-9A-Z \\-\\.\r\n]{0,6}",
         ) {
-            let text = Drawing { entities }.write().unwrap();
+            let text = Drawing { entities, units: None }.write().unwrap();
             let mut cut = cut.min(text.len());
             while !text.is_char_boundary(cut) {
                 cut -= 1;

@@ -31,6 +31,20 @@ pub enum Error {
         /// What is wrong, in lower case.
         message: String,
     },
+    /// A value the writer refuses because its reader would refuse the text written, or read it
+    /// back as a different value (an empty sequence, program 0, a speed above the maximum, a
+    /// non-finite number). `line` and `column` are where the written text would be refused.
+    #[error("cannot write the {format}: line {line}, column {column} of its text: {message}")]
+    Unwritable {
+        /// Which file format (`robot control file`, `run file`, …).
+        format: &'static str,
+        /// 1-based line of the written text.
+        line: usize,
+        /// 1-based column of the written text.
+        column: usize,
+        /// What the reader says, in lower case.
+        message: String,
+    },
     /// A file to read is a device, FIFO, socket or folder (refused without reading it).
     #[error("{}: is {kind}, not a regular file", file.display())]
     NotRegularFile {
@@ -107,9 +121,41 @@ impl Error {
     }
 }
 
-/// How a number reads in a message: plain with up to 6 decimals (trailing zeros dropped) between
-/// 1e-4 and 1e9, else in exponent form with 6 significant digits (no 300-digit numbers). The same
-/// rule as `paths::limits::shown`.
+/// `text`, the written form of `value`, if `parse` reads it back as `value`; otherwise the
+/// reader's complaint as [`Error::Unwritable`]. Every writer goes through this, so a file
+/// windcell writes is always one it reads.
+pub(crate) fn written<T: PartialEq>(
+    format: &'static str,
+    value: &T,
+    text: String,
+    parse: impl FnOnce(&str) -> Result<T, Error>,
+) -> Result<String, Error> {
+    match parse(&text) {
+        Ok(back) if back == *value => Ok(text),
+        Ok(_) => Err(Error::Unwritable {
+            format,
+            line: 1,
+            column: 1,
+            message: "the text reads back as a different value".into(),
+        }),
+        Err(Error::Parse {
+            line,
+            column,
+            message,
+            ..
+        }) => Err(Error::Unwritable {
+            format,
+            line,
+            column,
+            message,
+        }),
+        Err(other) => Err(other),
+    }
+}
+
+/// How a number reads in a message: plain between 1e-4 and 1e9, with at most 9 significant digits
+/// and 6 decimals (trailing zeros dropped), else in exponent form with 6 significant digits (no
+/// 300-digit numbers). The same rule as `paths::limits::shown`.
 pub fn shown(value: f64) -> String {
     if !value.is_finite() || value == 0.0 {
         return format!("{value}");
@@ -122,7 +168,8 @@ pub fn shown(value: f64) -> String {
         }
     };
     if (1e-4..1e9).contains(&value.abs()) {
-        trim(format!("{value:.6}"))
+        let decimals = (8 - value.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        trim(format!("{value:.decimals$}"))
     } else {
         let e = format!("{value:.5e}");
         let (mantissa, exponent) = e.split_once('e').unwrap_or((&e, "0"));
@@ -161,6 +208,7 @@ mod tests {
         assert_eq!(shown(-2.5e-7), "-2.5e-7");
         assert_eq!(shown(2000.0), "2000");
         assert_eq!(shown(63.5), "63.5");
+        assert_eq!(shown(101_986_487.528_729), "101986488");
         assert_eq!(shown(f64::NAN), "NaN");
     }
 

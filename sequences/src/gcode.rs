@@ -333,8 +333,8 @@ impl<W: Write> Writer<W> {
         }
     }
 
-    /// Writes the epilogue and flushes; returns the output.
-    pub fn finish(mut self) -> io::Result<W> {
+    /// Writes the epilogue and flushes; returns the output and the number of lines written.
+    pub fn finish(mut self) -> io::Result<(W, u64)> {
         match self.dialect {
             Dialect::FwCnc => {
                 self.block("M30")?;
@@ -346,7 +346,7 @@ impl<W: Write> Writer<W> {
             Dialect::Fanuc => self.raw("M30\n%\n")?,
         }
         self.out.flush()?;
-        Ok(self.out)
+        Ok((self.out, self.lines))
     }
 }
 

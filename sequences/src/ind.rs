@@ -113,8 +113,19 @@ impl MandrelFile {
         })
     }
 
-    /// Writes the canonical text.
-    pub fn write(&self) -> String {
+    /// Writes the canonical text. Refuses ([`Error::Unwritable`]) a move that
+    /// [`MandrelFile::parse`] would refuse: acceleration or maximum velocity not above 0, a
+    /// negative start/stop velocity or one above the maximum, a non-finite number.
+    pub fn write(&self) -> Result<String, Error> {
+        crate::error::written(
+            "mandrel control file",
+            self,
+            self.text(),
+            MandrelFile::parse,
+        )
+    }
+
+    fn text(&self) -> String {
         format!(
             "# windcell mandrel control file (seed 001 §5.6.2)\nind {VERSION}\ninit\nmove {}\nreset\n",
             self.path_move.fields()
@@ -139,15 +150,15 @@ mod tests {
 
     #[test]
     fn round_trips_exactly() {
-        let text = sample().write();
+        let text = sample().write().unwrap();
         let parsed = MandrelFile::parse(&text).unwrap();
         assert_eq!(parsed, sample());
-        assert_eq!(parsed.write(), text);
+        assert_eq!(parsed.write().unwrap(), text);
     }
 
     #[test]
     fn errors_name_line_and_column() {
-        let text = sample().write();
+        let text = sample().write().unwrap();
         let cases = [
             (text.replace("reset\n", ""), "missing `reset`"),
             (text.replace("init", "start"), "3:1: expected `init`"),

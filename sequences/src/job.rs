@@ -49,9 +49,12 @@ pub struct Cell {
     pub movement: Spanned<Movement>,
     /// The mandrel drive.
     pub drive: Drive,
-    /// The robot's working range; absent means the IRB 6/2-class defaults.
+    /// The robot arm; absent means the IRB 6/2 defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub robot: Option<RobotLimits>,
+    pub robot: Option<Robot>,
+    /// The measured cell; absent means the nominal cell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<Calibration>,
     /// Serial ports; absent means the built-in simulated cell.
     #[serde(default, skip_serializing_if = "Ports::is_empty")]
     pub ports: Ports,
@@ -71,20 +74,63 @@ pub struct Drive {
     pub start_stop_rps: Spanned<f64>,
 }
 
-/// The robot's working range in the cell frame.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// The robot arm (`[cell.robot]`): every field optional, absent ones take the IRB 6/2 defaults
+/// of `paths::robot::Arm` (which documents where each figure comes from).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RobotLimits {
-    /// Least horizontal distance from the pedestal axis, mm.
-    pub reach_min_mm: Spanned<f64>,
-    /// Greatest horizontal distance from the pedestal axis, mm.
-    pub reach_max_mm: Spanned<f64>,
-    /// Lowest height, mm.
-    pub z_min_mm: Spanned<f64>,
-    /// Highest height, mm.
-    pub z_max_mm: Spanned<f64>,
-    /// Fastest tool speed, mm/s.
-    pub max_speed_mm_s: Spanned<f64>,
+pub struct Robot {
+    /// Height of the shoulder axis above the robot base, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shoulder_height_mm: Option<Spanned<f64>>,
+    /// Shoulder axis to elbow axis, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upper_arm_mm: Option<Spanned<f64>>,
+    /// Elbow axis to wrist axis, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forearm_mm: Option<Spanned<f64>>,
+    /// The longest eye mechanism the wrist can carry, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eye_mechanism_max_mm: Option<Spanned<f64>>,
+    /// Base yaw range `[least, greatest]`, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_yaw_deg: Option<Spanned<[f64; 2]>>,
+    /// Shoulder range (upper arm from the vertical), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shoulder_deg: Option<Spanned<[f64; 2]>>,
+    /// Elbow range (forearm elevation), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elbow_deg: Option<Spanned<[f64; 2]>>,
+    /// Wrist pitch range (roll axis below the horizontal), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pitch_deg: Option<Spanned<[f64; 2]>>,
+    /// Wrist roll range, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub roll_deg: Option<Spanned<[f64; 2]>>,
+    /// Joint speed limits in axis order (base yaw, shoulder, elbow, pitch, roll), degrees/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_speed_deg_s: Option<Spanned<[f64; 5]>>,
+    /// Largest fibre entry angle (tow line to the eye's roll axis), degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub entry_angle_max_deg: Option<Spanned<f64>>,
+}
+
+/// The measured cell (`[cell.calibration]`, seed 001 §6.2.1 item 2); absent fields are nominal.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    /// Where the rotation axis crosses the mandrel's start height, relative to `(b, 0)`,
+    /// `[x, y]` in the cell frame, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_offset_mm: Option<Spanned<[f64; 2]>>,
+    /// The rotation axis's lean from the vertical toward `+x` and toward `+y`, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_tilt_deg: Option<Spanned<[f64; 2]>>,
+    /// The mandrel angle at the indexer's zero, degrees (counter-clockwise from above).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zero_angle_deg: Option<Spanned<f64>>,
+    /// `1` when positive steps turn the mandrel counter-clockwise seen from above, `-1` clockwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation_sign: Option<Spanned<i8>>,
 }
 
 /// Serial ports of the real cell.
@@ -151,12 +197,27 @@ pub struct Mandrel {
     /// The DXF layer holding the spine profile (default: any).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spine_layer: Option<Spanned<String>>,
+    /// Tube: where its paths end (default `horizontal`: the planes through the spine's end
+    /// points, as a mandrel made along a measured spine is cut; `square`: the end sections
+    /// perpendicular to the spine).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ends: Option<Spanned<Ends>>,
     /// Mesh: the STL or OBJ file, relative to the job file's folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<Spanned<String>>,
     /// Mesh: vertex welding tolerance, mm (default 1e-4).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub weld_mm: Option<Spanned<f64>>,
+}
+
+/// How a tube mandrel's ends are cut.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Ends {
+    /// Horizontal planes through the spine's end points (the S-bend: 0–350 mm).
+    Horizontal,
+    /// Sections perpendicular to the spine at its end points.
+    Square,
 }
 
 /// Winding direction.
@@ -192,14 +253,31 @@ pub struct PathSpec {
     /// The DXF layer holding the path (default: any layer).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub layer: Option<Spanned<String>>,
-    /// Number of equal-length segments (50 in the thesis).
+    /// Number of equal-length segments (50 in the thesis), [`MIN_SEGMENTS`] to [`MAX_SEGMENTS`].
     pub segments: Spanned<u32>,
+    /// An imported path: the farthest any of its DXF points may lie from the mandrel surface,
+    /// mm (default [`DEFAULT_SURFACE_TOLERANCE_MM`]; only with `dxf`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_tolerance_mm: Option<Spanned<f64>>,
 }
+
+/// The fewest segments a path may have. One segment would be a single straight move of the eye
+/// from the path's start to its end: no point of the path between its ends would be placed, so
+/// nothing of its shape would be wound. Two is the least that puts a path point between the ends.
+pub const MIN_SEGMENTS: u32 = 2;
+
+/// Default of `surface_tolerance_mm`: how far an imported path point may lie from the mandrel
+/// surface, mm.
+pub const DEFAULT_SURFACE_TOLERANCE_MM: f64 = 0.5;
 
 /// Longest job name, characters (it names the control files: `NAME_255.ROB` must stay a short
 /// file name).
 pub const MAX_NAME_CHARS: usize = 64;
-/// Most segments of one path (the same limit as `paths::limits::MAX_SEGMENTS`).
+/// Most segments of one path (the same limit as `paths::limits::MAX_SEGMENTS`). The robot control
+/// file numbers the approach and one instruction per segment with the robot's 16-bit instruction
+/// numbers (seed 001 §5.6.1), which this keeps far inside; stored programs (fine, medium) are
+/// held to the robot's memory as well when the job is planned (470 positioning instructions,
+/// §4.1.2).
 pub const MAX_SEGMENTS: u32 = 10_000;
 /// Largest length in a job (every `_mm` value), mm: 100 m, far beyond any winding cell.
 pub const MAX_LENGTH_MM: f64 = 100_000.0;
@@ -214,8 +292,7 @@ pub fn error_at(text: &str, span: Range<usize>, message: impl Into<String>) -> E
 }
 
 /// Checks `value` against `ok`, that it is finite, and its magnitude against [`MAX_LENGTH_MM`]
-/// when `what` names a length (`_mm`, `length`, `offset`, …: see [`is_length`]) or
-/// [`MAX_MAGNITUDE`] otherwise.
+/// when its key names a length (ends in `_mm`, see [`key_of`]) or [`MAX_MAGNITUDE`] otherwise.
 fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), Error> {
     let v = *value.get_ref();
     if !(ok && v.is_finite()) {
@@ -225,7 +302,8 @@ fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), E
             format!("{} {what}", crate::error::shown(v)),
         ));
     }
-    let (limit, unit) = if is_length(text, value) {
+    let key = key_of(text, value);
+    let (limit, unit) = if key.ends_with("_mm") {
         (MAX_LENGTH_MM, " mm")
     } else {
         (MAX_MAGNITUDE, "")
@@ -235,7 +313,7 @@ fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), E
             text,
             value.span(),
             format!(
-                "{} is larger than the limit of {}{unit} (docs/ARCHITECTURE.md, \"Limits\")",
+                "{key} = {} is larger than the limit of {}{unit} (docs/ARCHITECTURE.md, \"Limits\")",
                 crate::error::shown(v),
                 crate::error::shown(limit)
             ),
@@ -244,13 +322,12 @@ fn check(text: &str, value: &Spanned<f64>, ok: bool, what: &str) -> Result<(), E
     Ok(())
 }
 
-/// True when the key in front of `value` in `text` ends in `_mm` (a length).
-fn is_length(text: &str, value: &Spanned<f64>) -> bool {
-    let before = &text[..value.span().start.min(text.len())];
+/// The key in front of `value` on its line of `text` (`diameter_mm`); a key ending in `_mm` is a
+/// length.
+fn key_of<'t>(text: &'t str, value: &Spanned<f64>) -> &'t str {
+    let before = text.get(..value.span().start).unwrap_or_default();
     let line = before.rsplit('\n').next().unwrap_or_default();
-    line.split('=')
-        .next()
-        .is_some_and(|key| key.trim().ends_with("_mm"))
+    line.split('=').next().unwrap_or_default().trim()
 }
 
 fn positive(text: &str, value: &Spanned<f64>, name: &str) -> Result<(), Error> {
@@ -289,9 +366,17 @@ impl Job {
         Ok((job, text))
     }
 
-    /// Writes the job as TOML (parsing it again gives the same job).
-    pub fn write(&self) -> String {
-        toml::to_string(self).unwrap_or_default()
+    /// Writes the job as TOML (parsing it again gives the same job). Refuses
+    /// ([`Error::Unwritable`]) a job that [`Job::parse`] would refuse: a field out of range, a
+    /// mandrel field of another kind, no path, program 0, a program used twice, …
+    pub fn write(&self) -> Result<String, Error> {
+        let text = toml::to_string(self).map_err(|e| Error::Unwritable {
+            format: "job file",
+            line: 1,
+            column: 1,
+            message: e.to_string().trim().to_string(),
+        })?;
+        crate::error::written("job file", self, text, Job::parse)
     }
 
     fn validate(&self, text: &str) -> Result<(), Error> {
@@ -362,21 +447,78 @@ impl Job {
             ));
         }
         if let Some(r) = &c.robot {
-            positive(text, &r.reach_max_mm, "reach")?;
-            check(
-                text,
-                &r.reach_min_mm,
-                (0.0..*r.reach_max_mm.get_ref()).contains(r.reach_min_mm.get_ref()),
-                "is not a valid reach_min_mm: must be ≥ 0 and below reach_max_mm",
-            )?;
-            finite(text, &r.z_min_mm, "height")?;
-            check(
-                text,
-                &r.z_max_mm,
-                r.z_max_mm.get_ref() > r.z_min_mm.get_ref(),
-                "is not a valid z_max_mm: must be above z_min_mm",
-            )?;
-            positive(text, &r.max_speed_mm_s, "speed")?;
+            for length in [
+                &r.shoulder_height_mm,
+                &r.upper_arm_mm,
+                &r.forearm_mm,
+                &r.eye_mechanism_max_mm,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                positive(text, length, "length")?;
+            }
+            for range in [
+                &r.base_yaw_deg,
+                &r.shoulder_deg,
+                &r.elbow_deg,
+                &r.pitch_deg,
+                &r.roll_deg,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                let [lo, hi] = *range.get_ref();
+                if !(lo.is_finite() && hi.is_finite() && lo < hi && lo >= -360.0 && hi <= 360.0) {
+                    return Err(error_at(
+                        text,
+                        range.span(),
+                        "a joint range is [least, greatest] degrees, finite, least below \
+                         greatest, within ±360°",
+                    ));
+                }
+            }
+            if let Some(speeds) = &r.joint_speed_deg_s
+                && !speeds.get_ref().iter().all(|v| v.is_finite() && *v > 0.0)
+            {
+                return Err(error_at(
+                    text,
+                    speeds.span(),
+                    "joint speeds must be finite and > 0 degrees/s",
+                ));
+            }
+            if let Some(a) = &r.entry_angle_max_deg {
+                check(
+                    text,
+                    a,
+                    *a.get_ref() > 0.0 && *a.get_ref() <= 90.0,
+                    "is not a valid entry angle limit: must lie in (0°, 90°]",
+                )?;
+            }
+        }
+        if let Some(k) = &c.calibration {
+            for pair in [&k.axis_offset_mm, &k.axis_tilt_deg].into_iter().flatten() {
+                if !pair.get_ref().iter().all(|v| v.is_finite()) {
+                    return Err(error_at(text, pair.span(), "values must be finite"));
+                }
+            }
+            if let Some(tilt) = &k.axis_tilt_deg
+                && !tilt.get_ref().iter().all(|v| v.abs() < 10.0)
+            {
+                return Err(error_at(
+                    text,
+                    tilt.span(),
+                    "axis tilt must lie within ±10° (a measured misalignment)",
+                ));
+            }
+            if let Some(zero) = &k.zero_angle_deg {
+                finite(text, zero, "zero angle")?;
+            }
+            if let Some(sign) = &k.rotation_sign
+                && !matches!(sign.get_ref(), 1 | -1)
+            {
+                return Err(error_at(text, sign.span(), "rotation_sign must be 1 or -1"));
+            }
         }
         self.validate_mandrel(text)?;
         if self.paths.is_empty() {
@@ -461,22 +603,27 @@ impl Job {
                     ));
                 }
             }
-            if *p.segments.get_ref() == 0 {
-                return Err(error_at(
-                    text,
-                    p.segments.span(),
-                    "segments must be at least 1",
-                ));
-            }
-            if *p.segments.get_ref() > MAX_SEGMENTS {
+            let segments = *p.segments.get_ref();
+            if !(MIN_SEGMENTS..=MAX_SEGMENTS).contains(&segments) {
                 return Err(error_at(
                     text,
                     p.segments.span(),
                     format!(
-                        "segments = {} is larger than the limit of {MAX_SEGMENTS} (docs/ARCHITECTURE.md, \"Limits\")",
-                        p.segments.get_ref()
+                        "segments = {segments} is out of range: a path has {MIN_SEGMENTS} to \
+                         {MAX_SEGMENTS} segments (one segment places no point between the \
+                         path's ends; docs/ARCHITECTURE.md, \"Limits\")"
                     ),
                 ));
+            }
+            if let Some(tolerance) = &p.surface_tolerance_mm {
+                if p.dxf.is_none() {
+                    return Err(error_at(
+                        text,
+                        tolerance.span(),
+                        "`surface_tolerance_mm` applies only to a path imported from `dxf`",
+                    ));
+                }
+                positive(text, tolerance, "surface tolerance")?;
             }
         }
         Ok(())
@@ -505,6 +652,9 @@ impl Job {
             )),
             None => Ok(()),
         };
+        if *m.kind.get_ref() != MandrelKind::Tube {
+            forbid(m.ends.as_ref().map(Spanned::span), "ends")?;
+        }
         if *m.kind.get_ref() != MandrelKind::Mesh {
             forbid(m.mesh.as_ref().map(Spanned::span), "mesh")?;
             forbid(m.weld_mm.as_ref().map(Spanned::span), "weld_mm")?;
@@ -640,6 +790,26 @@ segments = 50
 "#;
 
     #[test]
+    fn robot_and_calibration_tables_parse_and_round_trip() {
+        let text = CYLINDER.replacen(
+            "[mandrel]",
+            "[cell.robot]\nshoulder_height_mm = 320.0\nelbow_deg = [-50.0, 20.0]\n\
+             joint_speed_deg_s = [100.0, 50.0, 60.0, 180.0, 200.0]\nentry_angle_max_deg = 25.0\n\n\
+             [cell.calibration]\naxis_offset_mm = [0.5, -0.2]\naxis_tilt_deg = [0.03, 0.05]\n\
+             zero_angle_deg = 12.5\nrotation_sign = -1\n\n[mandrel]",
+            1,
+        );
+        let job = Job::parse(&text).unwrap();
+        let r = job.cell.robot.as_ref().unwrap();
+        assert_eq!(*r.shoulder_height_mm.as_ref().unwrap().get_ref(), 320.0);
+        assert_eq!(*r.elbow_deg.as_ref().unwrap().get_ref(), [-50.0, 20.0]);
+        assert!(r.forearm_mm.is_none());
+        let k = job.cell.calibration.as_ref().unwrap();
+        assert_eq!(*k.rotation_sign.as_ref().unwrap().get_ref(), -1);
+        assert_eq!(Job::parse(&job.write().unwrap()).unwrap(), job);
+    }
+
+    #[test]
     fn parses_and_round_trips() {
         let job = Job::parse(CYLINDER).unwrap();
         assert_eq!(job.name.get_ref(), "CYL");
@@ -648,9 +818,15 @@ segments = 50
             *job.paths[0].direction.as_ref().unwrap().get_ref(),
             Direction::Down
         );
-        let again = Job::parse(&job.write()).unwrap();
+        let again = Job::parse(&job.write().unwrap()).unwrap();
         assert_eq!(again, job);
-        assert_eq!(Job::parse(&again.write()).unwrap().write(), job.write());
+        assert_eq!(
+            Job::parse(&again.write().unwrap())
+                .unwrap()
+                .write()
+                .unwrap(),
+            job.write().unwrap()
+        );
     }
 
     fn error_for(from: &str, to: &str) -> String {
@@ -666,6 +842,21 @@ segments = 50
             ("wind_angle_deg = 48.3", "wind_angle_deg = 90.0", "27:18:"),
             ("offset_mm = 100.0", "offset_mm = 0.0", "8:13:"),
             ("segments = 50", "segments = 0", "29:12:"),
+            (
+                "segments = 50",
+                "segments = 1",
+                "29:12: segments = 1 is out of range",
+            ),
+            (
+                "segments = 50",
+                "segments = 70000",
+                "29:12: segments = 70000 is out",
+            ),
+            (
+                "segments = 50",
+                "segments = 50\nsurface_tolerance_mm = 1.0",
+                "30:24: `surface_tolerance_mm` applies only",
+            ),
             (
                 "robot_distance_mm = 800.0",
                 "robot_distance_mm = \"far\"",
@@ -684,6 +875,21 @@ segments = 50
                 "missing field `length_mm`",
             ),
             ("gear_ratio = [13, 60]", "gear_ratio = [0, 60]", "15:14:"),
+            (
+                "[mandrel]",
+                "[cell.robot]\nelbow_deg = [30.0, -60.0]\n\n[mandrel]",
+                "20:13:",
+            ),
+            (
+                "[mandrel]",
+                "[cell.calibration]\nrotation_sign = 2\n\n[mandrel]",
+                "20:17:",
+            ),
+            (
+                "[mandrel]",
+                "[cell.robot]\nentry_angle_max_deg = 95.0\n\n[mandrel]",
+                "20:23:",
+            ),
         ];
         for (from, to, expected) in cases {
             let err = error_for(from, to);

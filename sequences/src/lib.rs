@@ -17,6 +17,8 @@ pub mod run;
 pub mod sequence;
 pub mod source;
 pub mod syntax;
+pub mod vessel;
+pub mod wind;
 
 pub use dxf::Drawing;
 pub use error::Error;

@@ -196,8 +196,15 @@ impl RobotFile {
         Err(last_line.missing("`end` trailer"))
     }
 
-    /// Writes the canonical text.
-    pub fn write(&self) -> String {
+    /// Writes the canonical text. Refuses ([`Error::Unwritable`]) a file that
+    /// [`RobotFile::parse`] would refuse or read back differently: no instructions, numbers not
+    /// 1, 2, 3, …, a speed not above 0 or above the maximum, a quaternion whose norm is not 1, a
+    /// non-finite number, program 0.
+    pub fn write(&self) -> Result<String, Error> {
+        crate::error::written("robot control file", self, self.text(), RobotFile::parse)
+    }
+
+    fn text(&self) -> String {
         let h = &self.header;
         let mut out = String::new();
         let _ = writeln!(out, "# windcell robot control file (seed 001 §5.6.1)");
@@ -352,15 +359,15 @@ mod tests {
     #[test]
     fn round_trips_exactly() {
         let file = sample();
-        let text = file.write();
+        let text = file.write().unwrap();
         let parsed = RobotFile::parse(&text).unwrap();
         assert_eq!(parsed, file);
-        assert_eq!(parsed.write(), text);
+        assert_eq!(parsed.write().unwrap(), text);
     }
 
     #[test]
     fn errors_name_line_and_column() {
-        let text = sample().write();
+        let text = sample().write().unwrap();
         let bad = text.replace("q=0.5,0.5,0.5,-0.5 move=rect ref=abs accel_rps2=1 start_rps=0.05 max_rps=0.1 steps=-35", "q=0.5,0.5,0.5,-0.5 move=rect ref=abs accel_rps2=1 start_rps=0.05 max_rps=0.1 steps=x");
         let err = RobotFile::parse(&bad).unwrap_err().to_string();
         assert!(err.starts_with("9:131:"), "{err}");

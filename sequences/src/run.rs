@@ -25,9 +25,10 @@ impl RunFile {
         Ok(RunFile { programs })
     }
 
-    /// Writes one number per line.
-    pub fn write(&self) -> String {
-        self.programs.iter().map(|p| format!("{p}\n")).collect()
+    /// Writes one number per line. Refuses ([`Error::Unwritable`]) an empty run and program 0.
+    pub fn write(&self) -> Result<String, Error> {
+        let text = self.programs.iter().map(|p| format!("{p}\n")).collect();
+        crate::error::written("run file", self, text, RunFile::parse)
     }
 }
 
@@ -39,7 +40,7 @@ mod tests {
     fn thesis_example_round_trips() {
         let run = RunFile::parse("1\n2\n3\n2\n").unwrap();
         assert_eq!(run.programs, vec![1, 2, 3, 2]);
-        assert_eq!(RunFile::parse(&run.write()).unwrap(), run);
+        assert_eq!(RunFile::parse(&run.write().unwrap()).unwrap(), run);
     }
 
     #[test]

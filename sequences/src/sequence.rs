@@ -41,9 +41,11 @@ impl SequenceFile {
         Ok(SequenceFile { names })
     }
 
-    /// Writes one name per line.
-    pub fn write(&self) -> String {
-        self.names.iter().map(|n| format!("{n}\n")).collect()
+    /// Writes one name per line. Refuses ([`Error::Unwritable`]) an empty sequence and a name
+    /// that is not letters, digits, `_` and `-`.
+    pub fn write(&self) -> Result<String, Error> {
+        let text = self.names.iter().map(|n| format!("{n}\n")).collect();
+        crate::error::written("sequence file", self, text, SequenceFile::parse)
     }
 
     /// Each distinct name once, in order of first appearance.
@@ -68,8 +70,8 @@ mod tests {
         let seq = SequenceFile::parse(text).unwrap();
         assert_eq!(seq.names.len(), 4);
         assert_eq!(seq.distinct(), vec!["SBEND_1", "SBEND_2", "SBEND_3"]);
-        assert_eq!(seq.write(), text);
-        assert_eq!(SequenceFile::parse(&seq.write()).unwrap(), seq);
+        assert_eq!(seq.write().unwrap(), text);
+        assert_eq!(SequenceFile::parse(&seq.write().unwrap()).unwrap(), seq);
     }
 
     #[test]

@@ -21,14 +21,17 @@ fn path_and_profile_files_load_from_disk() {
                 layer: "PATH".into(),
                 points: vec![p],
                 closed: false,
+                places: Vec::new(),
             })
             .chain(std::iter::once(Entity {
                 kind: Kind::LwPolyline,
                 layer: "SPINE".into(),
                 points: vec![[0.0, 0.0, 0.0], [10.0, 0.4, 0.0], [20.0, 1.6, 0.0]],
                 closed: false,
+                places: Vec::new(),
             }))
             .collect(),
+        units: None,
     };
     let file = dir.path().join("SBEND.DXF");
     // AutoCAD writes CRLF; the reader takes either.

@@ -50,7 +50,7 @@ fn control_files_round_trip_and_agree_with_the_plan() {
     for job_path in examples() {
         let (job, text) = Job::load(&job_path).unwrap();
         assert_eq!(
-            Job::parse(&job.write()).unwrap(),
+            Job::parse(&job.write().unwrap()).unwrap(),
             job,
             "{}",
             job_path.display()
@@ -60,10 +60,11 @@ fn control_files_round_trip_and_agree_with_the_plan() {
         let b = *job.cell.robot_distance_mm.get_ref();
         let h = *job.cell.start_height_mm.get_ref();
         for path in &plan.paths {
-            let rob_text = cell::tool::robot_file(&job, path).write();
+            let rob_text = cell::tool::robot_file(&job, path).unwrap().write().unwrap();
             let rob = RobotFile::parse(&rob_text).unwrap();
-            assert_eq!(rob.write(), rob_text);
-            let ind = MandrelFile::parse(&cell::tool::mandrel_file(&job, path).write()).unwrap();
+            assert_eq!(rob.write().unwrap(), rob_text);
+            let ind =
+                MandrelFile::parse(&cell::tool::mandrel_file(&job, path).write().unwrap()).unwrap();
             // One robot instruction per segment end plus the start pose; the mandrel file's single
             // move is the sum of the per-segment moves.
             assert_eq!(rob.instructions.len(), path.plan.segments.len() + 1);
@@ -82,16 +83,19 @@ fn control_files_round_trip_and_agree_with_the_plan() {
                     * seg.pose.eye_mandrel_mm
                     + Vector3::new(b, 0.0, h);
                 assert_abs_diff_eq!(seg.pose.eye_mm, expected, epsilon = 1e-9);
-                // The wrist points the eye's bore at the tangent point.
+                // The eye's roll axis (the quaternion's x axis) lies in the vertical plane through
+                // the pedestal axis and the eye (no wrist yaw) and meets the tow line at the
+                // reported entry angle, within the default 30° limit.
                 let tangent = Rotation3::from_axis_angle(&Vector3::z_axis(), seg.pose.mandrel_rad)
                     * seg.pose.tangent_point_mm
                     + Vector3::new(b, 0.0, h);
-                let bore = seg.pose.wrist_q * Vector3::z();
-                assert_abs_diff_eq!(
-                    bore,
-                    (tangent - seg.pose.eye_mm).normalize(),
-                    epsilon = 1e-9
-                );
+                let roll_axis = seg.pose.wrist_q * Vector3::x();
+                let radial = Vector3::new(e.x, e.y, 0.0).normalize();
+                assert!(roll_axis.dot(&Vector3::z().cross(&radial)).abs() < 1e-9);
+                let tow = (tangent - seg.pose.eye_mm).normalize();
+                let entry = tow.cross(&roll_axis).norm().atan2(tow.dot(&roll_axis));
+                assert_abs_diff_eq!(entry, seg.pose.entry_angle_rad, epsilon = 1e-9);
+                assert!(entry < 30f64.to_radians());
             }
         }
     }

@@ -5,6 +5,7 @@
 //! [`Robot`] is driven by bytes and time ([`Peer`]): over a [`crate::link::Paced`] wire in virtual
 //! time (a whole program in milliseconds), or by [`serve`] on any [`Link`] in real time.
 
+pub mod kinematics;
 pub mod motion;
 
 use std::collections::BTreeMap;
@@ -12,6 +13,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::time::Duration;
 
+pub use kinematics::{ArmModel, Kinematics, Reach};
 pub use motion::{EyePose, MotionParams, Move, Speeds, Trajectory};
 
 use crate::clock::Clock;
@@ -32,8 +34,13 @@ pub const MEMORY_UNITS: u32 = 9400;
 pub const POSITION_UNITS: u32 = 20;
 /// Memory units of one control instruction.
 pub const CONTROL_UNITS: u32 = 17;
-/// The output line that tells the PC "in position" after a discrete move (App. D).
+/// The output line that tells the PC "in position" (seed 001 App. D, §5.6.4 steps 10–11): raised at
+/// the end of a discrete move, and by a winding program only at its last point. A program run
+/// lowers it first; STOP leaves it low.
 pub const IN_POSITION_OUTPUT: u8 = 1;
+/// The input line on which the PC's "start" reaches the robot (seed 001 App. D: one opto-isolated
+/// signal to the robot computer and the mandrel driver together). A winding program waits on it.
+pub const START_INPUT: u8 = 1;
 /// Longest [`Machine::executed`] and [`Machine::trace`]; beyond it the older half is dropped, so
 /// that a simulator serving for days stays bounded.
 pub const RECORD_LIMIT: usize = 100_000;
@@ -101,6 +108,10 @@ enum Activity {
         next: usize,
         discrete: bool,
     },
+    /// Decelerating to rest after STOP.
+    Stopping {
+        traj: Trajectory,
+    },
     Waiting {
         line: u8,
         on: bool,
@@ -118,7 +129,13 @@ pub struct Machine {
     mode: Mode,
     homed: bool,
     last_error: u8,
+    error_seq: u8,
+    errors_raised: u64,
+    redundant_stores: u64,
+    executed_count: u16,
+    last_digest: u16,
     error_state: bool,
+    stopped: bool,
     speeds: Speeds,
     pose: EyePose,
     last_target: [f64; 3],
@@ -126,6 +143,7 @@ pub struct Machine {
     running: Option<(u8, Vec<(u16, Instruction)>)>,
     current_instruction: u16,
     io: IoLines,
+    kinematics: Arc<dyn Kinematics>,
     now_s: f64,
     /// Every telegram executed, in order (the link delivered it once); the last
     /// [`RECORD_LIMIT`] at most.
@@ -149,7 +167,13 @@ impl Machine {
             mode: Mode::Standby,
             homed: false,
             last_error: 0,
+            error_seq: 0,
+            errors_raised: 0,
+            redundant_stores: 0,
+            executed_count: 0,
+            last_digest: 0,
             error_state: false,
+            stopped: false,
             speeds: Speeds::default(),
             pose: params.home,
             last_target: params.home.xyz_mm,
@@ -157,11 +181,20 @@ impl Machine {
             running: None,
             current_instruction: 0,
             io: IoLines::default(),
+            kinematics: Arc::new(Reach {
+                reach_mm: params.reach_mm,
+            }),
             now_s: 0.0,
             executed: Vec::new(),
             trace: Vec::new(),
             params,
         }
+    }
+
+    /// Uses `k` to decide which poses the arm can take ([`kinematics`]; default [`Reach`]).
+    pub fn with_kinematics(mut self, k: Arc<dyn Kinematics>) -> Self {
+        self.kinematics = k;
+        self
     }
 
     /// The I/O lines (clone to wire them elsewhere).
@@ -194,9 +227,25 @@ impl Machine {
         self.homed
     }
 
-    /// The last error code, without clearing it.
+    /// The latched error code (0: none).
     pub fn last_error(&self) -> u8 {
         self.last_error
+    }
+
+    /// Errors raised since power-up (wrapping at 256): the sequence number of the latest.
+    pub fn error_seq(&self) -> u8 {
+        self.error_seq
+    }
+
+    /// Errors raised since power-up (the simulator's truth, not on the wire).
+    pub fn errors_raised(&self) -> u64 {
+        self.errors_raised
+    }
+
+    /// Stores executed into a slot that already held exactly that instruction: a store executed
+    /// twice (the simulator's truth, not on the wire).
+    pub fn redundant_stores(&self) -> u64 {
+        self.redundant_stores
     }
 
     /// The eye pose now (after the last [`Machine::advance`]).
@@ -207,7 +256,7 @@ impl Machine {
     /// The planned motion currently under way, if any.
     pub fn trajectory(&self) -> Option<&Trajectory> {
         match &self.activity {
-            Activity::Moving { traj, .. } => Some(traj),
+            Activity::Moving { traj, .. } | Activity::Stopping { traj } => Some(traj),
             _ => None,
         }
     }
@@ -218,19 +267,29 @@ impl Machine {
             mode: self.mode,
             state: match self.activity {
                 _ if self.error_state => State::Error,
+                Activity::Idle | Activity::Stopping { .. } if self.stopped => State::Stopped,
                 Activity::Idle => State::Idle,
                 Activity::Homing { .. } => State::Homing,
-                Activity::Moving { .. } | Activity::Waiting { .. } => State::Running,
+                Activity::Moving { .. } | Activity::Waiting { .. } | Activity::Stopping { .. } => {
+                    State::Running
+                }
             },
             program: self.running.as_ref().map_or(0, |(p, _)| *p),
             instruction: self.current_instruction,
             last_error: self.last_error,
             homed: self.homed,
+            error_seq: self.error_seq,
+            executed: self.executed_count,
+            last_digest: self.last_digest,
         }
     }
 
+    /// Latches `e` until the host acknowledges it (a new error replaces the code and advances
+    /// the sequence number, so the host sees that it happened).
     fn fail(&mut self, e: RobotError) {
         self.last_error = e.code();
+        self.error_seq = self.error_seq.wrapping_add(1);
+        self.errors_raised += 1;
     }
 
     fn busy(&self) -> bool {
@@ -248,10 +307,10 @@ impl Machine {
             return Err(RobotError::Range);
         }
         let t = motion::target_of(p, prev);
-        let radial = t[0].hypot(t[1]);
-        if !(radial <= self.params.reach_mm && t[2].abs() <= 2047.9375 && p.speed.0 > 0) {
+        if p.speed.0 == 0 {
             return Err(RobotError::Range);
         }
+        self.kinematics.check(t, p.pose.q.wxyz())?;
         Ok(t)
     }
 
@@ -259,7 +318,18 @@ impl Machine {
     pub fn execute(&mut self, frame: &Frame, now_s: f64) -> Option<Reply> {
         self.advance(now_s);
         push_bounded(&mut self.executed, frame.clone());
-        let cmd = match Command::from_frame(frame) {
+        let parsed = Command::from_frame(frame);
+        if !matches!(
+            parsed,
+            Ok(Command::Enquire(_)
+                | Command::ReadBack { .. }
+                | Command::ProgramInfo { .. }
+                | Command::AckError { .. })
+        ) {
+            self.executed_count = self.executed_count.wrapping_add(1);
+            self.last_digest = crate::frame::telegram_digest(frame.code, &frame.data);
+        }
+        let cmd = match parsed {
             Ok(c) => c,
             Err(e) => {
                 self.fail(RobotError::from_parse(&e));
@@ -305,15 +375,17 @@ impl Machine {
                     self.fail(RobotError::NotOperate);
                 } else {
                     self.error_state = false;
+                    self.stopped = false;
                     self.activity = Activity::Homing {
                         until: now_s + self.params.home_s,
                     };
                 }
             }
-            Command::Enquire(Selector::Status) => {
-                let s = self.status();
-                self.last_error = 0;
-                return Some(Reply::Status(s));
+            Command::Enquire(Selector::Status) => return Some(Reply::Status(self.status())),
+            Command::AckError { seq } => {
+                if seq == self.error_seq {
+                    self.last_error = 0;
+                }
             }
             Command::Enquire(Selector::Position) => return Some(Reply::Position(self.wire_pose())),
             Command::DeleteProgram { program } => {
@@ -340,12 +412,18 @@ impl Machine {
                     self.speeds.max_mm_s = s.value() * 1000.0;
                 }
             }
-            Command::Stop => {
-                self.pose = self.pose_now(now_s);
-                self.last_target = self.pose.xyz_mm;
-                self.activity = Activity::Idle;
-                self.running = None;
-                self.io.set_output(IN_POSITION_OUTPUT, true);
+            Command::Stop => self.stop(now_s),
+            Command::ProgramInfo { program } => {
+                let prog = self.programs.get(&program);
+                let clip = |n: usize| u16::try_from(n).unwrap_or(u16::MAX);
+                return Some(Reply::ProgramInfo {
+                    program,
+                    count: clip(prog.map_or(0, BTreeMap::len)),
+                    highest: prog
+                        .and_then(|p| p.keys().next_back().copied())
+                        .unwrap_or(0),
+                    total: clip(self.programs.values().map(BTreeMap::len).sum()),
+                });
             }
             Command::ReadBack {
                 program,
@@ -363,7 +441,7 @@ impl Machine {
 
     fn wire_pose(&self) -> Pose {
         let p = self.pose;
-        let l = |v: f64| Length(((v / 0.0625).round()).clamp(-32768.0, 32767.0) as i16);
+        let l = |v: f64| Length(((v / 0.0625).round()).clamp(-32767.0, 32767.0) as i16);
         Pose {
             x: l(p.xyz_mm[0]),
             y: l(p.xyz_mm[1]),
@@ -373,6 +451,9 @@ impl Machine {
     }
 
     fn store(&mut self, program: u8, instruction: u16, i: Instruction) {
+        if self.instruction(program, instruction) == Some(&i) {
+            self.redundant_stores += 1;
+        }
         let old = self.instruction(program, instruction).map_or(0, units);
         let new_used = self.used_units - old + units(&i);
         if new_used > MEMORY_UNITS {
@@ -403,6 +484,7 @@ impl Machine {
             return self.fail(RobotError::NotHomed);
         }
         let traj = motion::plan(self.pose, &[(0, p)], self.speeds, &self.params, now_s, true);
+        self.stopped = false;
         self.last_target = target;
         self.io.set_output(IN_POSITION_OUTPUT, false);
         self.running = None;
@@ -422,6 +504,7 @@ impl Machine {
         };
         let list: Vec<(u16, Instruction)> = prog.iter().map(|(n, i)| (*n, *i)).collect();
         self.error_state = false;
+        self.stopped = false;
         if self.mode == Mode::Standby {
             // Execute in memory only: check every instruction, stop at the first error.
             if self.check_program(&list) {
@@ -436,6 +519,8 @@ impl Machine {
             return;
         }
         self.error_state = false;
+        // "In position" from an earlier move or program is stale once a program starts.
+        self.io.set_output(IN_POSITION_OUTPUT, false);
         self.running = Some((program, list));
         self.step_program(0, now_s);
     }
@@ -517,10 +602,44 @@ impl Machine {
         };
     }
 
-    fn pose_now(&self, t: f64) -> EyePose {
-        match &self.activity {
-            Activity::Moving { traj, .. } => traj.pose_at(t),
-            _ => self.pose,
+    /// STOP: ends the program and decelerates the arm at [`MotionParams::accel_mm_s2`] along its
+    /// current direction of travel to rest; "in position" stays low and the state is
+    /// [`State::Stopped`] until the next move, program or home synchronisation.
+    fn stop(&mut self, now_s: f64) {
+        self.running = None;
+        self.stopped = true;
+        self.io.set_output(IN_POSITION_OUTPUT, false);
+        let traj = match &self.activity {
+            Activity::Moving { traj, .. } | Activity::Stopping { traj } => Some(traj),
+            _ => None,
+        };
+        self.activity = match traj.and_then(|t| motion::braking(t, now_s, &self.params)) {
+            Some(traj) => {
+                if let Some(m) = traj.moves.last() {
+                    self.last_target = m.target_mm;
+                }
+                Activity::Stopping { traj }
+            }
+            None => {
+                self.last_target = self.pose.xyz_mm;
+                Activity::Idle
+            }
+        };
+    }
+
+    /// The link holds the robot computer from the last event to `now_s` (seed 001 §4.1.2: it "can
+    /// only perform one task at a time which idles the robot manipulator during an external data
+    /// link"): motion and home synchronisation resume later by as much.
+    pub fn hold(&mut self, now_s: f64) {
+        let dt = now_s - self.now_s;
+        if dt <= 0.0 {
+            return;
+        }
+        self.now_s = now_s;
+        match &mut self.activity {
+            Activity::Moving { traj, .. } | Activity::Stopping { traj } => traj.delay(dt),
+            Activity::Homing { until } => *until += dt,
+            Activity::Idle | Activity::Waiting { .. } => {}
         }
     }
 
@@ -547,6 +666,15 @@ impl Machine {
                     }
                     let next = *next;
                     self.step_program(next, now_s);
+                }
+                Activity::Stopping { traj } => {
+                    if now_s < traj.t1() {
+                        self.pose = traj.pose_at(now_s);
+                        return;
+                    }
+                    self.pose = traj.end_pose();
+                    self.activity = Activity::Idle;
+                    return;
                 }
                 Activity::Moving {
                     traj,
@@ -633,8 +761,22 @@ impl Default for Robot {
     }
 }
 
+impl Robot {
+    /// Lets the machine's time run to `now`: held while a link session was open (§4.1.2), else
+    /// advanced.
+    fn run_to(&mut self, now: Duration) {
+        let now_s = now.as_secs_f64();
+        if self.machine.params.link_idles_arm && self.session.in_session() {
+            self.machine.hold(now_s);
+        } else {
+            self.machine.advance(now_s);
+        }
+    }
+}
+
 impl Peer for Robot {
     fn receive(&mut self, bytes: &[u8], now: Duration) {
+        self.run_to(now);
         for f in self.session.on_bytes(bytes, now) {
             if let Some(reply) = self.machine.execute(&f, now.as_secs_f64())
                 && let Ok(bytes) = reply.encode(&self.frame)
@@ -644,8 +786,9 @@ impl Peer for Robot {
         }
     }
     fn poll(&mut self, now: Duration) {
+        self.run_to(now);
         self.session.on_time(now);
-        self.machine.advance(now.as_secs_f64());
+        self.run_to(now);
     }
     fn take_output(&mut self) -> Vec<u8> {
         self.session.take_output()
@@ -774,14 +917,33 @@ mod tests {
         m.advance(12.0);
         assert!(m.io().output(IN_POSITION_OUTPUT));
         assert_eq!(m.pose().xyz_mm, [900.0, 100.0, 800.0]);
-        // Reading the status clears the error.
+        // Reading the status does not clear the error: it stays latched until acknowledged by
+        // its sequence number, and an acknowledgement of another number leaves it.
         let r = m.execute(&frame(Command::Enquire(Selector::Status)), 12.0);
-        assert!(matches!(r, Some(Reply::Status(s)) if s.last_error == 7));
+        let Some(Reply::Status(s)) = r else {
+            panic!("{r:?}")
+        };
+        assert_eq!(s.last_error, 7);
+        let again = m.execute(&frame(Command::Enquire(Selector::Status)), 12.0);
+        assert_eq!(again, Some(Reply::Status(s)));
+        m.execute(
+            &frame(Command::AckError {
+                seq: s.error_seq.wrapping_sub(1),
+            }),
+            12.0,
+        );
+        assert_eq!(m.last_error(), 7);
+        m.execute(&frame(Command::AckError { seq: s.error_seq }), 12.0);
         assert_eq!(m.last_error(), 0);
+        // A late duplicate of the acknowledgement does not clear a newer error.
+        m.execute(&frame(Command::DeleteProgram { program: 9 }), 12.0);
+        m.execute(&frame(Command::AckError { seq: s.error_seq }), 12.0);
+        assert_eq!(m.last_error(), RobotError::NoProgram.code());
+        assert_eq!(m.error_seq(), s.error_seq.wrapping_add(1));
     }
 
     #[test]
-    fn stop_freezes_the_arm_mid_move() {
+    fn stop_decelerates_to_rest_and_leaves_in_position_low() {
         let mut m = homed_operate();
         m.execute(
             &frame(Command::MoveImmediate(pos(
@@ -790,11 +952,74 @@ mod tests {
             ))),
             10.0,
         );
+        m.advance(10.3);
+        let y0 = m.pose().xyz_mm[1];
+        let v = (y0 - m.trajectory().unwrap().pose_at(10.3 - 1e-3).xyz_mm[1]) / 1e-3;
+        assert!(v > 100.0, "{v}");
         m.execute(&frame(Command::Stop), 10.3);
-        let y = m.pose().xyz_mm[1];
-        assert!(y > 0.0 && y < 400.0, "{y}");
+        assert_eq!(m.status().state, State::Stopped);
         m.advance(20.0);
-        assert_eq!(m.pose().xyz_mm[1], y);
+        let y = m.pose().xyz_mm[1];
+        // Braking at the path acceleration from v covers v²/2a, not zero (an instant halt) and
+        // not the rest of the move.
+        let a = MotionParams::default().accel_mm_s2;
+        assert!((y - y0 - v * v / (2.0 * a)).abs() < 0.5, "{y} {y0} {v}");
+        assert!(y < 400.0);
+        assert_eq!(m.status().state, State::Stopped);
+        assert!(!m.io().output(IN_POSITION_OUTPUT));
+    }
+
+    #[test]
+    fn a_program_run_lowers_in_position_and_waits_for_start() {
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 0.0, 700.0],
+                Reference::Absolute,
+            ))),
+            10.0,
+        );
+        m.advance(15.0);
+        assert!(m.io().output(IN_POSITION_OUTPUT));
+        let store = |m: &mut Machine, n: u16, i: Instruction| {
+            let cmd = crate::client::store_command(3, n, &i);
+            m.execute(&frame(cmd), 15.0);
+        };
+        store(
+            &mut m,
+            1,
+            Instruction::Control(Control::WaitInput {
+                line: START_INPUT,
+                on: true,
+            }),
+        );
+        store(
+            &mut m,
+            2,
+            Instruction::Position(pos([900.0, 50.0, 700.0], Reference::Absolute)),
+        );
+        store(
+            &mut m,
+            3,
+            Instruction::Control(Control::SetOutput {
+                line: IN_POSITION_OUTPUT,
+                on: true,
+            }),
+        );
+        store(&mut m, 4, Instruction::Control(Control::End));
+        m.execute(&frame(Command::RunProgram { program: 3 }), 16.0);
+        assert!(
+            !m.io().output(IN_POSITION_OUTPUT),
+            "stale in-position after RUN"
+        );
+        m.advance(30.0);
+        assert_eq!(m.status().state, State::Running);
+        assert_eq!(m.pose().xyz_mm, [900.0, 0.0, 700.0]);
+        m.io().set_input(START_INPUT, true);
+        m.advance(30.1);
+        assert!(!m.io().output(IN_POSITION_OUTPUT));
+        m.advance(40.0);
+        assert!(m.io().output(IN_POSITION_OUTPUT));
         assert_eq!(m.status().state, State::Idle);
     }
 

@@ -52,8 +52,15 @@ pub struct MotionParams {
     pub overhead_s: [f64; 3],
     /// Shortest time of one stop move, per zone (fine, medium, coarse), seconds (Table 6.2).
     pub floor_s: [f64; 3],
-    /// Shortest time of one flying move of a stored program, per zone, seconds.
+    /// Shortest time of one flying move of a stored program, per zone, seconds: the robot
+    /// computer's interpretation time for the next instruction ([`INTERPRETATION_S`]).
     pub flying_floor_s: [f64; 3],
+    /// Commanded speeds below this have no plateau ([`PLATEAU_MIN_SPEED_MM_S`]).
+    pub plateau_min_speed_mm_s: f64,
+    /// Shortest stop move below that speed, both zones ([`LOW_SPEED_FLOOR_S`]).
+    pub low_speed_floor_s: f64,
+    /// The arm stands still while the robot computer serves the link (seed 001 §4.1.2).
+    pub link_idles_arm: bool,
     /// Time of a home synchronisation, seconds.
     pub home_s: f64,
     /// The home pose.
@@ -68,7 +75,10 @@ impl Default for MotionParams {
             accel_mm_s2: 4000.0,
             overhead_s: [0.50, 0.385, 0.30],
             floor_s: [0.71, 0.54, 0.40],
-            flying_floor_s: [0.0; 3],
+            flying_floor_s: INTERPRETATION_S,
+            plateau_min_speed_mm_s: PLATEAU_MIN_SPEED_MM_S,
+            low_speed_floor_s: LOW_SPEED_FLOOR_S,
+            link_idles_arm: true,
             home_s: 3.0,
             home: EyePose {
                 xyz_mm: [900.0, 0.0, 800.0],
@@ -78,6 +88,23 @@ impl Default for MotionParams {
         }
     }
 }
+
+/// Commanded speed below which a stop move has no plateau, mm/s (seed 001 §6.7: "Speeds of less
+/// than 500 mm/s do not have a plateau; the total time increases with segment length"; at
+/// 100 mm/s Table 6.2 reads about 550 ms for a 2 mm move in both modes).
+pub const PLATEAU_MIN_SPEED_MM_S: f64 = 500.0;
+
+/// Shortest stop move below [`PLATEAU_MIN_SPEED_MM_S`], s: Table 6.2's intercept at 100 mm/s,
+/// "an intercept of 550 msec" for both modes (seed 001 §6.7); the time then grows with the
+/// segment length from the first millimetres on.
+pub const LOW_SPEED_FLOOR_S: f64 = 0.55;
+
+/// Interpretation time of a flying move of a stored program, per zone (fine, medium, coarse), s.
+/// Seed 001 App. B: the fastest windings of the 50-segment cylinder paths that still kept the
+/// path ran fine at 0.20 rev/s (10.0 s, 0.20 s per instruction) and medium at 0.30 rev/s (6.7 s,
+/// 0.134 s per instruction); fine asks the servos to come within 1 mm before the next instruction
+/// is taken, so it needs more time per instruction. Coarse is not used for winding (§5.4.2); ours.
+pub const INTERPRETATION_S: [f64; 3] = [0.20, 0.13, 0.10];
 
 fn zone_index(z: Zone) -> usize {
     match z {
@@ -324,6 +351,63 @@ impl Trajectory {
         let i = self.moves.partition_point(|m| m.t1() <= t);
         self.moves.get(i)
     }
+    /// Shifts the whole trajectory `dt_s` later (the arm held still meanwhile).
+    pub fn delay(&mut self, dt_s: f64) {
+        self.t0 += dt_s;
+        for m in &mut self.moves {
+            m.t0 += dt_s;
+        }
+    }
+}
+
+/// The deceleration of a STOP at `t` on `traj`: from the pose and velocity there, straight on along
+/// the direction of travel, slowing at `params.accel_mm_s2` to rest (seed 001 §6.7: the servos
+/// ramp down so that the linkages do not oscillate). `None` when the arm is at rest at `t`.
+pub fn braking(traj: &Trajectory, t: f64, params: &MotionParams) -> Option<Trajectory> {
+    const DT_S: f64 = 1e-4;
+    let here = traj.pose_at(t);
+    let before = traj.pose_at(t - DT_S);
+    let vel = sub(here.xyz_mm, before.xyz_mm).map(|c| c / DT_S);
+    let v = norm(vel);
+    if v.is_nan() || v <= 1e-3 || t >= traj.t1() {
+        return None;
+    }
+    let a = params.accel_mm_s2;
+    let len = v * v / (2.0 * a);
+    let to = lerp3(
+        here.xyz_mm,
+        [
+            here.xyz_mm[0] + vel[0],
+            here.xyz_mm[1] + vel[1],
+            here.xyz_mm[2] + vel[2],
+        ],
+        len / v,
+    );
+    let profile = Profile {
+        a,
+        v,
+        t_up: 0.0,
+        t_cruise: 0.0,
+        t_down: v / a,
+    };
+    let m = Move {
+        instruction: 0,
+        t0: t,
+        duration: v / a,
+        target_mm: to,
+        zone: Zone::Fine,
+        stops: true,
+        pieces: vec![Piece::new(here.xyz_mm, to, false)],
+        profile,
+        stretch: 1.0,
+        q0: here.q,
+        q1: here.q,
+    };
+    Some(Trajectory {
+        moves: vec![m],
+        start: here,
+        t0: t,
+    })
 }
 
 /// Speeds in force: base and maximum, mm/s.
@@ -390,10 +474,15 @@ pub fn plan(
         } else {
             let next = targets[k + 1];
             let (d_in, d_out) = (sub(target, pos), sub(next, target));
+            // The corner is cut from where the arm would have to start braking to stop at the
+            // point, v²/2a: slow moves pass almost through their points, fast ones cut up to the
+            // zone (seed 001 §5.4.2: the smoothing grows with speed; the zone bounds it).
+            let v = (p.speed.value() * speeds.base_mm_s).min(speeds.max_mm_s);
             let r = p
                 .flags
                 .zone
                 .radius_mm()
+                .min(v * v / (2.0 * params.accel_mm_s2))
                 .min(norm(d_in) / 2.0)
                 .min(norm(d_out) / 2.0);
             let a = if norm(d_in) > 0.0 {
@@ -417,8 +506,13 @@ pub fn plan(
             .max(1.0);
         let profile = Profile::new(len, v, params.accel_mm_s2, from_rest, stops);
         let motion = profile.duration();
+        let floor = if v >= params.plateau_min_speed_mm_s {
+            params.floor_s[zi]
+        } else {
+            params.low_speed_floor_s
+        };
         let (duration, stretch) = if stops {
-            (params.floor_s[zi].max(params.overhead_s[zi] + motion), 1.0)
+            (floor.max(params.overhead_s[zi] + motion), 1.0)
         } else if motion < params.flying_floor_s[zi] && motion > 0.0 {
             (
                 params.flying_floor_s[zi],
@@ -487,27 +581,169 @@ mod tests {
         tr.t1()
     }
 
-    /// Table 6.2 (seed 001 §6.7): vertical moves, isolated, fine and medium.
+    /// Table 6.2 of seed 001 (§6.7), as transcribed in docs/protocol.md §8.1: isolated vertical
+    /// moves, ms, per distance (mm): 2000 mm/s fine and medium, 1000 fine and medium, 500 fine
+    /// and medium. The thesis's times were taken with the PC's 18.2 Hz timer, so they come in
+    /// steps of about 55 ms.
+    const TABLE_6_2: [(f64, [f64; 6]); 18] = [
+        (300.0, [1050.0, 930.0, 1100.0, 930.0, 1260.0, 1210.0]),
+        (250.0, [1050.0, 880.0, 1050.0, 880.0, 1100.0, 980.0]),
+        (200.0, [930.0, 820.0, 930.0, 880.0, 990.0, 880.0]),
+        (150.0, [880.0, 710.0, 880.0, 830.0, 880.0, 770.0]),
+        (100.0, [820.0, 710.0, 830.0, 830.0, 770.0, 770.0]),
+        (80.0, [820.0, 660.0, 770.0, 770.0, 770.0, 770.0]),
+        (60.0, [770.0, 660.0, 770.0, 770.0, 770.0, 770.0]),
+        (50.0, [770.0, 600.0, 770.0, 770.0, 770.0, 770.0]),
+        (45.0, [770.0, 600.0, 770.0, 770.0, 770.0, 770.0]),
+        (40.0, [770.0, 600.0, 770.0, 770.0, 770.0, 770.0]),
+        (35.0, [710.0, 600.0, 720.0, 610.0, 770.0, 600.0]),
+        (30.0, [710.0, 600.0, 710.0, 610.0, 710.0, 600.0]),
+        (25.0, [710.0, 540.0, 710.0, 550.0, 710.0, 550.0]),
+        (20.0, [710.0, 540.0, 710.0, 550.0, 710.0, 550.0]),
+        (15.0, [710.0, 540.0, 710.0, 550.0, 710.0, 550.0]),
+        (10.0, [710.0, 540.0, 710.0, 550.0, 710.0, 550.0]),
+        (5.0, [710.0, 540.0, 710.0, 550.0, 710.0, 550.0]),
+        (2.0, [710.0, 540.0, 710.0, 550.0, 710.0, 550.0]),
+    ];
+
+    /// The 100 mm/s rows that can be read from the extracted table (300 and 250 mm) and the
+    /// text's intercept of 550 ms (2 mm): (distance, fine ms, medium ms).
+    const TABLE_6_2_100: [(f64, f64, f64); 3] = [
+        (300.0, 3620.0, 3520.0),
+        (250.0, 3130.0, 2980.0),
+        (2.0, 550.0, 550.0),
+    ];
+
+    /// Rows the model misses (speed mm/s, zone, distance mm): medium at 1000 and 500 mm/s from
+    /// 40 to 100 mm, where the thesis measured about 770 ms, as for fine, but 600–610 ms at 35 mm
+    /// and 600–710 ms at 2000 mm/s. A step of three timer ticks between 35 and 40 mm that no
+    /// acceleration, overhead or plateau explains; documented in docs/protocol.md §8.1.
+    const MISSED: [(f64, Zone, f64); 11] = [
+        (1000.0, Zone::Medium, 100.0),
+        (1000.0, Zone::Medium, 80.0),
+        (500.0, Zone::Medium, 80.0),
+        (1000.0, Zone::Medium, 60.0),
+        (500.0, Zone::Medium, 60.0),
+        (1000.0, Zone::Medium, 50.0),
+        (500.0, Zone::Medium, 50.0),
+        (1000.0, Zone::Medium, 45.0),
+        (500.0, Zone::Medium, 45.0),
+        (1000.0, Zone::Medium, 40.0),
+        (500.0, Zone::Medium, 40.0),
+    ];
+
+    /// Every row of Table 6.2 within ±10 % or ±50 ms (whichever is wider), except the rows in
+    /// [`MISSED`], which must miss (so that the list stays exact).
     #[test]
-    fn table_6_2_times() {
-        // (distance mm, speed mm/s, zone, Table 6.2 time s, tolerance s). At 100 mm/s the
-        // thesis reads an intercept near 550 ms for both modes; the model's medium overhead is
-        // set from the 2000 mm/s column, hence the wider tolerance there.
-        let rows: [(f64, f64, Zone, f64, f64); 8] = [
-            (2.0, 2000.0, Zone::Fine, 0.710, 0.005),
-            (25.0, 2000.0, Zone::Fine, 0.710, 0.005),
-            (2.0, 2000.0, Zone::Medium, 0.540, 0.005),
-            (300.0, 2000.0, Zone::Fine, 1.050, 0.03),
-            (100.0, 2000.0, Zone::Fine, 0.820, 0.03),
-            (300.0, 2000.0, Zone::Medium, 0.930, 0.03),
-            (10.0, 1000.0, Zone::Medium, 0.550, 0.015),
-            (300.0, 100.0, Zone::Medium, 3.520, 0.15),
-        ];
-        for (d, v, z, want, tol) in rows {
-            let got = isolated(d, v, z);
+    fn table_6_2_row_by_row() {
+        let mut rows: Vec<(f64, Zone, f64, f64)> = Vec::new();
+        for (d, times) in TABLE_6_2 {
+            for (k, t) in times.iter().enumerate() {
+                let v = [2000.0, 1000.0, 500.0][k / 2];
+                let z = [Zone::Fine, Zone::Medium][k % 2];
+                rows.push((v, z, d, *t));
+            }
+        }
+        for (d, fine, medium) in TABLE_6_2_100 {
+            rows.push((100.0, Zone::Fine, d, fine));
+            rows.push((100.0, Zone::Medium, d, medium));
+        }
+        let mut missed = Vec::new();
+        for (v, z, d, want_ms) in rows {
+            let got_ms = isolated(d, v, z) * 1000.0;
+            let tol_ms = (0.1 * want_ms).max(50.0);
+            if (got_ms - want_ms).abs() > tol_ms {
+                missed.push((v, z, d));
+                eprintln!("{d} mm at {v} mm/s {z:?}: {got_ms:.0} ms, Table 6.2 {want_ms} ms");
+            }
+        }
+        assert_eq!(missed, MISSED);
+    }
+
+    /// The plateau vanishes below 500 mm/s (§6.7): a short move at 100 mm/s takes the 550 ms
+    /// intercept in both modes, not the 710/540 ms plateau.
+    #[test]
+    fn no_plateau_below_500_mm_s() {
+        assert!((isolated(2.0, 100.0, Zone::Fine) - 0.55).abs() < 1e-9);
+        assert!((isolated(2.0, 100.0, Zone::Medium) - 0.55).abs() < 1e-9);
+        assert!((isolated(2.0, 500.0, Zone::Fine) - 0.71).abs() < 1e-9);
+        // At 100 mm/s the time grows with the distance from 5 mm on.
+        assert!(isolated(5.0, 100.0, Zone::Fine) > 0.56);
+    }
+
+    /// App. B: for short segments of a stored program fine takes longer than medium (the
+    /// interpretation time of each zone), and a long segment takes its motion time in both.
+    #[test]
+    fn fine_flying_moves_are_slower_than_medium_on_short_segments() {
+        let run = |zone: Zone, step: f64| {
+            let start = EyePose {
+                xyz_mm: [900.0, 0.0, 500.0],
+                ..EyePose::default()
+            };
+            let moves: Vec<(u16, Positioning)> = (1..=20u16)
+                .map(|n| (n, pos([900.0, 0.0, 500.0 + step * f64::from(n)], zone, 0.1)))
+                .collect();
+            let tr = plan(
+                start,
+                &moves,
+                Speeds::default(),
+                &MotionParams::default(),
+                0.0,
+                false,
+            );
+            // The flying moves 2..19 only.
+            tr.moves[18].t1() - tr.moves[0].t1()
+        };
+        // 10 mm at 100 mm/s: 0.1 s of motion, below both interpretation times.
+        assert!((run(Zone::Fine, 10.0) - 18.0 * INTERPRETATION_S[0]).abs() < 1e-9);
+        assert!((run(Zone::Medium, 10.0) - 18.0 * INTERPRETATION_S[1]).abs() < 1e-9);
+        // 50 mm at 100 mm/s: 0.5 s, above both.
+        assert!((run(Zone::Fine, 50.0) - run(Zone::Medium, 50.0)).abs() < 1e-9);
+    }
+
+    /// Corners are cut by the braking distance v²/2a, bounded by the zone: slow moves pass close
+    /// to their points, fast ones cut up to the zone.
+    #[test]
+    fn corner_cutting_grows_with_speed_up_to_the_zone() {
+        let miss = |zone: Zone, frac: f64| {
+            let start = EyePose {
+                xyz_mm: [800.0, 0.0, 500.0],
+                ..EyePose::default()
+            };
+            let moves = [
+                (1, pos([1000.0, 0.0, 500.0], zone, frac)),
+                (2, pos([1000.0, 200.0, 500.0], zone, frac)),
+            ];
+            let tr = plan(
+                start,
+                &moves,
+                Speeds::default(),
+                &MotionParams::default(),
+                0.0,
+                false,
+            );
+            let mut best = f64::MAX;
+            let mut t = tr.t0();
+            while t <= tr.t1() {
+                best = best.min(norm(sub(tr.pose_at(t).xyz_mm, [1000.0, 0.0, 500.0])));
+                t += 0.0002;
+            }
+            best
+        };
+        // v = frac × 1000 mm/s; r = min(zone, v²/8000); the chord passes r/√2 from the corner.
+        for (frac, zone, r) in [
+            (0.05, Zone::Medium, 50.0f64 * 50.0 / 8000.0),
+            (0.1, Zone::Medium, 100.0 * 100.0 / 8000.0),
+            (0.2, Zone::Medium, 200.0 * 200.0 / 8000.0),
+            (0.5, Zone::Medium, 10.0),
+            (2.0, Zone::Medium, 10.0),
+            (0.5, Zone::Fine, 1.0),
+        ] {
+            let got = miss(zone, frac);
+            let want = r / 2f64.sqrt();
             assert!(
-                (got - want).abs() <= tol,
-                "{d} mm at {v} mm/s {z:?}: {got:.3} s, Table 6.2 {want:.3} s"
+                (got - want).abs() < 0.02 * want + 0.01,
+                "{frac} {zone:?}: {got} mm, {want} mm"
             );
         }
     }

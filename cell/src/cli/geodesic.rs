@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use cell::mesh;
 use clap::Args;
 use nalgebra::{Point3, Vector3};
-use paths::mesh::trace::{DEFAULT_CREASE_DEG, DEFAULT_START_TOLERANCE_MM, Mode, TraceOptions};
+use paths::mesh::trace::{
+    DEFAULT_CREASE_DEG, DEFAULT_START_TOLERANCE_MM, Mode, Stop, TraceOptions,
+};
 use paths::mesh::{Closure, DEFAULT_WELD_MM};
 use serde::Serialize;
 
@@ -18,7 +20,9 @@ use super::Failure;
 pub struct GeodesicArgs {
     /// The mesh file (.stl, binary or ASCII, or .obj).
     pub mesh: PathBuf,
-    /// Start point, mm (`X,Y,Z`); it is moved onto the nearest surface point.
+    /// Start point, mm (`X,Y,Z`), within 1 mm of the surface (it is moved onto the nearest
+    /// surface point; farther away, the message gives that point). On examples/sbend.stl:
+    /// `--start 2.5,28.5,100`.
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
     pub start: [f64; 3],
     /// Heading, degrees, from the axis projected into the tangent plane, counter-clockwise seen
@@ -28,7 +32,7 @@ pub struct GeodesicArgs {
     /// Reference axis (`X,Y,Z`), also the direction heights are measured along.
     #[arg(long, value_parser = parse_triple, default_value = "0,0,1", allow_hyphen_values = true)]
     pub axis: [f64; 3],
-    /// Longest path, mm.
+    /// Longest path, mm (at most 100000).
     #[arg(long, default_value_t = 1000.0)]
     pub length: f64,
     /// Stop at these heights along the axis (`LO,HI`, mm); the path stops at boundary and crease
@@ -56,7 +60,7 @@ pub struct GeodesicArgs {
     #[arg(long, default_value_t = DEFAULT_CREASE_DEG)]
     pub crease_deg: f64,
     /// Smooth the traced path (B-spline) and print it cut into this many equal-length segments,
-    /// end points projected onto the mesh, with the largest raw-to-smoothed distance.
+    /// end points projected onto the mesh, with the largest raw-to-smoothed distance (1–10000).
     #[arg(long)]
     pub segments: Option<usize>,
     /// Print one JSON document instead of text.
@@ -113,6 +117,17 @@ struct Segments {
     max_deviation_mm: f64,
 }
 
+/// Why the trace stopped, in words for the summary line.
+fn stop_reason(stop: Stop) -> &'static str {
+    match stop {
+        Stop::Length => "at the --length limit",
+        Stop::Boundary => "at a boundary or crease edge (an end cap's rim)",
+        Stop::Height => "at the edge of the --heights range",
+        Stop::Stuck => "at a vertex it cannot pass",
+        Stop::CrossingLimit => "at the limit of edge crossings",
+    }
+}
+
 /// Runs `windcell geodesic`.
 pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
     let options = TraceOptions {
@@ -127,8 +142,18 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             Mode::Smooth
         },
     };
-    // Check the options before the (possibly long) load.
-    options.validate().map_err(Failure::input)?;
+    // Check the options and limits before the (possibly long) load.
+    options
+        .validate()
+        .map_err(|e| Failure::input(format!("geodesic: {e}")))?;
+    if let Some(n) = args.segments
+        && !(1..=paths::limits::MAX_SEGMENTS).contains(&n)
+    {
+        return Err(Failure::input(format!(
+            "geodesic: --segments {n} must lie in 1..={} (docs/ARCHITECTURE.md, \"Limits\")",
+            paths::limits::MAX_SEGMENTS
+        )));
+    }
     let tracer = mesh::load(&args.mesh, args.weld_mm, Closure::Open, args.crease_deg)
         .map_err(Failure::from_cell)?;
     let path = tracer
@@ -138,7 +163,13 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             DEFAULT_START_TOLERANCE_MM,
             &options,
         )
-        .map_err(|e| Failure::input(format!("{}: {e}", args.mesh.display())))?;
+        .map_err(|e| {
+            let [x, y, z] = args.start;
+            Failure::input(format!(
+                "geodesic --start {x},{y},{z} on {}: {e}",
+                args.mesh.display()
+            ))
+        })?;
     // Faces as the file numbers them (the loader sorts triangles for locality).
     let file_face = |f: &u32| tracer.mesh().file_triangle(*f as usize) as u32;
     let segments = match args.segments {
@@ -179,11 +210,11 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
             out += &format!("{:.4} {:.4} {:.4} {f}\n", p.x, p.y, p.z);
         }
         out += &format!(
-            "# {} points, {:.3} mm, {} crossings, stopped at a {}\n",
+            "# {} points, {:.3} mm long, {} triangle edges crossed, stopped {}\n",
             path.points.len(),
             path.length_mm,
             path.crossings,
-            path.stop.name()
+            stop_reason(path.stop)
         );
         if let Some(seg) = &segments {
             out += "# smoothed, equal-length segment ends: x_mm y_mm z_mm face\n";

@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 pub mod argument_error;
 pub mod geodesic;
 pub mod jog;
+pub mod lathe;
 pub mod plan;
 pub mod run;
 pub mod sim_cell;
@@ -83,6 +84,8 @@ pub enum Command {
     Sweep(sweep::SweepArgs),
     /// Mesh a job's tube mandrel (TRIASYM) and write it as STL.
     Triasym(triasym::TriasymArgs),
+    /// The lathe winder: run a part program on the servo axes, choose the loop gain.
+    Lathe(lathe::LatheArgs),
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
@@ -110,5 +113,6 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Geodesic(args) => geodesic::run(args),
         Command::Sweep(args) => sweep::run(args),
         Command::Triasym(args) => triasym::run(args),
+        Command::Lathe(args) => lathe::run(args),
     }
 }

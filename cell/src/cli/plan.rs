@@ -32,19 +32,26 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
     output::check_dir(&args.out).map_err(Failure::from_cell)?;
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
-    let files = tool::control_files(&job, &plan);
+    let files = tool::control_files(&job, &plan).map_err(Failure::from_cell)?;
     output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
         .map_err(Failure::from_cell)?;
     let mut out = String::new();
     if args.json {
-        let report = PlanReport::new(&plan);
+        let report = PlanReport::new(&job, &plan);
         let mut value = serde_json::to_value(&report).map_err(Failure::runtime)?;
-        // Mesh mandrels and imported paths: how far smoothing moved the path.
+        // Mesh mandrels and imported paths: how far smoothing moved the path; imported paths:
+        // how far each drawing point lies from the mandrel surface.
         if let Some(paths) = value.get_mut("paths").and_then(|p| p.as_array_mut()) {
             for (json, planned) in paths.iter_mut().zip(&plan.paths) {
                 if let (Some(obj), Some(d)) = (json.as_object_mut(), planned.smoothing_deviation_mm)
                 {
                     obj.insert("smoothing_deviation_mm".into(), d.into());
+                }
+                if let (Some(obj), Some(d)) = (json.as_object_mut(), &planned.surface_distances_mm)
+                {
+                    let worst = d.iter().fold(0.0f64, |w, x| w.max(x.abs()));
+                    obj.insert("dxf_surface_distance_mm".into(), d.clone().into());
+                    obj.insert("dxf_max_surface_distance_mm".into(), worst.into());
                 }
             }
         }
@@ -52,25 +59,32 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
         out.push('\n');
     } else {
         for p in &plan.paths {
-            let limited = p.plan.segments.iter().filter(|s| s.speed_limited).count();
+            let paced = p.plan.segments.iter().filter(|s| s.robot_paced).count();
             out += &format!(
-                "{}: {} segments, {} steps, drift ≤ {:.4}°, eye clearance ≥ {:.1} mm{}{}\n",
+                "{}: {} segments, {} mandrel motor steps, drift ≤ {:.4}° from the ideal mandrel \
+                 angle, payout eye ≥ {:.1} mm from the mandrel surface, fibre enters the eye at \
+                 ≤ {:.2}° to its axis{}{}\n",
                 p.name,
                 p.plan.segments.len(),
                 p.plan.segments.iter().map(|s| s.steps).sum::<i64>(),
                 p.plan.max_drift_rad.to_degrees(),
                 p.plan.min_eye_clearance_mm,
+                p.plan.max_entry_angle_rad.to_degrees(),
                 p.smoothing_deviation_mm
-                    .map(|d| format!(", smoothing deviation ≤ {d:.4} mm"))
+                    .map(|d| format!(", smoothed path ≤ {d:.4} mm from the traced one"))
                     .unwrap_or_default(),
-                if limited > 0 {
-                    format!(", {limited} segments capped at the maximum speed")
+                if paced > 0 {
+                    format!(", {paced} segments at the robot's time (mandrel slowed)")
                 } else {
                     String::new()
                 }
             );
         }
-        out += &format!("wrote {} files to {}\n", files.len(), args.out.display());
+        out += &format!(
+            "wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
+            files.len(),
+            args.out.display()
+        );
     }
     super::print(&out)
 }

@@ -88,20 +88,25 @@ fn load(args: &RunArgs) -> Result<(Loaded, Cell, Reach, String), Failure> {
     let (loaded, job_cell, reach, name) = if is_job {
         let (job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
         let plan = cell::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
-        let files = batch::files_of_job(&cell::tool::control_files(&job, &plan));
+        let files = batch::files_of_job(
+            &cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+        );
         let dir = args.input.parent().unwrap_or(Path::new("."));
         let mut loaded =
             batch::from_files(&files, mode, dir, &dir.join("RUN")).map_err(Failure::from_cell)?;
         loaded.sequence_path = args.input.clone();
-        let reach = job
-            .cell
-            .robot
-            .as_ref()
-            .map_or_else(Reach::default, |r| Reach {
-                max_radius_mm: *r.reach_max_mm.get_ref(),
-                min_radius_mm: *r.reach_min_mm.get_ref(),
-                z_range_mm: (*r.z_min_mm.get_ref(), *r.z_max_mm.get_ref()),
-            });
+        // The arm's envelope: the eye is at most the two links and the eye mechanism from the
+        // shoulder (the full five-axis check is the plan's, which this job has just passed).
+        let arm = cell::tool::arm(&job);
+        let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
+        let reach = Reach {
+            max_radius_mm: stretch,
+            min_radius_mm: 0.0,
+            z_range_mm: (
+                arm.shoulder_height_mm - stretch,
+                arm.shoulder_height_mm + stretch,
+            ),
+        };
         let c = Cell::of_job(&job, &args.input).map_err(Failure::from_cell)?;
         (loaded, Some(c), reach, job.name.get_ref().clone())
     } else {

@@ -1,4 +1,4 @@
-//! `windcell sim-indexer --pty [--dialect x|grbl]`: the mandrel indexer simulator on a
+//! `windcell sim-indexer [--pty] [--dialect x|grbl]`: the mandrel indexer simulator on a
 //! pseudo-terminal (issue 5; spec/protocols.md §6 "Simulator").
 //!
 //! Prints the slave device path on one line, serves the simulated indexer on the master side in
@@ -28,7 +28,8 @@ pub enum Dialect {
 #[derive(Debug, Args)]
 #[command(allow_negative_numbers = true)]
 pub struct SimIndexerArgs {
-    /// Serve on a new pseudo-terminal and print its device path.
+    /// Serve on a new pseudo-terminal and print its device path. This is the only transport and
+    /// the default: the flag may be given or left out.
     #[arg(long)]
     pub pty: bool,
     /// Command language.
@@ -48,11 +49,6 @@ pub struct SimIndexerArgs {
 
 /// Runs the simulator until SIGINT or SIGTERM.
 pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
-    if !args.pty {
-        return Err(Failure::input(
-            "sim-indexer: --pty is required (the simulator serves on a pseudo-terminal)",
-        ));
-    }
     if !(args.pull_in_sps.is_finite() && args.pull_in_sps > 0.0) {
         return Err(Failure::input(format!(
             "sim-indexer: --pull-in-sps {} must be a positive number",

@@ -1,4 +1,4 @@
-//! `windcell sim-robot --pty [--checksum sum8|crc16] [--nak-malformed]`: the ASEA robot-computer
+//! `windcell sim-robot [--pty] [--checksum sum8|crc16] [--nak-malformed]`: the ASEA robot-computer
 //! simulator on a pseudo-terminal (seed 001 §5.2; docs/protocol.md).
 //!
 //! Prints the slave device path on one line, serves the simulated robot computer on the master
@@ -29,7 +29,8 @@ pub enum CheckValue {
 #[derive(Debug, Args)]
 #[command(allow_negative_numbers = true)]
 pub struct SimRobotArgs {
-    /// Serve on a new pseudo-terminal and print its device path.
+    /// Serve on a new pseudo-terminal and print its device path. This is the only transport and
+    /// the default: the flag may be given or left out.
     #[arg(long)]
     pub pty: bool,
     /// Check value after ETX.
@@ -48,11 +49,6 @@ pub struct SimRobotArgs {
 
 /// Runs the simulator until SIGINT or SIGTERM.
 pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
-    if !args.pty {
-        return Err(Failure::input(
-            "sim-robot: --pty is required (the simulator serves on a pseudo-terminal)",
-        ));
-    }
     if !(args.home_s.is_finite() && args.home_s >= 0.0) {
         return Err(Failure::input(format!(
             "sim-robot: --home-s {} must be a number of seconds, 0 or more",

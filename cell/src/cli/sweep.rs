@@ -63,12 +63,12 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
         })
         .collect();
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
-    let files = tool::control_files(&job, &plan);
+    let files = tool::control_files(&job, &plan).map_err(Failure::from_cell)?;
     output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
         .map_err(Failure::from_cell)?;
     let out = if args.json {
-        let mut s =
-            serde_json::to_string_pretty(&PlanReport::new(&plan)).map_err(Failure::runtime)?;
+        let mut s = serde_json::to_string_pretty(&PlanReport::new(&job, &plan))
+            .map_err(Failure::runtime)?;
         s.push('\n');
         s
     } else {
@@ -78,7 +78,8 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
             .filter_map(|p| p.smoothing_deviation_mm)
             .fold(0.0f64, f64::max);
         format!(
-            "{} paths of {} segments planned, smoothing deviation ≤ {worst:.4} mm\nwrote {} files to {}\n",
+            "{} paths of {} segments planned, smoothed paths ≤ {worst:.4} mm from the traced ones\n\
+             wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
             plan.paths.len(),
             pattern.segments.get_ref(),
             files.len(),

@@ -57,7 +57,12 @@ pub fn run(args: TriasymArgs) -> Result<(), Failure> {
     output::check_file(&args.out).map_err(Failure::from_cell)?;
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
     let tube = tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
-    let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(Failure::input)?;
+    let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(|e| {
+        Failure::input(format!(
+            "triasym --facets {} --spacing-mm {}: {e}",
+            args.facets, args.spacing_mm
+        ))
+    })?;
     mesh.validate(Closure::Closed).map_err(Failure::runtime)?;
     let name = job.name.get_ref();
     let bytes = if ext == "obj" {

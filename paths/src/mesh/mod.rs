@@ -409,6 +409,8 @@ pub fn with_line(error: Error, lines: &[usize]) -> Error {
             reason,
         } if t < lines.len() => Error::MeshSyntax {
             line: Some(lines[t]),
+            column: None,
+            byte: None,
             message: format!("triangle {t}: {reason}"),
         },
         other => other,
@@ -425,7 +427,62 @@ pub(crate) fn invalid(triangle: Option<usize>, reason: impl Into<String>) -> Err
 pub(crate) fn syntax(line: Option<usize>, message: impl Into<String>) -> Error {
     Error::MeshSyntax {
         line,
+        column: None,
+        byte: None,
         message: message.into(),
+    }
+}
+
+/// A binary-file error at byte `byte`.
+pub(crate) fn at_byte(byte: u64, message: impl Into<String>) -> Error {
+    Error::MeshSyntax {
+        line: None,
+        column: None,
+        byte: Some(byte),
+        message: message.into(),
+    }
+}
+
+/// `error` with a column, when it names a line of `text` but no column: the column of the first
+/// word it quotes in backticks that is on that line, else of the line's first word (the
+/// statement at fault).
+pub fn with_column(error: Error, text: &str) -> Error {
+    let Error::MeshSyntax {
+        line: Some(line),
+        column: None,
+        byte,
+        message,
+    } = error
+    else {
+        return error;
+    };
+    let row = text.lines().nth(line - 1).unwrap_or_default();
+    let quoted = message
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|q| !q.is_empty())
+        .find_map(|q| row.find(q));
+    let offset = quoted
+        .or_else(|| row.find(|c: char| !c.is_whitespace()))
+        .unwrap_or(0);
+    Error::MeshSyntax {
+        line: Some(line),
+        column: Some(row[..offset].chars().count() + 1),
+        byte,
+        message,
+    }
+}
+
+/// `error` with the byte offset of its triangle's record in a binary STL (84-byte header, 50
+/// bytes per triangle) when it names a triangle.
+pub fn with_byte(error: Error) -> Error {
+    match error {
+        Error::MeshInvalid {
+            triangle: Some(t),
+            reason,
+        } => at_byte(84 + 50 * t as u64, format!("triangle {t}: {reason}")),
+        other => other,
     }
 }
 

@@ -41,7 +41,9 @@ pub fn parse_located(text: &str) -> Result<(Mesh, Vec<usize>), Error> {
                     if index == 0 || resolved < 0 || resolved >= count {
                         return Err(syntax(
                             Some(n),
-                            format!("vertex {index} does not exist ({count} vertices so far)"),
+                            format!(
+                                "`{w}`: vertex {index} does not exist ({count} vertices so far)"
+                            ),
                         ));
                     }
                     corners.push(resolved as u32);
@@ -101,7 +103,7 @@ mod tests {
         let e = parse("v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap_err();
         assert_eq!(
             e.to_string(),
-            "line 3: vertex 3 does not exist (2 vertices so far)"
+            "line 3: `3`: vertex 3 does not exist (2 vertices so far)"
         );
         let e = parse("v 0 0\n").unwrap_err();
         assert_eq!(e.to_string(), "line 1: vertex has 2 coordinates, needs 3");

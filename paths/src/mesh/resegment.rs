@@ -158,9 +158,13 @@ pub fn smooth_and_cut(
         let at = tracer
             .locate(&Point3::from(c + inward))
             .ok_or(Error::NonFinitePoint { index })?;
+        // The angle around the axis, unwrapped from the previous point (an imported path has no
+        // angle of its own; its points must be dense enough to turn less than half a revolution).
+        let near = points.last().map_or(0.0, |p: &SurfacePoint| p.around_rad);
         points.push(SurfacePoint {
             point: at.point,
             normal: at.normal,
+            around_rad: crate::segment::around_near(&at.normal, near),
         });
         faces.push(at.face as u32);
     }
@@ -246,5 +250,35 @@ mod tests {
         }
         assert!(smooth_and_cut(&tr, &path.points, 0, 2.0).is_err());
         assert!(smooth_and_cut(&tr, &path.points[..1], 5, 2.0).is_err());
+    }
+
+    #[test]
+    fn paths_longer_than_the_limits_are_refused_before_resampling() {
+        let profile: Vec<(f64, f64)> = (0..=10).map(|i| (10.0 * i as f64, 20.0)).collect();
+        let (m, adj) = prepare(
+            &triasym::revolution(&profile, 32, true).unwrap(),
+            DEFAULT_WELD_MM,
+            Closure::Closed,
+        )
+        .unwrap();
+        let tr = Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap();
+        let on = |z: f64| Point3::new(20.0, 0.0, z);
+        for far in [1e9, 1e308, f64::MAX] {
+            let raw = [on(10.0), on(20.0), Point3::new(20.0, far, 30.0), on(40.0)];
+            assert!(
+                matches!(
+                    smooth_and_cut(&tr, &raw, 5, DEFAULT_SPACING_MM),
+                    Err(Error::OverLimit { .. })
+                ),
+                "{far}"
+            );
+        }
+        // Samples: a 50 mm path at a spacing that needs more than the most samples.
+        let spacing = 50.0 / crate::limits::MAX_PATH_SAMPLES as f64;
+        let raw = [on(10.0), on(60.0)];
+        assert!(matches!(
+            smooth_and_cut(&tr, &raw, 2, spacing * 0.99),
+            Err(Error::OverLimit { .. })
+        ));
     }
 }

@@ -8,7 +8,7 @@
 
 use nalgebra::Point3;
 
-use super::{Mesh, coordinates, invalid, syntax};
+use super::{Mesh, at_byte, coordinates, syntax};
 use crate::Error;
 
 /// A triangle soup: three corners per triangle, mm.
@@ -23,7 +23,7 @@ pub fn parse(bytes: &[u8]) -> Result<Soup, Error> {
 /// binary), so later errors about a triangle can name its line.
 pub fn parse_located(bytes: &[u8]) -> Result<(Soup, Option<Vec<usize>>), Error> {
     if bytes.is_empty() {
-        return Err(syntax(None, "the file is empty"));
+        return Err(at_byte(0, "the file is empty"));
     }
     if bytes.len() >= 84 {
         let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
@@ -43,8 +43,8 @@ pub fn parse_located(bytes: &[u8]) -> Result<(Soup, Option<Vec<usize>>), Error> 
         return parse_ascii(text).map(|(soup, lines)| (soup, Some(lines)));
     }
     if bytes.len() < 84 {
-        return Err(syntax(
-            None,
+        return Err(at_byte(
+            bytes.len() as u64,
             format!(
                 "{} bytes is too short for a binary STL (84-byte header) and it is not ASCII STL",
                 bytes.len()
@@ -52,8 +52,8 @@ pub fn parse_located(bytes: &[u8]) -> Result<(Soup, Option<Vec<usize>>), Error> 
         ));
     }
     let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
-    Err(syntax(
-        None,
+    Err(at_byte(
+        80,
         format!(
             "binary STL header says {count} triangles ({} bytes) but the file has {} bytes",
             84 + 50 * count,
@@ -64,7 +64,7 @@ pub fn parse_located(bytes: &[u8]) -> Result<(Soup, Option<Vec<usize>>), Error> 
 
 fn parse_binary(bytes: &[u8], count: usize) -> Result<Vec<[Point3<f64>; 3]>, Error> {
     if count == 0 {
-        return Err(syntax(None, "the binary STL holds no triangles"));
+        return Err(at_byte(80, "the binary STL holds no triangles"));
     }
     let mut soup = Vec::with_capacity(count);
     for (t, rec) in bytes[84..].chunks_exact(50).enumerate() {
@@ -82,8 +82,11 @@ fn parse_binary(bytes: &[u8], count: usize) -> Result<Vec<[Point3<f64>; 3]>, Err
             Point3::new(f(3), f(4), f(5)),
             Point3::new(f(6), f(7), f(8)),
         ];
-        if !tri.iter().all(|p| p.iter().all(|c| c.is_finite())) {
-            return Err(invalid(Some(t), "a coordinate is not finite"));
+        if let Some(k) = (0..9).find(|&k| !f(k).is_finite()) {
+            return Err(at_byte(
+                84 + 50 * t as u64 + 12 + 4 * k as u64,
+                format!("triangle {t}: coordinate {} is not finite", f(k)),
+            ));
         }
         soup.push(tri);
     }
@@ -303,7 +306,10 @@ mod tests {
         let cut: String = text.lines().take(9).map(|l| format!("{l}\n")).collect();
         let e = parse(cut.as_bytes()).unwrap_err();
         assert!(e.to_string().contains("missing `endsolid`"), "{e}");
-        assert_eq!(parse(b"").unwrap_err().to_string(), "the file is empty");
+        assert_eq!(
+            parse(b"").unwrap_err().to_string(),
+            "byte 0: the file is empty"
+        );
         assert!(
             parse(
                 b"  
@@ -319,13 +325,13 @@ mod tests {
             parse(&bin)
                 .unwrap_err()
                 .to_string()
-                .contains("header says 4 triangles")
+                .starts_with("byte 80: binary STL header says 4 triangles")
         );
         let mut bin = write_binary(&tetra(), "");
         bin[84 + 50 + 12..84 + 50 + 16].copy_from_slice(&f32::NAN.to_le_bytes());
         assert_eq!(
             parse(&bin).unwrap_err().to_string(),
-            "triangle 1: a coordinate is not finite"
+            "byte 146: triangle 1: coordinate NaN is not finite"
         );
         let mut empty = vec![0u8; 84];
         empty[..5].copy_from_slice(b"SOLID");

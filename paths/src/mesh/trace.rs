@@ -421,6 +421,7 @@ impl Tracer {
         })?;
         if at.distance_mm > tolerance_mm {
             return Err(Error::OffSurface {
+                nearest_mm: at.point.coords.into(),
                 distance_mm: at.distance_mm,
                 limit_mm: tolerance_mm,
             });

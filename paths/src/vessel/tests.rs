@@ -284,6 +284,7 @@ pub(crate) fn tube_job(layers: usize) -> Job {
                 lock_deg: 720.0,
                 lead_in_mm: 10.0,
                 lead_out_deg: 10.0,
+                initial_lock: true,
             });
             layers
         ],
@@ -349,6 +350,7 @@ fn tube_rules_are_enforced_with_reasons() {
             lock_deg,
             lead_in_mm,
             lead_out_deg: 10.0,
+            initial_lock: true,
         })];
         let err = job.check().unwrap_err().to_string();
         assert!(err.contains(expect), "{err}");
@@ -361,6 +363,7 @@ fn tube_rules_are_enforced_with_reasons() {
         lock_deg: 720.0,
         lead_in_mm: 2000.0,
         lead_out_deg: 10.0,
+        initial_lock: true,
     })];
     assert!(job.check().unwrap_err().to_string().contains("lead-in"));
 }

@@ -77,6 +77,7 @@ fn tube() -> Job {
                 lock_deg: 720.0,
                 lead_in_mm: 10.0,
                 lead_out_deg: 10.0,
+                initial_lock: true,
             }),
         ],
         build_up: false,
@@ -97,7 +98,7 @@ fn write(job: &Job, dialect: Dialect) -> (Recording, String) {
     )
     .unwrap();
     plan.emit(&mut w).unwrap();
-    let text = String::from_utf8(w.finish().unwrap()).unwrap();
+    let text = String::from_utf8(w.finish().unwrap().0).unwrap();
     (rec, text)
 }
 

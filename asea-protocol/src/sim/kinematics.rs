@@ -1,0 +1,129 @@
+//! Which poses the simulated arm can take (seed 001 §4.1.1: a five-axis revolute arm, base yaw,
+//! two links, wrist pitch and roll, no wrist yaw). A pose it cannot take is refused with
+//! [`RobotError::Kinematics`] (code 9), as the real controller refuses it: at once for an
+//! immediate move, at the instruction for a program (standby check or operate run).
+//!
+//! Two models behind one trait:
+//! - [`Reach`] (the default): the eye within a radius of the base axis and inside the wire's z
+//!   range. It accepts any wrist orientation.
+//! - [`ArmModel`]: the arm of [`paths::robot::Arm`]: the eye's roll axis is the quaternion's X
+//!   axis (App. A: pitch about Y, then roll about the new X; the eye mechanism sits on the roll
+//!   axis, §4.1.3), and the pose must have an inverse solution (elbow up or down) inside every
+//!   joint range. A roll axis out of the arm's vertical plane needs a wrist yaw and is refused.
+//!   It is not the default because the planner points the tool's bore, not the roll axis, along
+//!   the fibre (paths::wrist), which this arm cannot always follow.
+
+use nalgebra::{Point3, Quaternion, Unit, UnitQuaternion, Vector3};
+use paths::robot::{Arm, ElbowBranch};
+
+use crate::command::RobotError;
+
+/// A check of one target pose: eye position (mm, robot base frame) and wrist quaternion
+/// (w, x, y, z).
+pub trait Kinematics: std::fmt::Debug + Send + Sync {
+    /// `Ok` if the arm can take the pose, else the robot's error.
+    fn check(&self, eye_mm: [f64; 3], q_wxyz: [f64; 4]) -> Result<(), RobotError>;
+}
+
+/// Largest distance of the eye from the base axis in the [`Reach`] model, mm (the IRB 6/2's
+/// links, 450 + 670 mm, with the eye mechanism and wrist: ours).
+pub const REACH_MM: f64 = 1600.0;
+
+/// The radius model: the eye within `reach_mm` of the base axis, |z| within the wire range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reach {
+    /// Largest distance from the base axis, mm.
+    pub reach_mm: f64,
+}
+
+impl Default for Reach {
+    fn default() -> Self {
+        Reach { reach_mm: REACH_MM }
+    }
+}
+
+impl Kinematics for Reach {
+    fn check(&self, eye_mm: [f64; 3], _q: [f64; 4]) -> Result<(), RobotError> {
+        let radial = eye_mm[0].hypot(eye_mm[1]);
+        if radial <= self.reach_mm && eye_mm[2].abs() <= 2047.9375 {
+            Ok(())
+        } else {
+            Err(RobotError::Kinematics)
+        }
+    }
+}
+
+/// The five-axis arm of [`paths::robot::Arm`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ArmModel {
+    /// Link lengths and joint ranges.
+    pub arm: Arm,
+}
+
+impl ArmModel {
+    /// The eye's roll axis for the wrist quaternion: its X axis.
+    pub fn roll_axis(q_wxyz: [f64; 4]) -> Unit<Vector3<f64>> {
+        let q = UnitQuaternion::from_quaternion(Quaternion::new(
+            q_wxyz[0], q_wxyz[1], q_wxyz[2], q_wxyz[3],
+        ));
+        Unit::new_normalize(q * Vector3::x())
+    }
+}
+
+impl Kinematics for ArmModel {
+    fn check(&self, eye_mm: [f64; 3], q_wxyz: [f64; 4]) -> Result<(), RobotError> {
+        let eye = Point3::new(eye_mm[0], eye_mm[1], eye_mm[2]);
+        let axis = Self::roll_axis(q_wxyz);
+        for branch in [ElbowBranch::Up, ElbowBranch::Down] {
+            if let Ok(j) = self.arm.inverse(&eye, &axis, 0.0, branch)
+                && self.arm.check_joints(&j).is_ok()
+            {
+                return Ok(());
+            }
+        }
+        Err(RobotError::Kinematics)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use paths::robot::Joints;
+
+    /// The forward pose of a joint set inside the ranges is accepted; the same eye with its roll
+    /// axis turned out of the arm plane (a wrist yaw) is refused, and so is a pose beyond reach.
+    #[test]
+    fn the_arm_takes_its_own_poses_and_refuses_a_wrist_yaw() {
+        let model = ArmModel::default();
+        let j = Joints {
+            base_yaw_rad: 0.3,
+            shoulder_rad: 0.2,
+            elbow_rad: 0.1,
+            pitch_rad: -0.4,
+            roll_rad: 0.0,
+        };
+        let pose = model.arm.forward(&j);
+        let q = pose.orientation;
+        let wxyz = [q.w, q.i, q.j, q.k];
+        // The quaternion's X axis is the roll axis the forward model reports.
+        let axis = ArmModel::roll_axis(wxyz);
+        assert!((axis.as_ref() - pose.roll_axis.as_ref()).norm() < 1e-9);
+        let eye = [pose.eye_mm.x, pose.eye_mm.y, pose.eye_mm.z];
+        assert_eq!(model.check(eye, wxyz), Ok(()));
+        // Yaw the wrist 20° about the vertical at the eye: out of the arm plane.
+        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 20f64.to_radians()) * q;
+        let yawed = [yaw.w, yaw.i, yaw.j, yaw.k];
+        assert_eq!(model.check(eye, yawed), Err(RobotError::Kinematics));
+        // Twice the links' reach away.
+        assert_eq!(
+            model.check([3000.0, 0.0, 500.0], [1.0, 0.0, 0.0, 0.0]),
+            Err(RobotError::Kinematics)
+        );
+        // The radius model takes the yawed pose but not the far one.
+        assert_eq!(Reach::default().check(eye, yawed), Ok(()));
+        assert_eq!(
+            Reach::default().check([1700.0, 0.0, 0.0], wxyz),
+            Err(RobotError::Kinematics)
+        );
+    }
+}

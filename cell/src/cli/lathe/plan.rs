@@ -1,0 +1,123 @@
+//! `windcell lathe plan VESSEL.toml|JOB.wind -o DIR --dialect D [--json]`: a lathe winding job to
+//! G-code (seed 002's patterns and eye paths), with a summary.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use sequences::gcode::Dialect;
+use sequences::vessel::VesselFile;
+
+use super::Failure;
+
+/// Plan a lathe winding job (vessel TOML or FiberPath/Cyclone `.wind`) and write its G-code.
+#[derive(Debug, Args)]
+pub struct LathePlanArgs {
+    /// The job: a vessel file (TOML) or a `.wind` file.
+    pub job: PathBuf,
+    /// Directory to write `NAME.EXT` into (created if missing; nothing is written on bad input).
+    #[arg(short = 'o', long = "out", value_name = "DIR")]
+    pub out: PathBuf,
+    /// fw-cnc, mach3, grbl, linuxcnc, marlin or fanuc.
+    #[arg(long, value_parser = parse_dialect)]
+    pub dialect: Dialect,
+    /// Print the summary as one JSON document.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_dialect(name: &str) -> Result<Dialect, String> {
+    Dialect::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Dialect::ALL.iter().map(|d| d.name()).collect();
+        format!("unknown dialect `{name}` ({})", names.join(", "))
+    })
+}
+
+/// Loads a job file of either kind, checked; errors are located in the file.
+pub fn load(path: &Path) -> Result<(String, paths::vessel::Job, paths::vessel::Plan), Failure> {
+    if path.extension().is_some_and(|e| e == "wind") {
+        let (job, name) = sequences::wind::WindFile::load(path).map_err(Failure::input)?;
+        let plan = job
+            .check()
+            .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+        return Ok((name, job, plan));
+    }
+    let (loaded, text) = VesselFile::load(path).map_err(Failure::input)?;
+    let plan = loaded
+        .check(&text)
+        .map_err(|e| Failure::input(e.in_file(path)))?;
+    Ok((loaded.name, loaded.job, plan))
+}
+
+/// Runs `windcell lathe plan`.
+pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
+    let (name, job, plan) = load(&args.job)?;
+    // The dialect must carry every axis the machine uses: refuse before creating anything.
+    sequences::gcode::Writer::new(
+        std::io::sink(),
+        args.dialect,
+        job.machine.axes,
+        &Default::default(),
+    )
+    .map_err(|e| Failure::input(format!("{}: {e}", args.job.display())))?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| Failure::runtime(format!("{}: {e}", args.out.display())))?;
+    let target = args
+        .out
+        .join(format!("{name}.{}", args.dialect.extension()));
+    let staged = tempfile::NamedTempFile::new_in(&args.out)
+        .map_err(|e| Failure::runtime(format!("{}: {e}", args.out.display())))?;
+    let out = std::io::BufWriter::with_capacity(1 << 16, staged);
+    let (summary, out) =
+        cell::gcode::write_program(&plan, job.machine.axes, args.dialect, &name, out)
+            .map_err(Failure::runtime)?;
+    let staged = out
+        .into_inner()
+        .map_err(|e| Failure::runtime(format!("{}: {}", target.display(), e.error())))?;
+    staged
+        .persist(&target)
+        .map_err(|e| Failure::runtime(format!("{}: {}", target.display(), e.error)))?;
+    let text = if args.json {
+        let mut value = serde_json::to_value(&summary).map_err(Failure::runtime)?;
+        value["file"] = target.display().to_string().into();
+        let mut t = serde_json::to_string_pretty(&value).map_err(Failure::runtime)?;
+        t.push('\n');
+        t
+    } else {
+        let mut t = String::new();
+        for l in &summary.layer {
+            t += &format!(
+                "layer {} {:?}: {} circuits at {:.3}° on radius {:.3} mm, tow {:.1} m{}\n",
+                l.mark.number,
+                l.mark.kind,
+                l.mark.circuits,
+                l.mark.wind_angle_deg,
+                l.mark.winding_radius_mm,
+                l.mark.tow_length_mm / 1000.0,
+                l.pattern
+                    .map(|p| format!(
+                        ", pitch {}° ({} cycles × {} patterns), dwell {:.4}°, advance {:.4}°",
+                        p.pitch.deg(),
+                        p.cycles_per_pattern(),
+                        p.patterns_per_layer,
+                        p.dwell_deg,
+                        p.advance_deg
+                    ))
+                    .unwrap_or_default()
+            );
+        }
+        t += &format!(
+            "{} layers, {} circuits, {} lines, tow {:.1} m, time {} ({:.1} s; {:.1} s at the \
+             velocity limits alone)\nwrote {}\n",
+            summary.layers,
+            summary.circuits,
+            summary.lines,
+            summary.tow_length_mm / 1000.0,
+            cell::gcode::clock(summary.time_s),
+            summary.time_s,
+            summary.nominal_time_s,
+            target.display()
+        );
+        t
+    };
+    crate::cli::print(&text)
+}

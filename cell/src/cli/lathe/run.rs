@@ -1,0 +1,333 @@
+//! `windcell lathe run PROGRAM`: plan a part program (seed 000 Fig 9-1 format) and run it on the
+//! simulated lathe winder's PD-controlled servo axes, in simulated time or paced by the wall
+//! clock; report following error, peak velocity, acceleration and jerk and the completion time;
+//! write the actual-path trace (§9.9) as CSV.
+
+use std::io::BufRead;
+use std::path::PathBuf;
+
+use cell::lathe::{self, Progress, Setup, TraceRow};
+use clap::{Args, ValueEnum};
+use mandrel_drive::lathe::{InterruptClock, Jitter, SimulatedClock, WallClock};
+use mandrel_drive::servo::{Amplifier, LatheAxis};
+use paths::trajectory::{Interpolation, Remedy};
+use sequences::part_program::{MachineParameters, PartProgram, Position};
+use serde_json::json;
+
+use crate::cli::{Failure, print};
+
+/// Interpolation choices on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum InterpArg {
+    /// Constant velocity per block (§9.5).
+    Linear,
+    /// Uniform cubic B-spline, ends tripled (§9.6).
+    Bspline,
+    /// Stop on every point (§8.4 a).
+    PointToPoint,
+    /// Linear with parabolic blends (§8.5).
+    Blend,
+}
+
+/// Interrupt pacing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ClockArg {
+    /// Simulated time: as fast as the computer goes.
+    Sim,
+    /// The wall clock at the interrupt rate; jitter is measured and reported.
+    Real,
+}
+
+/// Run a part program on the simulated lathe winder.
+#[derive(Debug, Args)]
+pub struct LatheRunArgs {
+    /// The part program (.PRG).
+    pub program: PathBuf,
+    /// Interpolation.
+    #[arg(long, value_enum, default_value_t = InterpArg::Linear)]
+    pub interp: InterpArg,
+    /// Feed rate: the fastest axis's encoder counts per interrupt (default: the parameter
+    /// file's feed rate limit).
+    #[arg(long, value_name = "N")]
+    pub feed: Option<f64>,
+    /// FW-CNC.PAR (default: the thesis's values 20, 10, 30, 20, 4).
+    #[arg(long, value_name = "FILE")]
+    pub params: Option<PathBuf>,
+    /// Write the actual path every record-interval interrupts as CSV.
+    #[arg(long, value_name = "FILE")]
+    pub trace: Option<PathBuf>,
+    /// Report as JSON on standard output.
+    #[arg(long)]
+    pub json: bool,
+    /// Interrupt pacing.
+    #[arg(long, value_enum, default_value_t = ClockArg::Sim)]
+    pub clock: ClockArg,
+    /// Interrupt rate, Hz (1 … 1000).
+    #[arg(long, value_name = "HZ", default_value_t = 200.0)]
+    pub rate: f64,
+    /// Servo amplifier gain K_amp (voltage amplifier, Ch. 7).
+    #[arg(long, default_value_t = 0.45)]
+    pub k_amp: f64,
+    /// Part zero from machine zero as X_MM,Y_MM,A_DEG (default: the program's `(PART ZERO …)`
+    /// comment, else 150,10,0).
+    #[arg(long, value_name = "X,Y,A")]
+    pub part_zero: Option<String>,
+    /// Stop before every block and wait for Enter on standard input (seed 003 step-by-step).
+    #[arg(long)]
+    pub single_block: bool,
+    /// Circuits per layer, for the layer counter of the progress display.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub circuits_per_layer: usize,
+}
+
+fn parse_part_zero(text: &str) -> Result<Position, Failure> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| Failure::input(format!("--part-zero: '{text}' is not X_MM,Y_MM,A_DEG")))?;
+    match v.as_slice() {
+        [x, y, a] if v.iter().all(|c| c.is_finite()) => Ok(Position {
+            a_deg: *a,
+            x_mm: *x,
+            y_mm: *y,
+        }),
+        _ => Err(Failure::input(format!(
+            "--part-zero: '{text}' is not X_MM,Y_MM,A_DEG"
+        ))),
+    }
+}
+
+/// Runs `windcell lathe run`.
+pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
+    let program = PartProgram::load(&args.program).map_err(Failure::input)?;
+    let params = match &args.params {
+        Some(p) => MachineParameters::load(p).map_err(Failure::input)?,
+        None => MachineParameters::default(),
+    };
+    let feed = args.feed.unwrap_or(f64::from(params.feed_limit));
+    if !(feed > 0.0 && feed.is_finite()) {
+        return Err(Failure::input(format!("--feed: {feed} must be > 0")));
+    }
+    if !(1.0..=1000.0).contains(&args.rate) {
+        return Err(Failure::input(format!(
+            "--rate: {} Hz is outside 1 … 1000 Hz",
+            args.rate
+        )));
+    }
+    if args.circuits_per_layer == 0 {
+        return Err(Failure::input("--circuits-per-layer: must be ≥ 1"));
+    }
+    let knots = params.knots_per_segment as usize;
+    let interpolation = match args.interp {
+        InterpArg::Linear => Interpolation::Linear,
+        InterpArg::Bspline => Interpolation::BSpline {
+            knots_per_segment: knots,
+        },
+        InterpArg::PointToPoint => Interpolation::PointToPoint,
+        InterpArg::Blend => Interpolation::ParabolicBlend,
+    };
+    let mut setup = Setup {
+        interpolation,
+        feed,
+        params,
+        interrupt_hz: args.rate,
+        amplifier: Amplifier::Voltage { k_amp: args.k_amp },
+        single_block: args.single_block,
+        ..Setup::default()
+    };
+    if let Some(z) = lathe::part_zero_of(&program) {
+        setup.part_zero = z;
+    }
+    if let Some(text) = &args.part_zero {
+        setup.part_zero = parse_part_zero(text)?;
+    }
+    // Everything that can be refused is refused here, before any motion.
+    let plan = lathe::plan(&program, &args.program, &setup).map_err(Failure::from_cell)?;
+    let mut controller = lathe::start_at_part_zero(&setup).map_err(Failure::from_cell)?;
+
+    // Deviation report: how far the planned path passes from each given point.
+    let tolerance = nalgebra::Vector3::new(
+        0.5 * LatheAxis::A.counts_per_unit(),
+        0.5 * LatheAxis::X.counts_per_unit(),
+        0.5 * LatheAxis::Y.counts_per_unit(),
+    );
+    let mut deviations = Vec::new();
+    for run in &plan.runs {
+        for d in run.trajectory.deviations(&tolerance) {
+            if d.exceeds && d.index > 0 {
+                let at = run.blocks[d.index - 1];
+                let offset: [f64; 3] =
+                    std::array::from_fn(|i| d.offset[i] / LatheAxis::ALL[i].counts_per_unit());
+                deviations.push((at, offset, d.remedies.clone()));
+            }
+        }
+    }
+
+    let mut trace: Vec<TraceRow> = Vec::new();
+    let every = if args.trace.is_some() {
+        u64::from(setup.params.record_interval)
+    } else {
+        0
+    };
+    let mut sim_clock = SimulatedClock;
+    let mut wall = match args.clock {
+        ClockArg::Real => Some(WallClock::new(args.rate).map_err(Failure::input)?),
+        ClockArg::Sim => None,
+    };
+    let clock: &mut dyn InterruptClock = match wall.as_mut() {
+        Some(w) => w,
+        None => &mut sim_clock,
+    };
+    let quiet = args.json;
+    let per_layer = args.circuits_per_layer;
+    let single = args.single_block;
+    let mut stdin = std::io::stdin().lock();
+    let mut on_progress = |p: Progress| match p {
+        Progress::Circuit { done, total } => {
+            if !quiet {
+                eprintln!(
+                    "circuit {}/{total} wound, layer {} of {}",
+                    done + 1,
+                    done / per_layer + 1,
+                    total.div_ceil(per_layer)
+                );
+            }
+        }
+        Progress::Stop => {
+            if !quiet {
+                eprintln!("M00 program stop");
+            }
+        }
+        Progress::RunStart { run } => {
+            if single {
+                let at = plan.runs[run].blocks[0];
+                eprint!(
+                    "block {}:{}:{}: press Enter to run it ",
+                    args.program.display(),
+                    at.line,
+                    at.column
+                );
+                let mut line = String::new();
+                let _ = stdin.read_line(&mut line);
+            }
+        }
+    };
+    let report = lathe::execute(
+        &plan,
+        &setup,
+        &mut controller,
+        clock,
+        every,
+        &mut trace,
+        &mut on_progress,
+        &mut |_, _, _| {},
+    )
+    .map_err(Failure::from_cell)?;
+    let jitter: Option<Jitter> = wall.as_ref().map(WallClock::jitter);
+    if let Some(path) = &args.trace {
+        lathe::write_trace(path, &trace).map_err(Failure::from_cell)?;
+    }
+
+    let interp_name = match args.interp {
+        InterpArg::Linear => "linear",
+        InterpArg::Bspline => "bspline",
+        InterpArg::PointToPoint => "point-to-point",
+        InterpArg::Blend => "blend",
+    };
+    let remedy_name = |r: &Remedy| match r {
+        Remedy::TriplePoint => "triple the point",
+        Remedy::InsertMidpoints => "insert the chord midpoints",
+        Remedy::UseLinear => "use linear interpolation here",
+    };
+    if args.json {
+        let devs: Vec<_> = deviations
+            .iter()
+            .map(|(at, off, rem)| {
+                json!({
+                    "block": format!("{}:{}:{}", args.program.display(), at.line, at.column),
+                    "offset": {"a_deg": off[0], "x_mm": off[1], "y_mm": off[2]},
+                    "remedies": rem.iter().map(remedy_name).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        let value = json!({
+            "program": args.program.display().to_string(),
+            "interpolation": interp_name,
+            "feed_counts_per_interrupt": feed,
+            "interrupt_hz": args.rate,
+            "clock": if wall.is_some() { "real" } else { "sim" },
+            "axes": report.axes,
+            "interrupts": report.interrupts,
+            "completion_time_s": report.completion_time_s,
+            "circuits": report.circuits,
+            "stops": report.stops,
+            "deviations": devs,
+            "jitter": jitter.map(|j| json!({
+                "interrupts": j.interrupts,
+                "p50_us": j.p50_us,
+                "p99_us": j.p99_us,
+                "max_us": j.max_us,
+                "missed": j.missed,
+            })),
+        });
+        let text = serde_json::to_string_pretty(&value).map_err(Failure::runtime)?;
+        return print(&format!("{text}\n"));
+    }
+    let mut out = format!(
+        "{}: {} circuit(s), {interp_name}, feed {feed} counts/interrupt at {} Hz\n",
+        args.program.display(),
+        report.circuits,
+        args.rate
+    );
+    out.push_str("axis  max err     rms err     peak v/s     peak a/s²     peak j/s³\n");
+    for a in &report.axes {
+        out.push_str(&format!(
+            "{}     {:>8.3}    {:>8.3}    {:>9.1}    {:>10.0}    {:>11.0}   ({})\n",
+            a.axis,
+            a.max_following_error,
+            a.rms_following_error,
+            a.peak_velocity,
+            a.peak_acceleration,
+            a.peak_jerk,
+            a.unit
+        ));
+    }
+    out.push_str(&format!(
+        "completed in {:.2} s ({} interrupts)\n",
+        report.completion_time_s, report.interrupts
+    ));
+    if !deviations.is_empty() {
+        let worst = deviations
+            .iter()
+            .max_by(|a, b| {
+                let m = |o: &[f64; 3]| o.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                m(&a.1).total_cmp(&m(&b.1))
+            })
+            .expect("not empty");
+        out.push_str(&format!(
+            "deviation: the path passes more than 0.5 mm (or 0.5°) from {} given point(s); \
+             worst {}:{}:{} (A {:.2}°, X {:.2} mm, Y {:.2} mm); remedies: {}\n",
+            deviations.len(),
+            args.program.display(),
+            worst.0.line,
+            worst.0.column,
+            worst.1[0],
+            worst.1[1],
+            worst.1[2],
+            worst
+                .2
+                .iter()
+                .map(remedy_name)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    if let Some(j) = jitter {
+        out.push_str(&format!(
+            "wall clock: {} interrupts, lateness p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} missed\n",
+            j.interrupts, j.p50_us, j.p99_us, j.max_us, j.missed
+        ));
+    }
+    print(&out)
+}

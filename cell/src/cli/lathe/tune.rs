@@ -1,0 +1,91 @@
+//! `windcell lathe tune`: the position-loop gain of seed 003 Eq. 8 (Koren–Bollinger IAE fit) for
+//! the servo axis's time constant and the interrupt period, its Routh stability check (Eqs. 3–6),
+//! the matching K_p of the PD law for the seed 000 plant, and that plant's closed-loop step
+//! response (Ch. 7, G_c = 1).
+
+use clap::Args;
+use mandrel_drive::servo::Amplifier;
+use paths::control::{ContinuousTf, iae_gain, routh_position_loop, step_metrics};
+use serde_json::json;
+
+use crate::cli::{Failure, print};
+
+/// Choose the position-loop gain (seed 003 Eq. 8) and check it (Routh).
+#[derive(Debug, Args)]
+pub struct LatheTuneArgs {
+    /// Servo amplifier gain K_amp (Ch. 7 plant 1772·K_amp / (s (s + 46.7))).
+    #[arg(long, default_value_t = 0.45)]
+    pub k_amp: f64,
+    /// Interrupt rate, Hz (the sampling period T = 1/rate).
+    #[arg(long, value_name = "HZ", default_value_t = 200.0)]
+    pub rate: f64,
+    /// Mechanical time constant τ, s (default: the plant's, 1/46.7).
+    #[arg(long, value_name = "S")]
+    pub tau: Option<f64>,
+    /// Report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `windcell lathe tune`.
+pub fn run(args: LatheTuneArgs) -> Result<(), Failure> {
+    if !(args.k_amp > 0.0 && args.k_amp <= 8.0) {
+        return Err(Failure::input(format!(
+            "--k-amp: {} is outside (0, 8] (Ch. 7)",
+            args.k_amp
+        )));
+    }
+    if !(args.rate > 0.0 && args.rate.is_finite()) {
+        return Err(Failure::input(format!("--rate: {} must be > 0", args.rate)));
+    }
+    let (plant_gain, pole) = Amplifier::Voltage { k_amp: args.k_amp }.plant();
+    let tau = args.tau.unwrap_or(1.0 / pole);
+    let period = 1.0 / args.rate;
+    let gain = iae_gain(tau, period).map_err(Failure::input)?;
+    let routh = routh_position_loop(gain, tau).map_err(Failure::input)?;
+    // Loop gain K = K_p · (plant gain / pole) for K_p in DAC codes per count.
+    let kp = gain * pole / plant_gain;
+    let closed = ContinuousTf::new(vec![plant_gain], vec![1.0, pole, plant_gain])
+        .map_err(Failure::runtime)?;
+    let dt = 1e-4;
+    let y = closed.step_response(dt, 1.5).map_err(Failure::runtime)?;
+    let m5 = step_metrics(&y, dt, 1.0, 0.05);
+    let m2 = step_metrics(&y, dt, 1.0, 0.02);
+    if args.json {
+        let v = json!({
+            "tau_s": tau,
+            "period_s": period,
+            "period_over_tau": period / tau,
+            "eq8_gain_per_s": gain,
+            "routh_first_column": routh,
+            "stable": true,
+            "kp_dac_codes_per_count": kp,
+            "plant": {"gain": plant_gain, "pole_per_s": pole},
+            "step_unity_feedback": {
+                "overshoot_pct": m5.overshoot_pct,
+                "peak_time_s": m5.peak_time_s,
+                "rise_time_s": m5.rise_time_s,
+                "settling_5pct_s": m5.settling_time_s,
+                "settling_2pct_s": m2.settling_time_s,
+            },
+        });
+        let text = serde_json::to_string_pretty(&v).map_err(Failure::runtime)?;
+        return print(&format!("{text}\n"));
+    }
+    print(&format!(
+        "τ = {tau:.5} s, T = {period:.5} s, T/τ = {:.4}\n\
+         Eq. 8 loop gain K = {gain:.4} /s (Routh first column {:?}: stable)\n\
+         K_p = {kp:.3} DAC codes per count for the plant {plant_gain:.1}/(s (s + {pole}))\n\
+         step response with G_c = 1: overshoot {:.1} %, peak {:.0} ms, 5 % settling {:.0} ms, \
+         2 % settling {:.0} ms\n",
+        period / tau,
+        routh
+            .iter()
+            .map(|c| (c * 1e4).round() / 1e4)
+            .collect::<Vec<_>>(),
+        m5.overshoot_pct,
+        m5.peak_time_s * 1e3,
+        m5.settling_time_s * 1e3,
+        m2.settling_time_s * 1e3,
+    ))
+}

@@ -1,0 +1,263 @@
+//! `windcell plan` refuses what would be planned wrong: DXF paths with a coordinate that makes the
+//! path absurdly long, non-finite coordinates, drawings in another unit than they say, paths off
+//! the mandrel, and segment counts the robot cannot number or hold. Each refusal is one line
+//! `FILE:LINE:COL: message` at the offending value, exit code 2, the output folder as it was,
+//! within a second.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use common::{example, windcell};
+
+/// The S-bend DXF job and its drawing, copied into a scratch folder so that they can be edited.
+struct Scratch {
+    dir: tempfile::TempDir,
+    job: String,
+    drawing: String,
+}
+
+impl Scratch {
+    fn new() -> Self {
+        Scratch {
+            dir: tempfile::tempdir().unwrap(),
+            job: std::fs::read_to_string(example("sbend-dxf.toml")).unwrap(),
+            drawing: std::fs::read_to_string(example("sbend-path.dxf")).unwrap(),
+        }
+    }
+
+    /// Writes `drawing` as `NAME.dxf` and the job (naming it, with `job_edit` applied) as
+    /// `NAME.toml`; returns the job's path.
+    fn case(&self, name: &str, drawing: &str, job_edit: (&str, &str)) -> PathBuf {
+        std::fs::write(self.dir.path().join(format!("{name}.dxf")), drawing).unwrap();
+        let job = self
+            .job
+            .replace("sbend-path.dxf", &format!("{name}.dxf"))
+            .replacen(job_edit.0, job_edit.1, 1);
+        let path = self.dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, job).unwrap();
+        path
+    }
+
+    /// The drawing with every value of group codes `codes` mapped by `f`.
+    fn drawing_with(&self, codes: &[&str], f: impl Fn(f64) -> f64) -> String {
+        let lines: Vec<&str> = self.drawing.lines().collect();
+        let mut out = Vec::with_capacity(lines.len());
+        for (k, line) in lines.iter().enumerate() {
+            if k % 2 == 1 && codes.contains(&lines[k - 1].trim()) {
+                out.push(format!("{:?}", f(line.trim().parse::<f64>().unwrap())));
+            } else {
+                out.push(line.to_string());
+            }
+        }
+        out.join("\n") + "\n"
+    }
+
+    /// The drawing with the first point's y value (line 14) replaced by `text`.
+    fn first_y(&self, text: &str) -> String {
+        let mut lines: Vec<String> = self.drawing.lines().map(String::from).collect();
+        assert_eq!(
+            lines[12].trim(),
+            "20",
+            "line 13 is the first POINT's y code"
+        );
+        lines[13] = text.to_string();
+        lines.join("\n") + "\n"
+    }
+}
+
+/// Runs `plan JOB -o OUT` into an output folder that already holds one file, and checks the
+/// refusal: exit 2, one line starting with `expected_place`, containing `expected`, no panic,
+/// the folder as it was, under a second.
+fn refused(job: &Path, expected_place: &str, expected: &str) {
+    let out = job.with_extension("out");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("KEEP.txt"), "earlier work\n").unwrap();
+    let started = Instant::now();
+    let result = windcell(&["plan", job.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let took = started.elapsed();
+    let stderr = String::from_utf8_lossy(&result.stderr).into_owned();
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with(&format!("windcell: {expected_place}")),
+        "{stderr} should start with {expected_place}"
+    );
+    assert!(
+        stderr.contains(expected),
+        "{stderr} should contain {expected}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(result.stdout.is_empty());
+    let left: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left, vec!["KEEP.txt"], "{stderr}");
+    assert_eq!(
+        std::fs::read_to_string(out.join("KEEP.txt")).unwrap(),
+        "earlier work\n"
+    );
+    assert!(took < Duration::from_secs(1), "{stderr}: took {took:?}");
+}
+
+fn place(dir: &Path, file: &str, line_column: &str) -> String {
+    format!("{}:{line_column}:", dir.join(file).display())
+}
+
+#[test]
+fn absurd_dxf_coordinates_are_refused_at_their_value() {
+    let s = Scratch::new();
+    let d = s.dir.path();
+    for (name, value) in [("big", "1e9"), ("huge", "1e308")] {
+        let job = s.case(name, &s.first_y(value), ("", ""));
+        refused(
+            &job,
+            &place(d, &format!("{name}.dxf"), "14:1"),
+            &format!(
+                "path point 1 at {value} mm makes the path longer than the limit of 100000 mm"
+            ),
+        );
+    }
+    for (name, value) in [("nan", "NaN"), ("inf", "-inf")] {
+        let job = s.case(name, &s.first_y(value), ("", ""));
+        refused(
+            &job,
+            &place(d, &format!("{name}.dxf"), "14:1"),
+            "which is not a finite number",
+        );
+    }
+}
+
+#[test]
+fn a_drawing_in_metres_is_refused_unless_it_says_so() {
+    let s = Scratch::new();
+    let d = s.dir.path();
+    let metres = s.drawing_with(&["10", "20", "30"], |v| v / 1000.0);
+    let job = s.case("metres", &metres, ("", ""));
+    // The first point's x value is on line 12.
+    refused(
+        &job,
+        &place(d, "metres.dxf", "12:1"),
+        "path point 1 lies -28.324 mm from the mandrel surface",
+    );
+    // Saying so: `$INSUNITS` 6 (metres) in a HEADER section, and the same drawing plans.
+    let header = "  0\nSECTION\n  2\nHEADER\n  9\n$INSUNITS\n 70\n6\n  0\nENDSEC\n";
+    let (comment, rest) = metres.split_at(metres.find("  0\nSECTION").unwrap());
+    let job = s.case("metres-said", &format!("{comment}{header}{rest}"), ("", ""));
+    let out = d.join("metres-said-out");
+    let result = windcell(&[
+        "plan",
+        job.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(
+        result.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+    // Scaled by 1000 after a round trip through 16 significant digits: on the surface to 1 nm.
+    let worst = report["paths"][0]["dxf_max_surface_distance_mm"]
+        .as_f64()
+        .unwrap();
+    assert!(worst < 1e-6, "{worst}");
+}
+
+#[test]
+fn paths_off_the_mandrel_are_refused_at_the_first_point_off_it() {
+    let s = Scratch::new();
+    let d = s.dir.path();
+    let shifted = s.drawing_with(&["10"], |x| x + 100.0);
+    let job = s.case("shifted", &shifted, ("", ""));
+    refused(
+        &job,
+        &place(d, "shifted.dxf", "12:1"),
+        "from the mandrel surface, more than surface_tolerance_mm = 0.5 mm",
+    );
+    // 0.3 mm out passes the default 0.5 mm, not a tolerance of 0.2 mm; the report gives every
+    // point's distance.
+    let out_by = |p: [f64; 3]| -> [f64; 3] {
+        let r = p[0].hypot(p[1]);
+        [p[0] * (r + 0.3) / r, p[1] * (r + 0.3) / r, p[2]]
+    };
+    let drawing = sequences::Drawing::parse(&s.drawing).unwrap();
+    let mut moved = drawing.clone();
+    for e in &mut moved.entities {
+        for p in &mut e.points {
+            *p = out_by(*p);
+        }
+    }
+    let text = moved.write().unwrap();
+    let job = s.case("out-by-0.3", &text, ("", ""));
+    let out = d.join("out-by-0.3-out");
+    let result = windcell(&[
+        "plan",
+        job.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(result.status.code(), Some(0));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+    let distances = report["paths"][0]["dxf_surface_distance_mm"]
+        .as_array()
+        .unwrap();
+    assert_eq!(distances.len(), 51);
+    // Pushed radially out from the rotation axis by 0.3 mm: at most 0.3 mm from the tube, and
+    // where the spine lies on the axis, exactly that.
+    for d in distances {
+        let d = d.as_f64().unwrap();
+        assert!((0.0..=0.3 + 1e-9).contains(&d), "{d}");
+    }
+    assert!((distances[0].as_f64().unwrap() - 0.3).abs() < 1e-3);
+    let job = s.case(
+        "tight",
+        &text,
+        ("segments = 50", "segments = 50\nsurface_tolerance_mm = 0.2"),
+    );
+    // The written drawing has no comment: its first x value is on line 10.
+    refused(
+        &job,
+        &place(d, "tight.dxf", "10:1"),
+        "surface_tolerance_mm = 0.2 mm",
+    );
+}
+
+#[test]
+fn segment_counts_the_robot_cannot_number_or_hold_are_refused_at_segments() {
+    let s = Scratch::new();
+    let d = s.dir.path();
+    for (name, value, expected) in [
+        (
+            "many",
+            "70000",
+            "segments = 70000 is out of range: a path has 2 to 10000",
+        ),
+        ("one", "1", "segments = 1 is out of range"),
+        (
+            "memory",
+            "468",
+            "program 1 needs 469 positioning and 2 control instructions, more than the robot's \
+             memory holds",
+        ),
+    ] {
+        let job = s.case(
+            name,
+            &s.drawing,
+            ("segments = 50", &format!("segments = {value}")),
+        );
+        // Where the value of `segments` stands in the job.
+        let text = std::fs::read_to_string(&job).unwrap();
+        let line = text
+            .lines()
+            .position(|l| l.starts_with("segments = "))
+            .unwrap();
+        let at = format!("{}:12", line + 1);
+        refused(&job, &place(d, &format!("{name}.toml"), &at), expected);
+    }
+}

@@ -1,0 +1,443 @@
+//! `.wind` files: the JSON winding definitions of Cyclone and FiberPath (schema versions 1.0 to
+//! 1.3), read into a lathe winding job for our planner.
+//!
+//! Fields: `schemaVersion` ("1.x", absent = 1.0); `mandrelParameters` {`diameter`, `windLength`,
+//! `endDiameter` (1.1+, a reducing cone), `profile` (1.2+)}; `towParameters` {`width`,
+//! `thickness`}; `defaultFeedRate` (mm/min on the surface); `layers`: `hoop` {`terminal`},
+//! `helical` {`windAngle`, `patternNumber`, `skipIndex`, `lockDegrees`, `leadInMM`,
+//! `leadOutDegrees`, `skipInitialNearLock`, `frictionLambda` (1.3+)}, `skip`
+//! {`mandrelRotation`}.
+//!
+//! The rules a `.wind` file implies are checked before anything is planned, each reported at the
+//! line and column of the layer (or field) that breaks it: positive numbers, a wind angle within
+//! 1°–89°, a terminal hoop only as the last layer, `skipIndex` below and coprime with
+//! `patternNumber`, a lead-in shorter than the mandrel, a circuit count divisible by
+//! `patternNumber`, and a lock that steps a circuit through every slot of the pattern (with the
+//! nearest locks that do). The mandrel keeps its diameter for every layer (no build-up), as the
+//! format assumes.
+//!
+//! Not planned: reducing cones (`endDiameter`) and nose profiles (`profile`); such files are
+//! refused with that reason.
+
+use std::path::Path;
+
+use paths::motion::{AxisLimit, AxisSet, Limits};
+use paths::vessel::{Job, Layer, Machine, Mandrel, Tow, TubeHelical};
+use serde::Deserialize;
+
+use crate::Error;
+
+/// The eye's distance from the mandrel surface on a `.wind` job's machine, mm (the format has no
+/// cross-feed: the eye stays at this radius).
+pub const EYE_CLEARANCE_MM: f64 = 25.0;
+
+/// Acceleration of the carriage and of the mandrel's surface, mm/s² (the format gives none).
+pub const SURFACE_ACCELERATION_MM_S2: f64 = 1000.0;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "camelCase")]
+struct Definition {
+    schema_version: Option<String>,
+    layers: Vec<WindLayer>,
+    mandrel_parameters: MandrelParameters,
+    tow_parameters: TowParameters,
+    default_feed_rate: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "camelCase")]
+struct MandrelParameters {
+    diameter: f64,
+    wind_length: f64,
+    end_diameter: Option<f64>,
+    profile: Option<serde_json::Value>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TowParameters {
+    width: f64,
+    thickness: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "windType", rename_all = "camelCase", deny_unknown_fields)]
+enum WindLayer {
+    Hoop {
+        #[serde(default)]
+        terminal: bool,
+    },
+    #[serde(rename_all = "camelCase")]
+    Helical {
+        wind_angle: f64,
+        pattern_number: u32,
+        skip_index: u32,
+        lock_degrees: f64,
+        #[serde(rename = "leadInMM")]
+        lead_in_mm: f64,
+        lead_out_degrees: f64,
+        #[serde(default)]
+        skip_initial_near_lock: bool,
+        #[serde(default)]
+        friction_lambda: f64,
+    },
+    #[serde(rename_all = "camelCase")]
+    Skip { mandrel_rotation: f64 },
+}
+
+/// A `.wind` file.
+#[derive(Debug)]
+pub struct WindFile;
+
+/// Byte offset of the `index`-th element of the top-level `"layers"` array, if found.
+fn layer_offset(text: &str, index: usize) -> Option<usize> {
+    let key = text.find("\"layers\"")?;
+    let open = key + text[key..].find('[')?;
+    let bytes = text.as_bytes();
+    let (mut depth, mut in_string, mut escaped, mut count) = (0i32, false, false, 0usize);
+    for (i, &b) in bytes.iter().enumerate().skip(open + 1) {
+        if in_string {
+            match b {
+                _ if escaped => escaped = false,
+                b'\\' => escaped = true,
+                b'"' => in_string = false,
+                _ => {}
+            }
+            continue;
+        }
+        match b {
+            b'"' => in_string = true,
+            b'{' | b'[' => {
+                if depth == 0 {
+                    if count == index {
+                        return Some(i);
+                    }
+                    count += 1;
+                }
+                depth += 1;
+            }
+            b'}' | b']' => {
+                if depth == 0 {
+                    return None;
+                }
+                depth -= 1;
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// Byte offset of the first `"key"` in the text.
+fn key_offset(text: &str, key: &str) -> usize {
+    text.find(&format!("\"{key}\"")).unwrap_or(0)
+}
+
+impl WindFile {
+    /// Parses a `.wind` definition into a job (checked for the format's rules, not yet planned).
+    /// Returns the job and a name for its output files.
+    pub fn parse(text: &str, name: &str) -> Result<Job, Error> {
+        let def: Definition = serde_json::from_str(text)
+            .map_err(|e| Error::at(e.line().max(1), e.column().max(1), lower(&e.to_string())))?;
+        let at_key =
+            |key: &str, message: String| Error::at_offset(text, key_offset(text, key), message);
+        let version = def.schema_version.as_deref().unwrap_or("1.0");
+        let minor = version
+            .strip_prefix("1.")
+            .filter(|m| !m.is_empty() && m.bytes().all(|b| b.is_ascii_digit()));
+        if minor.is_none() {
+            return Err(at_key(
+                "schemaVersion",
+                format!("schema version `{version}` is not 1.x"),
+            ));
+        }
+        let m = &def.mandrel_parameters;
+        for (key, v) in [
+            ("diameter", m.diameter),
+            ("windLength", m.wind_length),
+            ("width", def.tow_parameters.width),
+            ("thickness", def.tow_parameters.thickness),
+            ("defaultFeedRate", def.default_feed_rate),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(at_key(key, format!("{key} = {v} must be > 0")));
+            }
+        }
+        if m.end_diameter.is_some() {
+            return Err(at_key(
+                "endDiameter",
+                "reducing cones (endDiameter) are not planned by windcell yet".into(),
+            ));
+        }
+        if m.profile.is_some() {
+            return Err(at_key(
+                "profile",
+                "nose profiles are not planned by windcell yet".into(),
+            ));
+        }
+        if def.layers.is_empty() {
+            return Err(at_key(
+                "layers",
+                "a .wind file needs at least one layer".into(),
+            ));
+        }
+        let radius = m.diameter / 2.0;
+        let mut layers = Vec::with_capacity(def.layers.len());
+        let last = def.layers.len() - 1;
+        for (i, l) in def.layers.iter().enumerate() {
+            let here = |message: String| {
+                Error::at_offset(
+                    text,
+                    layer_offset(text, i).unwrap_or(0),
+                    format!("layer {}: {message}", i + 1),
+                )
+            };
+            layers.push(match *l {
+                WindLayer::Hoop { terminal } => {
+                    if terminal && i != last {
+                        return Err(here("a terminal layer must be the last layer".into()));
+                    }
+                    Layer::Hoop {
+                        passes: if terminal { 1 } else { 2 },
+                    }
+                }
+                WindLayer::Helical {
+                    wind_angle,
+                    pattern_number,
+                    skip_index,
+                    lock_degrees,
+                    lead_in_mm,
+                    lead_out_degrees,
+                    skip_initial_near_lock,
+                    friction_lambda,
+                } => {
+                    for (k, v) in [
+                        ("lockDegrees", lock_degrees),
+                        ("leadInMM", lead_in_mm),
+                        ("leadOutDegrees", lead_out_degrees),
+                    ] {
+                        if !(v > 0.0 && v.is_finite()) {
+                            return Err(here(format!("{k} = {v} must be > 0")));
+                        }
+                    }
+                    if friction_lambda != 0.0 {
+                        return Err(here(format!(
+                            "frictionLambda = {friction_lambda}: a cylinder is wound on its \
+                             geodesic, set it to 0"
+                        )));
+                    }
+                    if pattern_number == 0 || skip_index == 0 {
+                        return Err(here("patternNumber and skipIndex must be ≥ 1".into()));
+                    }
+                    Layer::TubeHelical(TubeHelical {
+                        wind_angle_deg: wind_angle,
+                        pattern_number,
+                        skip_index,
+                        lock_deg: lock_degrees,
+                        lead_in_mm,
+                        lead_out_deg: lead_out_degrees,
+                        initial_lock: !skip_initial_near_lock,
+                    })
+                }
+                WindLayer::Skip { mandrel_rotation } => {
+                    if !mandrel_rotation.is_finite() {
+                        return Err(here("mandrelRotation must be finite".into()));
+                    }
+                    Layer::Skip {
+                        mandrel_deg: mandrel_rotation,
+                    }
+                }
+            });
+        }
+        // Surface feed to axis limits: the carriage at the feed, the mandrel at the feed on its
+        // surface.
+        let feed_mm_s = def.default_feed_rate / 60.0;
+        let deg_per_mm = 360.0 / (std::f64::consts::TAU * radius);
+        let linear = AxisLimit {
+            velocity: feed_mm_s,
+            acceleration: SURFACE_ACCELERATION_MM_S2,
+        };
+        let job = Job {
+            mandrel: Mandrel::Tube {
+                radius_mm: radius,
+                length_mm: m.wind_length,
+            },
+            tow: Tow {
+                band_mm: def.tow_parameters.width,
+                thickness_mm: def.tow_parameters.thickness,
+            },
+            machine: Machine {
+                axes: AxisSet::Four,
+                eye_radius_mm: radius + EYE_CLEARANCE_MM,
+                limits: Limits {
+                    axes: [
+                        AxisLimit {
+                            velocity: feed_mm_s * deg_per_mm,
+                            acceleration: SURFACE_ACCELERATION_MM_S2 * deg_per_mm,
+                        },
+                        linear,
+                        linear,
+                        AxisLimit {
+                            velocity: 360.0,
+                            acceleration: 3600.0,
+                        },
+                    ],
+                    junction_deviation: 0.01,
+                },
+                dome_steps: 10,
+            },
+            layers,
+            build_up: false,
+        };
+        // The planner's rules (circuits, pattern, lock), reported at the layer.
+        job.check().map_err(|e| match e {
+            paths::Error::WindRule { layer, reason } => Error::at_offset(
+                text,
+                layer_offset(text, layer - 1).unwrap_or(0),
+                format!("layer {layer}: {reason}"),
+            ),
+            paths::Error::Layer { layer, source } => Error::at_offset(
+                text,
+                layer_offset(text, layer - 1).unwrap_or(0),
+                format!("layer {layer}: {source}"),
+            ),
+            other => Error::content(other.to_string()),
+        })?;
+        let _ = name;
+        Ok(job)
+    }
+
+    /// Reads and parses a `.wind` file; errors name it. Returns the job and the file's stem.
+    pub fn load(path: &Path) -> Result<(Job, String), Error> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "wind".into());
+        let job = WindFile::parse(&text, &name).map_err(|e| e.in_file(path))?;
+        Ok((job, name))
+    }
+}
+
+/// serde_json's message without its trailing position (we give line and column ourselves).
+fn lower(message: &str) -> String {
+    match message.rfind(" at line ") {
+        Some(i) => message[..i].to_string(),
+        None => message.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TUBE: &str = r#"{
+  "schemaVersion": "1.3",
+  "mandrelParameters": { "diameter": 70, "windLength": 500 },
+  "towParameters": { "width": 6.5, "thickness": 0.25 },
+  "defaultFeedRate": 6000,
+  "layers": [
+    { "windType": "hoop" },
+    { "windType": "helical", "windAngle": 45, "patternNumber": 3, "skipIndex": 1,
+      "lockDegrees": 720, "leadInMM": 10, "leadOutDegrees": 10 },
+    { "windType": "skip", "mandrelRotation": 90 },
+    { "windType": "hoop", "terminal": true }
+  ]
+}"#;
+
+    #[test]
+    fn parses_every_layer_kind() {
+        let job = WindFile::parse(TUBE, "t").unwrap();
+        assert_eq!(job.layers.len(), 4);
+        assert_eq!(job.layers[0], Layer::Hoop { passes: 2 });
+        assert_eq!(job.layers[3], Layer::Hoop { passes: 1 });
+        assert!(
+            matches!(job.layers[1], Layer::TubeHelical(t) if t.initial_lock && t.pattern_number == 3)
+        );
+        assert_eq!(job.layers[2], Layer::Skip { mandrel_deg: 90.0 });
+        assert!(!job.build_up);
+        assert_eq!(job.machine.limits.axes[1].velocity, 100.0);
+        // Absent version is 1.0.
+        let old = TUBE.replace("\"schemaVersion\": \"1.3\",", "");
+        assert!(WindFile::parse(&old, "t").is_ok());
+    }
+
+    #[test]
+    fn rules_are_reported_at_the_layer() {
+        let cases = [
+            (
+                "\"skipIndex\": 1",
+                "\"skipIndex\": 3",
+                "8:5: layer 2: skip index 3 must be smaller",
+            ),
+            (
+                "\"patternNumber\": 3",
+                "\"patternNumber\": 5",
+                "8:5: layer 2: 24 circuits",
+            ),
+            (
+                "\"lockDegrees\": 720",
+                "\"lockDegrees\": 700",
+                "8:5: layer 2: lock 700°",
+            ),
+            (
+                "\"leadInMM\": 10",
+                "\"leadInMM\": 600",
+                "8:5: layer 2: lead-in 600 mm",
+            ),
+            (
+                "\"windAngle\": 45",
+                "\"windAngle\": 89.5",
+                "8:5: layer 2: wind angle 89.5°",
+            ),
+            (
+                "{ \"windType\": \"hoop\" }",
+                "{ \"windType\": \"hoop\", \"terminal\": true }",
+                "7:5: layer 1: a terminal layer must be the last",
+            ),
+            (
+                "\"leadOutDegrees\": 10",
+                "\"leadOutDegrees\": 10, \"frictionLambda\": 0.1",
+                "8:5: layer 2: frictionLambda",
+            ),
+            ("\"1.3\"", "\"2.0\"", "2:3: schema version `2.0` is not 1.x"),
+            (
+                "\"windLength\": 500",
+                "\"windLength\": 500, \"endDiameter\": 50",
+                "3:61: reducing cones",
+            ),
+            (
+                "\"width\": 6.5",
+                "\"width\": -1",
+                "4:22: width = -1 must be > 0",
+            ),
+            (
+                "\"windType\": \"skip\"",
+                "\"windType\": \"polar\"",
+                "10:25: unknown variant `polar`",
+            ),
+            (
+                "\"defaultFeedRate\": 6000,",
+                "",
+                "13:1: missing field `defaultFeedRate`",
+            ),
+        ];
+        for (from, to, expect) in cases {
+            let text = TUBE.replace(from, to);
+            assert_ne!(text, TUBE, "{from}");
+            let err = WindFile::parse(&text, "t").unwrap_err().to_string();
+            assert!(err.starts_with(expect), "{expect}: {err}");
+        }
+    }
+
+    #[test]
+    fn finds_layer_objects_past_strings_and_nesting() {
+        let text = r#"{"a": "[{", "layers": [ {"x": [1, {"y": 2}]}, "s}", {"z": "{"} ]}"#;
+        assert_eq!(layer_offset(text, 0), Some(text.find("{\"x\"").unwrap()));
+        assert_eq!(layer_offset(text, 1), Some(text.find("{\"z\"").unwrap()));
+        assert_eq!(layer_offset(text, 2), None);
+    }
+}
