@@ -167,7 +167,7 @@ fn bad_jobs_fail_cleanly_and_write_nothing() {
         (
             "segments = 50",
             "segments = 1",
-            "more than half a revolution",
+            "segments = 1 is out of range",
         ),
         (
             "wind_angle_deg = 48.3",
