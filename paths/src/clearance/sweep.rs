@@ -186,9 +186,10 @@ impl End {
     }
 }
 
-/// The tool axis (eye → tangent point) of a wrist orientation: its `z` axis.
+/// The tool axis of a wrist orientation: the roll axis, the tool `x` axis of `paths::robot`
+/// (from the wrist through the eye, toward the mandrel).
 fn axis_of(q: &UnitQuaternion<f64>) -> Vector3<f64> {
-    q * Vector3::z()
+    q * Vector3::x()
 }
 
 /// The cell and the solid, with the frame change.
