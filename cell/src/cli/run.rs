@@ -88,6 +88,21 @@ fn load(args: &RunArgs) -> Result<(Loaded, Cell, Reach, String), Failure> {
     let (loaded, job_cell, reach, name) = if is_job {
         let (job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
         let plan = cell::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
+        // The collision and snag check gates the run (exit 3); only --force overrides it, and
+        // the run's `started` record says so.
+        let checked = cell::check::check(&job, &text, &args.input, plan.clone())
+            .map_err(Failure::from_cell)?;
+        if !checked.report.is_clear() && !args.force {
+            return Err(Failure {
+                message: format!(
+                    "{}: {} (windcell check {} shows where; --force winds anyway)",
+                    args.input.display(),
+                    cell::check::summary(&checked),
+                    args.input.display()
+                ),
+                exit_code: super::check::EXIT_FINDING,
+            });
+        }
         let files = batch::files_of_job(
             &cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
         );
