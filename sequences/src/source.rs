@@ -16,6 +16,15 @@ pub const MAX_DXF_BYTES: u64 = 16 << 20;
 /// is 25 MB; ASCII STL takes about 250 bytes per triangle.
 pub const MAX_MESH_BYTES: u64 = 32 << 20;
 
+/// Largest robot or indexer control file, sequence or run file, bytes: a discrete `.ROB` of
+/// 10 000 segments (the plan's limit) is about 1.2 MB.
+pub const MAX_CONTROL_FILE_BYTES: u64 = 8 << 20;
+/// Largest part program or G-code file, bytes (a 40-layer tube planned as a part program is a
+/// few MB).
+pub const MAX_PROGRAM_BYTES: u64 = 64 << 20;
+/// Largest run journal, bytes: about 200 000 records of ~300 bytes.
+pub const MAX_JOURNAL_BYTES: u64 = 64 << 20;
+
 /// What kind of file system object `path` names, in words, when it is not a regular file.
 fn not_regular(file_type: std::fs::FileType) -> Option<&'static str> {
     use std::os::unix::fs::FileTypeExt;
