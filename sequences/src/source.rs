@@ -228,7 +228,7 @@ mod tests {
     fn each_cap_holds_the_largest_file_of_its_kind_and_stays_within_the_budget() {
         use crate::MandrelMove;
         use crate::rob::{Header, Instruction, Interpolation, Movement, Reference, RobotFile};
-        let v: [f64; 4] = [-0.123456789012, -0.987654321098, -0.5, -0.707106781187];
+        let v: [f64; 4] = [-0.123456789012, -0.987654321098, -0.5, -0.617283950617];
         let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
         let widest = Instruction {
             number: 1,
