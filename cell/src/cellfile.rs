@@ -151,10 +151,7 @@ impl Cell {
 
     /// Reads `CELL.toml`; errors name the file, line and column.
     pub fn load(path: &Path) -> Result<Cell, Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = sequences::source::read_text(path, sequences::source::MAX_JOB_BYTES)?;
         Cell::parse(&text, path)
     }
 
