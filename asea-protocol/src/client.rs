@@ -124,6 +124,8 @@ pub struct Client<L, C = RealClock> {
     cancel: Cancel,
     /// While true the cancel token is ignored (STOP).
     uncancellable: bool,
+    /// While true a session starts after the urgent gap (STOP, [`Host::start_urgent`]).
+    urgent: bool,
     /// The robot's error sequence number as last accounted for: errors up to it are reported.
     seen_error_seq: Option<u8>,
     /// Errors the robot raised that this client has seen (reported or acknowledged), counted by
@@ -165,6 +167,7 @@ impl<L: Link, C: Clock> Client<L, C> {
             buf: vec![0u8; 256],
             cancel: Cancel::new(),
             uncancellable: false,
+            urgent: false,
             seen_error_seq: None,
             errors_seen: 0,
             last_executed: None,
@@ -205,8 +208,13 @@ impl<L: Link, C: Clock> Client<L, C> {
     fn session(&mut self, cmd: &Command) -> Result<Option<Frame>> {
         let bytes = cmd.encode(&self.cfg.frame)?;
         self.link.discard_input()?;
-        self.host
-            .start(bytes, cmd.expects_reply(), self.clock.now());
+        if self.urgent {
+            self.host
+                .start_urgent(bytes, cmd.expects_reply(), self.clock.now());
+        } else {
+            self.host
+                .start(bytes, cmd.expects_reply(), self.clock.now());
+        }
         loop {
             let out = self.host.take_output();
             if !out.is_empty() {
@@ -523,6 +531,29 @@ impl<L: Link, C: Clock> Client<L, C> {
     pub fn stop(&mut self) -> Result<Status> {
         self.uncancellable = true;
         let r = self.command_confirmed(&Command::Stop, effect_of);
+        self.uncancellable = false;
+        r
+    }
+
+    /// Stops motion with the least delay: STOP goes out in the first session, before any status
+    /// is read (a STOP executed twice is still one stop, so it needs no proof that it was not
+    /// executed before it is sent), then the status must show STOPPED; if it does not (the session
+    /// failed), [`Client::stop`] sends it again, confirmed. Like [`Client::stop`] it goes through
+    /// while the cancel token is set. The execution count is unknown afterwards, as after a store.
+    pub fn stop_at_once(&mut self) -> Result<Status> {
+        self.uncancellable = true;
+        self.urgent = true;
+        let sent = self.send(&Command::Stop);
+        self.urgent = false;
+        self.last_executed = None;
+        let r = match sent {
+            Err(Error::Io(e)) => Err(Error::Io(e)),
+            _ => match self.status_agreed() {
+                Ok(s) if s.state == crate::command::State::Stopped => Ok(s),
+                Ok(_) | Err(Error::Link(_)) => self.command_confirmed(&Command::Stop, effect_of),
+                Err(e) => Err(e),
+            },
+        };
         self.uncancellable = false;
         r
     }

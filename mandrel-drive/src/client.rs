@@ -470,6 +470,16 @@ impl<L: Link> XClient<L> {
         Ok(())
     }
 
+    /// Puts `S` on the wire at once, without waiting for its echo: the first thing a coordinator
+    /// sends when both devices must stop (it goes through a cancelled client). [`Indexer::stop`]
+    /// must follow: it drops what is on the line and sends `S` again, confirmed by its echo (a
+    /// second `S` stops nothing more).
+    pub fn stop_on_wire(&mut self) -> Result<()> {
+        let text = xlang::encode(Some(self.cfg.address), &Command::Stop);
+        self.link.write_all(format!("{text}\r").as_bytes())?;
+        Ok(())
+    }
+
     /// Reads `W3`: steps since the start of the current or last move.
     pub fn move_steps(&mut self) -> Result<i64> {
         match self.send(&Command::MoveSteps)? {
