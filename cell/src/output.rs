@@ -393,6 +393,15 @@ mod tests {
         );
         let e = check_file(root.path()).unwrap_err();
         assert!(e.to_string().ends_with("is a folder"), "{e}");
+        // A symbolic link is neither a file nor a folder: not written through.
+        let link = root.path().join("l.stl");
+        std::os::unix::fs::symlink(&file, &link).unwrap();
+        let e = check_file(&link).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a regular file"),
+            "{e}"
+        );
+        fs::remove_file(&link).unwrap();
         assert_eq!(listing(root.path()), ["f"]);
     }
 
