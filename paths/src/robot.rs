@@ -838,6 +838,45 @@ mod tests {
     }
 
     #[test]
+    fn joint_time_is_the_slowest_joints_travel_over_its_speed() {
+        let arm = Arm::default();
+        // By hand: 30° of shoulder at 60°/s is 0.5 s; 14° of elbow at 70°/s is 0.2 s; 120° of
+        // roll at 240°/s is 0.5 s; 58.85° of base yaw at 2300/1120 rad/s is 0.5002 s.
+        let from = Joints::default();
+        let to = Joints {
+            shoulder_rad: 30f64.to_radians(),
+            elbow_rad: -14f64.to_radians(),
+            roll_rad: 120f64.to_radians(),
+            ..from
+        };
+        assert_abs_diff_eq!(arm.joint_time_s(&from, &to), 0.5, epsilon = 1e-12);
+        assert_abs_diff_eq!(arm.joint_time_s(&to, &from), 0.5, epsilon = 1e-12);
+        let yaw = Joints {
+            base_yaw_rad: 58.85f64.to_radians(),
+            ..to
+        };
+        let expected = 58.85f64.to_radians() / (2300.0 / 1120.0);
+        assert_abs_diff_eq!(arm.joint_time_s(&to, &yaw), expected, epsilon = 1e-12);
+        assert_eq!(arm.joint_time_s(&to, &to), 0.0);
+    }
+
+    #[test]
+    fn a_joint_change_of_exactly_the_jump_limit_is_a_motion() {
+        let arm = Arm::default();
+        let from = Joints::default();
+        let at_limit = Joints {
+            pitch_rad: arm.joint_jump_max_rad,
+            ..from
+        };
+        assert!(arm.check_continuity(&from, &at_limit).is_ok());
+        let beyond = Joints {
+            pitch_rad: arm.joint_jump_max_rad * (1.0 + 1e-12),
+            ..from
+        };
+        assert!(arm.check_continuity(&from, &beyond).is_err());
+    }
+
+    #[test]
     fn wrap_lands_in_the_half_open_turn_for_any_angle() {
         for k in -2000..=2000 {
             let a = k as f64 * 0.0173 + if k % 7 == 0 { PI } else { 0.0 };
