@@ -402,6 +402,9 @@ mod tests {
             "{e}"
         );
         fs::remove_file(&link).unwrap();
+        // A name the system refuses to look up is refused, not treated as absent.
+        let e = check_file(&root.path().join("n".repeat(300))).unwrap_err();
+        assert!(matches!(e, Error::Output { .. }), "{e}");
         assert_eq!(listing(root.path()), ["f"]);
     }
 
