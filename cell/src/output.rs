@@ -402,6 +402,10 @@ mod tests {
             "{e}"
         );
         fs::remove_file(&link).unwrap();
+        // A file in a folder that does not exist; a bare name, in the working folder.
+        let e = check_file(&root.path().join("missing/x.stl")).unwrap_err();
+        assert!(e.to_string().contains("does not exist"), "{e}");
+        check_file(Path::new("windcell-output-check-x.stl")).unwrap();
         // A name the system refuses to look up is refused, not treated as absent.
         let e = check_file(&root.path().join("n".repeat(300))).unwrap_err();
         assert!(matches!(e, Error::Output { .. }), "{e}");
