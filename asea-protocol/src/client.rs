@@ -352,6 +352,19 @@ impl<L: Link, C: Clock> Client<L, C> {
         self.account_errors(&s).map(|()| s)
     }
 
+    /// Reads the robot's error sequence number once, before this client's first command with an
+    /// effect, so that every error raised afterwards is counted by its number: without it, two
+    /// errors raised before the first status read (two refused twins of one upload) would count
+    /// as one, the latched one. An error still latched at this read is left to the next check,
+    /// which reports it.
+    fn error_baseline(&mut self) -> Result<()> {
+        if self.seen_error_seq.is_none() {
+            let s = self.status_agreed()?;
+            self.seen_error_seq = Some(s.error_seq.wrapping_sub(u8::from(s.last_error != 0)));
+        }
+        Ok(())
+    }
+
     /// Reports and acknowledges the errors `s` shows beyond those already accounted for.
     fn account_errors(&mut self, s: &Status) -> Result<()> {
         let new = self
@@ -608,6 +621,7 @@ impl<L: Link, C: Clock> Client<L, C> {
     /// twin with a corrupted program number) is [`Error::ForeignStore`]. On `Ok` every program of
     /// the batch holds exactly its instructions and nothing else was stored.
     pub fn upload_batch(&mut self, batch: &[(u8, &[Instruction])]) -> Result<VerifyReport> {
+        self.error_baseline()?;
         let mut report = VerifyReport::default();
         // Clear the batch's programs; what the memory holds then is outside the batch.
         let mut programs: Vec<u8> = batch.iter().map(|(p, _)| *p).collect();
@@ -689,6 +703,7 @@ impl<L: Link, C: Clock> Client<L, C> {
 
     /// Stores `instructions` as instructions 1, 2, … of `program`, then checks `last_error`.
     pub fn upload(&mut self, program: u8, instructions: &[Instruction]) -> Result<()> {
+        self.error_baseline()?;
         for (n, i) in (1u16..).zip(instructions) {
             self.store(program, n, i)?;
         }
@@ -711,6 +726,7 @@ impl<L: Link, C: Clock> Client<L, C> {
         program: u8,
         instructions: &[Instruction],
     ) -> Result<VerifyReport> {
+        self.error_baseline()?;
         let mut report = VerifyReport::default();
         for (n, i) in (1u16..).zip(instructions) {
             report.restored += match self.store_verified(program, n, i) {

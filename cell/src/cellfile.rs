@@ -78,6 +78,9 @@ pub struct Cell {
     pub drive: Drive,
     /// Opto delay of the simulated lines, s.
     pub opto_delay_s: f64,
+    /// The arm the simulated robot checks every pose against (the job's `[cell.robot]` and eye
+    /// mechanism; `paths::robot::Arm::default()` for a cell file or the built-in cell).
+    pub arm: paths::robot::Arm,
 }
 
 fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, String> {
@@ -131,6 +134,7 @@ impl Cell {
             devices,
             drive,
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+            arm: crate::tool::arm(job),
         })
     }
 
@@ -141,6 +145,7 @@ impl Cell {
             devices: Devices::Simulated,
             drive: Drive::default(),
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+            arm: paths::robot::Arm::default(),
         }
     }
 
@@ -185,6 +190,7 @@ impl Cell {
             devices,
             drive,
             opto_delay_s,
+            arm: paths::robot::Arm::default(),
         })
     }
 }

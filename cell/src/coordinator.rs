@@ -842,7 +842,10 @@ impl<'a> Coordinator<'a> {
 
     /// Manual control (seed 001 §5.3.2, §5.4): one robot position and one mandrel instruction
     /// sent together, each confirmed. `relative` positions are added to the robot's position now.
-    /// Returns the robot's position (mm) and the indexer's counter (steps) afterwards.
+    /// The wrist quaternion of `p` is the App. A pitch and roll in the arm's vertical plane: the
+    /// five-axis arm has no wrist yaw (§4.1.1), so the base yaw that turns that plane to the
+    /// target, `atan2(y, x)`, is put in front of it (a pose out of the plane would be refused,
+    /// error 9). Returns the robot's position (mm) and the indexer's counter (steps) afterwards.
     pub fn jog(
         &mut self,
         speeds: (asea_protocol::Speed, asea_protocol::Speed),
@@ -870,6 +873,18 @@ impl<'a> Coordinator<'a> {
                 })?;
                 p.flags.reference = asea_protocol::Reference::Absolute;
             }
+            let yaw = nalgebra::UnitQuaternion::from_axis_angle(
+                &nalgebra::Vector3::z_axis(),
+                target[1].atan2(target[0]),
+            );
+            let [w, x, y, z] = p.pose.q.wxyz();
+            let q = yaw
+                * nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+            p.pose = asea_protocol::Pose::from_mm(target, [q.w, q.i, q.j, q.k]).map_err(|e| {
+                Step::Halt(Halt::Fault {
+                    message: format!("the jog's pose: {e}"),
+                })
+            })?;
             let radius = target[0].hypot(target[1]);
             if radius > reach.max_radius_mm
                 || radius < reach.min_radius_mm

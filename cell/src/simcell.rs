@@ -49,6 +49,9 @@ pub struct SimCellConfig {
     pub drive: Drive,
     /// Robot motion constants.
     pub robot: MotionParams,
+    /// The five-axis arm the simulated robot checks every pose against (error 9 for a pose it
+    /// cannot take: a wrist yaw, a joint outside its range).
+    pub arm: paths::robot::Arm,
 }
 
 impl Default for SimCellConfig {
@@ -58,6 +61,7 @@ impl Default for SimCellConfig {
             opto_delay_s: OPTO_DELAY_S,
             drive: Drive::default(),
             robot: MotionParams::default(),
+            arm: paths::robot::Arm::default(),
         }
     }
 }
@@ -444,7 +448,9 @@ impl SimCell {
         let in_position = Wire::new(cell_clock, cfg.opto_delay_s);
         let card = Card::new(IndexerMachine::new(cfg.drive, PULL_IN_SPS), INDEXER_ADDRESS)
             .with_trigger(Box::new(start.clone()));
-        let robot = Robot::new(FrameConfig::default(), Timers::default(), cfg.robot);
+        let mut robot = Robot::new(FrameConfig::default(), Timers::default(), cfg.robot);
+        robot.machine = std::mem::take(&mut robot.machine)
+            .with_kinematics(Arc::new(asea_protocol::sim::ArmModel { arm: cfg.arm }));
         let estop = Arc::new(AtomicBool::new(false));
         let byte_time = Duration::from_secs_f64(10.0 / f64::from(cfg.baud.max(1)));
         let peer = CellPeer {

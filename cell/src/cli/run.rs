@@ -291,6 +291,7 @@ pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCe
             let sim = SimCell::new(&SimCellConfig {
                 drive: cell.drive,
                 opto_delay_s: cell.opto_delay_s,
+                arm: cell.arm,
                 ..SimCellConfig::default()
             });
             if let Some(p) = log {
