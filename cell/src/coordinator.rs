@@ -1276,3 +1276,18 @@ impl<'a> Coordinator<'a> {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distance_is_euclidean_and_mode_keywords_round_trip() {
+        // The 3-4-12 right triangle: 13.
+        assert_eq!(distance_mm([1.0, 2.0, 3.0], [4.0, 6.0, 15.0]), 13.0);
+        for m in [RunMode::Discrete, RunMode::Fine, RunMode::Medium] {
+            assert_eq!(RunMode::from_keyword(m.keyword()), Some(m));
+        }
+        assert_eq!(RunMode::from_keyword("continuous"), None);
+    }
+}

@@ -245,4 +245,46 @@ mod tests {
             "{err}"
         );
     }
+
+    #[test]
+    fn a_record_line_of_exactly_one_mebibyte_reads_and_one_byte_more_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let line_len = |pad: usize| -> usize {
+            let p = dir.path().join(format!("len{pad}.journal"));
+            let mut j = Journal::create(&p).unwrap();
+            j.append(json!({"rec": "note", "pad": "x".repeat(pad)}))
+                .unwrap();
+            drop(j);
+            std::fs::read_to_string(&p)
+                .unwrap()
+                .lines()
+                .next()
+                .unwrap()
+                .len()
+        };
+        let base = line_len(0);
+        let limit = 1usize << 20;
+        let p = dir.path().join("exact.journal");
+        let mut j = Journal::create(&p).unwrap();
+        j.append(json!({"rec": "note", "pad": "x".repeat(limit - base)}))
+            .unwrap();
+        drop(j);
+        assert_eq!(
+            std::fs::read_to_string(&p)
+                .unwrap()
+                .lines()
+                .next()
+                .unwrap()
+                .len(),
+            limit
+        );
+        assert_eq!(read(&p).unwrap().len(), 1);
+        let p = dir.path().join("over.journal");
+        let mut j = Journal::create(&p).unwrap();
+        j.append(json!({"rec": "note", "pad": "x".repeat(limit - base + 1)}))
+            .unwrap();
+        drop(j);
+        let e = read(&p).unwrap_err().to_string();
+        assert!(e.contains("line too long"), "{e}");
+    }
 }

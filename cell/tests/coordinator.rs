@@ -787,7 +787,11 @@ fn a_stop_request_stops_both_devices_with_its_reason_and_resume_completes() {
     let stopped = c
         .run(&b, &ResumePoint::default(), true, false, false)
         .unwrap_err();
-    drop(c);
+    // The links are usable after the stop: the cancel tokens were cleared.
+    let mut d = c.into_devices();
+    assert_eq!(d.robot.state().unwrap().state, State::Stopped);
+    assert!(!d.mandrel.busy().unwrap().0);
+    drop(d);
     assert_eq!(
         stopped.halt,
         Halt::Interrupted {
