@@ -14,6 +14,7 @@ pub mod journal;
 pub mod lathe;
 pub mod mesh;
 pub mod output;
+pub mod predict;
 pub mod record;
 pub mod report;
 pub mod scene;

@@ -281,6 +281,61 @@ pub struct CellPeer {
     /// sees every ENQ and telegram refused).
     pub robot_nak_storm: bool,
     log_file: Option<io::BufWriter<std::fs::File>>,
+    /// When set, where the eye and the mandrel are over time (the placement prediction's input).
+    pub trace: Option<Trace>,
+    /// When set, told where the eye and the mandrel are at every poll (recording, live view).
+    pub observer: Option<Observer>,
+}
+
+/// What an [`Observer`] is told at each poll of the cell: the cell time (s), the eye position
+/// (cell frame, mm) and orientation (w, x, y, z), and the mandrel's drive angle (rad).
+pub type ObserverFn = Box<dyn FnMut(f64, [f64; 3], [f64; 4], f64) + Send>;
+
+/// Watches the devices' true motion as the cell's time passes.
+pub struct Observer(pub ObserverFn);
+
+impl std::fmt::Debug for Observer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Observer")
+    }
+}
+
+/// The devices' true motion over the cell's time, as the prediction of placement error reads it
+/// (`cell::predict`): the eye sampled every [`TRACE_EYE_STEP_S`] from the robot computer's own
+/// trajectory, the mandrel angle at every poll of the cell (at most [`TICK`] apart).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Trace {
+    /// `(t_s, eye)`: the eye position, cell frame, mm.
+    pub eye_mm: Vec<(f64, [f64; 3])>,
+    /// `(t_s, angle)`: the mandrel's drive angle from the indexer's zero (motor steps through
+    /// the belt, lost steps included), rad.
+    pub drive_rad: Vec<(f64, f64)>,
+}
+
+/// Spacing of the eye samples of a [`Trace`], s (1 ms: a millimetre-zone corner is passed in
+/// several samples at the arm's speeds in App. B).
+pub const TRACE_EYE_STEP_S: f64 = 1e-3;
+
+impl Trace {
+    fn sample(&mut self, robot: &asea_protocol::sim::Machine, card: &IndexerMachine, now: f64) {
+        let last = self.eye_mm.last().map_or(now - TRACE_EYE_STEP_S, |s| s.0);
+        let pose_at = |t: f64| {
+            robot
+                .trajectory()
+                .map_or(robot.pose().xyz_mm, |tr| tr.pose_at(t).xyz_mm)
+        };
+        let mut t = last + TRACE_EYE_STEP_S;
+        while t < now {
+            self.eye_mm.push((t, pose_at(t)));
+            t += TRACE_EYE_STEP_S;
+        }
+        if now > last {
+            self.eye_mm.push((now, pose_at(now)));
+        }
+        if self.drive_rad.last().is_none_or(|s| now > s.0) {
+            self.drive_rad.push((now, card.mandrel_angle_rad()));
+        }
+    }
 }
 
 impl CellPeer {
@@ -392,6 +447,18 @@ impl Peer for CellPeer {
         self.wire_lines();
         self.watch_robot();
         self.run_card(now);
+        if let Some(trace) = self.trace.as_mut() {
+            trace.sample(&self.robot.machine, self.card.machine(), now.as_secs_f64());
+        }
+        if let Some(Observer(f)) = self.observer.as_mut() {
+            let pose = self.robot.machine.pose();
+            f(
+                now.as_secs_f64(),
+                pose.xyz_mm,
+                pose.q,
+                self.card.machine().mandrel_angle_rad(),
+            );
+        }
     }
 
     fn take_output(&mut self) -> Vec<u8> {
@@ -476,6 +543,8 @@ impl SimCell {
             robot_silent: false,
             robot_nak_storm: false,
             log_file: None,
+            trace: None,
+            observer: None,
         };
         SimCell {
             shared: Arc::new(Mutex::new(Paced::new(clock.clone(), cfg.baud, peer))),

@@ -72,6 +72,87 @@ pub struct RunArgs {
     /// The simulated cell's log of executed instructions (JSON lines).
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// Record the run as MCAP for Foxglove (docs/operator.md).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
+    /// Serve the run live over Foxglove's WebSocket protocol (default 127.0.0.1:8765).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_LIVE)]
+    pub live: Option<String>,
+}
+
+/// Where `--live` serves when no address is named: loopback only.
+pub const DEFAULT_LIVE: &str = "127.0.0.1:8765";
+
+/// Cell time between two recorded eye poses on the simulated cell, s.
+pub const RECORD_STEP_S: f64 = 0.02;
+
+/// `HOST:PORT` of `--live`.
+fn live_address(a: &str) -> Result<(String, u16), Failure> {
+    let (host, port) = a
+        .rsplit_once(':')
+        .ok_or_else(|| Failure::input(format!("--live {a}: expected HOST:PORT")))?;
+    let port = port
+        .parse::<u16>()
+        .map_err(|_| Failure::input(format!("--live {a}: the port must be 0–65535")))?;
+    Ok((host.trim_matches(['[', ']']).to_string(), port))
+}
+
+/// Opens the recording and live server the run asks for, and on the simulated cell makes the
+/// cell report the eye and the mandrel to them.
+fn recorder(
+    args: &RunArgs,
+    sim: Option<&SimCell>,
+) -> Result<Option<Arc<cell::record::Recorder>>, Failure> {
+    if args.record.is_none() && args.live.is_none() {
+        return Ok(None);
+    }
+    let sinks = cell::record::Sinks {
+        mcap: args.record.clone(),
+        live: args.live.as_deref().map(live_address).transpose()?,
+    };
+    let epoch_ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    let rec = Arc::new(cell::record::Recorder::open(&sinks, epoch_ns).map_err(Failure::from_cell)?);
+    // The rotation axis's foot in the cell frame: the job's cell, else the thesis cell.
+    let origin = sequences::Job::load(&args.input).ok().map_or(
+        nalgebra::Vector3::new(800.0, 0.0, 300.0),
+        |(job, _)| {
+            let (setup, _) = cell::tool::setup(&job);
+            setup
+                .calibration
+                .transform(setup.robot_distance_mm, setup.mandrel_height_mm)
+                .origin
+        },
+    );
+    if let Some(sim) = sim {
+        let r = rec.clone();
+        let mut next = 0.0;
+        sim.with(|p| {
+            p.observer = Some(cell::simcell::Observer(Box::new(
+                move |t, xyz, q, drive| {
+                    if t < next {
+                        return;
+                    }
+                    next = t + RECORD_STEP_S;
+                    let eye = nalgebra::Point3::from(xyz);
+                    let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                        q[0], q[1], q[2], q[3],
+                    ));
+                    r.eye(t, &eye, &q, true);
+                    r.mandrel_frame(t, &origin, drive);
+                    r.mandrel_angle(t, drive, drive);
+                },
+            )));
+        })
+        .map_err(Failure::runtime)?;
+    }
+    if let Some(port) = rec.live_port() {
+        let _ = super::print(&format!(
+            "serving the run live for Foxglove on port {port}\n"
+        ));
+    }
+    Ok(Some(rec))
 }
 
 fn mode_of(m: ModeArg) -> RunMode {
@@ -543,6 +624,8 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
             true,
         ),
     };
+    let rec = recorder(&args, sim.as_ref())?;
+    let rec_events = rec.clone();
     let display = Display::new(args.json, std::io::stdout().is_terminal(), &batch, &from);
     if args.json {
         display.line(
@@ -620,6 +703,15 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         let mut paths = Vec::new();
         while let Some(e) = rx.recv().await {
             display.event(&e);
+            if let Some(r) = &rec_events {
+                let t = match &e {
+                    Event::Segment { time_s, .. }
+                    | Event::Program { time_s, .. }
+                    | Event::PathDone { time_s, .. } => *time_s,
+                    _ => 0.0,
+                };
+                r.log(t, cell::record::Level::Info, &format!("{e:?}"));
+            }
             if let Event::PathDone {
                 path,
                 program,
@@ -637,6 +729,15 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     display.finish();
     let (result, wall) =
         joined.map_err(|e| Failure::runtime(format!("the coordinator thread failed: {e}")))?;
+    if let Some(r) = rec {
+        // Detach the simulated cell's observer, then finalise (summary and indexes).
+        if let Some(sim) = &sim {
+            let _ = sim.with(|p| p.observer = None);
+        }
+        if let Ok(r) = Arc::try_unwrap(r) {
+            r.finish().map_err(Failure::from_cell)?;
+        }
+    }
     let cell_time = sim.as_ref().map(|s| {
         use asea_protocol::clock::Clock as _;
         s.clock().now_s()
