@@ -297,6 +297,29 @@ mod tests {
     /// other reason the system gives for not reading it (a symbolic-link loop, a name too long)
     /// is refused at once, before the ancestors are looked at.
     #[test]
+    fn staging_skips_names_taken_and_gives_up_at_once_on_other_errors() {
+        let tmp = tempfile::tempdir().unwrap();
+        let taken = tmp
+            .path()
+            .join(format!(".windcell-{}-0", std::process::id()));
+        fs::create_dir(&taken).unwrap();
+        let made = staging_in(tmp.path(), |p| fs::create_dir(p)).unwrap();
+        assert_eq!(
+            made,
+            tmp.path()
+                .join(format!(".windcell-{}-1", std::process::id()))
+        );
+        let calls = std::cell::Cell::new(0);
+        let e = staging_in(tmp.path(), |_| {
+            calls.set(calls.get() + 1);
+            Err(ErrorKind::PermissionDenied.into())
+        })
+        .unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::PermissionDenied);
+        assert_eq!(calls.get(), 1);
+    }
+
+    #[test]
     fn an_output_folder_the_system_cannot_look_at_is_refused() {
         let tmp = tempfile::tempdir().unwrap();
         let looped = tmp.path().join("loop");
