@@ -26,11 +26,12 @@ pub struct Loaded {
     pub sequence_path: PathBuf,
 }
 
+/// Reads a control, sequence or run file with the size cap of `sequences::source`.
 fn read(path: &Path) -> Result<String, Error> {
-    std::fs::read_to_string(path).map_err(|source| Error::Read {
-        file: path.to_path_buf(),
-        source,
-    })
+    Ok(sequences::source::read_text(
+        path,
+        sequences::source::MAX_CONTROL_FILE_BYTES,
+    )?)
 }
 
 /// Loads `DIR/NAME.SEQ`, its run file (`run`, default `DIR/NAME.RUN`) and the control files it

@@ -26,6 +26,24 @@ pub struct CellFile {
     /// Opto-isolator delay of the simulated sync lines, s.
     #[serde(default)]
     pub opto_delay_s: Option<f64>,
+    /// Calibration tolerances (`windcell predict`'s setup Monte Carlo).
+    #[serde(default)]
+    pub tolerance: Option<ToleranceSection>,
+}
+
+/// `[tolerance]`: half-widths of how far the true cell may lie from its calibration; absent
+/// fields take the thesis cell's figures ([`crate::predict::Tolerances::default`]).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToleranceSection {
+    /// Rotation axis position `[x, y]`, mm.
+    pub axis_offset_mm: Option<[f64; 2]>,
+    /// Rotation axis lean toward `+x` and `+y`, degrees.
+    pub axis_tilt_deg: Option<[f64; 2]>,
+    /// The drive's zero angle, degrees.
+    pub zero_angle_deg: Option<f64>,
+    /// The mandrel's diameter, mm.
+    pub diameter_mm: Option<f64>,
 }
 
 /// `[ports]`.
@@ -78,6 +96,11 @@ pub struct Cell {
     pub drive: Drive,
     /// Opto delay of the simulated lines, s.
     pub opto_delay_s: f64,
+    /// The arm the simulated robot checks every pose against (the job's `[cell.robot]` and eye
+    /// mechanism; `paths::robot::Arm::default()` for a cell file or the built-in cell).
+    pub arm: paths::robot::Arm,
+    /// Calibration tolerances.
+    pub tolerances: crate::predict::Tolerances,
 }
 
 fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, String> {
@@ -131,6 +154,8 @@ impl Cell {
             devices,
             drive,
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+            arm: crate::tool::arm(job),
+            tolerances: crate::predict::Tolerances::default(),
         })
     }
 
@@ -141,15 +166,14 @@ impl Cell {
             devices: Devices::Simulated,
             drive: Drive::default(),
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+            arm: paths::robot::Arm::default(),
+            tolerances: crate::predict::Tolerances::default(),
         }
     }
 
     /// Reads `CELL.toml`; errors name the file, line and column.
     pub fn load(path: &Path) -> Result<Cell, Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = sequences::source::read_text(path, sequences::source::MAX_JOB_BYTES)?;
         Cell::parse(&text, path)
     }
 
@@ -183,11 +207,46 @@ impl Cell {
                 format!("opto_delay_s = {opto_delay_s}: expected 0–1 s"),
             ));
         }
+        let mut tolerances = crate::predict::Tolerances::default();
+        if let Some(t) = &file.tolerance {
+            let figures = [
+                t.axis_offset_mm.map(|v| v[0]),
+                t.axis_offset_mm.map(|v| v[1]),
+                t.axis_tilt_deg.map(|v| v[0]),
+                t.axis_tilt_deg.map(|v| v[1]),
+                t.zero_angle_deg,
+                t.diameter_mm,
+            ];
+            if figures
+                .iter()
+                .flatten()
+                .any(|v| !(v.is_finite() && (0.0..=100.0).contains(v)))
+            {
+                return Err(at(
+                    locate("[tolerance]"),
+                    "[tolerance]: every figure must be finite and 0–100".into(),
+                ));
+            }
+            if let Some(v) = t.axis_offset_mm {
+                tolerances.axis_offset_mm = v;
+            }
+            if let Some(v) = t.axis_tilt_deg {
+                tolerances.axis_tilt_rad = v.map(f64::to_radians);
+            }
+            if let Some(v) = t.zero_angle_deg {
+                tolerances.zero_angle_rad = v.to_radians();
+            }
+            if let Some(v) = t.diameter_mm {
+                tolerances.diameter_mm = v;
+            }
+        }
         Ok(Cell {
             source: path.display().to_string(),
             devices,
             drive,
             opto_delay_s,
+            arm: paths::robot::Arm::default(),
+            tolerances,
         })
     }
 }

@@ -7,7 +7,7 @@
 //! refused on `--resume` (bad input).
 
 use std::fs::{File, OpenOptions};
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde_json::{Map, Value};
@@ -37,6 +37,9 @@ pub enum JournalError {
         /// The system's error.
         source: std::io::Error,
     },
+    /// The journal is not a regular file, is larger than the limit, or is not UTF-8.
+    #[error(transparent)]
+    Unreadable(#[from] sequences::Error),
     /// A line is not a journal record, or its chain does not match (edited by hand).
     #[error("{}:{line}:1: {message}", path.display())]
     Corrupt {
@@ -147,23 +150,19 @@ impl Journal {
 
 /// Reads and checks every record of a journal.
 pub fn read(path: &Path) -> Result<Vec<Map<String, Value>>, JournalError> {
-    let file = File::open(path).map_err(|source| JournalError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = sequences::source::read_text(path, sequences::source::MAX_JOURNAL_BYTES)?;
     let mut prev = FNV_BASIS;
     let mut out = Vec::new();
-    for (i, line) in BufReader::new(file).lines().enumerate() {
+    for (i, line) in text.lines().enumerate() {
         let corrupt = |message: String| JournalError::Corrupt {
             path: path.to_path_buf(),
             line: i + 1,
             message,
         };
-        let line = line.map_err(|e| corrupt(e.to_string()))?;
         if line.len() > 1 << 20 {
             return Err(corrupt("line too long for a journal record".into()));
         }
-        let map = match serde_json::from_str::<Value>(&line) {
+        let map = match serde_json::from_str::<Value>(line) {
             Ok(Value::Object(m)) => m,
             _ => return Err(corrupt("not a journal record".into())),
         };
@@ -220,5 +219,72 @@ mod tests {
             matches!(err, JournalError::Corrupt { line: 3, .. }),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_device_or_an_oversized_file_is_refused_before_it_is_read() {
+        let err = read(Path::new("/dev/zero")).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                JournalError::Unreadable(sequences::Error::NotRegularFile { .. })
+            ),
+            "{err}"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.journal");
+        let file = File::create(&path).unwrap();
+        file.set_len(sequences::source::MAX_JOURNAL_BYTES + 1)
+            .unwrap();
+        let err = read(&path).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                JournalError::Unreadable(sequences::Error::FileTooLarge { .. })
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_record_line_of_exactly_one_mebibyte_reads_and_one_byte_more_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let line_len = |pad: usize| -> usize {
+            let p = dir.path().join(format!("len{pad}.journal"));
+            let mut j = Journal::create(&p).unwrap();
+            j.append(json!({"rec": "note", "pad": "x".repeat(pad)}))
+                .unwrap();
+            drop(j);
+            std::fs::read_to_string(&p)
+                .unwrap()
+                .lines()
+                .next()
+                .unwrap()
+                .len()
+        };
+        let base = line_len(0);
+        let limit = 1usize << 20;
+        let p = dir.path().join("exact.journal");
+        let mut j = Journal::create(&p).unwrap();
+        j.append(json!({"rec": "note", "pad": "x".repeat(limit - base)}))
+            .unwrap();
+        drop(j);
+        assert_eq!(
+            std::fs::read_to_string(&p)
+                .unwrap()
+                .lines()
+                .next()
+                .unwrap()
+                .len(),
+            limit
+        );
+        assert_eq!(read(&p).unwrap().len(), 1);
+        let p = dir.path().join("over.journal");
+        let mut j = Journal::create(&p).unwrap();
+        j.append(json!({"rec": "note", "pad": "x".repeat(limit - base + 1)}))
+            .unwrap();
+        drop(j);
+        let e = read(&p).unwrap_err().to_string();
+        assert!(e.contains("line too long"), "{e}");
     }
 }

@@ -14,6 +14,7 @@ pub mod journal;
 pub mod lathe;
 pub mod mesh;
 pub mod output;
+pub mod predict;
 pub mod record;
 pub mod report;
 pub mod scene;
@@ -21,5 +22,6 @@ pub mod simcell;
 pub mod tool;
 pub mod trace_plot;
 pub mod transfer;
+pub mod wiretap;
 
 pub use error::Error;

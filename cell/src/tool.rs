@@ -43,6 +43,9 @@ pub struct PlannedPath {
     /// Imported (DXF) paths: each drawing point's signed distance to the mandrel surface, mm,
     /// in path order (negative inside).
     pub surface_distances_mm: Option<Vec<f64>>,
+    /// The desired fibre path, mandrel frame, mm: the traced helix or geodesic at its own sample
+    /// spacing (analytic tubes), else the cut points (mesh and imported paths, already smoothed).
+    pub desired_mm: Vec<nalgebra::Point3<f64>>,
 }
 
 /// Every path of a job, planned.
@@ -341,6 +344,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         let segments = *spec.segments.get_ref() as usize;
         program_fits_memory(job, spec, text, file)?;
         let mut surface_distances_mm = None;
+        let mut desired_mm = None;
         let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
             let dxf_file = dir.join(dxf.get_ref());
             let drawing = load_dxf(&dxf_file).map_err(|e| named(text, file, dxf.span(), e))?;
@@ -467,6 +471,12 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .map_err(|e| located(e, wind.span()))?;
                 let points = paths::segment::equal_length(&tube, &path, segments)
                     .map_err(|e| located(e, spec.segments.span()))?;
+                desired_mm = Some(
+                    path.samples
+                        .iter()
+                        .map(|s| tube.point(s.u, s.v))
+                        .collect::<Vec<_>>(),
+                );
                 (points, None)
             }
         };
@@ -482,6 +492,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             plan,
             smoothing_deviation_mm,
             surface_distances_mm,
+            desired_mm: desired_mm.unwrap_or_else(|| points.iter().map(|p| p.point).collect()),
         });
     }
     Ok(JobPlan { paths: planned })

@@ -34,6 +34,7 @@
 
 use nalgebra::{Matrix2, Point3, Vector2, Vector3};
 
+use crate::calibration::CellTransform;
 use crate::mesh::trace::Tracer;
 use crate::{Error, Tube};
 
@@ -130,6 +131,15 @@ impl<'a> TubeContact<'a> {
     /// Whether the fibre is being laid or pivoting.
     pub fn state(&self) -> ContactState {
         self.state
+    }
+
+    /// Holds the contact where it is until `t_s` (the free fibre pivots about it): how
+    /// [`lay_on_tube`] passes a stretch where the fibre would bridge a concave part of the surface.
+    pub fn hold_until(&mut self, t_s: f64) {
+        if t_s > self.t_s {
+            self.t_s = t_s;
+        }
+        self.state = ContactState::Pivoting;
     }
 
     fn local(&self, u: f64, v: f64, e: &Point3<f64>, e_dot: &Vector3<f64>) -> Result<Local, Error> {
@@ -392,6 +402,180 @@ const END_MARGIN_MM: f64 = 1.0;
 /// Bound on integration steps in one call (bounded time on any input).
 const MAX_STEPS_PER_ADVANCE: f64 = 1e7;
 
+/// An eye track sampled in the cell frame with the mandrel angle sampled beside it: the devices'
+/// true motion as a simulator (or a recording) gives it. Both series are interpolated linearly in
+/// time, so the track's velocity is piecewise constant; the eye is seen in the mandrel frame
+/// through the cell's transform: `p_cell = origin + R · R_z(φ) p_mandrel` ([`CellTransform`]).
+#[derive(Debug, Clone, Copy)]
+pub struct SampledEye<'a> {
+    /// `(t_s, eye)`, cell frame, mm; times increasing.
+    pub eye_mm: &'a [(f64, [f64; 3])],
+    /// `(t_s, φ)`: the mandrel angle (mandrel frame `x` against the drive frame), rad; times
+    /// increasing.
+    pub mandrel_rad: &'a [(f64, f64)],
+    /// Drive frame to cell frame.
+    pub transform: &'a CellTransform,
+}
+
+/// Linear interpolation of a sampled series at `t` (held constant outside it), with the slope.
+fn interpolate<const N: usize>(series: &[(f64, [f64; N])], t: f64) -> ([f64; N], [f64; N]) {
+    let n = series.len();
+    if n == 0 {
+        return ([0.0; N], [0.0; N]);
+    }
+    let i = series.partition_point(|s| s.0 <= t);
+    if i == 0 {
+        return (series[0].1, [0.0; N]);
+    }
+    if i >= n {
+        return (series[n - 1].1, [0.0; N]);
+    }
+    let (a, b) = (&series[i - 1], &series[i]);
+    let h = b.0 - a.0;
+    let w = if h > 0.0 { (t - a.0) / h } else { 1.0 };
+    let mut value = [0.0; N];
+    let mut slope = [0.0; N];
+    for k in 0..N {
+        value[k] = a.1[k] + (b.1[k] - a.1[k]) * w;
+        slope[k] = if h > 0.0 { (b.1[k] - a.1[k]) / h } else { 0.0 };
+    }
+    (value, slope)
+}
+
+impl SampledEye<'_> {
+    /// The mandrel angle and its rate at `t_s`.
+    pub fn mandrel_at(&self, t_s: f64) -> (f64, f64) {
+        // A one-element view of the scalar series.
+        let n = self.mandrel_rad.len();
+        if n == 0 {
+            return (0.0, 0.0);
+        }
+        let i = self.mandrel_rad.partition_point(|s| s.0 <= t_s);
+        if i == 0 {
+            return (self.mandrel_rad[0].1, 0.0);
+        }
+        if i >= n {
+            return (self.mandrel_rad[n - 1].1, 0.0);
+        }
+        let (a, b) = (self.mandrel_rad[i - 1], self.mandrel_rad[i]);
+        let h = b.0 - a.0;
+        if h <= 0.0 {
+            return (b.1, 0.0);
+        }
+        (a.1 + (b.1 - a.1) * (t_s - a.0) / h, (b.1 - a.1) / h)
+    }
+}
+
+impl EyeTrack for SampledEye<'_> {
+    fn at(&self, t_s: f64) -> (Point3<f64>, Vector3<f64>) {
+        let (p, v) = interpolate(self.eye_mm, t_s);
+        let (phi, phi_rate) = self.mandrel_at(t_s);
+        let rt = self.transform.rotation.transpose();
+        let p_drive = Point3::from(rt * (Vector3::from(p) - self.transform.origin));
+        let v_drive = rt * Vector3::from(v);
+        to_mandrel_frame(&Vector3::zeros(), &p_drive, &v_drive, phi, phi_rate)
+    }
+}
+
+/// The surface parameters `(u, v)` of a point on (or near) `tube`: `u` the height of the spine
+/// point whose normal plane holds it (Newton on `(p − c(u))·c′(u) = 0` from `u = p.z`), `v` its
+/// angle around the spine ([`Tube::point`]).
+pub fn tube_parameters(tube: &Tube, p: &Point3<f64>) -> (f64, f64) {
+    let mut u = p.z.clamp(tube.u_min(), tube.u_max());
+    for _ in 0..50 {
+        let [x, g, dg, _] = tube.spine().eval(u);
+        let d = Vector3::new(p.x - x, p.y, p.z - u);
+        let f = d.x * g + d.z;
+        // d/du of (p − c)·c′ = −|c′|² + (p − c)·c″.
+        let df = -(1.0 + g * g) + d.x * dg;
+        if df.abs() < 1e-12 {
+            break;
+        }
+        let step = f / df;
+        u -= step;
+        if step.abs() < 1e-12 {
+            break;
+        }
+    }
+    let u = u.clamp(tube.u_min(), tube.u_max());
+    let [x, g, _, _] = tube.spine().eval(u);
+    let w = (1.0 + g * g).sqrt();
+    let n = Vector3::new(1.0, 0.0, -g) / w;
+    let d = Vector3::new(p.x - x, p.y, p.z - u);
+    (u, d.y.atan2(d.dot(&n)))
+}
+
+/// The laid path on `tube` of the eye track `eye` from `t0_s` to `t1_s`, the contact starting at
+/// `start` (mandrel frame, on the surface): the contact point every `step_s` (the integrator's
+/// step), with its time. When the contact leaves the tube past an end the path stops there and
+/// the time it left is returned beside it (the fibre runs off the mandrel's end). Where the free
+/// fibre would bridge a concave stretch the contact is held and the time counted
+/// ([`LaidPath::bridged_s`]).
+pub fn lay_on_tube(
+    tube: &Tube,
+    eye: &impl EyeTrack,
+    start: &Point3<f64>,
+    t0_s: f64,
+    t1_s: f64,
+    step_s: f64,
+) -> Result<LaidPath, Error> {
+    if !(step_s > 0.0 && t1_s.is_finite() && t0_s.is_finite()) {
+        return Err(Error::OutOfRange {
+            name: "step_s",
+            value: step_s,
+            expected: "must be > 0 with finite start and end times",
+        });
+    }
+    let steps = ((t1_s - t0_s) / step_s).ceil().max(0.0);
+    crate::limits::at_most("placement steps", steps, MAX_STEPS_PER_ADVANCE)?;
+    let (u, v) = tube_parameters(tube, start);
+    let mut contact = TubeContact::new(tube, u, v, t0_s);
+    let mut out = LaidPath {
+        points: Vec::with_capacity(steps as usize + 1),
+        left_at_s: None,
+        bridged_s: 0.0,
+    };
+    out.points.push((t0_s, contact.point()));
+    let h = if steps > 0.0 {
+        (t1_s - t0_s) / steps
+    } else {
+        0.0
+    };
+    for k in 1..=steps as usize {
+        let t = t0_s + h * k as f64;
+        let before = contact.clone();
+        match contact.advance(eye, t, h) {
+            Ok(p) => out.points.push((t, p)),
+            Err(Error::ContactOffSurface { time_s, .. }) => {
+                out.left_at_s = Some(time_s);
+                break;
+            }
+            Err(Error::ContactUndefined { .. }) => {
+                // The free fibre would bridge a concave stretch: the contact is held (the fibre
+                // pivots about it) for this step, and the time is counted.
+                contact = before;
+                contact.hold_until(t);
+                out.bridged_s += h;
+                out.points.push((t, contact.point()));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(out)
+}
+
+/// A laid path: the contact over time.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LaidPath {
+    /// `(t_s, contact)`, mandrel frame, mm.
+    pub points: Vec<(f64, Point3<f64>)>,
+    /// When the contact left the tube past one of its ends (the path stops there), s.
+    pub left_at_s: Option<f64>,
+    /// How long the free fibre ran along a flat or concave direction (it would bridge the
+    /// surface there; the model holds the contact meanwhile), s.
+    pub bridged_s: f64,
+}
+
 /// The largest distance from a laid path to a desired one (the thesis's "bow", seed 001 §6.2).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Deviation {
@@ -407,14 +591,30 @@ pub fn deviation(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Option<Deviat
     if laid.is_empty() || desired.is_empty() {
         return None;
     }
+    let d = distances(laid, desired);
     let mut worst = Deviation { max_mm: 0.0, at: 0 };
+    for (i, &e) in d.iter().enumerate() {
+        if e > worst.max_mm {
+            worst = Deviation { max_mm: e, at: i };
+        }
+    }
+    Some(worst)
+}
+
+/// The distance from each point of `laid` to the polyline `desired` (both ordered along the
+/// path; empty when either is).
+pub fn distances(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Vec<f64> {
+    if laid.is_empty() || desired.is_empty() {
+        return Vec::new();
+    }
+    let mut out = Vec::with_capacity(laid.len());
     let segments = desired.len().saturating_sub(1).max(1);
     let segment = |k: usize| (desired[k], desired[(k + 1).min(desired.len() - 1)]);
     // Both paths run the same way: search a window of desired segments around the last match,
     // widening it while the best lies on its edge (so a laid point is never matched to a farther
     // segment only because the window was short).
     let mut cursor = 0usize;
-    for (i, p) in laid.iter().enumerate() {
+    for p in laid {
         let (mut lo, mut hi) = (
             cursor.saturating_sub(WINDOW),
             (cursor + WINDOW).min(segments - 1),
@@ -438,14 +638,9 @@ pub fn deviation(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Option<Deviat
             hi = (hi + WINDOW).min(segments - 1);
         };
         cursor = best_k;
-        if best > worst.max_mm {
-            worst = Deviation {
-                max_mm: best,
-                at: i,
-            };
-        }
+        out.push(best);
     }
-    Some(worst)
+    out
 }
 
 /// Half-width of the first search window of [`deviation`], in desired segments.
@@ -656,6 +851,67 @@ mod tests {
             }
         }
         out
+    }
+
+    /// An eye fixed in the cell while the mandrel turns at a constant rate: the free fibre wraps
+    /// the cylinder in the eye's horizontal plane, so the laid path is that plane's circle (its
+    /// contact at the tangent point from the eye, `acos(r/D)` from the eye's direction).
+    #[test]
+    fn a_fixed_eye_over_a_turning_cylinder_lays_a_circle() {
+        let tube = cylinder();
+        let transform = crate::Calibration::default().transform(800.0, 300.0);
+        // The eye 150 mm from the axis toward the robot, at mandrel height 90 mm.
+        let eye_cell = [800.0 - 150.0, 0.0, 390.0];
+        let eye = [(0.0, eye_cell), (10.0, eye_cell)];
+        // The mandrel turns clockwise seen from above at 1 rad/s: the eye moves
+        // counter-clockwise in the mandrel frame.
+        let mandrel = [(0.0, 0.0), (10.0, -10.0)];
+        let track = SampledEye {
+            eye_mm: &eye,
+            mandrel_rad: &mandrel,
+            transform: &transform,
+        };
+        // Exact interpolation of a linear motion.
+        let (p, v) = track.at(2.5);
+        let (s, c) = 2.5f64.sin_cos();
+        let want = Point3::new(-150.0 * c, -150.0 * s, 90.0);
+        assert!((p - want).norm() < 1e-9, "{p} vs {want}");
+        assert!((v - Vector3::new(150.0 * s, -150.0 * c, 0.0)).norm() < 1e-9);
+        // Start at the tangent point for the eye at t = 0, on the wrapping flank (the contact
+        // trails the eye's motion).
+        let beta = (R / 150.0).acos();
+        let start = Point3::new(
+            R * (std::f64::consts::PI - beta).cos(),
+            R * (std::f64::consts::PI - beta).sin(),
+            90.0,
+        );
+        let laid = lay_on_tube(&tube, &track, &start, 0.0, 3.0, 1e-3).unwrap();
+        assert!(laid.left_at_s.is_none());
+        for &(t, q) in &laid.points {
+            assert!((q.z - 90.0).abs() < 1e-6, "t = {t}: z = {}", q.z);
+            assert!((q.x.hypot(q.y) - R).abs() < 1e-6);
+            // The tangent point of the eye at time t.
+            let angle = std::f64::consts::PI + t - beta;
+            let want = Point3::new(R * angle.cos(), R * angle.sin(), 90.0);
+            assert!((q - want).norm() < 1e-6, "t = {t}: {q} vs {want}");
+        }
+    }
+
+    #[test]
+    fn surface_parameters_round_trip_on_the_s_bend() {
+        let tube = Tube::new(
+            Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
+            28.5,
+        )
+        .unwrap();
+        for (u, v) in [(10.0, 0.3), (130.0, -2.0), (200.0, 3.0), (340.0, 1.0)] {
+            let p = tube.point(u, v);
+            let (u2, v2) = tube_parameters(&tube, &p);
+            assert!(
+                (u2 - u).abs() < 1e-9 && (v2 - v).abs() < 1e-9,
+                "{u},{v} -> {u2},{v2}"
+            );
+        }
     }
 
     #[test]

@@ -205,10 +205,7 @@ impl PartProgram {
 
     /// Reads and parses a file; errors name it.
     pub fn load(path: &Path) -> Result<Self, Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::source::read_text(path, crate::source::MAX_PROGRAM_BYTES)?;
         PartProgram::parse(&text).map_err(|e| e.in_file(path))
     }
 
@@ -793,10 +790,7 @@ impl MachineParameters {
 
     /// Reads and parses a file; errors name it.
     pub fn load(path: &Path) -> Result<Self, Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::source::read_text(path, crate::source::MAX_JOB_BYTES)?;
         MachineParameters::parse(&text).map_err(|e| e.in_file(path))
     }
 }

@@ -200,10 +200,7 @@ impl VesselFile {
 
     /// Reads and parses a job file; errors name the file.
     pub fn load(path: &Path) -> Result<(Loaded, String), Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::source::read_text(path, crate::source::MAX_JOB_BYTES)?;
         let loaded = VesselFile::parse(&text).map_err(|e| e.in_file(path))?;
         Ok((loaded, text))
     }

@@ -309,10 +309,7 @@ impl WindFile {
 
     /// Reads and parses a `.wind` file; errors name it. Returns the job and the file's stem.
     pub fn load(path: &Path) -> Result<(Job, String), Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::source::read_text(path, crate::source::MAX_JOB_BYTES)?;
         let name = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())

@@ -8,6 +8,7 @@ pub mod geodesic;
 pub mod jog;
 pub mod lathe;
 pub mod plan;
+pub mod predict;
 pub mod run;
 pub mod sim_cell;
 pub mod sim_indexer;
@@ -71,6 +72,8 @@ pub enum Command {
     Plan(plan::PlanArgs),
     /// Check a job for collisions of the eye and the arm and snags of the free fibre (exit 3).
     Check(check::CheckArgs),
+    /// Predict each mode's time and placement error on the simulated cell, before winding.
+    Predict(predict::PredictArgs),
     /// Wind a batch on the cell: a job (planned first) or a sequence of control files.
     Run(run::RunArgs),
     /// Manual control: one robot position and one mandrel move, sent together.
@@ -110,6 +113,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Plan(args) => plan::run(args),
         Command::Check(args) => check::run(args),
         Command::Run(args) => run::run(args),
+        Command::Predict(args) => predict::run(args),
         Command::Jog(args) => jog::run(args),
         Command::SimCell(args) => sim_cell::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),

@@ -1,0 +1,108 @@
+//! `windcell predict JOB.toml [--mode M …] [--mandrel-rps R] [--json] [--svg FILE]`: time and
+//! placement error of each mode before winding (seed 001 Chapter 6; `cell::predict`).
+
+use std::path::PathBuf;
+
+use cell::cellfile::Cell;
+use cell::coordinator::RunMode;
+use cell::predict::{self, Mode, Options};
+use clap::{Args, ValueEnum};
+use sequences::Job;
+
+use super::Failure;
+
+/// `--mode`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PredictMode {
+    /// File control: both devices stop at every point.
+    Discrete,
+    /// Program control, 1 mm zone.
+    Fine,
+    /// Program control, 10 mm zone.
+    Medium,
+}
+
+/// Predict each mode's time and placement error on the simulated cell.
+#[derive(Debug, Args)]
+pub struct PredictArgs {
+    /// The job file (TOML).
+    pub job: PathBuf,
+    /// Modes to predict (repeatable; default: discrete, fine and medium).
+    #[arg(long = "mode", value_enum)]
+    pub modes: Vec<PredictMode>,
+    /// Mandrel speed for every mode, rev/s (default: the job's).
+    #[arg(long, value_name = "R")]
+    pub mandrel_rps: Option<f64>,
+    /// The cell description (its `[tolerance]` drives the setup Monte Carlo).
+    #[arg(long, value_name = "CELL.toml")]
+    pub cell: Option<PathBuf>,
+    /// Monte Carlo samples of the setup error.
+    #[arg(long, default_value_t = 200)]
+    pub samples: usize,
+    /// The Monte Carlo's seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The report as one JSON document.
+    #[arg(long)]
+    pub json: bool,
+    /// Draw the desired and predicted paths unrolled, and the error along them, as SVG.
+    #[arg(long, value_name = "FILE")]
+    pub svg: Option<PathBuf>,
+}
+
+/// Most Monte Carlo samples accepted.
+pub const MAX_SAMPLES: usize = 100_000;
+
+/// Runs `windcell predict`.
+pub fn run(args: PredictArgs) -> Result<(), Failure> {
+    if args.samples > MAX_SAMPLES {
+        return Err(Failure::input(format!(
+            "--samples {}: at most {MAX_SAMPLES}",
+            args.samples
+        )));
+    }
+    let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    let cell = match &args.cell {
+        Some(p) => Cell::load(p).map_err(Failure::from_cell)?,
+        None => Cell::of_job(&job, &args.job).map_err(Failure::from_cell)?,
+    };
+    let mut modes: Vec<Mode> = args
+        .modes
+        .iter()
+        .map(|m| {
+            Mode::Thesis(match m {
+                PredictMode::Discrete => RunMode::Discrete,
+                PredictMode::Fine => RunMode::Fine,
+                PredictMode::Medium => RunMode::Medium,
+            })
+        })
+        .collect();
+    if modes.is_empty() {
+        modes = Options::default().modes;
+    }
+    let opt = Options {
+        modes,
+        mandrel_rps: args.mandrel_rps,
+        samples: args.samples,
+        seed: args.seed,
+        tolerances: cell.tolerances,
+        ..Options::default()
+    };
+    let prediction =
+        predict::predict(&job, &text, &args.job, &cell, &opt).map_err(Failure::from_cell)?;
+    if let Some(svg) = &args.svg {
+        let tube = cell::tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
+        let text = prediction
+            .svg(&tube)
+            .map_err(|e| Failure::runtime(format!("{}: {e}", svg.display())))?;
+        std::fs::write(svg, text)
+            .map_err(|e| Failure::runtime(format!("{}: {e}", svg.display())))?;
+    }
+    if args.json {
+        let mut out = serde_json::to_string_pretty(&prediction.json()).map_err(Failure::runtime)?;
+        out.push('\n');
+        super::print(&out)
+    } else {
+        super::print(&prediction.text())
+    }
+}
