@@ -33,6 +33,11 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
     output::check_dir(&args.out).map_err(Failure::from_cell)?;
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let files = tool::control_files(&job, &plan).map_err(Failure::from_cell)?;
+    // The collision and snag check's one line (`windcell check` shows every segment; the plan
+    // is written either way, and `windcell run` refuses it while the check finds anything).
+    let checked =
+        cell::check::check(&job, &text, &args.job, plan.clone()).map_err(Failure::from_cell)?;
+    let check_line = cell::check::summary(&checked);
     output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
         .map_err(Failure::from_cell)?;
     let mut out = String::new();
@@ -54,6 +59,10 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
                     obj.insert("dxf_max_surface_distance_mm".into(), worst.into());
                 }
             }
+        }
+        if let Some(obj) = value.as_object_mut() {
+            obj.insert("check".into(), check_line.clone().into());
+            obj.insert("check_clear".into(), checked.report.is_clear().into());
         }
         out = serde_json::to_string_pretty(&value).map_err(Failure::runtime)?;
         out.push('\n');
@@ -80,6 +89,8 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
                 }
             );
         }
+        out += &check_line;
+        out.push('\n');
         out += &format!(
             "wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
             files.len(),
