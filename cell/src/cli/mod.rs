@@ -11,6 +11,7 @@ pub mod plan;
 pub mod predict;
 pub mod run;
 pub mod sim_cell;
+pub mod sim_grbl;
 pub mod sim_indexer;
 pub mod sim_robot;
 pub mod sweep;
@@ -80,6 +81,8 @@ pub enum Command {
     Jog(jog::JogArgs),
     /// Serve the simulated cell (both simulators, one clock, sync lines on a socket) on ptys.
     SimCell(sim_cell::SimCellArgs),
+    /// Run the multi-axis GRBL controller simulator (lathe winder) on a pseudo-terminal.
+    SimGrbl(sim_grbl::SimGrblArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Run the ASEA robot-computer simulator on a pseudo-terminal.
@@ -116,6 +119,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Predict(args) => predict::run(args),
         Command::Jog(args) => jog::run(args),
         Command::SimCell(args) => sim_cell::run(args),
+        Command::SimGrbl(args) => sim_grbl::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::SimRobot(args) => sim_robot::run(args),
         Command::Geodesic(args) => geodesic::run(args),

@@ -9,6 +9,7 @@ pub mod gear;
 pub mod home;
 pub mod plan;
 pub mod run;
+pub mod stream;
 pub mod tune;
 
 /// The lathe winder's commands.
@@ -23,6 +24,8 @@ pub struct LatheArgs {
 pub enum LatheCommand {
     /// Plan a vessel (TOML) or `.wind` job and write its G-code.
     Plan(plan::LathePlanArgs),
+    /// Stream a G-code program to a GRBL-class controller over a serial port.
+    Stream(stream::LatheStreamArgs),
     /// Run a part program (Fig 9-1 format) on the simulated lathe winder.
     Run(run::LatheRunArgs),
     /// Machine-zero search of X and Y against the home switch (seed 003 §4.2).
@@ -38,6 +41,7 @@ pub fn run(args: LatheArgs) -> Result<(), Failure> {
     match args.command {
         LatheCommand::Plan(a) => plan::run(a),
         LatheCommand::Run(a) => run::run(a),
+        LatheCommand::Stream(a) => stream::run(a),
         LatheCommand::Tune(a) => tune::run(a),
         LatheCommand::Home(a) => home::run(a),
         LatheCommand::Gear(a) => gear::run(a),

@@ -1,0 +1,220 @@
+//! `windcell lathe stream FILE --port PATH [--baud B] [--flow counting|ok-per-line]`: streams a
+//! planned G-code program to a GRBL-class controller over a serial port (docs/lathe.md,
+//! "Streaming to a GRBL controller").
+//!
+//! Character counting keeps the controller's 128-byte receive buffer full; `ok-per-line` (Marlin,
+//! and the fallback) waits for each `ok`. Ctrl-C sends feed hold and soft reset and exits 130.
+//! On standard input, `p` asks to pause at the next layer boundary (a `layer` comment in the
+//! program) and `r` resumes. A refused line or a silent link ends the stream with exit 1.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use clap::{Args, ValueEnum};
+use mandrel_drive::Link as _;
+use mandrel_drive::grbl::STATUS;
+use mandrel_drive::stream::{Flow, GRBL_RX_BUFFER, Program, Streamer};
+
+use super::super::Failure;
+use super::super::run::EXIT_INTERRUPTED;
+
+/// How lines are paced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FlowArg {
+    /// GRBL character counting (fill the 128-byte receive buffer).
+    Counting,
+    /// One line per `ok` (Marlin; the fallback).
+    OkPerLine,
+}
+
+/// Arguments of `windcell lathe stream`.
+#[derive(Debug, Args)]
+pub struct LatheStreamArgs {
+    /// The G-code program (from `windcell lathe plan --dialect grbl` or `marlin`).
+    pub file: PathBuf,
+    /// Serial port of the controller.
+    #[arg(long)]
+    pub port: String,
+    /// Baud rate.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// Flow control.
+    #[arg(long, value_enum, default_value = "counting")]
+    pub flow: FlowArg,
+    /// Seconds without any byte from the controller (it is asked for status every 0.25 s) after
+    /// which the link counts as lost.
+    #[arg(long, default_value_t = 5.0)]
+    pub silence_s: f64,
+}
+
+/// How often a status report is asked for (also the link's heartbeat).
+const STATUS_PERIOD: Duration = Duration::from_millis(250);
+
+/// Reads and checks the program: every line to send must fit the receive buffer.
+fn load(path: &PathBuf) -> Result<Program, Failure> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+    for (i, raw) in text.lines().enumerate() {
+        let code = Program::from_gcode(raw);
+        if let Some(line) = code.lines.first()
+            && line.len() > GRBL_RX_BUFFER
+        {
+            return Err(Failure::input(format!(
+                "{}:{}:1: line of {} bytes does not fit the controller's {GRBL_RX_BUFFER}-byte receive buffer",
+                path.display(),
+                i + 1,
+                line.len()
+            )));
+        }
+        if raw
+            .bytes()
+            .any(|b| b == 0x18 || b == b'!' || b == b'~' || b == b'?')
+            && !code.lines.is_empty()
+        {
+            let col = raw
+                .bytes()
+                .position(|b| b == 0x18 || b == b'!' || b == b'~' || b == b'?')
+                .unwrap_or(0);
+            return Err(Failure::input(format!(
+                "{}:{}:{}: a real-time command character inside a line",
+                path.display(),
+                i + 1,
+                col + 1
+            )));
+        }
+    }
+    let program = Program::from_gcode(&text);
+    if program.lines.is_empty() {
+        return Err(Failure::input(format!(
+            "{}:1:1: no G-code lines to send",
+            path.display()
+        )));
+    }
+    Ok(program)
+}
+
+/// Streams the program until every line is acknowledged.
+pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
+    if !(args.silence_s.is_finite() && args.silence_s > 0.0) {
+        return Err(Failure::input(format!(
+            "lathe stream: --silence-s {} must be a positive number",
+            args.silence_s
+        )));
+    }
+    let program = load(&args.file)?;
+    let total = program.lines.len();
+    let layers = program.layer_starts.clone();
+    let flow = match args.flow {
+        FlowArg::Counting => Flow::CharacterCounting {
+            rx_buffer: GRBL_RX_BUFFER,
+        },
+        FlowArg::OkPerLine => Flow::OkPerLine,
+    };
+    let mut streamer = Streamer::new(program, flow);
+
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone())
+            .map_err(|e| Failure::runtime(format!("lathe stream: signal handler: {e}")))?;
+    }
+    let mut port = serialport::new(&args.port, args.baud)
+        .timeout(Duration::from_millis(10))
+        .open()
+        .map_err(|e| Failure::runtime(format!("{}: {e}", args.port)))?;
+    let link_failure = |e: std::io::Error| Failure::runtime(format!("{}: {e}", args.port));
+    port.discard_input().map_err(link_failure)?;
+
+    // Operator console on standard input: `p` pause at the next layer, `r` resume.
+    let (tx, console) = mpsc::channel::<char>();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        while std::io::stdin().read_line(&mut line).is_ok_and(|n| n > 0) {
+            if let Some(c) = line.trim().chars().next()
+                && tx.send(c).is_err()
+            {
+                return;
+            }
+            line.clear();
+        }
+    });
+
+    let mut reply = Vec::<u8>::new();
+    let mut buf = [0u8; 512];
+    let mut last_heard = Instant::now();
+    let mut last_status = Instant::now();
+    let mut announced_pause = false;
+    let silence = Duration::from_secs_f64(args.silence_s);
+    while !streamer.is_done() {
+        if stop.load(Ordering::Relaxed) {
+            let bytes = streamer.stop();
+            port.write_all(&bytes).map_err(link_failure)?;
+            return Err(Failure {
+                message: format!(
+                    "lathe stream: interrupted after {} of {total} lines: feed hold and reset sent",
+                    streamer.sent()
+                ),
+                exit_code: EXIT_INTERRUPTED,
+            });
+        }
+        while let Ok(c) = console.try_recv() {
+            match c {
+                'p' => streamer.request_pause(),
+                'r' => {
+                    streamer.resume();
+                    announced_pause = false;
+                    eprintln!("lathe stream: resumed");
+                }
+                _ => {}
+            }
+        }
+        while let Some(line) = streamer.poll_send() {
+            let line = line.to_string();
+            port.write_all(line.as_bytes()).map_err(link_failure)?;
+        }
+        if let Some(at) = streamer.paused_at()
+            && !announced_pause
+        {
+            let layer = layers.iter().position(|&s| s == at).map_or(0, |i| i + 1);
+            eprintln!(
+                "lathe stream: paused before layer {layer} (line {} of {total}); `r` resumes",
+                at + 1
+            );
+            announced_pause = true;
+        }
+        if last_status.elapsed() >= STATUS_PERIOD {
+            port.write_all(&[STATUS]).map_err(link_failure)?;
+            last_status = Instant::now();
+        }
+        let n = port
+            .read_timeout(&mut buf, Duration::from_millis(5))
+            .map_err(link_failure)?;
+        if n > 0 {
+            last_heard = Instant::now();
+        } else if last_heard.elapsed() > silence {
+            return Err(Failure::runtime(format!(
+                "{}: no reply from the controller in {} s after {} of {total} lines",
+                args.port,
+                args.silence_s,
+                streamer.sent()
+            )));
+        }
+        for &b in buf.get(..n).unwrap_or_default() {
+            if b == b'\n' || b == b'\r' {
+                if !reply.is_empty() {
+                    let text = String::from_utf8_lossy(&reply).into_owned();
+                    reply.clear();
+                    streamer
+                        .on_reply(&text)
+                        .map_err(|e| Failure::runtime(format!("{}: {e}", args.file.display())))?;
+                }
+            } else {
+                reply.push(b);
+            }
+        }
+    }
+    eprintln!("lathe stream: {total} lines sent and acknowledged");
+    Ok(())
+}

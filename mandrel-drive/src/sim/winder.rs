@@ -1,0 +1,515 @@
+//! A multi-axis GRBL 1.1 class controller for the lathe winder (axes X Y Z A B C), for streaming
+//! tests over a real serial port (docs/lathe.md, "Streaming to a GRBL controller").
+//!
+//! The host side is modelled as GRBL does it: a 128-byte serial receive buffer, a line buffer of
+//! 80 characters (spaces dropped), a planner of 15 blocks. A line leaves the receive buffer when
+//! the planner takes it and is answered `ok` (or `error:N`) at that moment; motion then runs at the
+//! commanded feed (`G93` inverse time: the block takes `1/F` min; `G94`: distance over `F`;
+//! `G0`: distance over the rapid rate), scaled by a time factor so tests run fast. Bytes arriving
+//! while the receive buffer is full are lost and counted: a host that sends more than the buffer
+//! holds is caught, which is what character counting must never do.
+//!
+//! Real-time bytes are acted on at once and never buffered: `?` status report, `!` feed hold
+//! (this model stops at once, without the deceleration ramp), `~` cycle start, `0x18` soft reset
+//! (flushes the buffers and the planner, keeps the position, prints the banner).
+
+use std::collections::VecDeque;
+
+use crate::grbl::{CYCLE_START, FEED_HOLD, SOFT_RESET, STATUS};
+use crate::stream::GRBL_RX_BUFFER;
+
+/// GRBL's line buffer after whitespace is stripped, characters (`LINE_BUFFER_SIZE`).
+pub const LINE_BUFFER: usize = 80;
+/// Planner blocks GRBL can hold (`BLOCK_BUFFER_SIZE` 16, one kept free).
+pub const PLANNER_BLOCKS: usize = 15;
+/// Rapid (`G0`) rate, units/min.
+pub const RAPID_PER_MIN: f64 = 5_000.0;
+/// The start-up banner.
+pub const BANNER: &str = "Grbl 1.1h ['$' for help]";
+/// Axis letters in report order.
+pub const AXES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
+
+/// GRBL `error:1`: a word without a letter.
+pub const ERROR_LETTER: u16 = 1;
+/// GRBL `error:2`: a value that is not a number.
+pub const ERROR_NUMBER: u16 = 2;
+/// GRBL `error:14`: the line is longer than the line buffer.
+pub const ERROR_LINE_LENGTH: u16 = 14;
+/// GRBL `error:20`: unsupported command.
+pub const ERROR_UNSUPPORTED: u16 = 20;
+/// GRBL `error:22`: feed rate undefined (or, in `G93`, missing from a `G1` line).
+pub const ERROR_FEED: u16 = 22;
+
+/// Something the simulator logs.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A line taken from the receive buffer (1-based count since start, the text without `\n`,
+    /// the receive buffer's fill in bytes just before it was taken).
+    Line {
+        /// 1-based count of lines received since start.
+        n: usize,
+        /// The line as received.
+        text: String,
+        /// Receive-buffer fill, bytes, including this line.
+        rx_bytes: usize,
+    },
+    /// Bytes lost because the receive buffer was full.
+    Overflow {
+        /// How many bytes were lost.
+        bytes: usize,
+    },
+    /// A real-time byte (`?` excluded).
+    Realtime {
+        /// `feed_hold`, `cycle_start` or `reset`.
+        what: &'static str,
+    },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Block {
+    from: [f64; 6],
+    to: [f64; 6],
+    duration_s: f64,
+}
+
+/// The simulated controller.
+#[derive(Debug)]
+pub struct Winder {
+    time_scale: f64,
+    rx: VecDeque<u8>,
+    planner: VecDeque<Block>,
+    running: Option<(Block, f64)>,
+    position: [f64; 6],
+    planned_end: [f64; 6],
+    absolute: bool,
+    inverse_time: bool,
+    inch: bool,
+    feed: Option<f64>,
+    hold: bool,
+    last_s: Option<f64>,
+    lines: usize,
+    overflow_bytes: usize,
+    max_rx_bytes: usize,
+    out: Vec<u8>,
+    events: Vec<Event>,
+}
+
+impl Winder {
+    /// A controller at rest at zero; motion runs `time_scale` times faster than commanded.
+    pub fn new(time_scale: f64) -> Winder {
+        Winder {
+            time_scale,
+            rx: VecDeque::with_capacity(GRBL_RX_BUFFER),
+            planner: VecDeque::new(),
+            running: None,
+            position: [0.0; 6],
+            planned_end: [0.0; 6],
+            absolute: true,
+            inverse_time: false,
+            inch: false,
+            feed: None,
+            hold: false,
+            last_s: None,
+            lines: 0,
+            overflow_bytes: 0,
+            max_rx_bytes: 0,
+            out: Vec::new(),
+            events: Vec::new(),
+        }
+    }
+
+    /// Bytes from the host at clock time `now_s`.
+    pub fn receive(&mut self, bytes: &[u8], now_s: f64) {
+        self.poll(now_s);
+        let mut lost = 0;
+        for &b in bytes {
+            match b {
+                STATUS => self.status(),
+                FEED_HOLD => {
+                    self.hold = true;
+                    self.events.push(Event::Realtime { what: "feed_hold" });
+                }
+                CYCLE_START => {
+                    self.hold = false;
+                    self.events.push(Event::Realtime {
+                        what: "cycle_start",
+                    });
+                }
+                SOFT_RESET => self.reset(),
+                _ if self.rx.len() >= GRBL_RX_BUFFER => lost += 1,
+                _ => self.rx.push_back(b),
+            }
+            self.max_rx_bytes = self.max_rx_bytes.max(self.rx.len());
+        }
+        if lost > 0 {
+            self.overflow_bytes += lost;
+            self.events.push(Event::Overflow { bytes: lost });
+        }
+        self.poll(now_s);
+    }
+
+    /// Lets the clock run to `now_s`: motion advances, the planner takes lines.
+    pub fn poll(&mut self, now_s: f64) {
+        let dt = self.last_s.map_or(0.0, |t| (now_s - t).max(0.0));
+        self.last_s = Some(now_s);
+        if !self.hold {
+            self.advance(dt * self.time_scale);
+        }
+        self.take_lines();
+    }
+
+    fn advance(&mut self, mut dt_s: f64) {
+        loop {
+            if self.running.is_none() {
+                match self.planner.pop_front() {
+                    Some(b) => self.running = Some((b, 0.0)),
+                    None => return,
+                }
+            }
+            let Some((block, elapsed)) = self.running.as_mut() else {
+                return;
+            };
+            let left = block.duration_s - *elapsed;
+            if dt_s < left {
+                *elapsed += dt_s;
+                let f = *elapsed / block.duration_s;
+                for i in 0..6 {
+                    self.position[i] = block.from[i] + (block.to[i] - block.from[i]) * f;
+                }
+                return;
+            }
+            dt_s -= left;
+            self.position = block.to;
+            self.running = None;
+        }
+    }
+
+    fn take_lines(&mut self) {
+        while self.planner.len() < PLANNER_BLOCKS {
+            let Some(end) = self.rx.iter().position(|&b| b == b'\n' || b == b'\r') else {
+                return;
+            };
+            let raw: Vec<u8> = self.rx.drain(..=end).collect();
+            let text = String::from_utf8_lossy(&raw[..end]).into_owned();
+            if text.trim().is_empty() {
+                continue;
+            }
+            self.lines += 1;
+            self.events.push(Event::Line {
+                n: self.lines,
+                text: text.clone(),
+                rx_bytes: raw.len() + self.rx.len(),
+            });
+            let reply = match self.execute(&text) {
+                Ok(()) => "ok\r\n".to_string(),
+                Err(code) => format!("error:{code}\r\n"),
+            };
+            self.out.extend_from_slice(reply.as_bytes());
+        }
+    }
+
+    /// Interprets one line (the subset of GRBL 1.1 our `grbl` dialect emits, plus `G91`, `G94`
+    /// and `G20`).
+    fn execute(&mut self, text: &str) -> Result<(), u16> {
+        let mut code = String::new();
+        let mut depth = 0;
+        for ch in text.chars() {
+            match ch {
+                '(' => depth += 1,
+                ')' if depth > 0 => depth -= 1,
+                ';' if depth == 0 => break,
+                c if depth == 0 && !c.is_whitespace() => code.push(c.to_ascii_uppercase()),
+                _ => {}
+            }
+        }
+        if code.len() > LINE_BUFFER {
+            return Err(ERROR_LINE_LENGTH);
+        }
+        let mut words: Vec<(char, f64)> = Vec::new();
+        let mut chars = code.chars().peekable();
+        while let Some(letter) = chars.next() {
+            if !letter.is_ascii_alphabetic() {
+                return Err(ERROR_LETTER);
+            }
+            let mut num = String::new();
+            while let Some(&c) = chars.peek() {
+                if c.is_ascii_digit() || c == '.' || c == '-' || c == '+' {
+                    num.push(c);
+                    chars.next();
+                } else {
+                    break;
+                }
+            }
+            let v: f64 = num.parse().map_err(|_| ERROR_NUMBER)?;
+            if !v.is_finite() {
+                return Err(ERROR_NUMBER);
+            }
+            words.push((letter, v));
+        }
+        let mut motion: Option<u8> = None;
+        let mut set_origin = false;
+        let mut absolute = self.absolute;
+        let mut inverse_time = self.inverse_time;
+        let mut inch = self.inch;
+        let mut feed = None;
+        let mut axes: [Option<f64>; 6] = [None; 6];
+        for &(letter, v) in &words {
+            match letter {
+                'G' => match v {
+                    0.0 => motion = Some(0),
+                    1.0 => motion = Some(1),
+                    92.0 => set_origin = true,
+                    90.0 => absolute = true,
+                    91.0 => absolute = false,
+                    93.0 => inverse_time = true,
+                    94.0 => inverse_time = false,
+                    20.0 => inch = true,
+                    21.0 => inch = false,
+                    17.0 | 18.0 | 19.0 => {}
+                    _ => return Err(ERROR_UNSUPPORTED),
+                },
+                'M' => match v {
+                    0.0 | 2.0 | 30.0 | 3.0 | 5.0 => {}
+                    _ => return Err(ERROR_UNSUPPORTED),
+                },
+                'F' if v > 0.0 => feed = Some(v),
+                'F' => return Err(ERROR_FEED),
+                'N' => {}
+                l => match AXES.iter().position(|&a| a == l) {
+                    Some(i) => axes[i] = Some(v),
+                    None => return Err(ERROR_UNSUPPORTED),
+                },
+            }
+        }
+        let unit = if inch { 25.4 } else { 1.0 };
+        if set_origin {
+            // G92: the current (planned) position takes the given coordinates; this model keeps
+            // machine and work coordinates as one, so the offset simply renames the position.
+            for (i, a) in axes.iter().enumerate() {
+                if let Some(v) = a {
+                    let shift = v * unit - self.planned_end[i];
+                    self.planned_end[i] += shift;
+                    self.position[i] += shift;
+                    for b in self.planner.iter_mut() {
+                        b.from[i] += shift;
+                        b.to[i] += shift;
+                    }
+                    if let Some((b, _)) = self.running.as_mut() {
+                        b.from[i] += shift;
+                        b.to[i] += shift;
+                    }
+                }
+            }
+            self.commit_modes(absolute, inverse_time, inch, feed);
+            return Ok(());
+        }
+        let has_axes = axes.iter().any(Option::is_some);
+        let motion = motion.or(if has_axes { Some(1) } else { None });
+        let Some(motion) = motion.filter(|_| has_axes) else {
+            self.commit_modes(absolute, inverse_time, inch, feed);
+            return Ok(());
+        };
+        let mut to = self.planned_end;
+        for (i, a) in axes.iter().enumerate() {
+            if let Some(v) = a {
+                to[i] = if absolute { v * unit } else { to[i] + v * unit };
+            }
+        }
+        let dist = to
+            .iter()
+            .zip(self.planned_end)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let minutes = if motion == 0 {
+            dist / RAPID_PER_MIN
+        } else if inverse_time {
+            1.0 / feed.ok_or(ERROR_FEED)?
+        } else {
+            dist / (feed.or(self.feed).ok_or(ERROR_FEED)? * unit)
+        };
+        self.commit_modes(absolute, inverse_time, inch, feed);
+        let block = Block {
+            from: self.planned_end,
+            to,
+            duration_s: minutes * 60.0,
+        };
+        self.planned_end = to;
+        self.planner.push_back(block);
+        Ok(())
+    }
+
+    fn commit_modes(&mut self, absolute: bool, inverse_time: bool, inch: bool, feed: Option<f64>) {
+        self.absolute = absolute;
+        self.inverse_time = inverse_time;
+        self.inch = inch;
+        if feed.is_some() {
+            self.feed = feed;
+        }
+    }
+
+    fn status(&mut self) {
+        let state = if self.hold {
+            "Hold:0"
+        } else if self.running.is_some() || !self.planner.is_empty() {
+            "Run"
+        } else {
+            "Idle"
+        };
+        let pos: Vec<String> = self.position.iter().map(|p| format!("{p:.3}")).collect();
+        let report = format!(
+            "<{state}|MPos:{}|Bf:{},{}|FS:{},0>\r\n",
+            pos.join(","),
+            PLANNER_BLOCKS - self.planner.len(),
+            GRBL_RX_BUFFER - self.rx.len(),
+            self.feed.unwrap_or(0.0)
+        );
+        self.out.extend_from_slice(report.as_bytes());
+    }
+
+    fn reset(&mut self) {
+        self.rx.clear();
+        self.planner.clear();
+        self.running = None;
+        self.planned_end = self.position;
+        self.hold = false;
+        self.events.push(Event::Realtime { what: "reset" });
+        self.out
+            .extend_from_slice(format!("\r\n{BANNER}\r\n").as_bytes());
+    }
+
+    /// Bytes to send to the host.
+    pub fn take_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.out)
+    }
+
+    /// What happened since the last call.
+    pub fn take_events(&mut self) -> Vec<Event> {
+        std::mem::take(&mut self.events)
+    }
+
+    /// Axis positions X Y Z A B C (work units: mm or degrees).
+    pub fn position(&self) -> [f64; 6] {
+        self.position
+    }
+
+    /// Bytes lost to a full receive buffer since start.
+    pub fn overflow_bytes(&self) -> usize {
+        self.overflow_bytes
+    }
+
+    /// The most the receive buffer has held, bytes.
+    pub fn max_rx_bytes(&self) -> usize {
+        self.max_rx_bytes
+    }
+
+    /// Nothing queued, nothing moving.
+    pub fn is_idle(&self) -> bool {
+        self.running.is_none() && self.planner.is_empty() && self.rx.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn replies(w: &mut Winder) -> String {
+        String::from_utf8(w.take_output()).unwrap()
+    }
+
+    #[test]
+    fn a_burst_beyond_the_receive_buffer_is_counted_as_lost() {
+        let mut w = Winder::new(1.0);
+        // Fill the planner with long moves so that lines stay in the receive buffer.
+        for _ in 0..PLANNER_BLOCKS {
+            w.receive(b"G1 X100 F1\n", 0.0);
+        }
+        assert_eq!(w.overflow_bytes(), 0);
+        let burst = vec![b'X'; GRBL_RX_BUFFER + 5];
+        w.receive(&burst, 0.0);
+        assert_eq!(w.overflow_bytes(), 5);
+        assert_eq!(w.max_rx_bytes(), GRBL_RX_BUFFER);
+        assert!(w.take_events().contains(&Event::Overflow { bytes: 5 }));
+    }
+
+    #[test]
+    fn inverse_time_block_takes_one_over_f_minutes() {
+        let mut w = Winder::new(1.0);
+        w.receive(b"G93\nG1 X10 A90 F2\n", 0.0);
+        assert_eq!(replies(&mut w), "ok\r\nok\r\n");
+        // F2 in G93: 0.5 min = 30 s. Half way at 15 s.
+        w.poll(15.0);
+        let p = w.position();
+        assert!(
+            (p[0] - 5.0).abs() < 1e-9 && (p[3] - 45.0).abs() < 1e-9,
+            "{p:?}"
+        );
+        w.poll(30.0);
+        assert_eq!(w.position()[0], 10.0);
+        assert!(w.is_idle());
+    }
+
+    #[test]
+    fn units_per_minute_feed_and_time_scale() {
+        let mut w = Winder::new(10.0);
+        w.receive(b"G94 G1 X3 Y4 F60\n", 0.0);
+        // 5 mm at 60 mm/min = 5 s, ten times faster: 0.5 s.
+        w.poll(0.25);
+        assert!((w.position()[0] - 1.5).abs() < 1e-9);
+        w.poll(0.5);
+        assert!(w.is_idle());
+    }
+
+    #[test]
+    fn hold_stops_motion_and_resume_continues() {
+        let mut w = Winder::new(1.0);
+        w.receive(b"G94 G1 X10 F60\n", 0.0);
+        w.receive(b"!", 2.0);
+        w.poll(5.0);
+        assert!((w.position()[0] - 2.0).abs() < 1e-9);
+        w.receive(b"?", 5.0);
+        assert!(replies(&mut w).contains("<Hold:0|MPos:2.000,"));
+        w.receive(b"~", 5.0);
+        w.poll(6.0);
+        assert!((w.position()[0] - 3.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn reset_flushes_buffers_and_prints_the_banner() {
+        let mut w = Winder::new(1.0);
+        for _ in 0..PLANNER_BLOCKS + 3 {
+            w.receive(b"G1 X100 F1\n", 0.0);
+        }
+        w.take_output();
+        w.receive(&[SOFT_RESET], 1.0);
+        assert!(replies(&mut w).contains(BANNER));
+        assert!(w.is_idle());
+        let x = w.position()[0];
+        w.poll(100.0);
+        assert_eq!(w.position()[0], x);
+    }
+
+    #[test]
+    fn errors_are_numbered_as_grbl_numbers_them() {
+        let mut w = Winder::new(1.0);
+        w.receive(b"G93\nG1 X1\nG5 X1\nQ1\nG1 X1.2.3 F1\n", 0.0);
+        w.receive(
+            format!("G1 X{} F1\n", "1".repeat(LINE_BUFFER)).as_bytes(),
+            0.0,
+        );
+        assert_eq!(
+            replies(&mut w),
+            "ok\r\nerror:22\r\nerror:20\r\nerror:20\r\nerror:2\r\nerror:14\r\n"
+        );
+    }
+
+    #[test]
+    fn g92_renames_the_position() {
+        let mut w = Winder::new(1.0);
+        w.receive(b"G94 G1 A360 F3600\n", 0.0);
+        w.poll(10.0);
+        w.receive(b"G92 A0\nG1 A90 F3600\n", 10.0);
+        w.poll(20.0);
+        assert!((w.position()[3] - 90.0).abs() < 1e-9);
+    }
+}
