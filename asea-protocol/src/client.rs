@@ -124,6 +124,8 @@ pub struct Client<L, C = RealClock> {
     cancel: Cancel,
     /// While true the cancel token is ignored (STOP).
     uncancellable: bool,
+    /// While true a session starts after the urgent gap (STOP, [`Host::start_urgent`]).
+    urgent: bool,
     /// The robot's error sequence number as last accounted for: errors up to it are reported.
     seen_error_seq: Option<u8>,
     /// Errors the robot raised that this client has seen (reported or acknowledged), counted by
@@ -165,6 +167,7 @@ impl<L: Link, C: Clock> Client<L, C> {
             buf: vec![0u8; 256],
             cancel: Cancel::new(),
             uncancellable: false,
+            urgent: false,
             seen_error_seq: None,
             errors_seen: 0,
             last_executed: None,
@@ -205,8 +208,13 @@ impl<L: Link, C: Clock> Client<L, C> {
     fn session(&mut self, cmd: &Command) -> Result<Option<Frame>> {
         let bytes = cmd.encode(&self.cfg.frame)?;
         self.link.discard_input()?;
-        self.host
-            .start(bytes, cmd.expects_reply(), self.clock.now());
+        if self.urgent {
+            self.host
+                .start_urgent(bytes, cmd.expects_reply(), self.clock.now());
+        } else {
+            self.host
+                .start(bytes, cmd.expects_reply(), self.clock.now());
+        }
         loop {
             let out = self.host.take_output();
             if !out.is_empty() {
@@ -342,6 +350,19 @@ impl<L: Link, C: Clock> Client<L, C> {
     pub fn check_status(&mut self) -> Result<Status> {
         let s = self.status_agreed()?;
         self.account_errors(&s).map(|()| s)
+    }
+
+    /// Reads the robot's error sequence number once, before this client's first command with an
+    /// effect, so that every error raised afterwards is counted by its number: without it, two
+    /// errors raised before the first status read (two refused twins of one upload) would count
+    /// as one, the latched one. An error still latched at this read is left to the next check,
+    /// which reports it.
+    fn error_baseline(&mut self) -> Result<()> {
+        if self.seen_error_seq.is_none() {
+            let s = self.status_agreed()?;
+            self.seen_error_seq = Some(s.error_seq.wrapping_sub(u8::from(s.last_error != 0)));
+        }
+        Ok(())
     }
 
     /// Reports and acknowledges the errors `s` shows beyond those already accounted for.
@@ -514,6 +535,29 @@ impl<L: Link, C: Clock> Client<L, C> {
         r
     }
 
+    /// Stops motion with the least delay: STOP goes out in the first session, before any status
+    /// is read (a STOP executed twice is still one stop, so it needs no proof that it was not
+    /// executed before it is sent), then the status must show STOPPED; if it does not (the session
+    /// failed), [`Client::stop`] sends it again, confirmed. Like [`Client::stop`] it goes through
+    /// while the cancel token is set. The execution count is unknown afterwards, as after a store.
+    pub fn stop_at_once(&mut self) -> Result<Status> {
+        self.uncancellable = true;
+        self.urgent = true;
+        let sent = self.send(&Command::Stop);
+        self.urgent = false;
+        self.last_executed = None;
+        let r = match sent {
+            Err(Error::Io(e)) => Err(Error::Io(e)),
+            _ => match self.status_agreed() {
+                Ok(s) if s.state == crate::command::State::Stopped => Ok(s),
+                Ok(_) | Err(Error::Link(_)) => self.command_confirmed(&Command::Stop, effect_of),
+                Err(e) => Err(e),
+            },
+        };
+        self.uncancellable = false;
+        r
+    }
+
     /// Deletes a program, confirmed (executed once; a program that did not exist is error 5).
     pub fn delete_program(&mut self, program: u8) -> Result<Status> {
         self.command_confirmed(&Command::DeleteProgram { program }, effect_of)
@@ -577,6 +621,7 @@ impl<L: Link, C: Clock> Client<L, C> {
     /// twin with a corrupted program number) is [`Error::ForeignStore`]. On `Ok` every program of
     /// the batch holds exactly its instructions and nothing else was stored.
     pub fn upload_batch(&mut self, batch: &[(u8, &[Instruction])]) -> Result<VerifyReport> {
+        self.error_baseline()?;
         let mut report = VerifyReport::default();
         // Clear the batch's programs; what the memory holds then is outside the batch.
         let mut programs: Vec<u8> = batch.iter().map(|(p, _)| *p).collect();
@@ -658,6 +703,7 @@ impl<L: Link, C: Clock> Client<L, C> {
 
     /// Stores `instructions` as instructions 1, 2, … of `program`, then checks `last_error`.
     pub fn upload(&mut self, program: u8, instructions: &[Instruction]) -> Result<()> {
+        self.error_baseline()?;
         for (n, i) in (1u16..).zip(instructions) {
             self.store(program, n, i)?;
         }
@@ -680,6 +726,7 @@ impl<L: Link, C: Clock> Client<L, C> {
         program: u8,
         instructions: &[Instruction],
     ) -> Result<VerifyReport> {
+        self.error_baseline()?;
         let mut report = VerifyReport::default();
         for (n, i) in (1u16..).zip(instructions) {
             report.restored += match self.store_verified(program, n, i) {

@@ -41,6 +41,9 @@ pub const T_REPLY: Duration = Duration::from_millis(3000);
 pub const T_IDLE: Duration = Duration::from_millis(10_000);
 /// Minimum gap between the end of one session and the next ENQ.
 pub const T_GAP: Duration = Duration::from_millis(20);
+/// The share of `T_GAP` an urgent session (STOP, [`Host::start_urgent`]) keeps after the host's
+/// last byte: above the robot's `T_GAP`/2 with a margin.
+pub const URGENT_GAP_PER_GAP: f64 = 0.75;
 /// After a bad frame the receiver waits for this much line silence before its NAK, so that the
 /// rest of the bad frame is not mistaken for the retransmission.
 pub const T_FLUSH: Duration = Duration::from_millis(20);
@@ -280,6 +283,16 @@ impl Host {
         }
     }
 
+    /// Starts a session like [`Host::start`] for a command that cannot wait (STOP): its ENQ
+    /// keeps [`URGENT_GAP_PER_GAP`] of `T_GAP` of silence after the host's last byte, which is
+    /// more than the `T_GAP`/2 the robot needs before it takes an ENQ (docs/protocol.md §6,
+    /// rule 7), instead of the whole `T_GAP`.
+    pub fn start_urgent(&mut self, frame: Vec<u8>, expects_reply: bool, now: Duration) {
+        let urgent = self.line_free + self.timers.t_gap.mul_f64(URGENT_GAP_PER_GAP);
+        self.ready_at = self.ready_at.min(urgent);
+        self.start(frame, expects_reply, now);
+    }
+
     /// Bytes to send now.
     pub fn take_output(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.out)
@@ -290,13 +303,15 @@ impl Host {
     /// finds the link free after `T_GAP`.
     pub fn abort(&mut self, now: Duration) {
         self.out.clear();
-        if self.state != HostState::Idle {
+        // A session still waiting out the gap before its ENQ has sent nothing: the line is as
+        // the last session left it, and its gap runs on.
+        if !matches!(self.state, HostState::Idle | HostState::Gap) {
             self.out.push(EOT);
+            self.ready_at = now + self.timers.t_gap;
         }
         self.state = HostState::Idle;
         self.deadline = None;
         self.outcome = None;
-        self.ready_at = now + self.timers.t_gap;
     }
 
     /// Tells the host that what [`Host::take_output`] returned has left the line at `now`, so
@@ -1145,5 +1160,28 @@ mod tests {
         assert_eq!(f.data, [0, 1, 0, 0, 0, 0, 0, 1]);
         let (o, n) = converse(RUN3.to_vec(), None);
         assert_eq!((o, n), (Ok(None), 1));
+    }
+
+    #[test]
+    fn an_urgent_session_keeps_three_quarters_of_the_gap_and_an_abort_in_the_gap_sends_nothing() {
+        let mut h = Host::new(FrameConfig::default(), Timers::default());
+        // The host's last byte left the line at 100 ms: the next ENQ waits until 120 ms.
+        h.on_sent(ms(100));
+        h.start(RUN3.to_vec(), false, ms(105));
+        assert!(h.take_output().is_empty());
+        assert_eq!(h.deadline(), Some(ms(120)));
+        // Abandoned in its gap: nothing was on the line, so no EOT, and the gap is not restarted.
+        h.abort(ms(106));
+        assert!(h.take_output().is_empty());
+        // STOP: its ENQ after 15 ms of silence (the robot needs 10 ms), not 20 ms.
+        h.start_urgent(RUN3.to_vec(), false, ms(106));
+        assert_eq!(h.deadline(), Some(ms(115)));
+        h.on_time(ms(115));
+        assert_eq!(h.take_output(), vec![ENQ]);
+        // A session abandoned on the line ends with EOT and a whole gap.
+        h.abort(ms(116));
+        assert_eq!(h.take_output(), vec![EOT]);
+        h.start(RUN3.to_vec(), false, ms(117));
+        assert_eq!(h.deadline(), Some(ms(136)));
     }
 }

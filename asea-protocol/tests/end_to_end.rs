@@ -16,13 +16,16 @@ use asea_protocol::{
     Positioning, Speed, Zone,
 };
 
+/// A positioning with the eye's roll axis (the quaternion's X axis) horizontal and radial, in
+/// the arm's vertical plane: a pose the simulated five-axis arm can take.
 fn positioning(x: f64, y: f64, z: f64, zone: Zone) -> Positioning {
+    let half = y.atan2(x) / 2.0;
     Positioning {
         flags: Flags {
             zone,
             ..Flags::default()
         },
-        pose: Pose::from_mm([x, y, z], [0.0, 0.0, 1.0, 0.0]).unwrap(),
+        pose: Pose::from_mm([x, y, z], [half.cos(), 0.0, 0.0, half.sin()]).unwrap(),
         speed: Speed::from_value("speed", 0.5).unwrap(),
     }
 }
@@ -143,6 +146,63 @@ fn program_flow_in_virtual_time() {
     c.link_mut().run_for(Duration::from_secs(2));
     assert!(io.output(IN_POSITION_OUTPUT));
     assert_eq!(c.position().unwrap().xyz_mm(), [900.0, 0.0, 500.0]);
+}
+
+/// The simulated robot is the five-axis arm by default (`sim::ArmModel`): a pose whose roll axis
+/// leaves the arm's vertical plane needs a wrist yaw the IRB 6/2 lacks (seed 001 §4.1.1) and is
+/// refused with code 9, in a program at its instruction (the client names it) and at once for
+/// an immediate move. The same point with the roll axis in the plane is taken.
+#[test]
+fn a_wrist_yaw_is_refused_with_the_instruction_number() {
+    let (mut c, _) = paced(FrameConfig::default());
+    let mut yawed = positioning(900.0, 300.0, 700.0, Zone::Fine);
+    // The roll axis along x at a point 18.4° off the x axis: 18.4° out of the arm plane.
+    yawed.pose = Pose::from_mm([900.0, 300.0, 700.0], [1.0, 0.0, 0.0, 0.0]).unwrap();
+    let prog = vec![
+        Instruction::Position(positioning(900.0, 0.0, 700.0, Zone::Fine)),
+        Instruction::Position(positioning(900.0, 300.0, 700.0, Zone::Fine)),
+        Instruction::Position(yawed),
+        Instruction::Control(Control::End),
+    ];
+    c.upload(3, &prog).unwrap();
+    let e = c.run_program(3).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Robot {
+                code: 9,
+                instruction: 3,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    c.operate().unwrap();
+    c.sync_home().unwrap();
+    c.link_mut().run_for(Duration::from_secs(4));
+    let e = c.move_immediate(yawed).unwrap_err();
+    assert!(matches!(e, Error::Robot { code: 9, .. }), "{e}");
+    c.move_immediate(positioning(900.0, 300.0, 700.0, Zone::Fine))
+        .unwrap();
+}
+
+/// Two stores the robot refuses in one upload raise two errors before the client's first
+/// status read; the client reads the error number before its first store, so it counts both
+/// (one latched, one overwritten), not only the latched one.
+#[test]
+fn errors_raised_before_the_first_status_read_are_all_counted() {
+    let (mut c, _) = paced(FrameConfig::default());
+    let mut bad = positioning(900.0, 0.0, 700.0, Zone::Fine);
+    bad.pose.q = asea_protocol::command::Quaternion([8000, 0, 0, 0]);
+    let prog = vec![
+        Instruction::Position(bad),
+        Instruction::Position(bad),
+        Instruction::Control(Control::End),
+    ];
+    let e = c.upload(4, &prog).unwrap_err();
+    assert!(matches!(e, Error::Robot { code: 3, .. }), "{e}");
+    assert_eq!(c.link().peer.machine.errors_raised(), 2);
+    assert_eq!(c.errors_seen(), 2);
 }
 
 #[test]

@@ -74,13 +74,16 @@ impl std::ops::AddAssign for Tally {
     }
 }
 
+/// A positioning with the eye's roll axis (the quaternion's X axis) horizontal and radial, in
+/// the arm's vertical plane: a pose the simulated five-axis arm can take.
 fn positioning(x: f64, y: f64, z: f64, zone: Zone) -> Positioning {
+    let half = y.atan2(x) / 2.0;
     Positioning {
         flags: Flags {
             zone,
             ..Flags::default()
         },
-        pose: Pose::from_mm([x, y, z], [1.0, 0.0, 0.0, 0.0]).unwrap(),
+        pose: Pose::from_mm([x, y, z], [half.cos(), 0.0, 0.0, half.sin()]).unwrap(),
         speed: Speed::from_value("speed", 0.5).unwrap(),
     }
 }

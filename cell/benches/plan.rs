@@ -1,5 +1,8 @@
-//! The whole TOOL step for each example job: parse, trace, segment, plan, write the control files
-//! (issue target: under 50 ms each). Run with `cargo bench -p cell --bench plan`.
+//! The whole TOOL step for each example job, through the library path `windcell plan` takes
+//! (`sequences::Job::load`, `cell::tool::plan`, `cell::tool::control_files`,
+//! `cell::output::write_all`): `plan/NAME` parses, traces, segments, plans (the arm's inverse
+//! kinematics, limits and speeds included) and writes the control files; `plan_only/NAME` stops
+//! after planning (target: under 50 ms each). Run with `cargo bench -p cell --bench plan`.
 
 use std::path::Path;
 
@@ -7,8 +10,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 
 fn plan_examples(c: &mut Criterion) {
     let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let mut group = c.benchmark_group("plan");
-    for name in [
+    let names = [
         "cylinder",
         "offset-1r",
         "offset-2r",
@@ -16,7 +18,22 @@ fn plan_examples(c: &mut Criterion) {
         "tilted-1r",
         "tilted-2r",
         "sbend",
-    ] {
+        "sbend-dxf",
+        "sbend-mesh",
+    ];
+    let mut group = c.benchmark_group("plan_only");
+    for name in names {
+        let job_path = examples.join(format!("{name}.toml"));
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let (job, text) = sequences::Job::load(&job_path).unwrap();
+                cell::tool::plan(&job, &text, &job_path).unwrap()
+            })
+        });
+    }
+    group.finish();
+    let mut group = c.benchmark_group("plan");
+    for name in names {
         let job_path = examples.join(format!("{name}.toml"));
         let out = tempfile::tempdir().unwrap();
         group.bench_function(name, |b| {

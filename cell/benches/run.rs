@@ -6,16 +6,17 @@ use std::hint::black_box;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use cell::batch;
-use cell::coordinator::{Batch, Coordinator, Devices, Event, Reach, ResumePoint, RunMode};
-use cell::device::{
-    DeviceResult, MandrelDevice, NoSync, ProtocolRobot, RobotDevice, WallClock, XIndexer,
+use cell::coordinator::{
+    Batch, Coordinator, Devices, Event, Reach, ResumePoint, RunMode, StopRequest,
 };
+use cell::device::{NoSync, ProtocolRobot, WallClock, XIndexer};
 use cell::journal::Journal;
 use cell::simcell::{SimCell, SimCellConfig};
 use cell::tool;
+use cell::wiretap::{IndexerTap, StopPattern, StopTap, unix_now_s};
 use criterion::{Criterion, criterion_group, criterion_main};
 use mandrel_drive::Drive;
 use sequences::Job;
@@ -66,59 +67,38 @@ fn bench(c: &mut Criterion) {
         });
     }
     g.finish();
+    // The same batches timed by the winding thread's CPU time: on a machine shared with other
+    // builds the wall time above counts the time the thread waited for a core; the CPU time is
+    // what the batch costs.
+    let mut g = c.benchmark_group("sbend_batch_cpu");
+    g.sample_size(10);
+    for mode in [RunMode::Discrete, RunMode::Fine, RunMode::Medium] {
+        let b = batch(mode);
+        g.bench_function(mode.keyword(), |bench| {
+            bench.iter_custom(|iters| {
+                let mut total = Duration::ZERO;
+                for _ in 0..iters {
+                    let t0 = thread_cpu();
+                    black_box(wind(&b, &journal));
+                    total += thread_cpu().saturating_sub(t0);
+                }
+                total
+            })
+        });
+    }
+    g.finish();
 }
 
-/// A device whose `stop` records when it returned (the stop command is on the wire by then).
-struct StopClock<T> {
-    inner: T,
-    done: Arc<Mutex<Option<Instant>>>,
-}
-
-macro_rules! forward {
-    ($($name:ident($($a:ident: $t:ty),*) -> $r:ty;)*) => {
-        $(fn $name(&mut self, $($a: $t),*) -> $r { self.inner.$name($($a),*) })*
-    };
-}
-
-impl RobotDevice for StopClock<Box<dyn RobotDevice>> {
-    forward! {
-        state() -> DeviceResult<cell::device::RobotState>;
-        position_mm() -> DeviceResult<[f64; 3]>;
-        set_speeds(b: asea_protocol::Speed, m: asea_protocol::Speed) -> DeviceResult<()>;
-        set_operate(on: bool) -> DeviceResult<()>;
-        start_home() -> DeviceResult<()>;
-        move_immediate(p: asea_protocol::Positioning) -> DeviceResult<()>;
-        delete_program(p: u8) -> DeviceResult<()>;
-        upload(p: u8, i: &[asea_protocol::Instruction]) -> DeviceResult<()>;
-        read_back(p: u8, i: &[asea_protocol::Instruction]) -> DeviceResult<()>;
-        run_program(p: u8) -> DeviceResult<()>;
-    }
-    fn stop(&mut self) -> DeviceResult<()> {
-        let r = self.inner.stop();
-        *self.done.lock().unwrap() = Some(Instant::now());
-        r
-    }
-}
-
-impl MandrelDevice for StopClock<Box<dyn MandrelDevice>> {
-    forward! {
-        attach() -> DeviceResult<i64>;
-        zero() -> DeviceResult<()>;
-        start_move(mv: &sequences::MandrelMove, armed: bool) -> DeviceResult<()>;
-        busy() -> DeviceResult<(bool, bool)>;
-        counter_steps() -> DeviceResult<i64>;
-        move_steps() -> DeviceResult<i64>;
-    }
-    fn stop(&mut self) -> DeviceResult<()> {
-        let r = self.inner.stop();
-        *self.done.lock().unwrap() = Some(Instant::now());
-        r
-    }
+/// CPU time of this thread.
+fn thread_cpu() -> Duration {
+    nix::time::clock_gettime(nix::time::ClockId::CLOCK_THREAD_CPUTIME_ID)
+        .map_or(Duration::ZERO, Duration::from)
 }
 
 /// Real time: both simulators served on in-memory serial lines by their own threads (as
 /// `sim-robot --pty` and `sim-indexer --pty` serve a pty); a discrete run stopped 0.5 s in; the
-/// time from the stop request until both stop commands were sent and answered.
+/// time from the stop request (what the Ctrl-C handler makes) until both stop commands have
+/// arrived at the simulators' ends of the lines (`cell::wiretap`).
 fn stop_latency(c: &mut Criterion) {
     let b = batch(RunMode::Discrete);
     let dir = tempfile::tempdir().unwrap();
@@ -147,6 +127,12 @@ fn stop_latency(c: &mut Criterion) {
                     ),
                     1,
                 )));
+                let (robot_dev, robot_seen) = StopTap::new(
+                    robot_dev,
+                    StopPattern::robot(&asea_protocol::FrameConfig::default()),
+                );
+                let (x_dev, x_seen) = StopTap::new(x_dev, StopPattern::IndexerStop);
+                let x_dev = IndexerTap(x_dev);
                 let (h1, r1) = (halt.clone(), robot.clone());
                 let t1 = std::thread::spawn(move || {
                     let clock = asea_protocol::clock::RealClock::new();
@@ -157,54 +143,53 @@ fn stop_latency(c: &mut Criterion) {
                     let clock = mandrel_drive::sim::RealClock::new();
                     let _ = mandrel_drive::sim::serve(x_dev, &c2, &clock, &h2);
                 });
-                let robot_done = Arc::new(Mutex::new(None));
-                let x_done = Arc::new(Mutex::new(None));
                 let setup = cell::transfer::IndexerSetup {
                     drive: Drive::default(),
                     start_velocity_command: true,
                 };
                 let dev = Devices {
-                    robot: Box::new(StopClock {
-                        inner: Box::new(ProtocolRobot::new(asea_protocol::Client::new(
-                            robot_host,
-                            asea_protocol::ClientConfig::default(),
-                        ))) as Box<dyn RobotDevice>,
-                        done: robot_done.clone(),
-                    }),
-                    mandrel: Box::new(StopClock {
-                        inner: Box::new(XIndexer::new(
-                            mandrel_drive::XClient::new(
-                                x_host,
-                                mandrel_drive::IndexerConfig {
-                                    start_velocity_command: true,
-                                    device_id: false,
-                                    ..Default::default()
-                                },
-                            ),
-                            setup,
-                        )) as Box<dyn MandrelDevice>,
-                        done: x_done.clone(),
-                    }),
+                    robot: Box::new(ProtocolRobot::new(asea_protocol::Client::new(
+                        robot_host,
+                        asea_protocol::ClientConfig::default(),
+                    ))),
+                    mandrel: Box::new(XIndexer::new(
+                        mandrel_drive::XClient::new(
+                            x_host,
+                            mandrel_drive::IndexerConfig {
+                                start_velocity_command: true,
+                                device_id: false,
+                                ..Default::default()
+                            },
+                        ),
+                        setup,
+                    )),
                     sync: Box::new(NoSync),
                     time: Arc::new(WallClock::new()),
                 };
-                let stop = Arc::new(AtomicBool::new(false));
+                let stop = StopRequest::new(&dev);
                 let flag = stop.clone();
                 let (b2, j2) = (b.clone(), journal.clone());
                 let run = std::thread::spawn(move || {
                     let mut sink = |_e: Event| {};
                     let mut c =
-                        Coordinator::new(dev, flag, Journal::create(&j2).unwrap(), &mut sink);
+                        Coordinator::with_stop(dev, flag, Journal::create(&j2).unwrap(), &mut sink);
                     c.run(&b2, &ResumePoint::default(), true, false, false)
                         .is_err()
                 });
                 std::thread::sleep(Duration::from_millis(500));
-                let t0 = Instant::now();
-                stop.store(true, Ordering::Relaxed);
+                let t0 = unix_now_s();
+                stop.request("bench");
                 assert!(run.join().unwrap(), "the run was not stopped");
-                let robot_t = robot_done.lock().unwrap().unwrap();
-                let x_t = x_done.lock().unwrap().unwrap();
-                total += robot_t.max(x_t) - t0;
+                let robot_t = robot_seen.lock().unwrap()[0];
+                let x_t = x_seen.lock().unwrap()[0];
+                total += Duration::from_secs_f64(robot_t.max(x_t) - t0);
+                if std::env::var_os("WINDCELL_STOP_DETAIL").is_some() {
+                    eprintln!(
+                        "robot STOP after {:.2} ms, indexer S after {:.2} ms",
+                        (robot_t - t0) * 1e3,
+                        (x_t - t0) * 1e3
+                    );
+                }
                 halt.store(true, Ordering::Relaxed);
                 t1.join().unwrap();
                 t2.join().unwrap();

@@ -98,6 +98,9 @@ pub struct Cell {
     pub opto_delay_s: f64,
     /// Calibration tolerances.
     pub tolerances: crate::predict::Tolerances,
+    /// The arm the simulated robot checks every pose against (the job's `[cell.robot]` and eye
+    /// mechanism; `paths::robot::Arm::default()` for a cell file or the built-in cell).
+    pub arm: paths::robot::Arm,
 }
 
 fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, String> {
@@ -152,6 +155,7 @@ impl Cell {
             drive,
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
             tolerances: crate::predict::Tolerances::default(),
+            arm: crate::tool::arm(job),
         })
     }
 
@@ -163,6 +167,7 @@ impl Cell {
             drive: Drive::default(),
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
             tolerances: crate::predict::Tolerances::default(),
+            arm: paths::robot::Arm::default(),
         }
     }
 
@@ -241,6 +246,7 @@ impl Cell {
             drive,
             opto_delay_s,
             tolerances,
+            arm: paths::robot::Arm::default(),
         })
     }
 }

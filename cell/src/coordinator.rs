@@ -23,7 +23,7 @@ use sequences::{MandrelFile, MandrelMove, RobotFile};
 use serde_json::json;
 
 use crate::Error;
-use crate::device::{DeviceError, MandrelDevice, RobotDevice, SyncLines, Timebase};
+use crate::device::{DeviceError, Interrupt, MandrelDevice, RobotDevice, SyncLines, Timebase};
 use crate::journal::{Journal, JournalError};
 use crate::simcell::START_INPUT;
 use crate::transfer;
@@ -444,6 +444,82 @@ impl std::fmt::Debug for dyn MandrelDevice {
     }
 }
 
+impl Devices {
+    /// What abandons the devices' exchanges under way from another thread.
+    pub fn interrupters(&self) -> Vec<Arc<dyn Interrupt>> {
+        self.robot
+            .interrupter()
+            .into_iter()
+            .chain(self.mandrel.interrupter())
+            .collect()
+    }
+}
+
+/// The stop request the signal, the console and the e-stop share with the coordinator. Making
+/// it ([`StopRequest::request`]) sets the flag the coordinator looks at, abandons the exchange
+/// under way on both links (their cancel tokens) and wakes the coordinator from its control
+/// tick, so that it sends the stop commands at once (seed 001 §5.3: the operator's stop).
+#[derive(Debug, Clone)]
+pub struct StopRequest {
+    flag: Arc<AtomicBool>,
+    reason: Arc<std::sync::Mutex<String>>,
+    interrupters: Vec<Arc<dyn Interrupt>>,
+    waiter: Arc<std::sync::Mutex<Option<std::thread::Thread>>>,
+}
+
+impl StopRequest {
+    /// A request not made, for `devices` (whose exchanges it abandons).
+    pub fn new(devices: &Devices) -> Self {
+        Self::from_flag(Arc::new(AtomicBool::new(false)), devices)
+    }
+
+    /// A request that is made when `flag` is set, too (by whoever holds it).
+    pub fn from_flag(flag: Arc<AtomicBool>, devices: &Devices) -> Self {
+        StopRequest {
+            flag,
+            reason: Arc::new(std::sync::Mutex::new("interrupted".into())),
+            interrupters: devices.interrupters(),
+            waiter: Arc::new(std::sync::Mutex::new(None)),
+        }
+    }
+
+    /// Asks the coordinator to stop both devices now, saying why.
+    pub fn request(&self, reason: &str) {
+        if let Ok(mut r) = self.reason.lock() {
+            *r = reason.to_string();
+        }
+        self.flag.store(true, Ordering::SeqCst);
+        for i in &self.interrupters {
+            i.interrupt();
+        }
+        if let Ok(w) = self.waiter.lock()
+            && let Some(t) = w.as_ref()
+        {
+            t.unpark();
+        }
+    }
+
+    /// True once requested.
+    pub fn is_requested(&self) -> bool {
+        self.flag.load(Ordering::SeqCst)
+    }
+
+    /// Why.
+    pub fn reason(&self) -> String {
+        self.reason
+            .lock()
+            .map(|r| r.clone())
+            .unwrap_or_else(|_| "interrupted".into())
+    }
+
+    /// Lets the devices' exchanges run again (the stop commands and their confirmation).
+    fn clear_interrupts(&self) {
+        for i in &self.interrupters {
+            i.clear();
+        }
+    }
+}
+
 /// Where to resume: from the journal.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ResumePoint {
@@ -509,11 +585,9 @@ pub fn resume_point(
 /// The coordinator: drives the devices through a batch.
 pub struct Coordinator<'a> {
     dev: Devices,
-    stop: Arc<AtomicBool>,
+    stop: StopRequest,
     journal: Journal,
     events: &'a mut dyn FnMut(Event),
-    /// What made the stop request, for the message.
-    pub stop_reason: Arc<std::sync::Mutex<String>>,
     item: usize,
     segments_done: usize,
 }
@@ -552,10 +626,22 @@ fn distance_mm(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 impl<'a> Coordinator<'a> {
-    /// A coordinator on `dev`, stopping when `stop` is set, journaling to `journal`.
+    /// A coordinator on `dev`, stopping when `stop` is set (at its next control tick or between
+    /// two exchanges), journaling to `journal`.
     pub fn new(
         dev: Devices,
         stop: Arc<AtomicBool>,
+        journal: Journal,
+        events: &'a mut dyn FnMut(Event),
+    ) -> Self {
+        let stop = StopRequest::from_flag(stop, &dev);
+        Self::with_stop(dev, stop, journal, events)
+    }
+
+    /// A coordinator on `dev` that `stop` interrupts at once ([`StopRequest::request`]).
+    pub fn with_stop(
+        dev: Devices,
+        stop: StopRequest,
         journal: Journal,
         events: &'a mut dyn FnMut(Event),
     ) -> Self {
@@ -564,10 +650,14 @@ impl<'a> Coordinator<'a> {
             stop,
             journal,
             events,
-            stop_reason: Arc::new(std::sync::Mutex::new("interrupted".into())),
             item: 0,
             segments_done: 0,
         }
+    }
+
+    /// The stop request this coordinator obeys (clone it into a signal handler or console).
+    pub fn stop_request(&self) -> StopRequest {
+        self.stop.clone()
     }
 
     /// The devices back (tests look at them after a run).
@@ -576,13 +666,10 @@ impl<'a> Coordinator<'a> {
     }
 
     fn check(&mut self) -> Result<(), Step> {
-        if self.stop.load(Ordering::Relaxed) {
-            let reason = self
-                .stop_reason
-                .lock()
-                .map(|r| r.clone())
-                .unwrap_or_else(|_| "interrupted".into());
-            return Err(Step::Halt(Halt::Interrupted { reason }));
+        if self.stop.is_requested() {
+            return Err(Step::Halt(Halt::Interrupted {
+                reason: self.stop.reason(),
+            }));
         }
         if self.dev.sync.estop()? {
             return Err(Step::Halt(Halt::Interrupted {
@@ -610,20 +697,24 @@ impl<'a> Coordinator<'a> {
                     message: format!("{what}: not done after {timeout_s:.0} s"),
                 }));
             }
-            self.dev.time.sleep(CONTROL_TICK);
+            self.dev.time.tick(CONTROL_TICK);
         }
     }
 
     /// Stops both devices (each tried whatever the other did); returns the errors.
     fn stop_devices(&mut self) -> Vec<String> {
-        // The indexer's `S` first: three bytes, on the wire at once; then the robot's STOP
-        // session.
+        // The exchange a stop request abandoned is over: the stops and their confirmations
+        // run. The indexer's `S` first, on the wire at once without waiting for its echo; then
+        // the robot's STOP session (STOP before any status read); then the indexer's stop
+        // again, confirmed by its echo.
+        self.stop.clear_interrupts();
         let mut errors = Vec::new();
-        if let Err(e) = self.dev.mandrel.stop() {
-            errors.push(e.to_string());
-        }
+        let early = self.dev.mandrel.stop_on_wire();
         if let Err(e) = self.dev.robot.stop() {
             errors.push(e.to_string());
+        }
+        if let Err(e) = self.dev.mandrel.stop() {
+            errors.push(early.err().unwrap_or(e).to_string());
         }
         let _ = self.dev.sync.set_start(false);
         errors
@@ -640,10 +731,20 @@ impl<'a> Coordinator<'a> {
     ) -> Result<(), Stopped> {
         self.item = from.items_done;
         self.segments_done = from.segments_done;
+        if let Ok(mut w) = self.stop.waiter.lock() {
+            *w = Some(std::thread::current());
+        }
         match self.run_inner(batch, from, fresh, standby, force) {
             Ok(()) => Ok(()),
             Err(Step::Halt(halt)) => {
                 let stop_errors = self.stop_devices();
+                // An exchange the stop request abandoned is the request, not a fault.
+                let halt = match halt {
+                    Halt::Fault { .. } if self.stop.is_requested() => Halt::Interrupted {
+                        reason: self.stop.reason(),
+                    },
+                    h => h,
+                };
                 let item = self.item.min(batch.items.len().saturating_sub(1));
                 let _ = self.journal.append(json!({
                     "rec": "stopped",
@@ -741,7 +842,10 @@ impl<'a> Coordinator<'a> {
 
     /// Manual control (seed 001 §5.3.2, §5.4): one robot position and one mandrel instruction
     /// sent together, each confirmed. `relative` positions are added to the robot's position now.
-    /// Returns the robot's position (mm) and the indexer's counter (steps) afterwards.
+    /// The wrist quaternion of `p` is the App. A pitch and roll in the arm's vertical plane: the
+    /// five-axis arm has no wrist yaw (§4.1.1), so the base yaw that turns that plane to the
+    /// target, `atan2(y, x)`, is put in front of it (a pose out of the plane would be refused,
+    /// error 9). Returns the robot's position (mm) and the indexer's counter (steps) afterwards.
     pub fn jog(
         &mut self,
         speeds: (asea_protocol::Speed, asea_protocol::Speed),
@@ -769,6 +873,18 @@ impl<'a> Coordinator<'a> {
                 })?;
                 p.flags.reference = asea_protocol::Reference::Absolute;
             }
+            let yaw = nalgebra::UnitQuaternion::from_axis_angle(
+                &nalgebra::Vector3::z_axis(),
+                target[1].atan2(target[0]),
+            );
+            let [w, x, y, z] = p.pose.q.wxyz();
+            let q = yaw
+                * nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+            p.pose = asea_protocol::Pose::from_mm(target, [q.w, q.i, q.j, q.k]).map_err(|e| {
+                Step::Halt(Halt::Fault {
+                    message: format!("the jog's pose: {e}"),
+                })
+            })?;
             let radius = target[0].hypot(target[1]);
             if radius > reach.max_radius_mm
                 || radius < reach.min_radius_mm

@@ -50,6 +50,43 @@ pub enum DeviceError {
 /// Result of a device operation.
 pub type DeviceResult<T> = Result<T, DeviceError>;
 
+/// Abandons a device's exchange under way from another thread: the link's cancel token
+/// ([`asea_protocol::client::Cancel`], [`mandrel_drive::client::Cancel`]). The exchange ends with
+/// a cancelled error at its next read; the device's stop still goes through.
+pub trait Interrupt: Send + Sync + std::fmt::Debug {
+    /// Cancels the exchange under way and every later one until [`Interrupt::clear`].
+    fn interrupt(&self);
+    /// Lets exchanges run again.
+    fn clear(&self);
+}
+
+impl Interrupt for asea_protocol::client::Cancel {
+    fn interrupt(&self) {
+        self.cancel();
+    }
+    fn clear(&self) {
+        self.reset();
+    }
+}
+
+impl Interrupt for mandrel_drive::client::Cancel {
+    fn interrupt(&self) {
+        self.cancel();
+    }
+    fn clear(&self) {
+        self.reset();
+    }
+}
+
+/// True when `e` is an exchange abandoned through the device's [`Interrupt`].
+pub fn is_interrupted(e: &DeviceError) -> bool {
+    matches!(
+        e,
+        DeviceError::Robot(asea_protocol::Error::Cancelled)
+            | DeviceError::Indexer(mandrel_drive::Error::Cancelled)
+    )
+}
+
 /// The time the coordinator waits in: wall time on a real cell, the simulated cell's clock on a
 /// simulated one (where sleeping lets both simulators run).
 pub trait Timebase: Send + Sync + std::fmt::Debug {
@@ -57,6 +94,11 @@ pub trait Timebase: Send + Sync + std::fmt::Debug {
     fn now_s(&self) -> f64;
     /// Lets `dt` pass.
     fn sleep(&self, dt: Duration);
+    /// Lets at most `dt` pass while the coordinator polls: a stop request may end it early
+    /// (the wall clock parks the thread, [`crate::coordinator::StopRequest::request`] unparks it).
+    fn tick(&self, dt: Duration) {
+        self.sleep(dt);
+    }
 }
 
 /// Wall-clock time.
@@ -86,6 +128,9 @@ impl Timebase for WallClock {
     }
     fn sleep(&self, dt: Duration) {
         std::thread::sleep(dt);
+    }
+    fn tick(&self, dt: Duration) {
+        std::thread::park_timeout(dt);
     }
 }
 
@@ -128,6 +173,10 @@ pub trait RobotDevice: Send {
     fn run_program(&mut self, program: u8) -> DeviceResult<()>;
     /// Stops motion at once (STOP).
     fn stop(&mut self) -> DeviceResult<()>;
+    /// What abandons this device's exchange under way from another thread, if it can be.
+    fn interrupter(&self) -> Option<Arc<dyn Interrupt>> {
+        None
+    }
 }
 
 /// The mandrel indexer as the coordinator drives it (seed 001 §5.3.2, §5.6.2).
@@ -147,6 +196,16 @@ pub trait MandrelDevice: Send {
     fn move_steps(&mut self) -> DeviceResult<i64>;
     /// Stops with deceleration and clears an armed move.
     fn stop(&mut self) -> DeviceResult<()>;
+    /// Puts the stop command on the wire at once without waiting for an answer (the first step
+    /// of a stop of both devices; [`MandrelDevice::stop`] follows and confirms it). By default
+    /// nothing: `stop` alone does it.
+    fn stop_on_wire(&mut self) -> DeviceResult<()> {
+        Ok(())
+    }
+    /// What abandons this device's exchange under way from another thread, if it can be.
+    fn interrupter(&self) -> Option<Arc<dyn Interrupt>> {
+        None
+    }
 }
 
 /// The sync lines seen from the PC (App. D): start out, in position in, e-stop in.
@@ -285,8 +344,13 @@ impl<L: RobotLink, C: RobotClock> RobotDevice for ProtocolRobot<L, C> {
     }
 
     fn stop(&mut self) -> DeviceResult<()> {
-        self.client.stop()?;
+        // STOP first, then its confirmation: no status exchange delays it.
+        self.client.stop_at_once()?;
         Ok(())
+    }
+
+    fn interrupter(&self) -> Option<Arc<dyn Interrupt>> {
+        Some(Arc::new(self.client.cancel_token()))
     }
 }
 
@@ -363,8 +427,18 @@ impl<L: IndexerLink + Send> MandrelDevice for XIndexer<L> {
     }
 
     fn stop(&mut self) -> DeviceResult<()> {
-        self.send(&X::Stop)?;
+        // The client's stop: stale input of an abandoned exchange dropped, `S` sent while the
+        // cancel token is set.
+        mandrel_drive::Indexer::stop(&mut self.client, mandrel_drive::StopKind::Decelerate)?;
         Ok(())
+    }
+
+    fn stop_on_wire(&mut self) -> DeviceResult<()> {
+        Ok(self.client.stop_on_wire()?)
+    }
+
+    fn interrupter(&self) -> Option<Arc<dyn Interrupt>> {
+        Some(Arc::new(self.client.cancel_token()))
     }
 }
 

@@ -48,6 +48,9 @@ pub struct Setup {
     /// Single-block execution (seed 003 §4.2 "step-by-step"): every block is its own
     /// point-to-point run, so the machine stops on each.
     pub single_block: bool,
+    /// The 16-bit encoder counters' power-on value on every axis (seed 003 §4.1: the hardware
+    /// counter starts anywhere and wraps from 65 535 to 0; the controller accumulates across).
+    pub counter_start: u16,
 }
 
 impl Default for Setup {
@@ -69,6 +72,7 @@ impl Default for Setup {
                 y_mm: 10.0,
             },
             single_block: false,
+            counter_start: 0,
         }
     }
 }
@@ -88,6 +92,14 @@ impl Setup {
             },
             polarity_guard: true,
         }
+    }
+
+    /// Counts from machine zero to axis units (A deg, X mm, Y mm) from part zero.
+    pub fn from_counts(&self, counts_from_machine_zero: [f64; 3]) -> [f64; 3] {
+        let zero = counts(&Position::default(), &self.part_zero);
+        std::array::from_fn(|i| {
+            (counts_from_machine_zero[i] - zero[i]) / LatheAxis::ALL[i].counts_per_unit()
+        })
     }
 
     fn planner(&self) -> Planner<3> {
@@ -472,16 +484,19 @@ pub fn start_at_part_zero(setup: &Setup) -> Result<Controller<SimulatedAxes>, Er
     let machine = SimulatedAxes::new(vec![
         mandrel_drive::servo::ServoAxis::new(amp)
             .map_err(transfer)?
+            .with_counter(setup.counter_start)
             .at(zero[0]),
         mandrel_drive::servo::ServoAxis::new(amp)
             .map_err(transfer)?
             .with_switches(-5.0 * x, setup.travel_mm[0] * x)
             .with_home(-x)
+            .with_counter(setup.counter_start)
             .at(zero[1]),
         mandrel_drive::servo::ServoAxis::new(amp)
             .map_err(transfer)?
             .with_switches(-5.0 * y, setup.travel_mm[1] * y)
             .with_home(-y)
+            .with_counter(setup.counter_start)
             .at(zero[2]),
     ]);
     let mut controller = Controller::new(machine, setup.loop_config()).map_err(transfer)?;
@@ -492,6 +507,197 @@ pub fn start_at_part_zero(setup: &Setup) -> Result<Controller<SimulatedAxes>, Er
         -(zero[2].round() as i64),
     ]);
     Ok(controller)
+}
+
+/// One axis's machine-zero search on the simulated machine.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Homed {
+    /// Axis letter.
+    pub axis: char,
+    /// Where the axis stood at power-on, mm from the home switch's frame (the switch is made
+    /// at −1 mm, the low limit switch at −5 mm).
+    pub start_mm: f64,
+    /// Interrupts the search took.
+    pub interrupts: u64,
+    /// The shaft's encoder count where the search left the axis (machine zero), counted from
+    /// the simulator's fixed frame: the same from any start.
+    pub machine_zero_count: i64,
+    /// The 16-bit hardware counter there.
+    pub raw_counter: u16,
+}
+
+/// Machine-zero search (seed 003 §4.2) of X and Y on the simulated machine, starting at `start_mm`
+/// (X, Y): toward the home switch at 20 counts per interrupt, off it at 0.25, then `backoff`
+/// whole encoder pulses beyond the release edge. A start outside the limit switches is refused.
+pub fn home(setup: &Setup, start_mm: [f64; 2], backoff: i64) -> Result<Vec<Homed>, Error> {
+    let transfer = |e: mandrel_drive::Error| Error::Lathe { source: e };
+    for (i, (&s, travel)) in start_mm.iter().zip(setup.travel_mm).enumerate() {
+        if !(s > -5.0 && s < travel) {
+            return Err(Error::Run {
+                message: format!(
+                    "start {} = {s} mm is outside the limit switches (−5 … {travel} mm)",
+                    ['X', 'Y'][i]
+                ),
+                input: true,
+            });
+        }
+    }
+    if !(0..=4000).contains(&backoff) {
+        return Err(Error::Run {
+            message: format!("back-off {backoff} pulses is outside 0 … 4000"),
+            input: true,
+        });
+    }
+    let amp = setup.amplifier;
+    let x = LatheAxis::X.counts_per_unit();
+    let y = LatheAxis::Y.counts_per_unit();
+    let axis = |scale: f64, travel: f64, start: f64| -> Result<_, Error> {
+        Ok(mandrel_drive::servo::ServoAxis::new(amp)
+            .map_err(transfer)?
+            .with_switches(-5.0 * scale, travel * scale)
+            .with_home(-scale)
+            .with_counter(setup.counter_start)
+            .at(start * scale))
+    };
+    let machine = SimulatedAxes::new(vec![
+        mandrel_drive::servo::ServoAxis::new(amp)
+            .map_err(transfer)?
+            .with_counter(setup.counter_start),
+        axis(x, setup.travel_mm[0], start_mm[0])?,
+        axis(y, setup.travel_mm[1], start_mm[1])?,
+    ]);
+    let mut controller = Controller::new(machine, setup.loop_config()).map_err(transfer)?;
+    let mut out = Vec::new();
+    for (i, scale) in [(1usize, x), (2, y)] {
+        let max_travel = ((setup.travel_mm[i - 1] + 10.0) * scale).ceil() as i64;
+        let interrupts = controller
+            .home(
+                i,
+                20.0,
+                0.25,
+                backoff,
+                max_travel,
+                &mut mandrel_drive::lathe::SimulatedClock,
+            )
+            .map_err(transfer)?;
+        let shaft = &controller.io().axes[i];
+        out.push(Homed {
+            axis: LatheAxis::ALL[i].letter(),
+            start_mm: start_mm[i - 1],
+            interrupts,
+            machine_zero_count: shaft.position().floor() as i64,
+            raw_counter: shaft.counter(),
+        });
+    }
+    Ok(out)
+}
+
+/// An electronically geared run's figures.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Geared {
+    /// Carriage millimetres per mandrel degree.
+    pub ratio_mm_per_deg: f64,
+    /// Interrupts run.
+    pub interrupts: u64,
+    /// Mandrel angle reached, degrees from part zero.
+    pub mandrel_deg: f64,
+    /// Carriage position reached, mm from part zero.
+    pub carriage_mm: f64,
+    /// Largest |X − ratio · A| during the run, mm.
+    pub worst_error_mm: f64,
+}
+
+/// Electronic gearing (seed 003 §4.1 item 3) instead of interpolated axes: the mandrel (master)
+/// turns `turns` at `speed_deg_s`, reaching it in `ramp_s` and stopping the same way; the
+/// carriage (slave) follows the mandrel's measured angle at `ratio_mm_per_deg` from part zero.
+/// The carriage's whole travel is checked against the limit switches first.
+pub fn gear(
+    setup: &Setup,
+    ratio_mm_per_deg: f64,
+    speed_deg_s: f64,
+    turns: f64,
+    ramp_s: f64,
+) -> Result<Geared, Error> {
+    let bad = |message: String| Error::Run {
+        message,
+        input: true,
+    };
+    if !ratio_mm_per_deg.is_finite() {
+        return Err(bad(format!("ratio {ratio_mm_per_deg} mm/° is not finite")));
+    }
+    if !(speed_deg_s > 0.0 && speed_deg_s <= 3600.0) {
+        return Err(bad(format!(
+            "mandrel speed {speed_deg_s} °/s is outside (0, 3600]"
+        )));
+    }
+    if !(turns > 0.0 && turns <= 1000.0) {
+        return Err(bad(format!("turns {turns} is outside (0, 1000]")));
+    }
+    if !(0.0..=60.0).contains(&ramp_s) {
+        return Err(bad(format!("ramp {ramp_s} s is outside [0, 60]")));
+    }
+    let angle_deg = turns * 360.0;
+    if angle_deg / speed_deg_s + ramp_s > 3600.0 {
+        return Err(bad(format!(
+            "{angle_deg}° at {speed_deg_s} °/s takes more than an hour"
+        )));
+    }
+    let end_x = setup.part_zero.x_mm + ratio_mm_per_deg * angle_deg;
+    if !(0.0..=setup.travel_mm[0]).contains(&end_x) {
+        return Err(bad(format!(
+            "the carriage would reach {end_x:.2} mm from machine zero, beyond the limit switches \
+             (0 … {} mm): ratio {ratio_mm_per_deg} mm/° over {angle_deg}°",
+            setup.travel_mm[0]
+        )));
+    }
+    // The master's profile: trapezoidal in speed (a triangle when the turns are few).
+    let hz = setup.interrupt_hz;
+    let a_scale = LatheAxis::A.counts_per_unit();
+    let total = angle_deg * a_scale;
+    let v_max = speed_deg_s * a_scale / hz;
+    let ramp_n = (ramp_s * hz).max(1.0);
+    let accel = v_max / ramp_n;
+    let mut master = Vec::new();
+    let (mut p, mut v) = (0.0f64, 0.0f64);
+    while p < total {
+        let braking = v * v / (2.0 * accel);
+        v = if total - p <= braking {
+            (v - accel).max(accel.min(total - p))
+        } else {
+            (v + accel).min(v_max)
+        };
+        p = (p + v).min(total);
+        master.push(p);
+    }
+    let transfer = |e: mandrel_drive::Error| Error::Lathe { source: e };
+    let mut controller = start_at_part_zero(setup)?;
+    // Gear about part zero: the part zero is the controller's origin during the geared run.
+    let zero = counts(&Position::default(), &setup.part_zero);
+    controller.shift_origin([
+        zero[0].round() as i64,
+        zero[1].round() as i64,
+        zero[2].round() as i64,
+    ]);
+    let ratio_counts = ratio_mm_per_deg * LatheAxis::X.counts_per_unit() / a_scale;
+    // Hold the end a little so the slave settles.
+    let hold = (hz * 0.2) as usize;
+    master.extend(std::iter::repeat_n(total, hold));
+    let worst = mandrel_drive::lathe::run_geared(
+        &mut controller,
+        &master,
+        ratio_counts,
+        &mut mandrel_drive::lathe::SimulatedClock,
+    )
+    .map_err(transfer)?;
+    controller.stop();
+    let pos = controller.position();
+    Ok(Geared {
+        ratio_mm_per_deg,
+        interrupts: master.len() as u64,
+        mandrel_deg: pos[0] as f64 / a_scale,
+        carriage_mm: pos[1] as f64 / LatheAxis::X.counts_per_unit(),
+        worst_error_mm: worst / LatheAxis::X.counts_per_unit(),
+    })
 }
 
 /// Writes the trace as CSV (all or nothing: written beside the target and renamed).

@@ -22,5 +22,6 @@ pub mod simcell;
 pub mod tool;
 pub mod trace_plot;
 pub mod transfer;
+pub mod wiretap;
 
 pub use error::Error;

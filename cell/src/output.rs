@@ -293,6 +293,24 @@ mod tests {
         names
     }
 
+    /// Only a folder that is missing (or lies under a missing one) is left to be created; any
+    /// other reason the system gives for not reading it (a symbolic-link loop, a name too long)
+    /// is refused at once, before the ancestors are looked at.
+    #[test]
+    fn an_output_folder_the_system_cannot_look_at_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let looped = tmp.path().join("loop");
+        std::os::unix::fs::symlink(&looped, &looped).unwrap();
+        let e = check_dir(&looped).unwrap_err();
+        assert!(matches!(e, Error::Output { .. }), "{e}");
+        let long = tmp.path().join("n".repeat(300));
+        let e = check_dir(&long).unwrap_err();
+        assert!(matches!(e, Error::Output { .. }), "{e}");
+        // Missing, and missing under a missing folder: fine, the parent is a folder.
+        check_dir(&tmp.path().join("new")).unwrap();
+        check_dir(&tmp.path().join("new/deeper")).unwrap();
+    }
+
     #[test]
     fn creates_the_directory_or_adds_to_it() {
         let root = tempfile::tempdir().unwrap();
@@ -375,6 +393,18 @@ mod tests {
         );
         let e = check_file(root.path()).unwrap_err();
         assert!(e.to_string().ends_with("is a folder"), "{e}");
+        // A symbolic link is neither a file nor a folder: not written through.
+        let link = root.path().join("l.stl");
+        std::os::unix::fs::symlink(&file, &link).unwrap();
+        let e = check_file(&link).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a regular file"),
+            "{e}"
+        );
+        fs::remove_file(&link).unwrap();
+        // A name the system refuses to look up is refused, not treated as absent.
+        let e = check_file(&root.path().join("n".repeat(300))).unwrap_err();
+        assert!(matches!(e, Error::Output { .. }), "{e}");
         assert_eq!(listing(root.path()), ["f"]);
     }
 

@@ -17,6 +17,7 @@
 //! | `/scene/fibre` | `foxglove.SceneUpdate` | desired and laid fibre as lines, frame `mandrel` |
 //! | `/sync` | `windcell.SyncEdge` (JSON) | every edge of the opto-isolated lines |
 //! | `/link/robot`, `/link/indexer` | `windcell.Telegram` (JSON) | raw bytes (hex) and the decoded text |
+//! | `/lathe/axes` | `windcell.LatheAxes` (JSON) | the lathe winder's A, X, Y: commanded, actual and following error every interrupt |
 //! | `/log` | `foxglove.Log` | the run's events in words |
 //!
 //! Frames: `world` is the cell frame (robot base at the origin, `z` up, millimetres converted
@@ -89,6 +90,52 @@ struct MandrelAngle {
     true_deg: f64,
 }
 
+/// One interrupt of the lathe winder (seed 000): per axis the commanded (desired) position, the
+/// measured (encoder) position and the following error (commanded − actual), from part zero, in
+/// degrees (A) and millimetres (X, Y). Flat fields, so Foxglove's Plot panel takes
+/// `/lathe/axes.x_error_mm` directly.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct LatheAxes {
+    /// Interrupt number from the run's start.
+    pub interrupt: u64,
+    /// Commanded A, degrees.
+    pub a_commanded_deg: f64,
+    /// Measured A, degrees.
+    pub a_actual_deg: f64,
+    /// A following error, degrees.
+    pub a_error_deg: f64,
+    /// Commanded X, mm.
+    pub x_commanded_mm: f64,
+    /// Measured X, mm.
+    pub x_actual_mm: f64,
+    /// X following error, mm.
+    pub x_error_mm: f64,
+    /// Commanded Y, mm.
+    pub y_commanded_mm: f64,
+    /// Measured Y, mm.
+    pub y_actual_mm: f64,
+    /// Y following error, mm.
+    pub y_error_mm: f64,
+}
+
+impl LatheAxes {
+    /// The record of interrupt `interrupt` from commanded and actual (A deg, X mm, Y mm).
+    pub fn new(interrupt: u64, commanded: [f64; 3], actual: [f64; 3]) -> Self {
+        LatheAxes {
+            interrupt,
+            a_commanded_deg: commanded[0],
+            a_actual_deg: actual[0],
+            a_error_deg: commanded[0] - actual[0],
+            x_commanded_mm: commanded[1],
+            x_actual_mm: actual[1],
+            x_error_mm: commanded[1] - actual[1],
+            y_commanded_mm: commanded[2],
+            y_actual_mm: actual[2],
+            y_error_mm: commanded[2] - actual[2],
+        }
+    }
+}
+
 #[derive(Serialize)]
 struct SyncEdge<'a> {
     line: &'a str,
@@ -104,6 +151,7 @@ struct Telegram<'a> {
 }
 
 const MANDREL_SCHEMA: &str = r#"{"type":"object","title":"windcell.MandrelAngle","properties":{"commanded_deg":{"type":"number","description":"mandrel angle the step count commands, degrees"},"true_deg":{"type":"number","description":"mandrel angle the simulated motor reached, degrees"}},"required":["commanded_deg","true_deg"]}"#;
+const LATHE_SCHEMA: &str = r#"{"type":"object","title":"windcell.LatheAxes","description":"lathe winder axes every interrupt, from part zero; error = commanded - actual","properties":{"interrupt":{"type":"integer"},"a_commanded_deg":{"type":"number"},"a_actual_deg":{"type":"number"},"a_error_deg":{"type":"number"},"x_commanded_mm":{"type":"number"},"x_actual_mm":{"type":"number"},"x_error_mm":{"type":"number"},"y_commanded_mm":{"type":"number"},"y_actual_mm":{"type":"number"},"y_error_mm":{"type":"number"}},"required":["interrupt","a_commanded_deg","a_actual_deg","a_error_deg","x_commanded_mm","x_actual_mm","x_error_mm","y_commanded_mm","y_actual_mm","y_error_mm"]}"#;
 const SYNC_SCHEMA: &str = r#"{"type":"object","title":"windcell.SyncEdge","properties":{"line":{"type":"string","description":"start, in_position or e_stop"},"high":{"type":"boolean"}},"required":["line","high"]}"#;
 const TELEGRAM_SCHEMA: &str = r#"{"type":"object","title":"windcell.Telegram","properties":{"device":{"type":"string","enum":["robot","indexer"]},"direction":{"type":"string","enum":["sent","received"]},"hex":{"type":"string","description":"the bytes on the wire, two hex digits each"},"decoded":{"type":"string","description":"the telegram or command in words"}},"required":["device","direction","hex","decoded"]}"#;
 
@@ -119,6 +167,7 @@ struct Channels {
     sync: Arc<RawChannel>,
     link_robot: Arc<RawChannel>,
     link_indexer: Arc<RawChannel>,
+    lathe: Arc<RawChannel>,
     log: Channel<Log>,
 }
 
@@ -142,6 +191,7 @@ impl Channels {
             sync: json("/sync", "windcell.SyncEdge", SYNC_SCHEMA)?,
             link_robot: json("/link/robot", "windcell.Telegram", TELEGRAM_SCHEMA)?,
             link_indexer: json("/link/indexer", "windcell.Telegram", TELEGRAM_SCHEMA)?,
+            lathe: json("/lathe/axes", "windcell.LatheAxes", LATHE_SCHEMA)?,
             log: typed("/log").build(),
         })
     }
@@ -432,6 +482,11 @@ impl Recorder {
         );
     }
 
+    /// The lathe winder's axes at run time `t_s` (one interrupt).
+    pub fn lathe_axes(&self, t_s: f64, axes: &LatheAxes) {
+        self.json(&self.channels.lathe, t_s, axes);
+    }
+
     /// An event in words.
     pub fn log(&self, t_s: f64, level: Level, message: &str) {
         let level = match level {
@@ -590,6 +645,10 @@ mod tests {
         rec.telegram(1.5, Device::Robot, Direction::Sent, &[0x05], "ENQ");
         rec.telegram(1.5, Device::Indexer, Direction::Received, b"*R", "ready");
         rec.log(2.0, Level::Warning, "stopped at segment 7");
+        rec.lathe_axes(
+            2.5,
+            &LatheAxes::new(500, [90.0, 12.5, -3.0], [89.5, 12.25, -3.0]),
+        );
         rec.finish().unwrap();
 
         let messages = read(&path);
@@ -611,6 +670,7 @@ mod tests {
             ("/link/robot", "windcell.Telegram", "json", 1),
             ("/link/indexer", "windcell.Telegram", "json", 1),
             ("/log", "foxglove.Log", "protobuf", 1),
+            ("/lathe/axes", "windcell.LatheAxes", "json", 1),
         ];
         assert_eq!(topics.len(), expect.len(), "{topics:?}");
         for (topic, schema, encoding, count) in expect {
@@ -636,6 +696,15 @@ mod tests {
                     let v: serde_json::Value = serde_json::from_slice(data).unwrap();
                     let deg = v["commanded_deg"].as_f64().unwrap();
                     assert!((deg - 1f64.to_degrees()).abs() < 1e-9);
+                }
+                "/lathe/axes" => {
+                    let a: LatheAxes = serde_json::from_slice(data).unwrap();
+                    assert_eq!(a.interrupt, 500);
+                    assert_eq!(
+                        (a.a_error_deg, a.x_error_mm, a.y_error_mm),
+                        (0.5, 0.25, 0.0)
+                    );
+                    assert_eq!(*log_time, epoch + 2_500_000_000);
                 }
                 "/link/robot" => {
                     let v: serde_json::Value = serde_json::from_slice(data).unwrap();

@@ -49,6 +49,9 @@ pub struct SimCellConfig {
     pub drive: Drive,
     /// Robot motion constants.
     pub robot: MotionParams,
+    /// The five-axis arm the simulated robot checks every pose against (error 9 for a pose it
+    /// cannot take: a wrist yaw, a joint outside its range).
+    pub arm: paths::robot::Arm,
 }
 
 impl Default for SimCellConfig {
@@ -58,6 +61,7 @@ impl Default for SimCellConfig {
             opto_delay_s: OPTO_DELAY_S,
             drive: Drive::default(),
             robot: MotionParams::default(),
+            arm: paths::robot::Arm::default(),
         }
     }
 }
@@ -133,6 +137,9 @@ pub struct RobotWatch {
     running: Option<(u8, u16)>,
     immediate: Option<[f64; 3]>,
     executed_seen: usize,
+    /// State, program, instruction and executed telegrams at the last look: while they stay the
+    /// same nothing new can have finished.
+    last_seen: Option<(State, u8, u16, u16, usize)>,
 }
 
 fn target_of(m: &asea_protocol::sim::Machine, program: u8, instruction: u16) -> [f64; 3] {
@@ -148,6 +155,17 @@ impl RobotWatch {
         let mut out = Vec::new();
         let m = machine;
         let status = m.status();
+        let seen = (
+            status.state,
+            status.program,
+            status.instruction,
+            status.executed,
+            m.executed.len(),
+        );
+        if self.last_seen == Some(seen) {
+            return out;
+        }
+        self.last_seen = Some(seen);
         let running = (status.state == State::Running && status.program != 0)
             .then_some((status.program, status.instruction));
         // A newly executed MOVE_IMMEDIATE or STOP telegram.
@@ -240,6 +258,8 @@ pub struct CellPeer {
     clock: VirtualClock,
     start: Wire,
     in_position: Wire,
+    /// The level last driven on `in_position`.
+    in_position_driven: Option<bool>,
     delay: Duration,
     byte_time: Duration,
     to_card: VecDeque<(Duration, u8)>,
@@ -257,6 +277,9 @@ pub struct CellPeer {
     pub log: Vec<LogRecord>,
     /// Fault injection: the robot computer stops answering (its output is lost).
     pub robot_silent: bool,
+    /// Fault injection: a NAK storm, every ACK the robot computer sends arrives as NAK (the host
+    /// sees every ENQ and telegram refused).
+    pub robot_nak_storm: bool,
     log_file: Option<io::BufWriter<std::fs::File>>,
     /// When set, where the eye and the mandrel are over time (the placement prediction's input).
     pub trace: Option<Trace>,
@@ -321,8 +344,12 @@ impl CellPeer {
     }
 
     fn wire_lines(&mut self) {
-        let io = self.robot.machine.io().clone();
-        let _ = self.in_position.drive(io.output(IN_POSITION_OUTPUT));
+        let io = self.robot.machine.io();
+        let level = io.output(IN_POSITION_OUTPUT);
+        // The wire keeps edges only: drive it when the output changed.
+        if self.in_position_driven != Some(level) && self.in_position.drive(level).is_ok() {
+            self.in_position_driven = Some(level);
+        }
         io.set_input(START_INPUT, self.start.received().unwrap_or(false));
     }
 
@@ -435,8 +462,18 @@ impl Peer for CellPeer {
     }
 
     fn take_output(&mut self) -> Vec<u8> {
-        let out = self.robot.take_output();
-        if self.robot_silent { Vec::new() } else { out }
+        let mut out = self.robot.take_output();
+        if self.robot_silent {
+            return Vec::new();
+        }
+        if self.robot_nak_storm {
+            for b in &mut out {
+                if *b == asea_protocol::frame::ACK {
+                    *b = asea_protocol::frame::NAK;
+                }
+            }
+        }
+        out
     }
 
     fn deadline(&self) -> Option<Duration> {
@@ -478,7 +515,9 @@ impl SimCell {
         let in_position = Wire::new(cell_clock, cfg.opto_delay_s);
         let card = Card::new(IndexerMachine::new(cfg.drive, PULL_IN_SPS), INDEXER_ADDRESS)
             .with_trigger(Box::new(start.clone()));
-        let robot = Robot::new(FrameConfig::default(), Timers::default(), cfg.robot);
+        let mut robot = Robot::new(FrameConfig::default(), Timers::default(), cfg.robot);
+        robot.machine = std::mem::take(&mut robot.machine)
+            .with_kinematics(Arc::new(asea_protocol::sim::ArmModel { arm: cfg.arm }));
         let estop = Arc::new(AtomicBool::new(false));
         let byte_time = Duration::from_secs_f64(10.0 / f64::from(cfg.baud.max(1)));
         let peer = CellPeer {
@@ -499,8 +538,10 @@ impl SimCell {
             card_token: Vec::new(),
             card_moving: false,
             card_stop_sent: false,
+            in_position_driven: None,
             log: Vec::new(),
             robot_silent: false,
+            robot_nak_storm: false,
             log_file: None,
             trace: None,
             observer: None,

@@ -75,3 +75,92 @@ fn run_refuses_a_job_the_check_fails_unless_forced() {
     assert_eq!(forced.status.code(), Some(0), "{stdout}");
     assert!(stdout.contains("batch done"), "{stdout}");
 }
+
+/// The gate of a sequence: the files must be the plan of `--job` line for line (exit 2 naming
+/// the file and line otherwise, `--force` or not), then the job's check gates (exit 3 unless
+/// `--force`, which the journal records); without the job there is nothing to check the
+/// clearance against (exit 3 unless `--force`). Nothing is sent and no journal started on a
+/// refusal.
+#[test]
+fn run_of_a_sequence_is_gated_by_the_plan_and_the_check_of_its_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = std::fs::read_to_string(example("cylinder.toml")).unwrap();
+    let fat_eye = text.replacen("[mandrel]", "[cell.eye]\nradius_mm = 60.0\n\n[mandrel]", 1);
+    let job = d.join("fat-eye.toml");
+    std::fs::write(&job, fat_eye).unwrap();
+    let out = d.join("out");
+    let o = windcell(&["plan", job.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let seq = out.join("CYL.SEQ");
+    let seq = seq.to_str().unwrap();
+    let journal = d.join("j.journal");
+    let jp = journal.to_str().unwrap();
+    let refused = |args: &[&str], code: i32, expect: &str| {
+        let mut all = vec!["run", seq, "--mode", "discrete", "--journal", jp];
+        all.extend_from_slice(args);
+        let o = windcell(&all);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(expect), "{args:?}: {stderr}");
+        assert!(o.stdout.is_empty(), "{args:?}: something was run");
+        assert!(!journal.exists(), "{args:?}: a journal was started");
+    };
+    // No job: no clearance check.
+    refused(&[], 3, "no collision check without the job");
+    // The job's check finds the eye in the mandrel.
+    let job_arg = job.to_str().unwrap();
+    refused(&["--job", job_arg], 3, "--force winds anyway");
+    // Another job's plan: the sequence is not its plan (bad input, not overridable).
+    let cylinder = example("cylinder.toml");
+    let cylinder = cylinder.to_str().unwrap();
+    let sbend = example("sbend.toml");
+    refused(
+        &["--job", sbend.to_str().unwrap(), "--force"],
+        2,
+        "CYL.SEQ:1:1: differs from the plan",
+    );
+    // A file edited by hand: its first differing line is named.
+    let rob = out.join("CYL_1.ROB");
+    let original = std::fs::read_to_string(&rob).unwrap();
+    let lines: Vec<&str> = original.lines().collect();
+    let k = lines
+        .iter()
+        .position(|l| l.starts_with("instr 7 "))
+        .unwrap();
+    let edited: String = lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == k {
+                l.replacen("speed_pct=", "speed_pct=1", 1) + "\n"
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    std::fs::write(&rob, edited).unwrap();
+    refused(
+        &["--job", cylinder, "--force"],
+        2,
+        &format!("CYL_1.ROB:{}:1: differs from the plan", k + 1),
+    );
+    std::fs::write(&rob, original).unwrap();
+    // Forced past the check: wound, and the journal says so.
+    let o = windcell(&[
+        "run",
+        seq,
+        "--mode",
+        "discrete",
+        "--journal",
+        jp,
+        "--job",
+        job_arg,
+        "--force",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let first = std::fs::read_to_string(&journal).unwrap();
+    let begin: serde_json::Value = serde_json::from_str(first.lines().next().unwrap()).unwrap();
+    assert_eq!(begin["force"], true);
+}

@@ -708,3 +708,121 @@ fn an_indexer_stall_stops_the_robot_and_resume_completes() {
     let recs = journal::read(&jp).unwrap();
     assert_eq!(recs.last().unwrap()["rec"], "done");
 }
+
+#[test]
+fn a_nak_storm_stops_the_indexer_the_robot_comes_to_rest_and_resume_completes() {
+    for (mode, at) in [(RunMode::Discrete, 9), (RunMode::Fine, 1)] {
+        let b = checked(&sbend(Some(mode)));
+        let dir = tempfile::tempdir().unwrap();
+        let jp = dir.path().join("J.journal");
+        let cell = SimCell::new(&SimCellConfig::default());
+        let c2 = cell.clone();
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut n = 0;
+        let mut sink = |e: Event| {
+            if matches!(
+                e,
+                Event::Segment { .. } | Event::Program { done: false, .. }
+            ) {
+                n += 1;
+                if n == at {
+                    // From now on the robot computer's every ACK arrives as NAK.
+                    c2.with(|p| p.robot_nak_storm = true).unwrap();
+                }
+            }
+        };
+        let mut c = Coordinator::new(
+            cell.devices(Drive::default()),
+            stop,
+            Journal::create(&jp).unwrap(),
+            &mut sink,
+        );
+        let stopped = c
+            .run(&b, &ResumePoint::default(), true, false, false)
+            .unwrap_err();
+        drop(c);
+        let Halt::Fault { message } = &stopped.halt else {
+            panic!("{mode:?}: {stopped:?}")
+        };
+        assert!(message.starts_with("robot:"), "{mode:?}: {message}");
+        // The indexer's stop went through; the robot's STOP could not pass the storm.
+        assert_eq!(stopped.stop_errors.len(), 1, "{:?}", stopped.stop_errors);
+        assert!(stopped.stop_errors[0].starts_with("robot:"));
+        // The journal is intact: whole records, the last one the stop.
+        let recs = journal::read(&jp).unwrap();
+        assert_eq!(recs.last().unwrap()["rec"], "stopped");
+        // Both axes come to rest: the indexer stopped, the robot ends its move or program.
+        cell.timebase_sleep(Duration::from_secs(60));
+        assert!(!cell.with(|p| p.card.machine().is_moving()).unwrap());
+        assert_ne!(
+            cell.with(|p| p.robot.machine.status().state).unwrap(),
+            State::Running
+        );
+        cell.with(|p| p.robot_nak_storm = false).unwrap();
+        resume(&cell, &b, &jp);
+        check_each_once(&cell, &b);
+    }
+}
+
+#[test]
+fn a_stop_request_stops_both_devices_with_its_reason_and_resume_completes() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let dev = cell.devices(Drive::default());
+    let request = cell::coordinator::StopRequest::new(&dev);
+    let r2 = request.clone();
+    let mut n = 0;
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            n += 1;
+            if n == 17 {
+                // What the Ctrl-C handler does: the next exchange on either link is abandoned.
+                r2.request("Ctrl-C");
+            }
+        }
+    };
+    let mut c = Coordinator::with_stop(dev, request, Journal::create(&jp).unwrap(), &mut sink);
+    let stopped = c
+        .run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    assert_eq!(
+        stopped.halt,
+        Halt::Interrupted {
+            reason: "Ctrl-C".into()
+        }
+    );
+    assert_eq!(stopped.segments_done, 17);
+    assert!(stopped.stop_errors.is_empty(), "{:?}", stopped.stop_errors);
+    assert!(!cell.with(|p| p.card.machine().is_moving()).unwrap());
+    assert_ne!(
+        cell.with(|p| p.robot.machine.status().state).unwrap(),
+        State::Running
+    );
+    resume(&cell, &b, &jp);
+    check_each_once(&cell, &b);
+}
+
+#[test]
+fn an_interrupted_link_refuses_its_exchanges_but_the_stops_go_through() {
+    let cell = SimCell::new(&SimCellConfig::default());
+    let mut d = cell.devices(Drive::default());
+    d.mandrel.attach().unwrap();
+    let interrupters = d.interrupters();
+    assert_eq!(interrupters.len(), 2);
+    for i in &interrupters {
+        i.interrupt();
+    }
+    assert!(cell::device::is_interrupted(&d.robot.state().unwrap_err()));
+    assert!(cell::device::is_interrupted(&d.mandrel.busy().unwrap_err()));
+    // The stops pass a cancelled link (what the coordinator sends after a stop request).
+    d.mandrel.stop().unwrap();
+    d.robot.stop().unwrap();
+    for i in &interrupters {
+        i.clear();
+    }
+    assert_eq!(d.robot.state().unwrap().state, State::Stopped);
+    assert!(!d.mandrel.busy().unwrap().0);
+}

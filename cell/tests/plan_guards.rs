@@ -261,3 +261,78 @@ fn segment_counts_the_robot_cannot_number_or_hold_are_refused_at_segments() {
         refused(&job, &place(d, &format!("{name}.toml"), &at), expected);
     }
 }
+
+/// A cylinder job (`examples/cylinder.toml`'s cell and mandrel) wound along `helix.dxf`: a helix
+/// drawn every 2° on the 63.5 mm × 178 mm cylinder from the top at 0° down to the bottom, turning
+/// `turns` revolutions counter-clockwise seen from above, cut into `segments` segments.
+fn helix_job(dir: &Path, name: &str, turns: f64, segments: u32) -> PathBuf {
+    let (r, length) = (31.75, 178.0);
+    let samples = (turns * 180.0).ceil() as usize;
+    let mut dxf = String::from("  0\nSECTION\n  2\nENTITIES\n");
+    for k in 0..=samples {
+        let f = k as f64 / samples as f64;
+        let a = std::f64::consts::TAU * turns * f;
+        dxf += &format!(
+            "  0\nPOINT\n  8\nFIBRE\n 10\n{:.9}\n 20\n{:.9}\n 30\n{:.9}\n",
+            r * a.cos(),
+            r * a.sin(),
+            length * (1.0 - f)
+        );
+    }
+    dxf += "  0\nENDSEC\n  0\nEOF\n";
+    std::fs::write(dir.join(format!("{name}.dxf")), dxf).unwrap();
+    let cylinder = std::fs::read_to_string(example("cylinder.toml")).unwrap();
+    let head = &cylinder[..cylinder.find("[[path]]").unwrap()];
+    // A steep helix's chord leaves the arm plane by about 16–30°: the entry-angle limit is
+    // raised so that only the turn per segment decides.
+    let job = head.replace(
+        "[cell.drive]",
+        "[cell.robot]\nentry_angle_max_deg = 60.0\n\n[cell.drive]",
+    ) + &format!(
+        "[[path]]\nprogram = 1\ndxf = \"{name}.dxf\"\nlayer = \"FIBRE\"\nsegments = {segments}\n"
+    );
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, job).unwrap();
+    path
+}
+
+#[test]
+fn an_imported_segment_turning_more_than_half_a_revolution_is_refused_at_segments() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 1.2 revolutions in 2 segments: 0.6 revolution (216°) each. Unwrapped to the nearest
+    // multiple of a revolution, each would turn −144° the wrong way and plan.
+    let job = helix_job(d, "wide", 1.2, 2);
+    let text = std::fs::read_to_string(&job).unwrap();
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("segments = "))
+        .unwrap();
+    refused(
+        &job,
+        &place(d, "wide.toml", &format!("{}:12", line + 1)),
+        "turns the mandrel",
+    );
+}
+
+#[test]
+fn an_imported_segment_turning_four_tenths_of_a_revolution_plans_the_right_way() {
+    let dir = tempfile::tempdir().unwrap();
+    let job_path = helix_job(dir.path(), "turning", 0.8, 2);
+    let (job, text) = sequences::Job::load(&job_path).unwrap();
+    let plan = cell::tool::plan(&job, &text, &job_path).unwrap();
+    let segments = &plan.paths[0].plan.segments;
+    // Independently: the cylinder stands on the rotation axis, so the tangent point stays at the
+    // same angle in the cell and the mandrel turns back by the path's own turn about its axis:
+    // −0.4 revolution per segment, at 400 × 60/13 steps per mandrel revolution (indexer sense =
+    // counter-clockwise, rotation_sign 1), remainders carried: −738.46 → −738, −1476.92 → −1477.
+    let per_rev: f64 = 400.0 * 60.0 / 13.0;
+    let expected: Vec<i64> = {
+        let c1 = (-0.4 * per_rev).round() as i64;
+        let c2 = (-0.8 * per_rev).round() as i64;
+        vec![c1, c2 - c1]
+    };
+    assert_eq!(expected, vec![-738, -739]);
+    let steps: Vec<i64> = segments.iter().map(|s| s.steps).collect();
+    assert_eq!(steps, expected);
+}

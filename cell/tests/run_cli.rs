@@ -32,11 +32,14 @@ fn json_events_of_a_fine_run_from_a_sequence() {
     plan_sbend(dir.path());
     let seq = dir.path().join("SBEND.SEQ");
     let log = dir.path().join("cell.log");
+    let job = example("sbend.toml");
     let o = run(&[
         seq.to_str().unwrap(),
         "--json",
         "--log",
         log.to_str().unwrap(),
+        "--job",
+        job.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let events: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
@@ -80,7 +83,13 @@ fn the_console_stop_then_resume_finishes_the_batch() {
     let seq = dir.path().join("SBEND.SEQ");
     let journal = dir.path().join("SBEND.journal");
     let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(["run", seq.to_str().unwrap(), "--mode", "discrete"])
+        .args([
+            "run",
+            seq.to_str().unwrap(),
+            "--mode",
+            "discrete",
+            "--force",
+        ])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -98,6 +107,7 @@ fn the_console_stop_then_resume_finishes_the_batch() {
         seq.to_str().unwrap(),
         "--mode",
         "discrete",
+        "--force",
         "--resume",
         journal.to_str().unwrap(),
     ]);
@@ -249,4 +259,43 @@ fn jog_moves_robot_and_mandrel_together_with_the_limit_checks() {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         assert!(stderr(&o).contains(expect), "{args:?}: {}", stderr(&o));
     }
+}
+
+#[test]
+fn a_port_another_windcell_holds_is_busy_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    plan_sbend(dir.path());
+    let d = dir.path();
+    let (robot, robot_pty) = common::serve_on_pty(&["sim-robot", "--pty"]);
+    let (indexer, indexer_pty) = common::serve_on_pty(&["sim-indexer", "--pty"]);
+    std::fs::write(
+        d.join("cell.toml"),
+        format!("[ports]\nrobot = \"{robot_pty}\"\nindexer = \"{indexer_pty}\"\n"),
+    )
+    .unwrap();
+    // What a running `windcell run` holds on its ports (the serial port's exclusive lock).
+    let held = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&indexer_pty)
+        .unwrap();
+    held.try_lock().unwrap();
+    let seq = d.join("SBEND.SEQ");
+    let cell = d.join("cell.toml");
+    let journal = d.join("SBEND.journal");
+    bad(
+        &[
+            seq.to_str().unwrap(),
+            "--mode",
+            "discrete",
+            "--force",
+            "--cell",
+            cell.to_str().unwrap(),
+        ],
+        &format!("{indexer_pty}: Unable to acquire exclusive lock"),
+    );
+    assert!(!journal.exists());
+    drop(held);
+    common::stop_cleanly(robot);
+    common::stop_cleanly(indexer);
 }

@@ -208,6 +208,11 @@ impl LineReader {
     }
 }
 
+/// Longest wait for an X-language card to come back from a reset (`Z`) after the client's
+/// [`IndexerConfig::reset_wait`]: five times the OEM guide's 1000 ms, so that only a card that is
+/// not there (or not answering) fails [`Indexer::init`].
+pub const RESET_LIMIT: Duration = Duration::from_secs(5);
+
 /// An X-language indexer (Compumotor 2100 / PC21 / OEM family) over a serial link.
 #[derive(Debug)]
 pub struct XClient<L: Link> {
@@ -375,6 +380,54 @@ impl<L: Link> XClient<L> {
         }
     }
 
+    /// Polls the immediate status (`R`) until the card reports ready after a reset (`Z`): the
+    /// card buffers the commands that arrive while it resets and runs them only afterwards, so a
+    /// set-up command sent early (`SSD1`) would take effect after the replies that depend on it.
+    /// The `Z` may reach the card later than the client's wait assumed (a loaded host, a slow
+    /// link), so the client waits for the card's word, not for the clock. A line that is not a
+    /// status reply (the late echo of `Z`, a partial line cut by the reset) is skipped.
+    fn wait_reset_done(&mut self) -> Result<()> {
+        let limit = RESET_LIMIT + self.cfg.reply_timeout;
+        let deadline = Instant::now() + limit;
+        let status = xlang::encode(Some(self.cfg.address), &Command::Status);
+        // Polls sent and replies read: a reply that comes after its poll timed out belongs to
+        // an earlier poll and is consumed before the set-up goes on.
+        let (mut sent, mut answered) = (0u32, 0u32);
+        let mut ready = false;
+        loop {
+            if !ready {
+                self.link.write_all(format!("{status}\r").as_bytes())?;
+                sent += 1;
+            }
+            let mut got = None;
+            while got.is_none() {
+                let line = match self.line(&status) {
+                    Ok(line) => line,
+                    Err(Error::Timeout { .. }) => break,
+                    Err(e) => return Err(e),
+                };
+                if let Ok(Reply::Status { busy, .. }) =
+                    xlang::parse_reply(&Command::Status, &line, None)
+                {
+                    answered += 1;
+                    got = Some(busy);
+                }
+            }
+            ready |= got == Some(false);
+            if ready && (answered >= sent || got.is_none()) {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                return Err(Error::MoveTimeout {
+                    waited_ms: limit.as_millis() as u64,
+                });
+            }
+            if !ready {
+                std::thread::sleep(POLL_PERIOD.min(self.cfg.reply_timeout));
+            }
+        }
+    }
+
     fn ready_status(&mut self) -> Result<(bool, bool)> {
         match self.send(&Command::Status)? {
             Some(Reply::Status { busy, attention }) => Ok((busy, attention)),
@@ -414,6 +467,16 @@ impl<L: Link> XClient<L> {
         if attention {
             return Err(Error::Stalled);
         }
+        Ok(())
+    }
+
+    /// Puts `S` on the wire at once, without waiting for its echo: the first thing a coordinator
+    /// sends when both devices must stop (it goes through a cancelled client). [`Indexer::stop`]
+    /// must follow: it drops what is on the line and sends `S` again, confirmed by its echo (a
+    /// second `S` stops nothing more).
+    pub fn stop_on_wire(&mut self) -> Result<()> {
+        let text = xlang::encode(Some(self.cfg.address), &Command::Stop);
+        self.link.write_all(format!("{text}\r").as_bytes())?;
         Ok(())
     }
 
@@ -471,6 +534,7 @@ impl<L: Link> Indexer for XClient<L> {
         self.device_id = false;
         self.completions = 0;
         self.profile = None;
+        self.wait_reset_done()?;
         if self.cfg.device_id {
             self.send(&Command::DeviceId(true))?;
         }

@@ -594,4 +594,22 @@ mod tests {
         assert!(!m.axes[1].tripped());
         assert_eq!(m.read_limits(0), Limits::default());
     }
+
+    #[test]
+    fn axis_letters_units_and_order() {
+        assert_eq!(LatheAxis::ALL.map(LatheAxis::letter), ['A', 'X', 'Y']);
+        assert_eq!(LatheAxis::ALL.map(LatheAxis::unit), ["deg", "mm", "mm"]);
+        assert_eq!(LatheAxis::ALL.map(LatheAxis::index), [0, 1, 2]);
+    }
+
+    #[test]
+    fn counter_position_is_the_accumulated_count() {
+        let mut c = EncoderCounter::new(65_530, 1000);
+        assert_eq!(c.position(), 1000);
+        // 65 530 → 4 is ten counts forward across the wrap; 4 → 65 526 fourteen back.
+        assert_eq!(c.update(4), 1010);
+        assert_eq!(c.position(), 1010);
+        assert_eq!(c.update(65_526), 996);
+        assert_eq!(c.position(), 996);
+    }
 }

@@ -325,3 +325,28 @@ fn attach_arm_on_trigger_and_cancel() {
     token.reset();
     assert!(!client.status().unwrap().busy);
 }
+
+/// A card whose reset outlasts the client's wait (a loaded host, a `Z` that reaches the card
+/// late): the client polls the status until the card is ready before it sends `SSD1`, so the
+/// device-ID prefix is on from the first reply that is checked for it. Sent during the reset,
+/// `SSD1` would sit in the card's buffer and the next status reply would come without the prefix
+/// ("truncated device id").
+#[test]
+fn init_waits_for_the_reset_to_finish() {
+    let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
+    let (master, slave) = TTYPort::pair().expect("pty pair");
+    let mut card = Card::new(Machine::new(Drive::default(), PULL_IN_SPS), 1);
+    card.reset_busy_s = 0.6;
+    let sim = Served::start(card, master);
+    let cfg = IndexerConfig {
+        reset_wait: Duration::from_millis(20),
+        ..config()
+    };
+    let mut client = XClient::new(slave, cfg);
+    client.init().unwrap();
+    let s = client.status().unwrap();
+    assert!(!s.busy && !s.fault, "{s:?}");
+    assert_eq!(s.position_steps, Some(0));
+    let f = sim.front.lock().unwrap();
+    assert!(f.machine().now_s() >= f.machine().reset_until_s);
+}

@@ -29,7 +29,10 @@ fn poses(c: &mut Criterion) {
         },
         base_speed_mm_s: 1000.0,
         max_speed_mm_s: 2000.0,
-        movement: Movement::Fine,
+        // Discrete: at 10 000 segments many segments turn the mandrel by no step at all, which
+        // fine movement rightly refuses (the robot cannot move in no time); discrete movement
+        // paces those by the robot.
+        movement: Movement::Discrete,
     };
     let tube = Tube::new(
         Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
@@ -49,6 +52,26 @@ fn poses(c: &mut Criterion) {
     // Clearance is a separate query (a distance to the spine); measure the pose pipeline alone.
     group.bench_function("plan_10000_segments", |b| {
         b.iter(|| paths::plan::plan(black_box(&points), |_| 1.0, &setup, &speeds).unwrap())
+    });
+    // The arm's share: inverse kinematics alone (eye and roll axis to joints, with the sines and
+    // cosines the speed limit uses) for the same poses, measured in the same run.
+    let planned = paths::plan::plan(&points, |_| 1.0, &setup, &speeds).unwrap();
+    let targets: Vec<_> = std::iter::once(&planned.start)
+        .chain(planned.segments.iter().map(|s| &s.pose))
+        .map(|p| (p.eye_mm, setup.arm.forward(&p.joints).roll_axis))
+        .collect();
+    group.bench_function("inverse_kinematics_10001_poses", |b| {
+        b.iter(|| {
+            let mut sum = 0.0;
+            for (eye, axis) in black_box(&targets) {
+                let (j, _) = setup
+                    .arm
+                    .inverse_with_trig(eye, axis, std::f64::consts::FRAC_PI_2, planned.elbow)
+                    .unwrap();
+                sum += j.elbow_rad;
+            }
+            sum
+        })
     });
     group.finish();
 

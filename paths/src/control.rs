@@ -855,4 +855,17 @@ mod tests {
         assert!(routh_first_column(&unstable).iter().any(|&c| c < 0.0));
         assert!(roots(&unstable).iter().any(|r| r.re > 0.0));
     }
+
+    #[test]
+    fn biproper_step_response_has_its_direct_term() {
+        // (s + 2)/(s + 1): y(t) = 2 − e^(−t), which starts at the direct term 1.
+        let g = ContinuousTf::new(vec![1.0, 2.0], vec![1.0, 1.0]).unwrap();
+        let dt = 1e-3;
+        let y = g.step_response(dt, 5.0).unwrap();
+        assert_eq!(y.len(), 5001);
+        for (k, v) in y.iter().enumerate().step_by(250) {
+            let t = k as f64 * dt;
+            assert!((v - (2.0 - (-t).exp())).abs() < 1e-9, "t {t}: {v}");
+        }
+    }
 }

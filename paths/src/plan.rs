@@ -46,7 +46,7 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 use nalgebra::{Point3, Unit, UnitQuaternion, Vector2, Vector3};
 
 use crate::calibration::{Calibration, CellTransform};
-use crate::robot::{Arm, ArmFault, ElbowBranch, Joints};
+use crate::robot::{Arm, ArmFault, ElbowBranch, JointTrig, Joints};
 use crate::segment::SurfacePoint;
 use crate::step::{Gearing, RemainderCarrier};
 use crate::tangent::{self, Flank};
@@ -375,9 +375,9 @@ pub fn plan(
         let out = tow.dot(&normal);
         let roll_axis = Unit::new_normalize(tow - normal * out);
         let entry_angle_rad = out.abs().min(1.0).asin();
-        let joints = arm
-            .inverse(&eye_mm, &roll_axis, FRAC_PI_2, branch)
-            .and_then(|j| arm.check_joints(&j).map(|()| j))
+        let (joints, trig) = arm
+            .inverse_with_trig(&eye_mm, &roll_axis, FRAC_PI_2, branch)
+            .and_then(|(j, t)| arm.check_joints(&j).map(|()| (j, t)))
             .map_err(|e| arm_error(e, k))?;
         if let Some(prev) = previous {
             arm.check_continuity(&prev.joints, &joints)
@@ -403,20 +403,23 @@ pub fn plan(
         // joints checked for continuity give quaternions that never flip sign between poses.
         let wrist_q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), joints.base_yaw_rad)
             * wrist::from_pitch_roll(joints.app_a_pitch_rad(), joints.roll_rad);
-        Ok::<Pose, Error>(Pose {
-            tangent_point_mm: points[k].point,
-            normal: points[k].normal,
-            eye_mandrel_mm: prep.eye,
-            eye_mm,
-            joints,
-            entry_angle_rad,
-            wrist_q,
-            ideal_mandrel_rad: prep.ideal,
-            mandrel_rad: commanded,
-        })
+        Ok::<(Pose, JointTrig), Error>((
+            Pose {
+                tangent_point_mm: points[k].point,
+                normal: points[k].normal,
+                eye_mandrel_mm: prep.eye,
+                eye_mm,
+                joints,
+                entry_angle_rad,
+                wrist_q,
+                ideal_mandrel_rad: prep.ideal,
+                mandrel_rad: commanded,
+            },
+            trig,
+        ))
     };
     // The elbow branch: up if it takes the start pose within the ranges, else down; kept.
-    let (start, elbow) = match pose_at(
+    let ((start, start_trig), elbow) = match pose_at(
         0,
         phi0,
         ElbowBranch::Up,
@@ -439,13 +442,13 @@ pub fn plan(
     };
     let mut carrier = RemainderCarrier::default();
     let mut max_drift_rad = 0.0f64;
-    let mut poses: Vec<(Pose, i64)> = Vec::with_capacity(points.len() - 1);
+    let mut poses: Vec<(Pose, i64, JointTrig)> = Vec::with_capacity(points.len() - 1);
     for (k, prep) in prepared.iter().enumerate().skip(1) {
         let steps = carrier.next(setup.gearing.steps(prep.ideal - phi0));
         let commanded = phi0 + carrier.commanded as f64 * step_angle;
         max_drift_rad = max_drift_rad.max((commanded - prep.ideal).abs());
-        let prev = poses.last().map_or(&start, |(p, _)| p);
-        let pose = pose_at(
+        let prev = poses.last().map_or(&start, |(p, _, _)| p);
+        let (pose, trig) = pose_at(
             k,
             commanded,
             elbow,
@@ -453,18 +456,22 @@ pub fn plan(
             &mut min_clearance,
             &mut max_entry,
         )?;
-        poses.push((pose, steps));
+        poses.push((pose, steps, trig));
     }
 
     // Pass 3: the segments' times and speeds.
     let steps_per_rev = setup.gearing.steps_per_mandrel_rev();
-    let total_steps: u64 = poses.iter().map(|(_, s)| s.unsigned_abs()).sum();
+    let total_steps: u64 = poses.iter().map(|(_, s, _)| s.unsigned_abs()).sum();
     let mut covered = 0u64;
     let sign = i64::from(setup.calibration.rotation_sign);
     let mut segments: Vec<Segment> = Vec::with_capacity(poses.len());
-    for (i, (pose, steps)) in poses.iter().enumerate() {
+    for (i, (pose, steps, trig)) in poses.iter().enumerate() {
         let k = i + 1;
-        let prev = if i == 0 { &start } else { &poses[i - 1].0 };
+        let (prev, prev_trig) = if i == 0 {
+            (&start, &start_trig)
+        } else {
+            (&poses[i - 1].0, &poses[i - 1].2)
+        };
         let n = steps.unsigned_abs();
         let mut duration_s = match speeds.movement {
             Movement::Discrete => speeds.mandrel.duration_s(n, steps_per_rev),
@@ -484,8 +491,8 @@ pub fn plan(
         let linear_s = if travel > 1e-9 {
             let dir = Unit::new_unchecked(travel_v / travel);
             let fastest = arm
-                .max_tool_speed_mm_s(&prev.joints, &dir)
-                .min(arm.max_tool_speed_mm_s(&pose.joints, &dir))
+                .max_tool_speed_at(prev_trig, &dir)
+                .min(arm.max_tool_speed_at(trig, &dir))
                 .min(speeds.max_speed_mm_s);
             travel / fastest
         } else {

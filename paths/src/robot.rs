@@ -343,10 +343,47 @@ fn fault(fault: ArmFault) -> Error {
     }
 }
 
-/// Wraps an angle into (−π, π].
+/// Wraps an angle into (−π, π] (one add for the sums of arctangents inverse kinematics makes,
+/// a floating remainder otherwise).
 fn wrap(a: f64) -> f64 {
-    let w = a.rem_euclid(TAU);
-    if w > PI { w - TAU } else { w }
+    if a > -PI && a <= PI {
+        a
+    } else if a > PI && a <= PI + TAU {
+        let w = a - TAU;
+        if w > -PI { w } else { PI }
+    } else if a <= -PI && a > -PI - TAU {
+        a + TAU
+    } else {
+        let w = a.rem_euclid(TAU);
+        if w > PI { w - TAU } else { w }
+    }
+}
+
+/// The sines and cosines of a pose's yaw, shoulder, elbow and pitch, from which the arm's speed
+/// limits at the pose follow ([`Arm::max_tool_speed_at`]). Inverse kinematics finds them on the
+/// way to the angles ([`Arm::inverse_with_trig`]); [`JointTrig::of`] computes them from joints.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointTrig {
+    /// sin, cos of the base yaw.
+    pub yaw: (f64, f64),
+    /// sin, cos of the shoulder angle.
+    pub shoulder: (f64, f64),
+    /// sin, cos of the elbow angle.
+    pub elbow: (f64, f64),
+    /// cos of the pitch.
+    pub cos_pitch: f64,
+}
+
+impl JointTrig {
+    /// From the joint angles.
+    pub fn of(j: &Joints) -> Self {
+        JointTrig {
+            yaw: j.base_yaw_rad.sin_cos(),
+            shoulder: j.shoulder_rad.sin_cos(),
+            elbow: j.elbow_rad.sin_cos(),
+            cos_pitch: j.pitch_rad.cos(),
+        }
+    }
 }
 
 impl Arm {
@@ -437,9 +474,23 @@ impl Arm {
         roll_rad: f64,
         branch: ElbowBranch,
     ) -> Result<Joints, Error> {
+        self.inverse_with_trig(eye_mm, roll_axis, roll_rad, branch)
+            .map(|(j, _)| j)
+    }
+
+    /// [`Arm::inverse`], with the sines and cosines of the angles found (for
+    /// [`Arm::max_tool_speed_at`]). The shoulder and forearm directions come from rotating the
+    /// shoulder-to-wrist vector by the triangle's angles as complex products, one arctangent each.
+    pub fn inverse_with_trig(
+        &self,
+        eye_mm: &Point3<f64>,
+        roll_axis: &Unit<Vector3<f64>>,
+        roll_rad: f64,
+        branch: ElbowBranch,
+    ) -> Result<(Joints, JointTrig), Error> {
         let u = roll_axis.as_ref();
         let w = eye_mm - u * self.eye_mechanism_mm;
-        let rho = w.x.hypot(w.y);
+        let rho = (w.x * w.x + w.y * w.y).sqrt();
         if rho < 1e-9 {
             return Err(fault(ArmFault::WristOnPedestalAxis));
         }
@@ -450,7 +501,8 @@ impl Arm {
                 angle_deg: out_of_plane.clamp(-1.0, 1.0).asin().to_degrees(),
             }));
         }
-        let a_r = u.z.atan2(c1 * u.x + s1 * u.y);
+        let u_r = c1 * u.x + s1 * u.y;
+        let a_r = u.z.atan2(u_r);
         let (l1, l2) = (self.upper_arm_mm, self.forearm_mm);
         let z = w.z - self.shoulder_height_mm;
         let d2 = rho * rho + z * z;
@@ -463,21 +515,40 @@ impl Arm {
             }));
         }
         let sin_g = ((1.0 - cos_g) * (1.0 + cos_g)).sqrt();
-        let g = sin_g.atan2(cos_g);
         let sign = match branch {
             ElbowBranch::Up => 1.0,
             ElbowBranch::Down => -1.0,
         };
-        let a_u = z.atan2(rho) + sign * (l2 * sin_g).atan2(l1 + l2 * cos_g);
-        let a_f = a_u - sign * g;
-        let shoulder = wrap(FRAC_PI_2 - a_u);
-        Ok(Joints {
-            base_yaw_rad: s1.atan2(c1),
-            shoulder_rad: shoulder,
-            elbow_rad: wrap(a_f),
-            pitch_rad: wrap(-a_r),
-            roll_rad,
-        })
+        // Upper arm: (ρ, z) turned by atan2(±l2 sin γ, l1 + l2 cos γ); forearm: that turned
+        // back by ∓γ. Both are (ρ, z)-scaled directions; their arctangents are the angles.
+        let (tr, tz) = (l1 + l2 * cos_g, sign * l2 * sin_g);
+        let (ur, uz) = (rho * tr - z * tz, rho * tz + z * tr);
+        let (fr, fz) = (
+            ur * cos_g + uz * sign * sin_g,
+            uz * cos_g - ur * sign * sin_g,
+        );
+        let a_u = uz.atan2(ur);
+        let a_f = fz.atan2(fr);
+        let (nu, nf) = (
+            (ur * ur + uz * uz).sqrt().max(f64::MIN_POSITIVE),
+            (fr * fr + fz * fz).sqrt().max(f64::MIN_POSITIVE),
+        );
+        Ok((
+            Joints {
+                base_yaw_rad: s1.atan2(c1),
+                shoulder_rad: wrap(FRAC_PI_2 - a_u),
+                elbow_rad: a_f,
+                pitch_rad: wrap(-a_r),
+                roll_rad,
+            },
+            JointTrig {
+                yaw: (s1, c1),
+                // shoulder = π/2 − a_u: sin = cos a_u, cos = sin a_u.
+                shoulder: (ur / nu, uz / nu),
+                elbow: (fz / nf, fr / nf),
+                cos_pitch: u_r,
+            },
+        ))
     }
 
     /// The first joint outside its range, as an error.
@@ -574,7 +645,12 @@ impl Arm {
     /// `max_speed / |rate|` over the joints. 0 at a singular pose (arm stretched or folded) when
     /// the direction needs the singular one.
     pub fn max_tool_speed_mm_s(&self, j: &Joints, direction: &Unit<Vector3<f64>>) -> f64 {
-        let rates = self.joint_rates(j, direction.as_ref());
+        self.max_tool_speed_at(&JointTrig::of(j), direction)
+    }
+
+    /// [`Arm::max_tool_speed_mm_s`] from the pose's sines and cosines.
+    pub fn max_tool_speed_at(&self, t: &JointTrig, direction: &Unit<Vector3<f64>>) -> f64 {
+        let rates = self.joint_rates_at(t, direction.as_ref());
         rates
             .iter()
             .zip(&self.joints)
@@ -591,11 +667,16 @@ impl Arm {
     /// Joint rates (rad/s) for the eye velocity `v` (mm/s) with the wrist fixed in the arm frame;
     /// infinite where the pose is singular for `v`.
     pub fn joint_rates(&self, j: &Joints, v: &Vector3<f64>) -> [f64; 5] {
-        let (s1, c1) = j.base_yaw_rad.sin_cos();
-        let (s2, c2) = j.shoulder_rad.sin_cos();
-        let (sf, cf) = j.elbow_rad.sin_cos();
+        self.joint_rates_at(&JointTrig::of(j), v)
+    }
+
+    /// [`Arm::joint_rates`] from the pose's sines and cosines.
+    pub fn joint_rates_at(&self, t: &JointTrig, v: &Vector3<f64>) -> [f64; 5] {
+        let (s1, c1) = t.yaw;
+        let (s2, c2) = t.shoulder;
+        let (sf, cf) = t.elbow;
         let (l1, l2) = (self.upper_arm_mm, self.forearm_mm);
-        let eye_rho = l1 * s2 + l2 * cf + self.eye_mechanism_mm * j.pitch_rad.cos();
+        let eye_rho = l1 * s2 + l2 * cf + self.eye_mechanism_mm * t.cos_pitch;
         let v_t = -s1 * v.x + c1 * v.y;
         let v_r = c1 * v.x + s1 * v.y;
         let v_z = v.z;
@@ -736,8 +817,79 @@ mod tests {
             for (a, b) in back.to_array().iter().zip(j.to_array()) {
                 assert!(wrap(a - b).abs() < 1e-9, "{j:?} vs {back:?}");
             }
+            // The sines and cosines found on the way are those of the angles found.
+            let (_, trig) = arm
+                .inverse_with_trig(&pose.eye_mm, &pose.roll_axis, j.roll_rad, branch)
+                .unwrap();
+            let of = JointTrig::of(&back);
+            for (x, y) in [
+                (trig.yaw, of.yaw),
+                (trig.shoulder, of.shoulder),
+                (trig.elbow, of.elbow),
+                ((trig.cos_pitch, 0.0), (of.cos_pitch, 0.0)),
+            ] {
+                assert!(
+                    (x.0 - y.0).abs() < 1e-12 && (x.1 - y.1).abs() < 1e-12,
+                    "{j:?}"
+                );
+            }
         }
         assert!(tested.iter().all(|&n| n > 1000), "{tested:?}");
+    }
+
+    #[test]
+    fn joint_time_is_the_slowest_joints_travel_over_its_speed() {
+        let arm = Arm::default();
+        // By hand: 30° of shoulder at 60°/s is 0.5 s; 14° of elbow at 70°/s is 0.2 s; 120° of
+        // roll at 240°/s is 0.5 s; 58.85° of base yaw at 2300/1120 rad/s is 0.5002 s.
+        let from = Joints::default();
+        let to = Joints {
+            shoulder_rad: 30f64.to_radians(),
+            elbow_rad: -14f64.to_radians(),
+            roll_rad: 120f64.to_radians(),
+            ..from
+        };
+        assert_abs_diff_eq!(arm.joint_time_s(&from, &to), 0.5, epsilon = 1e-12);
+        assert_abs_diff_eq!(arm.joint_time_s(&to, &from), 0.5, epsilon = 1e-12);
+        let yaw = Joints {
+            base_yaw_rad: 58.85f64.to_radians(),
+            ..to
+        };
+        let expected = 58.85f64.to_radians() / (2300.0 / 1120.0);
+        assert_abs_diff_eq!(arm.joint_time_s(&to, &yaw), expected, epsilon = 1e-12);
+        assert_eq!(arm.joint_time_s(&to, &to), 0.0);
+    }
+
+    #[test]
+    fn a_joint_change_of_exactly_the_jump_limit_is_a_motion() {
+        let arm = Arm::default();
+        let from = Joints::default();
+        let at_limit = Joints {
+            pitch_rad: arm.joint_jump_max_rad,
+            ..from
+        };
+        assert!(arm.check_continuity(&from, &at_limit).is_ok());
+        let beyond = Joints {
+            pitch_rad: arm.joint_jump_max_rad * (1.0 + 1e-12),
+            ..from
+        };
+        assert!(arm.check_continuity(&from, &beyond).is_err());
+    }
+
+    #[test]
+    fn wrap_lands_in_the_half_open_turn_for_any_angle() {
+        for k in -2000..=2000 {
+            let a = k as f64 * 0.0173 + if k % 7 == 0 { PI } else { 0.0 };
+            let w = wrap(a);
+            assert!(w > -PI && w <= PI, "{a} -> {w}");
+            // The same angle: a whole number of turns apart.
+            let turns = (a - w) / TAU;
+            assert!((turns - turns.round()).abs() < 1e-9, "{a} -> {w}");
+        }
+        assert_eq!(wrap(PI), PI);
+        assert_eq!(wrap(-PI), PI);
+        assert_eq!(wrap(3.0 * PI), PI);
+        assert_eq!(wrap(0.5), 0.5);
     }
 
     #[test]

@@ -175,4 +175,118 @@ mod tests {
         assert!(e.starts_with("1:1: byte 0xFF at offset 0"), "{e}");
         assert!(e.contains("UTF-16"), "{e}");
     }
+
+    #[test]
+    fn text_comes_back_whole_and_its_errors_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("job.toml");
+        std::fs::write(&path, "name = \"A\"\nsegments = 51\n").unwrap();
+        assert_eq!(
+            read_text(&path, MAX_JOB_BYTES).unwrap(),
+            "name = \"A\"\nsegments = 51\n"
+        );
+        std::fs::write(&path, b"name = 1\nab\xFFc").unwrap();
+        let e = read_text(&path, MAX_JOB_BYTES).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}:2:3: byte 0xFF", path.display())),
+            "{e}"
+        );
+    }
+
+    /// Files under `/proc` are regular files whose size reads as 0 while they hold text: only the
+    /// cap applied while reading can refuse them, so this is the test of that second cap.
+    #[test]
+    fn a_file_whose_size_reads_zero_is_capped_while_it_is_read() {
+        let status = Path::new("/proc/self/status");
+        if std::fs::metadata(status).map(|m| m.len()).ok() != Some(0) {
+            eprintln!("skipped: no /proc/self/status reading zero bytes on this system");
+            return;
+        }
+        let e = read_bytes(status, 16).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::FileTooLarge {
+                    bytes: 17,
+                    limit_bytes: 16,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            read_text(status, MAX_JOB_BYTES)
+                .unwrap()
+                .starts_with("Name:")
+        );
+    }
+
+    /// Each cap holds the largest file of its kind that windcell itself writes or ships, and
+    /// stays within the memory budget of docs/ARCHITECTURE.md ("Limits": a few hundred MB with
+    /// the parsed form beside the text).
+    #[test]
+    fn each_cap_holds_the_largest_file_of_its_kind_and_stays_within_the_budget() {
+        use crate::MandrelMove;
+        use crate::rob::{Header, Instruction, Interpolation, Movement, Reference, RobotFile};
+        let v: [f64; 4] = [-0.123456789012, -0.987654321098, -0.5, -0.617283950617];
+        let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
+        let widest = Instruction {
+            number: 1,
+            speed_pct: 99.875,
+            position_mm: [-2047.9375, -2047.9375, -2047.9375],
+            q: v.map(|c| c / norm),
+            interpolation: Interpolation::Rectangular,
+            reference: Reference::Absolute,
+            mandrel: MandrelMove {
+                accel_rps2: 19.875,
+                start_stop_rps: 0.125,
+                max_rps: 9.875,
+                steps: -999_999,
+            },
+        };
+        let rob = RobotFile {
+            header: Header {
+                program: 255,
+                base_speed_mm_s: 1000.0,
+                max_speed_mm_s: 2300.0,
+                movement: Movement::Discrete,
+                sync_mandrel_deg: -359.875,
+            },
+            instructions: (1..=paths::limits::MAX_SEGMENTS as u16)
+                .map(|number| Instruction { number, ..widest })
+                .collect(),
+        };
+        let rob_bytes = rob.write().unwrap().len() as u64;
+        assert!(
+            rob_bytes <= MAX_CONTROL_FILE_BYTES,
+            "{rob_bytes} bytes of .ROB"
+        );
+        // A binary STL at the triangle limit: 84-byte header and count, 50 bytes a triangle.
+        let stl_bytes = 84 + 50 * paths::limits::MAX_TRIANGLES as u64;
+        assert!(stl_bytes <= MAX_MESH_BYTES, "{stl_bytes} bytes of STL");
+        // A journal of the most segments a job may hold, at 300 bytes a record.
+        assert!(300 * paths::limits::MAX_JOB_SEGMENTS as u64 <= MAX_JOURNAL_BYTES);
+        let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+        for (name, cap) in [
+            ("sbend.toml", MAX_JOB_BYTES),
+            ("cylinder.toml", MAX_JOB_BYTES),
+            ("seed002-vessel.toml", MAX_JOB_BYTES),
+            ("FW-CNC.PAR", MAX_JOB_BYTES),
+            ("sbend-path.dxf", MAX_DXF_BYTES),
+            ("sbend.stl", MAX_MESH_BYTES),
+            ("cone-dome-cylinder.prg", MAX_PROGRAM_BYTES),
+        ] {
+            read_bytes(&examples.join(name), cap).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+        for cap in [
+            MAX_JOB_BYTES,
+            MAX_DXF_BYTES,
+            MAX_MESH_BYTES,
+            MAX_CONTROL_FILE_BYTES,
+            MAX_PROGRAM_BYTES,
+            MAX_JOURNAL_BYTES,
+        ] {
+            assert!(cap <= 64 << 20, "{cap}");
+        }
+    }
 }

@@ -97,3 +97,70 @@ fn control_files_round_trip_and_agree_with_the_plan() {
         }
     }
 }
+
+/// The worst entry angle of each example as `docs/geometry.md` records it (first figure on the
+/// example's row of the examples table), degrees.
+fn recorded_worst_entry_deg(example: &str) -> Option<f64> {
+    let doc = include_str!("../../docs/geometry.md");
+    let row = doc
+        .lines()
+        .find(|l| l.starts_with(&format!("| {example} |")))?;
+    let cell = row.split('|').nth(2)?.trim();
+    cell.split('°').next()?.trim().parse().ok()
+}
+
+#[test]
+fn every_example_keeps_its_elbow_branch_its_joint_ranges_and_the_recorded_entry_angle() {
+    let mut stale = Vec::new();
+    for job_path in examples() {
+        let name = job_path.file_stem().unwrap().to_string_lossy().into_owned();
+        let (job, text) = Job::load(&job_path).unwrap();
+        let plan = cell::tool::plan(&job, &text, &job_path).unwrap();
+        let arm = cell::tool::arm(&job);
+        let mut worst_deg = 0.0f64;
+        let mut per_path = Vec::new();
+        for path in &plan.paths {
+            per_path.push(path.plan.max_entry_angle_rad.to_degrees());
+            let poses =
+                std::iter::once(&path.plan.start).chain(path.plan.segments.iter().map(|s| &s.pose));
+            for pose in poses {
+                // Every joint inside the arm's ranges.
+                for (limit, value) in arm.joints.iter().zip(pose.joints.to_array()) {
+                    assert!(
+                        value >= limit.min_rad && value <= limit.max_rad,
+                        "{name}: {:?}",
+                        pose.joints
+                    );
+                }
+                // The elbow bends to the same side at every pose (the bend from the upper arm's
+                // direction to the forearm's: positive elbow up): no branch switch.
+                let bend =
+                    std::f64::consts::FRAC_PI_2 - pose.joints.shoulder_rad - pose.joints.elbow_rad;
+                let up = bend.sin() > 0.0;
+                assert_eq!(up, path.plan.elbow == paths::ElbowBranch::Up, "{name}");
+                worst_deg = worst_deg.max(pose.entry_angle_rad.to_degrees());
+            }
+            assert_abs_diff_eq!(
+                path.plan.max_entry_angle_rad.to_degrees(),
+                path.plan
+                    .segments
+                    .iter()
+                    .map(|s| s.pose.entry_angle_rad)
+                    .chain([path.plan.start.entry_angle_rad])
+                    .fold(0.0, f64::max)
+                    .to_degrees(),
+                epsilon = 1e-12
+            );
+        }
+        // docs/geometry.md records each example's worst entry angle to 0.01°.
+        let recorded = recorded_worst_entry_deg(&name)
+            .unwrap_or_else(|| panic!("docs/geometry.md has no row for {name}"));
+        if (recorded - worst_deg).abs() > 0.005 + 1e-9 {
+            stale.push(format!(
+                "{name}: docs/geometry.md says {recorded}°, the plan {worst_deg:.3}° \
+                 (per path {per_path:.3?})"
+            ));
+        }
+    }
+    assert!(stale.is_empty(), "{stale:#?}");
+}

@@ -4,14 +4,14 @@
 //! immediate move, at the instruction for a program (standby check or operate run).
 //!
 //! Two models behind one trait:
-//! - [`Reach`] (the default): the eye within a radius of the base axis and inside the wire's z
-//!   range. It accepts any wrist orientation.
-//! - [`ArmModel`]: the arm of [`paths::robot::Arm`]: the eye's roll axis is the quaternion's X
-//!   axis (App. A: pitch about Y, then roll about the new X; the eye mechanism sits on the roll
-//!   axis, §4.1.3), and the pose must have an inverse solution (elbow up or down) inside every
-//!   joint range. A roll axis out of the arm's vertical plane needs a wrist yaw and is refused.
-//!   It is not the default because the planner points the tool's bore, not the roll axis, along
-//!   the fibre (paths::wrist), which this arm cannot always follow.
+//! - [`ArmModel`], the default of `sim::Machine`: the arm of [`paths::robot::Arm`]. The eye's
+//!   roll axis is the quaternion's X axis (App. A: pitch about Y, then roll about the new X; the
+//!   eye mechanism sits on the roll axis, §4.1.3), and the pose must have an inverse solution
+//!   (elbow up or down) inside every joint range. A roll axis out of the arm's vertical plane
+//!   needs a wrist yaw and is refused (beyond [`WIRE_YAW_TOLERANCE_RAD`]). The planner's poses
+//!   carry the roll axis in that plane (tool x of `paths::robot`), so they are taken.
+//! - [`Reach`]: the eye within a radius of the base axis and inside the wire's z range, any
+//!   wrist orientation (opt-in with `Machine::with_kinematics`).
 
 use nalgebra::{Point3, Quaternion, Unit, UnitQuaternion, Vector3};
 use paths::robot::{Arm, ElbowBranch};
@@ -70,10 +70,36 @@ impl ArmModel {
     }
 }
 
+/// Largest angle between the roll axis and the arm's vertical plane that the controller takes as
+/// in the plane, rad: the resolution of the pose on the wire, not a wrist yaw. A Q1.14 quaternion
+/// component (1/16384 = 6.1 × 10⁻⁵) turns the axis by up to about 2.5 × 10⁻⁴ rad, and a 0.0625 mm
+/// coordinate tilts the plane through an eye 300 mm from the base axis by up to 3 × 10⁻⁴ rad;
+/// 1 × 10⁻³ rad (0.057°) is above both, and far below any yaw a path asks for (ours).
+pub const WIRE_YAW_TOLERANCE_RAD: f64 = 1.0e-3;
+
+impl ArmModel {
+    /// The roll axis turned into the vertical plane through the base axis and the eye (the plane
+    /// the five axes can point it in: base yaw, then pitches), if it is out of that plane by no
+    /// more than [`WIRE_YAW_TOLERANCE_RAD`]; `None` if it needs a wrist yaw.
+    pub fn in_arm_plane(eye_mm: [f64; 3], axis: Unit<Vector3<f64>>) -> Option<Unit<Vector3<f64>>> {
+        let rho = eye_mm[0].hypot(eye_mm[1]);
+        if rho < 1e-9 {
+            return Some(axis);
+        }
+        let n = Vector3::new(-eye_mm[1] / rho, eye_mm[0] / rho, 0.0);
+        let off = n.dot(axis.as_ref());
+        if off.abs() > WIRE_YAW_TOLERANCE_RAD.sin() {
+            return None;
+        }
+        Unit::try_new(axis.into_inner() - n * off, 1e-12)
+    }
+}
+
 impl Kinematics for ArmModel {
     fn check(&self, eye_mm: [f64; 3], q_wxyz: [f64; 4]) -> Result<(), RobotError> {
         let eye = Point3::new(eye_mm[0], eye_mm[1], eye_mm[2]);
-        let axis = Self::roll_axis(q_wxyz);
+        let axis =
+            Self::in_arm_plane(eye_mm, Self::roll_axis(q_wxyz)).ok_or(RobotError::Kinematics)?;
         for branch in [ElbowBranch::Up, ElbowBranch::Down] {
             if let Ok(j) = self.arm.inverse(&eye, &axis, 0.0, branch)
                 && self.arm.check_joints(&j).is_ok()
@@ -125,5 +151,34 @@ mod tests {
             Reach::default().check([1700.0, 0.0, 0.0], wxyz),
             Err(RobotError::Kinematics)
         );
+    }
+
+    /// Within the wire's resolution a roll axis off the arm plane is turned into it; a yaw
+    /// beyond it is refused. Measured at a point 30° round the base axis, so that the plane is
+    /// not the xz plane.
+    #[test]
+    fn the_wire_resolution_is_not_a_wrist_yaw() {
+        let model = ArmModel::default();
+        let az = 30f64.to_radians();
+        let eye = [900.0 * az.cos(), 900.0 * az.sin(), 700.0];
+        let at = |off_rad: f64| {
+            let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), az + off_rad);
+            model.check(eye, [q.w, q.i, q.j, q.k])
+        };
+        assert_eq!(at(0.0), Ok(()));
+        assert_eq!(at(0.5 * WIRE_YAW_TOLERANCE_RAD), Ok(()));
+        assert_eq!(at(-0.9 * WIRE_YAW_TOLERANCE_RAD), Ok(()));
+        assert_eq!(
+            at(1.5 * WIRE_YAW_TOLERANCE_RAD),
+            Err(RobotError::Kinematics)
+        );
+        assert_eq!(
+            at(-1.5 * WIRE_YAW_TOLERANCE_RAD),
+            Err(RobotError::Kinematics)
+        );
+        // The turned axis lies in the plane through the eye and the base axis.
+        let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), az + 5e-4);
+        let u = ArmModel::in_arm_plane(eye, ArmModel::roll_axis([q.w, q.i, q.j, q.k])).unwrap();
+        assert!((u.y * az.cos() - u.x * az.sin()).abs() < 1e-12);
     }
 }

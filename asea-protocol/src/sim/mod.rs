@@ -181,9 +181,7 @@ impl Machine {
             running: None,
             current_instruction: 0,
             io: IoLines::default(),
-            kinematics: Arc::new(Reach {
-                reach_mm: params.reach_mm,
-            }),
+            kinematics: Arc::new(ArmModel::default()),
             now_s: 0.0,
             executed: Vec::new(),
             trace: Vec::new(),
@@ -191,7 +189,7 @@ impl Machine {
         }
     }
 
-    /// Uses `k` to decide which poses the arm can take ([`kinematics`]; default [`Reach`]).
+    /// Uses `k` to decide which poses the arm can take ([`kinematics`]; default [`ArmModel`]).
     pub fn with_kinematics(mut self, k: Arc<dyn Kinematics>) -> Self {
         self.kinematics = k;
         self
@@ -850,16 +848,29 @@ mod tests {
         }
     }
 
+    /// A positioning at `xyz`; an absolute one with the eye's roll axis (the quaternion's X
+    /// axis) horizontal and radial, in the arm's vertical plane, so that the five-axis arm can
+    /// take it (a yaw about the vertical by the point's azimuth).
     fn pos(xyz: [f64; 3], reference: Reference) -> Positioning {
+        let q = match reference {
+            Reference::Absolute => radial(xyz),
+            Reference::Relative => [1.0, 0.0, 0.0, 0.0],
+        };
         Positioning {
             flags: Flags {
                 reference,
                 zone: Zone::Fine,
                 ..Flags::default()
             },
-            pose: Pose::from_mm(xyz, [1.0, 0.0, 0.0, 0.0]).unwrap(),
+            pose: Pose::from_mm(xyz, q).unwrap(),
             speed: Speed::from_value("speed", 0.5).unwrap(),
         }
+    }
+
+    /// The wrist quaternion whose X axis (the roll axis) is horizontal and radial at `xyz`.
+    fn radial(xyz: [f64; 3]) -> [f64; 4] {
+        let half = xyz[1].atan2(xyz[0]) / 2.0;
+        [half.cos(), 0.0, 0.0, half.sin()]
     }
 
     fn homed_operate() -> Machine {
@@ -897,13 +908,10 @@ mod tests {
         assert_eq!(m.last_error(), RobotError::NotHomed.code());
 
         let mut m = homed_operate();
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [0.0, 100.0, 0.0],
-                Reference::Relative,
-            ))),
-            10.0,
-        );
+        // Relative, with the roll axis radial at the point it leads to.
+        let mut rel = pos([0.0, 100.0, 0.0], Reference::Relative);
+        rel.pose = Pose::from_mm([0.0, 100.0, 0.0], radial([900.0, 100.0, 800.0])).unwrap();
+        m.execute(&frame(Command::MoveImmediate(rel)), 10.0);
         assert!(!m.io().output(IN_POSITION_OUTPUT));
         // A second move while the first runs is refused.
         m.execute(

@@ -8,12 +8,13 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use cell::batch::{self, Loaded};
 use cell::cellfile::{self, Cell};
-use cell::coordinator::{Batch, Coordinator, Devices, Event, Halt, Reach, ResumePoint, RunMode};
+use cell::coordinator::{
+    Batch, Coordinator, Devices, Event, Halt, Reach, ResumePoint, RunMode, StopRequest,
+};
 use cell::journal::Journal;
 use cell::simcell::{SimCell, SimCellConfig};
 use clap::{Args, ValueEnum};
@@ -61,6 +62,10 @@ pub struct RunArgs {
     /// Override the collision gate (written to the journal).
     #[arg(long)]
     pub force: bool,
+    /// The job a sequence's control files were planned from: each file must be the job's plan,
+    /// line for line, and the job's collision and snag check gates the run.
+    #[arg(long, value_name = "JOB.toml")]
+    pub job: Option<PathBuf>,
     /// One JSON object per line on standard output.
     #[arg(long)]
     pub json: bool,
@@ -158,32 +163,156 @@ fn mode_of(m: ModeArg) -> RunMode {
     }
 }
 
+/// The collision and snag check of `job`'s plan: a finding is exit code 3 unless `--force`.
+fn clearance_gate(
+    job: &sequences::Job,
+    text: &str,
+    path: &Path,
+    plan: cell::tool::JobPlan,
+    force: bool,
+) -> Result<(), Failure> {
+    let checked = cell::check::check(job, text, path, plan).map_err(Failure::from_cell)?;
+    if !checked.report.is_clear() && !force {
+        return Err(Failure {
+            message: format!(
+                "{}: {} (windcell check {} shows where; --force winds anyway)",
+                path.display(),
+                cell::check::summary(&checked),
+                path.display()
+            ),
+            exit_code: super::check::EXIT_FINDING,
+        });
+    }
+    Ok(())
+}
+
+/// The arm's envelope: the eye is at most the two links and the eye mechanism from the shoulder
+/// (the full five-axis check is the plan's).
+fn envelope(job: &sequences::Job) -> Reach {
+    let arm = cell::tool::arm(job);
+    let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
+    Reach {
+        max_radius_mm: stretch,
+        min_radius_mm: 0.0,
+        z_range_mm: (
+            arm.shoulder_height_mm - stretch,
+            arm.shoulder_height_mm + stretch,
+        ),
+    }
+}
+
+/// The pre-run gate of a sequence (seed 001 §5.6.3): with `--job`, every control file the
+/// sequence loads must be that job's plan line for line (so the plan's checks of limits, reach,
+/// entry angle and speeds hold for it: exit code 2 otherwise, no override), then the job's
+/// collision check gates the run (exit code 3 unless `--force`). Without the job there is no
+/// mandrel to check the clearance against: the gate fails unless `--force`.
+fn sequence_gate(args: &RunArgs, loaded: &Loaded) -> Result<Option<Clearance>, Failure> {
+    let Some(job_path) = &args.job else {
+        return Ok(None);
+    };
+    let (job, text) = sequences::Job::load(job_path).map_err(Failure::input)?;
+    let plan = cell::tool::plan(&job, &text, job_path).map_err(Failure::from_cell)?;
+    let planned =
+        batch::files_of_job(&cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?);
+    let dir = args.input.parent().unwrap_or(Path::new("."));
+    let run_path = args
+        .run_file
+        .clone()
+        .unwrap_or_else(|| args.input.with_extension("RUN"));
+    let mut names: Vec<(PathBuf, String)> = vec![(args.input.clone(), "SEQ".into())];
+    if run_path.exists() {
+        names.push((run_path, "RUN".into()));
+    }
+    for item in &loaded.items {
+        names.push((
+            dir.join(format!("{}.ROB", item.name)),
+            format!("{}.ROB", item.name),
+        ));
+        if item.ind.is_some() {
+            names.push((
+                dir.join(format!("{}.IND", item.name)),
+                format!("{}.IND", item.name),
+            ));
+        }
+    }
+    for (path, key) in names {
+        let on_disk = std::fs::read_to_string(&path)
+            .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+        let Some(want) = planned.get(&key) else {
+            return Err(Failure::input(format!(
+                "{}:1:1: not a file of the plan of {} (plan the job again: windcell plan {} -o DIR)",
+                path.display(),
+                job_path.display(),
+                job_path.display()
+            )));
+        };
+        if let Some(line) = first_difference(&on_disk, want) {
+            return Err(Failure::input(format!(
+                "{}:{line}:1: differs from the plan of {} (edited by hand or planned from another job: plan it again with windcell plan {} -o DIR)",
+                path.display(),
+                job_path.display(),
+                job_path.display()
+            )));
+        }
+    }
+    Ok(Some(Clearance {
+        job,
+        text,
+        path: job_path.clone(),
+        plan,
+    }))
+}
+
+/// What the collision gate checks: the job, its text and file, its plan.
+struct Clearance {
+    job: sequences::Job,
+    text: String,
+    path: PathBuf,
+    plan: cell::tool::JobPlan,
+}
+
+/// The collision gate, after every exit-code-2 check: the job's check (exit 3 on a finding), or
+/// no job to check against (exit 3); `--force` passes either (and the journal says so).
+fn gate(args: &RunArgs, clearance: Option<Clearance>) -> Result<(), Failure> {
+    match clearance {
+        Some(c) => clearance_gate(&c.job, &c.text, &c.path, c.plan, args.force),
+        None if args.force => Ok(()),
+        None => Err(Failure {
+            message: format!(
+                "{}: no collision check without the job the files were planned from (--job JOB.toml; --force winds anyway)",
+                args.input.display()
+            ),
+            exit_code: super::check::EXIT_FINDING,
+        }),
+    }
+}
+
+/// The first line (from 1) where `a` and `b` differ, if they do.
+fn first_difference(a: &str, b: &str) -> Option<usize> {
+    let (mut la, mut lb) = (a.lines(), b.lines());
+    let mut n = 1;
+    loop {
+        match (la.next(), lb.next()) {
+            (None, None) => return None,
+            (x, y) if x != y => return Some(n),
+            _ => n += 1,
+        }
+    }
+}
+
 /// Loads the batch and the cell: a job is planned in memory.
-fn load(args: &RunArgs) -> Result<(Loaded, Cell, Reach, String), Failure> {
+type Load = (Loaded, Cell, Reach, String, Option<Clearance>);
+
+fn load(args: &RunArgs) -> Result<Load, Failure> {
     let mode = args.mode.map(mode_of);
     let is_job = args
         .input
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    let (loaded, job_cell, reach, name) = if is_job {
+    let (loaded, job_cell, reach, name, clearance) = if is_job {
         let (job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
         let plan = cell::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
-        // The collision and snag check gates the run (exit 3); only --force overrides it, and
-        // the run's `started` record says so.
-        let checked = cell::check::check(&job, &text, &args.input, plan.clone())
-            .map_err(Failure::from_cell)?;
-        if !checked.report.is_clear() && !args.force {
-            return Err(Failure {
-                message: format!(
-                    "{}: {} (windcell check {} shows where; --force winds anyway)",
-                    args.input.display(),
-                    cell::check::summary(&checked),
-                    args.input.display()
-                ),
-                exit_code: super::check::EXIT_FINDING,
-            });
-        }
         let files = batch::files_of_job(
             &cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
         );
@@ -191,20 +320,18 @@ fn load(args: &RunArgs) -> Result<(Loaded, Cell, Reach, String), Failure> {
         let mut loaded =
             batch::from_files(&files, mode, dir, &dir.join("RUN")).map_err(Failure::from_cell)?;
         loaded.sequence_path = args.input.clone();
-        // The arm's envelope: the eye is at most the two links and the eye mechanism from the
-        // shoulder (the full five-axis check is the plan's, which this job has just passed).
-        let arm = cell::tool::arm(&job);
-        let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
-        let reach = Reach {
-            max_radius_mm: stretch,
-            min_radius_mm: 0.0,
-            z_range_mm: (
-                arm.shoulder_height_mm - stretch,
-                arm.shoulder_height_mm + stretch,
-            ),
-        };
+        let reach = envelope(&job);
+        let name = job.name.get_ref().clone();
         let c = Cell::of_job(&job, &args.input).map_err(Failure::from_cell)?;
-        (loaded, Some(c), reach, job.name.get_ref().clone())
+        // The collision and snag check gates the run (exit 3) once every exit-2 check passed;
+        // only --force overrides it, and the run's `started` record says so.
+        let clearance = Clearance {
+            job,
+            text,
+            path: args.input.clone(),
+            plan,
+        };
+        (loaded, Some(c), reach, name, Some(clearance))
     } else {
         let loaded =
             batch::load(&args.input, args.run_file.as_deref(), mode).map_err(Failure::from_cell)?;
@@ -214,13 +341,17 @@ fn load(args: &RunArgs) -> Result<(Loaded, Cell, Reach, String), Failure> {
             .and_then(|s| s.to_str())
             .unwrap_or("batch")
             .to_string();
-        (loaded, None, Reach::default(), name)
+        let clearance = sequence_gate(args, &loaded)?;
+        let reach = clearance
+            .as_ref()
+            .map_or_else(Reach::default, |c| envelope(&c.job));
+        (loaded, None, reach, name, clearance)
     };
     let cell = match &args.cell {
         Some(p) => Cell::load(p).map_err(Failure::from_cell)?,
         None => job_cell.unwrap_or_else(Cell::simulated),
     };
-    Ok((loaded, cell, reach, name))
+    Ok((loaded, cell, reach, name, clearance))
 }
 
 fn open_port(path: &str) -> Result<Box<dyn serialport::SerialPort>, Failure> {
@@ -232,13 +363,16 @@ fn open_port(path: &str) -> Result<Box<dyn serialport::SerialPort>, Failure> {
     .map_err(|e| Failure::input(format!("{path}: {e}")))
 }
 
-/// The devices of `cell` (and the simulated cell, to keep its log).
+/// The devices of `cell` (and the simulated cell, to keep its log). A serial port is opened with
+/// an exclusive lock (`serialport`'s `flock`): a port another program holds is refused as bad
+/// input.
 pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
     match &cell.devices {
         cellfile::Devices::Simulated => {
             let sim = SimCell::new(&SimCellConfig {
                 drive: cell.drive,
                 opto_delay_s: cell.opto_delay_s,
+                arm: cell.arm,
                 ..SimCellConfig::default()
             });
             if let Some(p) = log {
@@ -300,15 +434,73 @@ pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCe
     }
 }
 
-/// How the display prints.
+/// How the display prints: `--json` events, a progress bar on a terminal (indicatif: batch item
+/// i of n, path, segment, elapsed and remaining time), or plain lines.
 struct Display {
     json: bool,
-    terminal: bool,
+    bar: Option<indicatif::ProgressBar>,
+    /// Items in the batch.
+    items: usize,
+    /// Segments of each item.
+    segments: Vec<usize>,
 }
 
 impl Display {
+    fn new(json: bool, terminal: bool, batch: &Batch, from: &ResumePoint) -> Self {
+        let segments: Vec<usize> = batch
+            .items
+            .iter()
+            .map(|i| i.rob.instructions.len())
+            .collect();
+        let bar = (terminal && !json).then(|| {
+            let total: usize = segments.iter().sum();
+            let done: usize =
+                segments.iter().take(from.items_done).sum::<usize>() + from.segments_done;
+            let bar = indicatif::ProgressBar::with_draw_target(
+                Some(total as u64),
+                indicatif::ProgressDrawTarget::stdout(),
+            );
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{prefix} [{bar:24}] {msg}  {elapsed} elapsed, {eta} left",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+                .progress_chars("=> "),
+            );
+            bar.set_position(done as u64);
+            bar
+        });
+        Display {
+            json,
+            bar,
+            items: batch.items.len(),
+            segments,
+        }
+    }
+
     fn line(&self, text: &str) {
-        let _ = super::print(&format!("{text}\n"));
+        match &self.bar {
+            Some(bar) if !bar.is_finished() => bar.println(text),
+            _ => {
+                let _ = super::print(&format!("{text}\n"));
+            }
+        }
+    }
+
+    /// Ends the progress bar (before the summary).
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+
+    fn progress(&self, item: usize, path: &str, what: String, done_in_item: usize) {
+        if let Some(bar) = &self.bar {
+            let before: usize = self.segments.iter().take(item - 1).sum();
+            bar.set_prefix(format!("path {item}/{} {path}", self.items));
+            bar.set_message(what);
+            bar.set_position((before + done_in_item) as u64);
+        }
     }
 
     fn event(&self, e: &Event) {
@@ -328,16 +520,17 @@ impl Display {
                             "path": path, "segment": segment, "time_s": time_s})
                         .to_string(),
                     );
-                } else if self.terminal {
-                    let _ = super::print(&format!(
-                        "\r  path {item} {path}: segment {segment}/{segments}  t = {time_s:.1} s   "
-                    ));
-                    if segment == segments {
-                        self.line("");
-                    }
+                } else if self.bar.is_some() {
+                    self.progress(
+                        *item,
+                        path,
+                        format!("segment {segment}/{segments}, t = {time_s:.1} s"),
+                        *segment,
+                    );
                 } else if segment == segments || segment % 10 == 0 {
                     self.line(&format!(
-                        "  path {item} {path}: segment {segment}/{segments}, t = {time_s:.1} s"
+                        "  path {item}/{} {path}: segment {segment}/{segments}, t = {time_s:.1} s",
+                        self.items
                     ));
                 }
             }
@@ -355,6 +548,16 @@ impl Display {
                         .to_string(),
                     );
                 } else {
+                    let n = self.segments.get(item - 1).copied().unwrap_or(0);
+                    self.progress(
+                        *item,
+                        path,
+                        format!(
+                            "program {program} {}, t = {time_s:.1} s",
+                            if *done { "done" } else { "running" }
+                        ),
+                        if *done { n } else { 0 },
+                    );
                     self.line(&format!(
                         "  path {item} {path}: program {program} {} at t = {time_s:.1} s",
                         if *done { "done" } else { "started" }
@@ -367,7 +570,7 @@ impl Display {
 
 /// Runs `windcell run`.
 pub fn run(args: RunArgs) -> Result<(), Failure> {
-    let (loaded, cell, reach, name) = load(&args)?;
+    let (loaded, cell, reach, name, clearance) = load(&args)?;
     // The pre-run check: every file converted and checked before anything is sent.
     let batch = Batch::new(
         loaded.items.clone(),
@@ -386,7 +589,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                 .sequence_path
                 .with_file_name(format!("{name}.journal"))
         });
-    let (journal, from, fresh) = match &args.resume {
+    let resumed = match &args.resume {
         Some(p) => {
             if !p.exists() {
                 return Err(Failure::input(format!(
@@ -406,21 +609,24 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                     p.display()
                 )));
             }
-            (j, from, false)
+            Some((j, from))
         }
+        None => None,
+    };
+    let (devices, sim) = devices(&cell, args.log.as_deref())?;
+    // Every exit-code-2 check has passed: the collision gate (exit 3 unless --force).
+    gate(&args, clearance)?;
+    let (journal, from, fresh) = match resumed {
+        Some((j, from)) => (j, from, false),
         None => (
             Journal::create(&journal_path).map_err(Failure::runtime)?,
             ResumePoint::default(),
             true,
         ),
     };
-    let (devices, sim) = devices(&cell, args.log.as_deref())?;
     let rec = recorder(&args, sim.as_ref())?;
     let rec_events = rec.clone();
-    let display = Display {
-        json: args.json,
-        terminal: std::io::stdout().is_terminal(),
-    };
+    let display = Display::new(args.json, std::io::stdout().is_terminal(), &batch, &from);
     if args.json {
         display.line(
             &json!({"event": "started", "job": args.input.display().to_string(),
@@ -451,41 +657,35 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         }
     }
 
-    let stop = Arc::new(AtomicBool::new(false));
+    // One stop request for the signal, the console and the coordinator: making it abandons the
+    // exchange under way on both links and wakes the coordinator, which sends the stops at once.
+    let stop = StopRequest::new(&devices);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .map_err(Failure::runtime)?;
-    let reason = Arc::new(Mutex::new(String::from("interrupted")));
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Event>();
     let standby = args.standby;
     let force = args.force;
     let engine_stop = stop.clone();
-    let engine_reason = reason.clone();
     let batch_for_engine = batch.clone();
     let outcome = runtime.block_on(async move {
         // Ctrl-C.
-        let (s1, r1) = (stop.clone(), reason.clone());
+        let s1 = stop.clone();
         tokio::spawn(async move {
             if tokio::signal::ctrl_c().await.is_ok() {
-                if let Ok(mut r) = r1.lock() {
-                    *r = "Ctrl-C".into();
-                }
-                s1.store(true, Ordering::Relaxed);
+                s1.request("Ctrl-C");
             }
         });
         // The console: `s` + Enter.
-        let (s2, r2) = (stop.clone(), reason.clone());
+        let s2 = stop.clone();
         tokio::spawn(async move {
             use tokio::io::AsyncBufReadExt;
             let mut lines = tokio::io::BufReader::new(tokio::io::stdin()).lines();
             while let Ok(Some(line)) = lines.next_line().await {
                 if line.trim() == "s" {
-                    if let Ok(mut r) = r2.lock() {
-                        *r = "the console's stop".into();
-                    }
-                    s2.store(true, Ordering::Relaxed);
+                    s2.request("the console's stop");
                 }
             }
         });
@@ -494,8 +694,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
             let mut sink = |e: Event| {
                 let _ = tx.send(e);
             };
-            let mut c = Coordinator::new(devices, engine_stop, journal, &mut sink);
-            c.stop_reason = engine_reason;
+            let mut c = Coordinator::with_stop(devices, engine_stop, journal, &mut sink);
             let t0 = std::time::Instant::now();
             let r = c.run(&batch_for_engine, &from, fresh, standby, force);
             (r, t0.elapsed())
@@ -527,6 +726,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     });
     runtime.shutdown_background();
     let (joined, paths, display) = outcome;
+    display.finish();
     let (result, wall) =
         joined.map_err(|e| Failure::runtime(format!("the coordinator thread failed: {e}")))?;
     if let Some(r) = rec {
@@ -575,11 +775,23 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                 Halt::Interrupted { reason } => (reason.clone(), EXIT_INTERRUPTED, "stopped"),
                 Halt::Fault { message } => (message.clone(), super::EXIT_RUNTIME, "fault"),
             };
-            let resume = format!(
-                "windcell run {} --resume {}",
-                args.input.display(),
-                journal_path.display()
-            );
+            let mut resume = format!("windcell run {}", args.input.display());
+            if args.mode.is_some() {
+                resume += &format!(" --mode {}", batch.mode.keyword());
+            }
+            if let Some(r) = &args.run_file {
+                resume += &format!(" --run {}", r.display());
+            }
+            if let Some(c) = &args.cell {
+                resume += &format!(" --cell {}", c.display());
+            }
+            if let Some(j) = &args.job {
+                resume += &format!(" --job {}", j.display());
+            }
+            if args.force {
+                resume += " --force";
+            }
+            resume += &format!(" --resume {}", journal_path.display());
             if display.json {
                 display.line(
                     &json!({"event": event, "item": stopped.item, "path": stopped.path,

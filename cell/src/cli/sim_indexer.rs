@@ -78,9 +78,13 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
                 ),
                 None => None,
             };
+            // The log notes when each `S` arrives (wall clock), for the stop latency.
+            let (tap, stops) =
+                cell::wiretap::StopTap::new(master, cell::wiretap::StopPattern::IndexerStop);
+            let master = cell::wiretap::IndexerTap(tap);
             std::thread::scope(|scope| {
                 if let Some(mut file) = log {
-                    let (card, stop, clock) = (&card, &stop, &clock);
+                    let (card, stop, clock, stops) = (&card, &stop, &clock, &stops);
                     scope.spawn(move || {
                         use mandrel_drive::sim::{Clock as _, Frontend as _};
                         use std::io::Write as _;
@@ -97,6 +101,17 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
                             }
                             moving = m.is_moving();
                             drop(c);
+                            let arrived: Vec<f64> = stops
+                                .lock()
+                                .map(|mut s| s.drain(..).collect())
+                                .unwrap_or_default();
+                            for unix_s in arrived {
+                                let line = serde_json::json!({
+                                    "device": "indexer", "stop_received": true,
+                                    "t_s": clock.now_s(), "unix_s": unix_s,
+                                });
+                                let _ = writeln!(file, "{line}");
+                            }
                             std::thread::sleep(std::time::Duration::from_millis(1));
                         }
                     });

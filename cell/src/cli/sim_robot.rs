@@ -97,9 +97,12 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
         None => None,
     };
     let clock = RealClock::new();
+    // The log notes when each STOP telegram arrives (wall clock), for the stop latency.
+    let (master, stops) =
+        cell::wiretap::StopTap::new(master, cell::wiretap::StopPattern::robot(&frame));
     let served = std::thread::scope(|scope| {
         if let Some(mut file) = log {
-            let (robot, stop, clock) = (&robot, &stop, &clock);
+            let (robot, stop, clock, stops) = (&robot, &stop, &clock, &stops);
             scope.spawn(move || {
                 use asea_protocol::clock::Clock as _;
                 use std::io::Write as _;
@@ -111,6 +114,18 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
                     };
                     for r in records {
                         let _ = writeln!(file, "{}", r.json());
+                    }
+                    let arrived: Vec<f64> = stops
+                        .lock()
+                        .map(|mut s| s.drain(..).collect())
+                        .unwrap_or_default();
+                    for unix_s in arrived {
+                        let _ = writeln!(
+                            file,
+                            "{}",
+                            serde_json::json!({"device": "robot", "stop_received": true,
+                                "t_s": clock.now_s(), "unix_s": unix_s})
+                        );
                     }
                     std::thread::sleep(std::time::Duration::from_millis(1));
                 }

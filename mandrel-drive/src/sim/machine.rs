@@ -6,14 +6,17 @@
 //! translator: the indexer counts every commanded step, the motor turns only the fraction the
 //! translator passed, and nothing on the serial line says so ([`Machine::lost_steps`] is the
 //! simulator's truth for tests and prediction). The motor follows the pulses unless the start
-//! velocity exceeds its pull-in rate, in which case it stalls: the indexer still counts steps,
-//! the mandrel does not turn, and the move is reported as failed. The belt turns motor steps into
-//! the mandrel angle.
+//! velocity exceeds its pull-in rate, or the ramp asks for more torque than the motor has at the
+//! rate it has reached ([`Motor`], the pull-out torque): then it stalls, the indexer still counts
+//! steps, the mandrel stops turning, and the move is reported as failed. A stop (`S`) ramps the
+//! rate down at the profile's deceleration; a kill (`K`) stops the pulses at once. The belt turns
+//! motor steps into the mandrel angle.
 
 use std::f64::consts::TAU;
 
 use crate::profile::StepProfile;
 use crate::sim::motion::Motion;
+use crate::sim::motor::Motor;
 use crate::units::Drive;
 
 /// Default pull-in rate of the motor (steps/s) above which a start from rest stalls.
@@ -59,6 +62,8 @@ pub struct Machine {
     pub drive: Drive,
     /// Motor pull-in rate (steps/s).
     pub pull_in_sps: f64,
+    /// The motor's pull-out torque curve and its load.
+    pub motor: Motor,
     /// The current profile in steps.
     pub profile: StepProfile,
     /// Busy after a reset until this clock time (s).
@@ -71,6 +76,9 @@ pub struct Machine {
     motor_steps: i64,
     motion: Option<(Motion, i64)>,
     stalled: bool,
+    /// Commanded steps of the current motion the motor still follows before the ramp outruns
+    /// its pull-out torque (`None`: it follows them all).
+    follow_steps: Option<u64>,
     /// Fraction of a step the translator has passed but the motor not yet taken (lost pulses).
     passed_frac: f64,
     lost_steps: u64,
@@ -84,6 +92,10 @@ impl Machine {
         Machine {
             drive,
             pull_in_sps,
+            motor: Motor::thesis(
+                drive.gearing.steps_per_motor_rev as f64,
+                drive.motor_revs_per_mandrel_rev(),
+            ),
             profile: StepProfile {
                 v0_sps: 0.0,
                 vmax_sps: drive.gearing.steps_per_motor_rev as f64,
@@ -95,6 +107,7 @@ impl Machine {
             motor_steps: 0,
             motion: None,
             stalled: false,
+            follow_steps: None,
             passed_frac: 0.0,
             lost_steps: 0,
             now_s: 0.0,
@@ -132,14 +145,42 @@ impl Machine {
             } else {
                 pulses as i64
             };
+            let mut taken = passed;
+            if let Some(left) = self.follow_steps.as_mut() {
+                let n = passed.unsigned_abs();
+                if n > *left {
+                    // The rate has passed the pull-out curve: the rotor falls out of step after
+                    // the steps it could still follow.
+                    taken = *left as i64;
+                    *left = 0;
+                    if !self.stalled {
+                        self.motor_steps = self.motor_steps.saturating_add(taken * *dir);
+                    }
+                    self.stalled = true;
+                } else {
+                    *left -= n;
+                }
+            }
             if !self.stalled {
-                self.motor_steps = self.motor_steps.saturating_add(passed.saturating_mul(*dir));
+                self.motor_steps = self.motor_steps.saturating_add(taken.saturating_mul(*dir));
             }
             if m.is_done() {
                 self.completed_s = Some(m.last_step_s());
                 self.motion = None;
             }
         }
+    }
+
+    /// Commanded steps from rate `from_sps` before a ramp at the profile's acceleration towards
+    /// `peak_sps` outruns the motor's pull-out torque; `None` if the motor keeps up all the way.
+    /// The motor sees at most the translator's pulse limit.
+    fn steps_before_pull_out(&self, from_sps: f64, peak_sps: f64) -> Option<u64> {
+        let a = self.profile.accel_sps2;
+        let limit = self.motor.pull_out_sps(a);
+        if peak_sps.min(self.drive.pulse_limit_pps) <= limit || a.is_nan() || a <= 0.0 {
+            return None;
+        }
+        Some(((limit * limit - from_sps * from_sps).max(0.0) / (2.0 * a)).floor() as u64)
     }
 
     fn check(&self, _rate_sps: f64) -> Result<(), Refusal> {
@@ -167,6 +208,11 @@ impl Machine {
         self.completed_s = None;
         self.move_start_steps = self.counter_steps;
         self.stalled = self.profile.v0_sps > self.pull_in_sps;
+        let (v0, a) = (self.profile.v0_sps, self.profile.accel_sps2);
+        let peak = (v0 * v0 + a * steps.unsigned_abs() as f64)
+            .sqrt()
+            .min(self.profile.vmax_sps.max(v0));
+        self.follow_steps = self.steps_before_pull_out(v0.min(self.profile.vmax_sps), peak);
         if steps != 0 {
             let m = Motion::preset(self.profile, steps.unsigned_abs(), self.now_s);
             self.motion = Some((m, steps.signum()));
@@ -181,10 +227,18 @@ impl Machine {
             && *d == dir
         {
             m.retarget(self.profile.vmax_sps);
+            let v = m.rate_sps();
+            if self.profile.vmax_sps > v {
+                self.follow_steps = self.steps_before_pull_out(v, self.profile.vmax_sps);
+            }
             return Ok(());
         }
         self.move_start_steps = self.counter_steps;
         self.stalled = self.profile.v0_sps > self.pull_in_sps;
+        self.follow_steps = self.steps_before_pull_out(
+            self.profile.v0_sps.min(self.profile.vmax_sps),
+            self.profile.vmax_sps,
+        );
         if self.profile.vmax_sps > 0.0 {
             let m = Motion::continuous(self.profile, self.now_s);
             self.motion = Some((m, dir.signum()));
@@ -213,6 +267,7 @@ impl Machine {
         self.move_start_steps = 0;
         self.motor_steps = 0;
         self.stalled = false;
+        self.follow_steps = None;
         self.reset_until_s = self.now_s + busy_s;
     }
 
@@ -324,6 +379,8 @@ mod tests {
     #[test]
     fn over_the_pulse_limit_steps_are_lost_silently() {
         let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        // The translator is the subject here: a motor strong enough for the instant ramp.
+        m.motor.holding_nm = 1.0e9;
         m.profile = StepProfile {
             v0_sps: 0.0,
             vmax_sps: 12_500.0,
@@ -338,6 +395,7 @@ mod tests {
         assert!(!m.is_stalled());
         // At the limit nothing is lost.
         let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.motor.holding_nm = 1.0e9;
         m.profile.vmax_sps = 10_000.0;
         m.profile.accel_sps2 = 1.0e9;
         m.start_preset(20_000).unwrap();
@@ -359,6 +417,136 @@ mod tests {
         assert!(m.is_stalled());
         assert_eq!(m.counter_steps(), 1000);
         assert_eq!(m.motor_steps(), 0);
+    }
+
+    /// The rate where the seed's 840 oz-in, flat to the corner and falling as corner/rate,
+    /// meets the load's `J·α + T_f`, from the figures in `sim::motor` (not from `Motor`).
+    fn pull_out_rate(accel_sps2: f64) -> f64 {
+        use crate::sim::motor::{
+            CORNER_SPS, FRICTION_NM, MANDREL_INERTIA_KG_M2, ROTOR_INERTIA_KG_M2,
+        };
+        let j = ROTOR_INERTIA_KG_M2 + MANDREL_INERTIA_KG_M2 * (13.0f64 / 60.0).powi(2);
+        let need = j * accel_sps2 * TAU / 400.0 + FRICTION_NM;
+        840.0 * 0.007_061_552 * CORNER_SPS / need
+    }
+
+    /// A ramp too steep for the motor at the rate it reaches stalls where the pull-out curve
+    /// meets the load; the same move with a gentler ramp runs to the end.
+    #[test]
+    fn a_steep_ramp_stalls_where_pull_out_torque_runs_out() {
+        let steep = StepProfile {
+            v0_sps: 0.0,
+            vmax_sps: 6_000.0,
+            accel_sps2: 40_000.0,
+        };
+        let f = pull_out_rate(steep.accel_sps2);
+        assert!(f > 1_000.0 && f < 6_000.0, "{f}");
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = steep;
+        m.start_preset(20_000).unwrap();
+        run(&mut m);
+        assert!(m.is_stalled());
+        assert_eq!(m.counter_steps(), 20_000);
+        // From rest to f at a: f²/2a steps.
+        let want = (f * f / (2.0 * steep.accel_sps2)).floor() as i64;
+        assert!(
+            (m.motor_steps() - want).abs() <= 1,
+            "{} {want}",
+            m.motor_steps()
+        );
+
+        let gentle = StepProfile {
+            accel_sps2: 4_000.0,
+            ..steep
+        };
+        assert!(pull_out_rate(gentle.accel_sps2) > 6_000.0);
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = gentle;
+        m.start_preset(20_000).unwrap();
+        run(&mut m);
+        assert!(!m.is_stalled());
+        assert_eq!(m.motor_steps(), 20_000);
+    }
+
+    /// At a given ramp the speed decides: 9000 steps/s asks for more than the motor has there,
+    /// 6000 does not. A continuous run, backwards, stalls the same way.
+    #[test]
+    fn a_speed_beyond_the_pull_out_rate_stalls() {
+        let a = 8_000.0;
+        let f = pull_out_rate(a);
+        assert!(f > 6_000.0 && f < 9_000.0, "{f}");
+        for (vmax, stalls) in [(9_000.0, true), (6_000.0, false)] {
+            let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+            m.profile = StepProfile {
+                v0_sps: 0.0,
+                vmax_sps: vmax,
+                accel_sps2: a,
+            };
+            m.start_continuous(-1).unwrap();
+            m.advance(3.0);
+            assert_eq!(m.is_stalled(), stalls, "{vmax}");
+            if stalls {
+                let want = -((f * f / (2.0 * a)).floor() as i64);
+                assert!((m.motor_steps() - want).abs() <= 1, "{}", m.motor_steps());
+            } else {
+                assert_eq!(m.motor_steps(), m.counter_steps());
+            }
+        }
+        // Speeding a running motion up past the curve (a new V, then G) stalls it too.
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = StepProfile {
+            v0_sps: 0.0,
+            vmax_sps: 6_000.0,
+            accel_sps2: a,
+        };
+        m.start_continuous(1).unwrap();
+        m.advance(2.0);
+        assert!(!m.is_stalled());
+        let at = m.counter_steps() as f64;
+        m.profile.vmax_sps = 9_000.0;
+        m.start_continuous(1).unwrap();
+        m.advance(4.0);
+        assert!(m.is_stalled());
+        let want = at + (f * f - 6_000.0f64.powi(2)) / (2.0 * a);
+        assert!(
+            (m.motor_steps() as f64 - want).abs() <= 2.0,
+            "{}",
+            m.motor_steps()
+        );
+    }
+
+    /// `S` ramps the rate down at the profile's deceleration: (v² − v0²)/2a more steps over
+    /// (v − v0)/a; `K` stops the pulses at once.
+    #[test]
+    fn stop_decelerates_and_kill_stops_dead() {
+        let p = StepProfile {
+            v0_sps: 100.0,
+            vmax_sps: 3_000.0,
+            accel_sps2: 6_000.0,
+        };
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = p;
+        m.start_continuous(1).unwrap();
+        m.advance(1.0);
+        assert!((m.rate_sps() - 3_000.0).abs() < 1e-6);
+        let at = m.counter_steps();
+        m.stop();
+        run(&mut m);
+        let more = (m.counter_steps() - at) as f64;
+        let want = (3_000.0f64.powi(2) - 100.0f64.powi(2)) / (2.0 * 6_000.0);
+        assert!((more - want).abs() <= 2.0, "{more} {want}");
+        assert!((m.now_s() - 1.0 - (3_000.0 - 100.0) / 6_000.0).abs() < 0.01);
+        assert!(!m.is_stalled());
+
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = p;
+        m.start_continuous(1).unwrap();
+        m.advance(1.0);
+        let at = m.counter_steps();
+        m.kill();
+        assert!(!m.is_moving());
+        m.advance(2.0);
+        assert_eq!(m.counter_steps(), at);
     }
 
     #[test]

@@ -5,6 +5,7 @@ pub mod clock;
 pub mod grbl;
 pub mod machine;
 pub mod motion;
+pub mod motor;
 pub mod xlang;
 
 use std::sync::atomic::{AtomicBool, Ordering};

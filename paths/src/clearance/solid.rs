@@ -4,9 +4,9 @@
 use std::fmt;
 
 use nalgebra::{Point3, Vector3};
-use parry3d_f64::math::{Pose, Vector};
-use parry3d_f64::query::{self, PointQuery};
-use parry3d_f64::shape::{Segment, TriMesh, TriMeshFlags};
+use parry3d_f64::math::Vector;
+use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
+use parry3d_f64::shape::{TriMesh, TriMeshFlags};
 
 use super::minimum::first_below;
 use super::{RESOLUTION_MM, certified_min, golden_min};
@@ -286,6 +286,325 @@ impl MeshSolid {
     }
 }
 
+/// Crossings of a segment with the surface closer together than this (in mm along the segment)
+/// are one crossing (an edge or a vertex shared by several triangles).
+const SAME_CROSSING_MM: f64 = 1e-7;
+
+/// Where a segment crosses a triangle: the fraction of the segment, and whether it enters the
+/// solid there (against the triangle's outward normal). `None` when it misses; `Some(None)` when
+/// it lies in the triangle's plane and touches it (no crossing can be named).
+fn crossing(
+    a: &Point3<f64>,
+    d: &Vector3<f64>,
+    [v0, v1, v2]: [Point3<f64>; 3],
+) -> Option<Option<(f64, bool)>> {
+    // Möller and Trumbore (1997).
+    let e1 = v1 - v0;
+    let e2 = v2 - v0;
+    let p = d.cross(&e2);
+    let det = e1.dot(&p);
+    let w = a - v0;
+    let n = e1.cross(&e2);
+    if det.abs() <= 1e-12 * d.norm() * n.norm() {
+        // Parallel: it touches only when it lies in the plane.
+        let off_plane = w.dot(&n).abs() / n.norm();
+        return (off_plane <= SAME_CROSSING_MM && point_triangle_mm(a, [v0, v1, v2]) <= d.norm())
+            .then_some(None);
+    }
+    let eps = 1e-12;
+    let u = w.dot(&p) / det;
+    if !(-eps..=1.0 + eps).contains(&u) {
+        return None;
+    }
+    let q = w.cross(&e1);
+    let v = d.dot(&q) / det;
+    if v < -eps || u + v > 1.0 + eps {
+        return None;
+    }
+    let s = e2.dot(&q) / det;
+    (0.0..=1.0).contains(&s).then_some(Some((s, det > 0.0)))
+}
+
+/// Distance from `p` to the triangle `abc`, mm (the closest point by Voronoi regions, Ericson,
+/// Real-Time Collision Detection §5.1.5).
+pub fn point_triangle_mm(p: &Point3<f64>, [a, b, c]: [Point3<f64>; 3]) -> f64 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(&ap);
+    let d2 = ac.dot(&ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.norm();
+    }
+    let bp = p - b;
+    let d3 = ab.dot(&bp);
+    let d4 = ac.dot(&bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.norm();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (p - (a + ab * v)).norm();
+    }
+    let cp = p - c;
+    let d5 = ab.dot(&cp);
+    let d6 = ac.dot(&cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.norm();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (p - (a + ac * w)).norm();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (p - (b + (c - b) * w)).norm();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    (p - (a + ab * v + ac * w)).norm()
+}
+
+/// Distance from the segment `a–b` to the triangle, mm: 0 when it crosses the triangle, else the
+/// least of its ends' distances to the triangle and its distances to the triangle's edges.
+pub fn segment_triangle_mm(a: &Point3<f64>, b: &Point3<f64>, corners: [Point3<f64>; 3]) -> f64 {
+    if crossing(a, &(b - a), corners).is_some() {
+        return 0.0;
+    }
+    let [p, q, r] = corners;
+    let ends = point_triangle_mm(a, corners).min(point_triangle_mm(b, corners));
+    let edges = super::segment_segment(a, b, &p, &q)
+        .2
+        .min(super::segment_segment(a, b, &q, &r).2)
+        .min(super::segment_segment(a, b, &r, &p).2);
+    ends.min(edges)
+}
+
+/// True when the segment from `a` along `d` (`inv` = 1/d per axis) meets the box.
+fn segment_meets_box(a: &Vector, inv: &Vector, lo: Vector, hi: Vector) -> bool {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..3 {
+        let (o, i, l, h) = (a[axis], inv[axis], lo[axis], hi[axis]);
+        if i.is_infinite() {
+            if o < l || o > h {
+                return false;
+            }
+            continue;
+        }
+        let (mut near, mut far) = ((l - o) * i, (h - o) * i);
+        if near > far {
+            std::mem::swap(&mut near, &mut far);
+        }
+        t0 = t0.max(near);
+        t1 = t1.min(far);
+        if t0 > t1 {
+            return false;
+        }
+    }
+    true
+}
+
+impl MeshSolid {
+    fn corners(&self, triangle: u32) -> [Point3<f64>; 3] {
+        let [i, j, k] = self.shape.indices()[triangle as usize];
+        let v = self.shape.vertices();
+        let p = |n: u32| {
+            let q = v[n as usize];
+            Point3::new(q.x, q.y, q.z)
+        };
+        [p(i), p(j), p(k)]
+    }
+
+    /// Signed distance at `p` and the triangle nearest to it.
+    fn nearest(&self, p: &Point3<f64>) -> (f64, u32) {
+        let q = to_parry(p);
+        let (projection, (triangle, _)) = self.shape.project_local_point_and_get_location(q, false);
+        let d = (projection.point - q).length();
+        (if projection.is_inside { -d } else { d }, triangle)
+    }
+
+    /// True when `p` is inside: outside the mesh's bounding box without a query.
+    fn is_inside(&self, p: &Point3<f64>) -> bool {
+        let aabb = self.shape.local_aabb();
+        let q = to_parry(p);
+        if (0..3).any(|i| q[i] < aabb.mins[i] || q[i] > aabb.maxs[i]) {
+            return false;
+        }
+        self.nearest(p).0 < 0.0
+    }
+
+    /// Distance from the segment `a–b` to the surface, mm (0 when it crosses it): a best-first
+    /// walk of the bounding-volume hierarchy, nearest box first, skipping every box that lies
+    /// farther from the segment than the nearest triangle found so far. A box lies no nearer
+    /// than the gap between it and the segment's own box, nor than the distance from its centre
+    /// less its half-diagonal.
+    pub fn segment_distance_mm(&self, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
+        let d = b - a;
+        let dd = d.norm_squared();
+        let origin = to_parry(a);
+        let inv = Vector::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+        let (seg_lo, seg_hi) = (to_parry(&a.inf(b)), to_parry(&a.sup(b)));
+        let box_cost = |node: &parry3d_f64::partitioning::BvhNode, _best: f64| {
+            let (lo, hi) = (node.mins(), node.maxs());
+            let gap = (lo - seg_hi).max(seg_lo - hi).max(Vector::ZERO).length();
+            let centre = (lo + hi) * 0.5;
+            let c = Point3::new(centre.x, centre.y, centre.z);
+            let s = if dd > 0.0 {
+                ((c - a).dot(&d) / dd).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let sphere = (c - (a + d * s)).norm() - 0.5 * (hi - lo).length();
+            let bound = gap.max(sphere);
+            if bound <= 0.0 && segment_meets_box(&origin, &inv, lo, hi) {
+                0.0
+            } else {
+                bound.max(0.0)
+            }
+        };
+        self.shape
+            .bvh()
+            .find_best(f64::MAX, box_cost, |triangle, _best| {
+                Some(segment_triangle_mm(a, b, self.corners(triangle)))
+            })
+            .map_or(f64::INFINITY, |(_, distance)| distance)
+    }
+
+    /// The free fibre's check on a mesh ([`Solid::inside_beyond`]) from the segment's crossings
+    /// with the surface: the stretches inside lie between an entering and an exiting crossing
+    /// (the bounding-volume hierarchy finds the few triangles near the segment). A point of a
+    /// stretch is no deeper than its distance to any one triangle, and that distance is convex
+    /// along the segment, so over a piece `[x, y]` the depth is at most
+    /// `max(dist(p(x), T), dist(p(y), T))` for the triangle `T` nearest either end; pieces whose
+    /// bound exceeds the depth by more than [`RESOLUTION_MM`] are halved (left first). A dip
+    /// more than `depth_mm + RESOLUTION_MM` deep is always found, and the earliest one reported.
+    /// `None` when the crossings do not pair up (a segment in a triangle's plane, or one that
+    /// ends inside): then the caller searches the signed distance itself.
+    fn chord_depths(
+        &self,
+        a: &Point3<f64>,
+        b: &Point3<f64>,
+        depth_mm: f64,
+    ) -> Option<(f64, Option<(f64, f64)>)> {
+        let d = b - a;
+        let length = d.norm();
+        if length == 0.0 {
+            return None;
+        }
+        let origin = to_parry(a);
+        let inv = Vector::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+        let mut hits: Vec<(f64, bool, u32)> = Vec::new();
+        for triangle in self
+            .shape
+            .bvh()
+            .leaves(|node| segment_meets_box(&origin, &inv, node.mins(), node.maxs()))
+        {
+            match crossing(a, &d, self.corners(triangle)) {
+                None => {}
+                Some(None) => return None,
+                Some(Some((s, entering))) => hits.push((s, entering, triangle)),
+            }
+        }
+        if hits.is_empty() {
+            // Wholly outside or wholly inside.
+            return if self.is_inside(b) {
+                None
+            } else {
+                Some((0.0, None))
+            };
+        }
+        hits.sort_by(|x, y| x.0.total_cmp(&y.0));
+        // One crossing per place: an edge or vertex shared by several triangles is crossed once;
+        // a segment that touches a ridge (enters and leaves at one place) does not cross.
+        let same = SAME_CROSSING_MM / length;
+        let mut crossings: Vec<(f64, bool, u32)> = Vec::with_capacity(hits.len());
+        let mut i = 0;
+        while i < hits.len() {
+            let mut j = i + 1;
+            while j < hits.len() && hits[j].0 - hits[j - 1].0 <= same {
+                j += 1;
+            }
+            let group = &hits[i..j];
+            if group.iter().all(|h| h.1 == group[0].1) {
+                crossings.push(group[0]);
+            }
+            i = j;
+        }
+        // Inside stretches: (start, end, triangle at the start if a crossing, at the end).
+        let mut inside = !crossings.first().is_none_or(|c| c.1);
+        let mut stretches: Vec<(f64, Option<u32>, f64, u32)> = Vec::new();
+        let mut from: (f64, Option<u32>) = (0.0, None);
+        for &(s, entering, triangle) in &crossings {
+            if entering == inside {
+                return None;
+            }
+            if entering {
+                from = (s, Some(triangle));
+            } else {
+                stretches.push((from.0, from.1, s, triangle));
+            }
+            inside = entering;
+        }
+        if inside {
+            return None;
+        }
+        let at = |s: f64| a + d * s;
+        let mut value = 0.0f64;
+        let limit = depth_mm + RESOLUTION_MM;
+        for (s0, t0, s1, t1) in stretches {
+            let (depth0, t0) = match t0 {
+                Some(t) => (0.0, t),
+                None => {
+                    let (sd, t) = self.nearest(&at(s0));
+                    value = value.min(sd);
+                    if sd < -depth_mm {
+                        return Some((value, Some((s0, sd))));
+                    }
+                    (-sd.min(0.0), t)
+                }
+            };
+            // No point of a stretch is deeper than half its length (plus the depth where it
+            // starts, when it starts inside).
+            if 0.5 * (depth0 + (s1 - s0) * length) <= limit {
+                continue;
+            }
+            let mut stack = vec![(s0, s1, t0, t1)];
+            let mut first: Option<(f64, f64)> = None;
+            while let Some((x, y, tx, ty)) = stack.pop() {
+                // Once a snag is found, only the pieces before it can hold an earlier one.
+                if first.is_some_and(|(at_s, _)| x >= at_s) {
+                    continue;
+                }
+                let (px, py) = (at(x), at(y));
+                let bound = |t: u32| {
+                    let c = self.corners(t);
+                    point_triangle_mm(&px, c).max(point_triangle_mm(&py, c))
+                };
+                if bound(tx).min(bound(ty)) <= limit || (y - x) * length <= RESOLUTION_MM {
+                    continue;
+                }
+                let m = 0.5 * (x + y);
+                let (sd, tm) = self.nearest(&at(m));
+                value = value.min(sd);
+                if sd < -depth_mm {
+                    first = Some((m, sd));
+                } else {
+                    stack.push((m, y, tm, ty));
+                }
+                stack.push((x, m, tx, tm));
+            }
+            if first.is_some() {
+                return Some((value, first));
+            }
+        }
+        Some((value, None))
+    }
+}
+
 impl Solid for MeshSolid {
     fn inside_beyond(
         &self,
@@ -293,12 +612,11 @@ impl Solid for MeshSolid {
         b: &Point3<f64>,
         depth_mm: f64,
     ) -> (f64, Option<(f64, f64)>) {
-        let segment = Segment::new(to_parry(a), to_parry(b));
-        let distance = query::distance(&Pose::IDENTITY, &segment, &Pose::IDENTITY, &self.shape)
-            .map_or(0.0, |d| d.distance);
-        if distance > 0.0 && self.signed_distance_mm(a) >= 0.0 {
-            return (distance, None);
+        if let Some(found) = self.chord_depths(a, b, depth_mm) {
+            return found;
         }
+        // The crossings did not pair up (a segment along an edge, or ending inside): search
+        // the signed distance itself.
         let length = (b - a).norm();
         let m = first_below(
             &mut |t| self.signed_distance_mm(&(a + (b - a) * t)),
@@ -322,9 +640,7 @@ impl Solid for MeshSolid {
     }
 
     fn segment_min_mm(&self, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
-        let segment = Segment::new(to_parry(a), to_parry(b));
-        let distance = query::distance(&Pose::IDENTITY, &segment, &Pose::IDENTITY, &self.shape)
-            .map_or(0.0, |d| d.distance);
+        let distance = self.segment_distance_mm(a, b);
         if distance > 0.0 {
             // Apart from the surface: wholly outside or wholly inside.
             return if self.signed_distance_mm(a) >= 0.0 {
@@ -412,6 +728,143 @@ mod tests {
             }
         }
         assert!(worst < 1e-6, "largest difference {worst} mm");
+    }
+
+    #[test]
+    fn mesh_segment_distance_agrees_with_dense_sampling_and_brute_force() {
+        let tube = Tube::cylinder(57.0, 120.0, 0.0, 0.0).unwrap();
+        let raw = triasym::tube(&tube, 24, 10.0, true).unwrap();
+        let (mesh, _) = prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        let solid = MeshSolid::new(&mesh).unwrap();
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let point = |u: &mut dyn FnMut() -> f64| {
+            Point3::new(
+                -90.0 + 180.0 * u(),
+                -90.0 + 180.0 * u(),
+                -40.0 + 200.0 * u(),
+            )
+        };
+        let mut crossing_seen = false;
+        for _ in 0..60 {
+            let a = point(&mut uniform);
+            let b = point(&mut uniform);
+            let d = solid.segment_distance_mm(&a, &b);
+            let n = 400;
+            let brute = (0..=n)
+                .map(|i| {
+                    let p = a + (b - a) * (i as f64 / n as f64);
+                    (0..mesh.triangles().len())
+                        .map(|t| brute_triangle(&p, mesh.corners(t)))
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .fold(f64::INFINITY, f64::min);
+            let step = (b - a).norm() / n as f64;
+            assert!(d <= brute + 1e-9, "{a} {b}: {d} above sampled {brute}");
+            assert!(brute - d <= 0.5 * step + 1e-9, "{a} {b}: {d} vs {brute}");
+            crossing_seen |= d == 0.0;
+        }
+        assert!(crossing_seen, "no segment crossed the surface");
+    }
+
+    /// The free fibre on a mesh: a straight line through a cylinder mesh at a known distance from
+    /// the axis dips in by the analytic depth (less the facets' sagitta); the first point deeper
+    /// than the tolerance is where the analytic circle says; a line clear of the surface and one
+    /// leaving it tangentially are clear.
+    #[test]
+    fn mesh_free_fibre_depth_matches_the_cylinder() {
+        let r = 28.5;
+        let tube = Tube::cylinder(2.0 * r, 120.0, 0.0, 0.0).unwrap();
+        let facets = 128;
+        let raw = triasym::tube(&tube, facets, 5.0, true).unwrap();
+        let (mesh, _) = prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        let solid = MeshSolid::new(&mesh).unwrap();
+        let sagitta = r * (1.0 - (std::f64::consts::PI / facets as f64).cos());
+        let tolerance = 0.01;
+        // A chord at r − 0.5 from the axis, at 60 mm height, along y.
+        for depth in [0.5, 0.05] {
+            let x = r - depth;
+            let a = Point3::new(x, -80.0, 60.0);
+            let b = Point3::new(x, 80.0, 60.0);
+            let (value, first) = solid.inside_beyond(&a, &b, tolerance);
+            let (s, d) = first.expect("a dip of {depth} mm snags");
+            assert!(d < -tolerance && d > -depth - 1e-9, "{d}");
+            // Analytic: the chord is deeper than the tolerance from y = −√((r − tol)² − x²);
+            // the mesh lies inside the circle by at most the sagitta.
+            let y = -((r - tolerance).powi(2) - x * x).sqrt();
+            let y_mesh = -((r - tolerance - sagitta).powi(2) - x * x).sqrt();
+            let found = -80.0 + 160.0 * s;
+            assert!(
+                found >= y - 0.05 && found <= y_mesh + 0.05,
+                "first snag at y = {found}, expected in [{y}, {y_mesh}]"
+            );
+            assert!(value <= d);
+        }
+        // Clear of the surface by 0.5 mm.
+        let a = Point3::new(r + 0.5, -80.0, 60.0);
+        let b = Point3::new(r + 0.5, 80.0, 60.0);
+        assert_eq!(solid.inside_beyond(&a, &b, tolerance), (0.0, None));
+        // From a vertex of the mesh (on the circle) along the circle's tangent: clear.
+        let t = Point3::new(r, 0.0, 60.0);
+        let away = Point3::new(r, 100.0, 80.0);
+        let (_, first) =
+            solid.inside_beyond(&(t + (away - t).normalize() * 0.005), &away, tolerance);
+        assert!(first.is_none());
+        // The same tangent line started inside by 0.3 mm: a snag.
+        let t = Point3::new(r - 0.3, 0.0, 60.0);
+        let (_, first) = solid.inside_beyond(&t, &Point3::new(r - 0.3, 100.0, 80.0), tolerance);
+        assert!(first.is_some_and(|(s, _)| s == 0.0));
+    }
+
+    /// The mesh's free-fibre check agrees with the analytic cylinder's on 400 random lines near
+    /// the surface: the mesh lies inside the circle by at most the facets' sagitta, so a line
+    /// deeper than the tolerance by more than the sagitta and the resolution snags, and a line
+    /// not as deep as the tolerance is clear.
+    #[test]
+    fn mesh_free_fibre_check_agrees_with_the_cylinder_on_random_lines() {
+        let r = 28.5;
+        let tube = Tube::cylinder(2.0 * r, 120.0, 0.0, 0.0).unwrap();
+        let raw = triasym::tube(&tube, 128, 5.0, true).unwrap();
+        let (mesh, _) = prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        let solid = MeshSolid::new(&mesh).unwrap();
+        let analytic = TubeSolid::new(&tube);
+        let sagitta = r * (1.0 - (std::f64::consts::PI / 128.0).cos());
+        let tolerance = 0.01;
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut snags, mut clear) = (0, 0);
+        for _ in 0..400 {
+            // A line through a point at r + ρ from the axis, in a random direction across it.
+            let angle = std::f64::consts::TAU * uniform();
+            let rho = -0.3 + 0.6 * uniform();
+            let z = 20.0 + 80.0 * uniform();
+            let n = Vector3::new(angle.cos(), angle.sin(), 0.0);
+            let c = Point3::new(0.0, 0.0, z) + n * (r + rho);
+            let across = Vector3::new(-angle.sin(), angle.cos(), 0.0);
+            let dir = (across + Vector3::z() * (uniform() - 0.5)).normalize();
+            let (a, b) = (c - dir * 40.0, c + dir * 40.0);
+            let deepest = -analytic.segment_min_mm(&a, &b);
+            let (_, first) = solid.inside_beyond(&a, &b, tolerance);
+            // The mesh lies inside the circle by at most the sagitta.
+            if deepest - sagitta > tolerance + RESOLUTION_MM + 1e-6 {
+                assert!(first.is_some(), "{a} {b}: {deepest} mm deep");
+                snags += 1;
+            } else if deepest < tolerance - 1e-6 {
+                assert!(first.is_none(), "{a} {b}: {deepest} mm deep");
+                clear += 1;
+            }
+        }
+        assert!(snags > 50 && clear > 50, "{snags} snags, {clear} clear");
     }
 
     #[test]

@@ -563,3 +563,148 @@ fn note_worst(
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::clearance::TubeSolid;
+    use crate::geodesic::{self, Direction, PathStart};
+    use crate::plan::{ENTRY_ANGLE_MAX_DEG, plan};
+    use crate::segment::equal_length;
+    use crate::{Calibration, Gearing, MandrelProfile, Movement, Speeds, Tube};
+
+    fn setup() -> Setup {
+        Setup {
+            robot_distance_mm: 800.0,
+            mandrel_height_mm: 300.0,
+            offset_mm: 100.0,
+            arm: Arm::default(),
+            entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
+            calibration: Calibration::default(),
+            gearing: Gearing::default(),
+        }
+    }
+
+    /// The cylinder of `examples/cylinder.toml` wound at 48.3° in 10 long segments.
+    fn cylinder_plan(setup: &Setup) -> (Tube, PathPlan) {
+        let tube = Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap();
+        let start = PathStart {
+            angle_rad: 0.0,
+            wind_angle_rad: 48.3f64.to_radians(),
+            direction: Direction::Up,
+        };
+        let path = geodesic::helix(&tube, &start, 1.0).unwrap();
+        let points = equal_length(&tube, &path, 10).unwrap();
+        let speeds = Speeds {
+            mandrel: MandrelProfile {
+                accel_rps2: 1.0,
+                start_stop_rps: 0.05,
+                max_rps: 0.1,
+            },
+            base_speed_mm_s: 1000.0,
+            max_speed_mm_s: 2000.0,
+            movement: Movement::Fine,
+        };
+        let p = plan(&points, |p| tube.distance_to_surface_mm(p), setup, &speeds).unwrap();
+        (tube, p)
+    }
+
+    /// The eye mechanism's capsule radius in these tests, mm.
+    const EYE_RADIUS_MM: f64 = 2.0;
+
+    fn cell<'a>(setup: &'a Setup, obstacles: &'a [Obstacle]) -> Cell<'a> {
+        Cell {
+            setup,
+            eye: EyeMechanism {
+                length_mm: 150.0,
+                radius_mm: EYE_RADIUS_MM,
+            },
+            snag_tolerance_mm: crate::clearance::DEFAULT_SNAG_TOLERANCE_MM,
+            obstacles,
+            home_mm: None,
+            approach_speed_mm_s: 100.0,
+            arm: None,
+        }
+    }
+
+    /// A 0.2 mm cube on the straight line the eye travels between the ends of segment 5: at
+    /// both ends the eye mechanism's capsule is clear of it (an endpoint-only check passes),
+    /// but halfway the eye runs through it. The sweep names that segment.
+    #[test]
+    fn a_thin_obstacle_between_two_segment_ends_is_found() {
+        let setup = setup();
+        let (tube, p) = cylinder_plan(&setup);
+        let solid = TubeSolid::new(&tube);
+        let clear = sweep(&cell(&setup, &[]), &solid, &[&p]).unwrap();
+        assert!(clear.is_clear(), "{:?}", clear.findings);
+
+        let e0 = p.segments[3].pose.eye_mm;
+        let e1 = p.segments[4].pose.eye_mm;
+        let travel = (e1 - e0).norm();
+        assert!(travel > 4.0 * EYE_RADIUS_MM, "eye travel {travel} mm");
+        let mid = e0 + (e1 - e0) * 0.5;
+        let half = Vector3::repeat(0.1);
+        let cube = Obstacle {
+            name: "wire".into(),
+            min_mm: mid - half,
+            max_mm: mid + half,
+        };
+        // The naive check: the capsule at every segment end.
+        let mut poses = vec![&p.start];
+        poses.extend(p.segments.iter().map(|s| &s.pose));
+        for pose in poses {
+            let back = pose.eye_mm - axis_of(&pose.wrist_q) * 150.0;
+            let d = cube.distance_to_segment_mm(&pose.eye_mm, &back) - EYE_RADIUS_MM;
+            assert!(d > 1.0, "an end pose already touches: {d} mm");
+        }
+        let obstacles = [cube];
+        let r = sweep(&cell(&setup, &obstacles), &solid, &[&p]).unwrap();
+        let f = r.findings.first().expect("the cube is found");
+        assert_eq!((f.path, f.segment), (1, 5), "{f:?}");
+        assert_eq!(f.part, Part::EyeMechanism);
+        assert_eq!(f.against, "wire");
+        assert!(f.clearance_mm < 0.0);
+        // First contact inside segment 5, no later than the eye reaching the cube's centre (the
+        // capsule's body behind the eye can meet it first).
+        let t4 = p.segments[..4].iter().map(|s| s.duration_s).sum::<f64>();
+        let t_mid = t4 + 0.5 * p.segments[4].duration_s;
+        assert!(
+            f.time_s > t4 && f.time_s <= t_mid + 1e-9,
+            "{} vs {t4}..{t_mid}",
+            f.time_s
+        );
+    }
+
+    /// The bound on what the free-fibre sampling can miss: consecutive sampled tow lines are at
+    /// most [`TOW_SAMPLE_MM`] of eye travel apart in the mandrel frame.
+    #[test]
+    fn tow_samples_are_no_farther_apart_than_the_stated_bound() {
+        let setup = setup();
+        let (tube, p) = cylinder_plan(&setup);
+        let solid = TubeSolid::new(&tube);
+        let c = cell(&setup, &[]);
+        let ctx = Context {
+            cell: &c,
+            solid: &solid,
+            origin: Vector3::new(800.0, 0.0, 300.0),
+        };
+        let (from, to) = (End::of(&p.segments[2].pose), End::of(&p.segments[3].pose));
+        let horizontal = |q: &Point3<f64>| (q.x - 800.0).hypot(q.y);
+        let reach = horizontal(&from.eye).max(horizontal(&to.eye)) + 150.0;
+        let e0 = ctx.to_mandrel(&from.eye, from.phi);
+        let e1 = ctx.to_mandrel(&to.eye, to.phi);
+        let swept = (e1 - e0).norm() + (to.phi - from.phi).abs() * reach;
+        let count = (swept / TOW_SAMPLE_MM).ceil() as usize;
+        let mut worst = 0.0f64;
+        let mut previous = e0;
+        for i in 1..=count {
+            let tau = i as f64 / count as f64;
+            let eye = from.eye + (to.eye - from.eye) * tau;
+            let phi = from.phi + (to.phi - from.phi) * tau;
+            let e = ctx.to_mandrel(&eye, phi);
+            worst = worst.max((e - previous).norm());
+            previous = e;
+        }
+        assert!(worst <= TOW_SAMPLE_MM + 1e-9, "{worst} mm between samples");
+    }
+}

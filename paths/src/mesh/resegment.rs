@@ -5,7 +5,9 @@
 //! `spacing_mm` or less, a cubic B-spline ([`crate::spline::BSpline::interpolate`], the spline core
 //! shared with the lathe winder) is passed through the samples, cut into `segments` pieces of equal
 //! arc length, and each end point is projected back onto the mesh (nearest surface point, with the
-//! smooth normal there). The largest distance between the raw and the smoothed path is measured at
+//! smooth normal there). Each end point's angle around the mandrel axis is the path's own,
+//! followed along the smoothed path between end points (never the nearest to the previous end
+//! point's, which would fold a segment turning more than half a revolution back). The largest distance between the raw and the smoothed path is measured at
 //! every raw point between two samples and at the midpoint of every sample interval.
 
 use nalgebra::{Point3, Vector3};
@@ -143,11 +145,37 @@ pub fn smooth_and_cut(
         let t = params[j] + (params[j + 1] - params[j]) * f;
         max_dev = max_dev.max((spline.eval(t) - p.coords).norm());
     }
-    let cut = spline.equal_length(segments)?;
+    let params = spline.equal_length_parameters(segments)?;
+    let cut: Vec<Vector3<f64>> = params.iter().map(|&t| spline.eval(t)).collect();
+    // The path's own angle around the axis: followed along the smoothed path between the cut
+    // points, at most `spacing_mm` of arc per look (a few degrees on any mandrel this cell winds),
+    // so a segment that turns the path by more than half a revolution keeps its whole turn.
+    let between = ((spline.length() / segments as f64) / spacing_mm)
+        .ceil()
+        .max(1.0);
+    limits::at_most(
+        "path samples",
+        between * segments as f64,
+        limits::MAX_PATH_SAMPLES as f64,
+    )?;
+    let between = between as usize;
     let mut points = Vec::with_capacity(cut.len());
     let mut faces = Vec::with_capacity(cut.len());
     let last = cut.len() - 1;
+    let mut around = 0.0;
     for (index, c) in cut.iter().enumerate() {
+        if index > 0 {
+            let (t0, t1) = (params[index - 1], params[index]);
+            for i in 1..between {
+                let t = t0 + (t1 - t0) * i as f64 / between as f64;
+                // A look that lands on an end cap (normal nearly vertical) has no angle.
+                if let Some(at) = tracer.locate(&Point3::from(spline.eval(t)))
+                    && at.normal.xy().norm() > 0.5
+                {
+                    around = crate::segment::around_near(&at.normal, around);
+                }
+            }
+        }
         // The end points sit on the rim of an end cap: look a micrometre inward along the path so
         // they take the winding surface's triangle and normal, not the cap's.
         let inward = match index {
@@ -158,13 +186,11 @@ pub fn smooth_and_cut(
         let at = tracer
             .locate(&Point3::from(c + inward))
             .ok_or(Error::NonFinitePoint { index })?;
-        // The angle around the axis, unwrapped from the previous point (an imported path has no
-        // angle of its own; its points must be dense enough to turn less than half a revolution).
-        let near = points.last().map_or(0.0, |p: &SurfacePoint| p.around_rad);
+        around = crate::segment::around_near(&at.normal, around);
         points.push(SurfacePoint {
             point: at.point,
             normal: at.normal,
-            around_rad: crate::segment::around_near(&at.normal, near),
+            around_rad: around,
         });
         faces.push(at.face as u32);
     }
@@ -250,6 +276,41 @@ mod tests {
         }
         assert!(smooth_and_cut(&tr, &path.points, 0, 2.0).is_err());
         assert!(smooth_and_cut(&tr, &path.points[..1], 5, 2.0).is_err());
+    }
+
+    #[test]
+    fn each_end_points_angle_follows_the_path_however_far_a_segment_turns() {
+        // A helix drawn every 2° on a meshed cylinder, cut into 2 segments: each end point's
+        // angle around the axis is the path's own, the whole turn per segment (0.4 or 0.6
+        // revolution, counter-clockwise or clockwise), never folded to within half a turn.
+        let profile: Vec<(f64, f64)> = (0..=45).map(|i| (4.0 * i as f64, 31.75)).collect();
+        let (m, adj) = prepare(
+            &triasym::revolution(&profile, 256, true).unwrap(),
+            DEFAULT_WELD_MM,
+            Closure::Closed,
+        )
+        .unwrap();
+        let tr = Tracer::new(m, &adj, DEFAULT_CREASE_DEG).unwrap();
+        for turns in [0.8, 1.2, -0.8, -1.2] {
+            let n = (f64::abs(turns) * 180.0) as usize;
+            let raw: Vec<Point3<f64>> = (0..=n)
+                .map(|k| {
+                    let f = k as f64 / n as f64;
+                    let a = std::f64::consts::TAU * turns * f;
+                    Point3::new(31.75 * a.cos(), 31.75 * a.sin(), 178.0 * (1.0 - f))
+                })
+                .collect();
+            let r = smooth_and_cut(&tr, &raw, 2, DEFAULT_SPACING_MM).unwrap();
+            let per_segment = std::f64::consts::TAU * turns / 2.0;
+            for (k, p) in r.points.iter().enumerate() {
+                let expected = per_segment * k as f64;
+                assert!(
+                    (p.around_rad - expected).abs() < 1e-3,
+                    "{turns}: point {k} at {} rad, expected {expected}",
+                    p.around_rad
+                );
+            }
+        }
     }
 
     #[test]

@@ -5,6 +5,8 @@ use clap::{Args, Subcommand};
 
 use super::Failure;
 
+pub mod gear;
+pub mod home;
 pub mod plan;
 pub mod run;
 pub mod tune;
@@ -23,6 +25,10 @@ pub enum LatheCommand {
     Plan(plan::LathePlanArgs),
     /// Run a part program (Fig 9-1 format) on the simulated lathe winder.
     Run(run::LatheRunArgs),
+    /// Machine-zero search of X and Y against the home switch (seed 003 §4.2).
+    Home(home::LatheHomeArgs),
+    /// Carriage geared to the mandrel at a programmable ratio (seed 003 §4.1).
+    Gear(gear::LatheGearArgs),
     /// Position-loop gain by seed 003 Eq. 8 with the Routh check, and the servo step response.
     Tune(tune::LatheTuneArgs),
 }
@@ -33,5 +39,7 @@ pub fn run(args: LatheArgs) -> Result<(), Failure> {
         LatheCommand::Plan(a) => plan::run(a),
         LatheCommand::Run(a) => run::run(a),
         LatheCommand::Tune(a) => tune::run(a),
+        LatheCommand::Home(a) => home::run(a),
+        LatheCommand::Gear(a) => gear::run(a),
     }
 }

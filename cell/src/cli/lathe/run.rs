@@ -7,6 +7,7 @@ use std::io::BufRead;
 use std::path::PathBuf;
 
 use cell::lathe::{self, Progress, Setup, TraceRow};
+use cell::record::{LatheAxes, Level, Recorder, Sinks};
 use clap::{Args, ValueEnum};
 use mandrel_drive::lathe::{InterruptClock, Jitter, SimulatedClock, WallClock};
 use mandrel_drive::servo::{Amplifier, LatheAxis};
@@ -81,6 +82,13 @@ pub struct LatheRunArgs {
     /// Circuits per layer, for the layer counter of the progress display.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub circuits_per_layer: usize,
+    /// Record the axes' commanded and actual positions and following error every interrupt
+    /// (topic `/lathe/axes`) and the progress (`/log`) as MCAP for Foxglove.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
+    /// Power-on value of the 16-bit encoder counters (they wrap from 65 535 to 0; seed 003 §4.1).
+    #[arg(long, value_name = "RAW", default_value_t = 0)]
+    pub counter_start: u16,
 }
 
 fn parse_part_zero(text: &str) -> Result<Position, Failure> {
@@ -137,6 +145,7 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
         interrupt_hz: args.rate,
         amplifier: Amplifier::Voltage { k_amp: args.k_amp },
         single_block: args.single_block,
+        counter_start: args.counter_start,
         ..Setup::default()
     };
     if let Some(z) = lathe::part_zero_of(&program) {
@@ -184,22 +193,58 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
         Some(w) => w,
         None => &mut sim_clock,
     };
+    let recorder = match &args.record {
+        Some(path) => {
+            let epoch_ns = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos() as u64);
+            Some(
+                Recorder::open(
+                    &Sinks {
+                        mcap: Some(path.clone()),
+                        live: None,
+                    },
+                    epoch_ns,
+                )
+                .map_err(Failure::from_cell)?,
+            )
+        }
+        None => None,
+    };
+    let hz = args.rate;
+    let interrupts_done = std::cell::Cell::new(0u64);
+    let mut on_tick = |k: u64, desired: &[f64; 3], measured: &[i64; 3]| {
+        interrupts_done.set(k);
+        if let Some(rec) = &recorder {
+            let commanded = setup.from_counts(*desired);
+            let actual = setup.from_counts(measured.map(|c| c as f64));
+            rec.lathe_axes(k as f64 / hz, &LatheAxes::new(k, commanded, actual));
+        }
+    };
     let quiet = args.json;
     let per_layer = args.circuits_per_layer;
     let single = args.single_block;
     let mut stdin = std::io::stdin().lock();
+    let log = |message: &str| {
+        if let Some(rec) = &recorder {
+            rec.log(interrupts_done.get() as f64 / hz, Level::Info, message);
+        }
+    };
     let mut on_progress = |p: Progress| match p {
         Progress::Circuit { done, total } => {
+            let text = format!(
+                "circuit {}/{total} wound, layer {} of {}",
+                done + 1,
+                done / per_layer + 1,
+                total.div_ceil(per_layer)
+            );
+            log(&text);
             if !quiet {
-                eprintln!(
-                    "circuit {}/{total} wound, layer {} of {}",
-                    done + 1,
-                    done / per_layer + 1,
-                    total.div_ceil(per_layer)
-                );
+                eprintln!("{text}");
             }
         }
         Progress::Stop => {
+            log("M00 program stop");
             if !quiet {
                 eprintln!("M00 program stop");
             }
@@ -226,9 +271,12 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
         every,
         &mut trace,
         &mut on_progress,
-        &mut |_, _, _| {},
+        &mut on_tick,
     )
     .map_err(Failure::from_cell)?;
+    if let Some(rec) = recorder {
+        rec.finish().map_err(Failure::from_cell)?;
+    }
     let jitter: Option<Jitter> = wall.as_ref().map(WallClock::jitter);
     if let Some(path) = &args.plot {
         let title = format!(

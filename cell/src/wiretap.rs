@@ -1,0 +1,172 @@
+//! A tap on a simulator's end of a device link: it notes the wall-clock time at which a stop
+//! command arrives (the robot's STOP telegram, the indexer's `S`), so that the time from an
+//! operator's stop to the stop commands on the wire can be measured from outside the coordinator
+//! (docs/benchmarks.md, "Stop latency"). Bytes pass through unchanged.
+
+use std::io;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+/// What the tap looks for.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StopPattern {
+    /// These exact bytes (the robot's encoded STOP telegram).
+    Telegram(Vec<u8>),
+    /// A CR-terminated X-language line that is `S`, with or without a device address (`1S`).
+    IndexerStop,
+}
+
+impl StopPattern {
+    /// The robot's STOP telegram as `frame` encodes it.
+    pub fn robot(frame: &asea_protocol::FrameConfig) -> Self {
+        StopPattern::Telegram(
+            asea_protocol::Command::Stop
+                .encode(frame)
+                .unwrap_or_default(),
+        )
+    }
+}
+
+/// Seconds since the Unix epoch now (the clock both a coordinator and a simulator process see).
+pub fn unix_now_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// The times (Unix seconds) at which a tap saw its stop command.
+pub type StopTimes = Arc<Mutex<Vec<f64>>>;
+
+/// A link that notes when a stop command passes through it (in the reading direction).
+#[derive(Debug)]
+pub struct StopTap<L> {
+    inner: L,
+    pattern: StopPattern,
+    /// Bytes read and not yet ruled out (the tail of a telegram, the current line).
+    window: Vec<u8>,
+    seen: StopTimes,
+}
+
+/// Longest tail kept while looking for a pattern.
+const MAX_WINDOW: usize = 256;
+
+impl<L> StopTap<L> {
+    /// Taps `inner` for `pattern`; the times go to the returned list as well.
+    pub fn new(inner: L, pattern: StopPattern) -> (Self, StopTimes) {
+        let seen = StopTimes::default();
+        (
+            StopTap {
+                inner,
+                pattern,
+                window: Vec::new(),
+                seen: seen.clone(),
+            },
+            seen,
+        )
+    }
+
+    fn saw(&mut self, bytes: &[u8]) {
+        let t = unix_now_s();
+        let mut hits = 0;
+        match &self.pattern {
+            StopPattern::Telegram(p) => {
+                self.window.extend_from_slice(bytes);
+                if !p.is_empty() {
+                    while let Some(i) = self.window.windows(p.len()).position(|w| w == p.as_slice())
+                    {
+                        hits += 1;
+                        self.window.drain(..i + p.len());
+                    }
+                    let keep = p.len().saturating_sub(1);
+                    if self.window.len() > keep {
+                        self.window.drain(..self.window.len() - keep);
+                    }
+                }
+            }
+            StopPattern::IndexerStop => {
+                for &b in bytes {
+                    if b == b'\r' {
+                        let line: Vec<u8> = self.window.drain(..).filter(|c| *c != b'\n').collect();
+                        if let Some((last, address)) = line.split_last()
+                            && *last == b'S'
+                            && address.iter().all(u8::is_ascii_digit)
+                        {
+                            hits += 1;
+                        }
+                    } else if self.window.len() < MAX_WINDOW {
+                        self.window.push(b);
+                    }
+                }
+            }
+        }
+        if hits > 0
+            && let Ok(mut s) = self.seen.lock()
+        {
+            s.extend(std::iter::repeat_n(t, hits));
+        }
+    }
+}
+
+impl<L: asea_protocol::Link> asea_protocol::Link for StopTap<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.inner.write_all(bytes)
+    }
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        let n = self.inner.read_timeout(buf, timeout)?;
+        if let Some(b) = buf.get(..n) {
+            self.saw(b);
+        }
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.inner.discard_input()
+    }
+}
+
+/// The indexer's side: the same tap over `mandrel_drive::Link` (a separate trait, see
+/// docs/ARCHITECTURE.md).
+#[derive(Debug)]
+pub struct IndexerTap<L>(pub StopTap<L>);
+
+impl<L: mandrel_drive::Link> mandrel_drive::Link for IndexerTap<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.0.inner.write_all(bytes)
+    }
+    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        let n = self.0.inner.read_timeout(buf, timeout)?;
+        if let Some(b) = buf.get(..n) {
+            self.0.saw(b);
+        }
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.0.inner.discard_input()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_the_stop_telegram_split_across_reads_and_the_indexer_stop_line() {
+        let frame = asea_protocol::FrameConfig::default();
+        let stop = asea_protocol::Command::Stop.encode(&frame).unwrap();
+        let other = asea_protocol::Command::Standby.encode(&frame).unwrap();
+        assert_ne!(stop, other);
+        let (mut tap, seen) = StopTap::new((), StopPattern::robot(&frame));
+        tap.saw(&other);
+        tap.saw(&stop[..2]);
+        assert!(seen.lock().unwrap().is_empty());
+        tap.saw(&stop[2..]);
+        tap.saw(&other);
+        assert_eq!(seen.lock().unwrap().len(), 1);
+
+        let (mut tap, seen) = StopTap::new((), StopPattern::IndexerStop);
+        tap.saw(b"1MN\r1VS0.5\r1D-65\r1G\r1R\r");
+        assert!(seen.lock().unwrap().is_empty());
+        tap.saw(b"1");
+        tap.saw(b"S\r\nS\r");
+        assert_eq!(seen.lock().unwrap().len(), 2);
+    }
+}
