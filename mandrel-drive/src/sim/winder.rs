@@ -185,7 +185,8 @@ impl Winder {
     }
 
     fn take_lines(&mut self) {
-        while self.planner.len() < PLANNER_BLOCKS {
+        // The block being executed still holds its planner slot, as in GRBL.
+        while self.blocks() < PLANNER_BLOCKS {
             let Some(end) = self.rx.iter().position(|&b| b == b'\n' || b == b'\r') else {
                 return;
             };
@@ -339,6 +340,10 @@ impl Winder {
         Ok(())
     }
 
+    fn blocks(&self) -> usize {
+        self.planner.len() + usize::from(self.running.is_some())
+    }
+
     fn commit_modes(&mut self, absolute: bool, inverse_time: bool, inch: bool, feed: Option<f64>) {
         self.absolute = absolute;
         self.inverse_time = inverse_time;
@@ -360,7 +365,7 @@ impl Winder {
         let report = format!(
             "<{state}|MPos:{}|Bf:{},{}|FS:{},0>\r\n",
             pos.join(","),
-            PLANNER_BLOCKS - self.planner.len(),
+            PLANNER_BLOCKS - self.blocks(),
             GRBL_RX_BUFFER - self.rx.len(),
             self.feed.unwrap_or(0.0)
         );
@@ -430,6 +435,32 @@ mod tests {
         assert_eq!(w.overflow_bytes(), 5);
         assert_eq!(w.max_rx_bytes(), GRBL_RX_BUFFER);
         assert!(w.take_events().contains(&Event::Overflow { bytes: 5 }));
+    }
+
+    #[test]
+    fn the_planner_takes_fifteen_blocks_and_the_log_counts_lines_and_buffer_fill() {
+        let mut w = Winder::new(1.0);
+        // 20 moves of 10 min each, 11 bytes per line, two at once then one at a time: 15 are
+        // planned and answered, 5 wait in the receive buffer.
+        w.receive("G1 X100 F1\n".repeat(2).as_bytes(), 0.0);
+        for _ in 2..20 {
+            w.receive(b"G1 X100 F1\n", 0.0);
+        }
+        assert_eq!(replies(&mut w).matches("ok").count(), PLANNER_BLOCKS);
+        let events = w.take_events();
+        assert!(!events.iter().any(|e| matches!(e, Event::Overflow { .. })));
+        let lines: Vec<(usize, usize)> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Line { n, rx_bytes, .. } => Some((*n, *rx_bytes)),
+                _ => None,
+            })
+            .collect();
+        // The first line is taken with the second behind it; the others alone.
+        let mut want: Vec<(usize, usize)> = (1..=PLANNER_BLOCKS).map(|n| (n, 11)).collect();
+        want[0].1 = 22;
+        assert_eq!(lines, want);
+        assert_eq!(w.max_rx_bytes(), 5 * 11);
     }
 
     #[test]
