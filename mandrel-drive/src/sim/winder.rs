@@ -464,6 +464,27 @@ mod tests {
     }
 
     #[test]
+    fn one_poll_runs_through_several_blocks() {
+        let mut w = Winder::new(1.0);
+        // Two 1 s moves; at 1.5 s the second is half done.
+        w.receive(b"G94 G1 X1 F60\nG1 X3 F120\n", 0.0);
+        w.poll(1.5);
+        assert!((w.position()[0] - 2.0).abs() < 1e-9, "{:?}", w.position());
+    }
+
+    #[test]
+    fn comments_are_ignored_but_not_the_code_after_them() {
+        let mut w = Winder::new(1.0);
+        w.receive(
+            b"(a (nested) note; G5) G94 G1 X2 (mid) F60 ; G5 tail\n",
+            0.0,
+        );
+        assert_eq!(replies(&mut w), "ok\r\n");
+        w.poll(1.0);
+        assert!((w.position()[0] - 1.0).abs() < 1e-9, "{:?}", w.position());
+    }
+
+    #[test]
     fn inverse_time_block_takes_one_over_f_minutes() {
         let mut w = Winder::new(1.0);
         w.receive(b"G93\nG1 X10 A90 F2\n", 0.0);
