@@ -373,6 +373,22 @@ mod tests {
         assert_eq!(fs::read_to_string(dir.join("A_1.ROB")).unwrap(), "old\n");
         assert_eq!(fs::read_to_string(dir.join("A.SEQ")).unwrap(), "old\n");
         assert_eq!(listing(&dir), ["A.SEQ", "A_1.ROB", "A_2.ROB"]);
+        // A symbolic link in an output's place is not written through either.
+        fs::remove_dir(dir.join("A_2.ROB")).unwrap();
+        std::os::unix::fs::symlink(dir.join("A.SEQ"), dir.join("A_2.ROB")).unwrap();
+        let e = write_all(
+            &dir,
+            &set(&["A_1.ROB", "A_2.ROB", "A.SEQ"], "new\n"),
+            "A",
+            Stale::Refuse,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("A_2.ROB: exists and is not a regular file"),
+            "{e}"
+        );
+        assert_eq!(fs::read_to_string(dir.join("A.SEQ")).unwrap(), "old\n");
     }
 
     #[test]

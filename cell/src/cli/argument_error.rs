@@ -164,4 +164,94 @@ mod tests {
         ]);
         assert!(cli.is_ok(), "{}", cli.map(|_| ()).unwrap_err());
     }
+
+    /// The kinds windcell's own options cannot raise today (they take no `=`-only values, no
+    /// counted value lists, no conflicting flags), built by hand with each kind of context value,
+    /// so a new option that raises them still gets its one line.
+    #[test]
+    fn kinds_built_by_hand_render_their_context() {
+        use clap::builder::StyledStr;
+        let plan = ["windcell".to_string(), "plan".to_string()];
+        let built = |kind: ErrorKind, context: Vec<(ContextKind, ContextValue)>| {
+            let mut error = clap::Error::new(kind);
+            for (k, v) in context {
+                error.insert(k, v);
+            }
+            render(&error, &plan)
+        };
+        let styled = |s: &str| ContextValue::StyledStr(StyledStr::from(s.to_string()));
+        assert_eq!(
+            built(
+                ErrorKind::NoEquals,
+                vec![(ContextKind::InvalidArg, styled("--out"))]
+            ),
+            "--out needs `=` before its value; see `windcell plan --help`"
+        );
+        assert_eq!(
+            built(
+                ErrorKind::TooManyValues,
+                vec![
+                    (
+                        ContextKind::InvalidArg,
+                        ContextValue::String("--start".into())
+                    ),
+                    (ContextKind::InvalidValue, ContextValue::String("4".into())),
+                ]
+            ),
+            "--start: one value too many (`4`); see `windcell plan --help`"
+        );
+        for kind in [ErrorKind::TooFewValues, ErrorKind::WrongNumberOfValues] {
+            assert_eq!(
+                built(
+                    kind,
+                    vec![
+                        (
+                            ContextKind::InvalidArg,
+                            ContextValue::String("--start".into())
+                        ),
+                        (ContextKind::ExpectedNumValues, ContextValue::Number(3)),
+                        (ContextKind::ActualNumValues, ContextValue::Number(2)),
+                    ]
+                ),
+                "--start takes 3 values, 2 given; see `windcell plan --help`"
+            );
+        }
+        assert_eq!(
+            built(
+                ErrorKind::ArgumentConflict,
+                vec![
+                    (ContextKind::InvalidArg, styled("--json")),
+                    (
+                        ContextKind::PriorArg,
+                        ContextValue::StyledStrs(vec![
+                            StyledStr::from("--svg"),
+                            StyledStr::from("--record"),
+                        ])
+                    ),
+                ]
+            ),
+            "--json cannot be used with --svg, --record; see `windcell plan --help`"
+        );
+        assert_eq!(
+            built(
+                ErrorKind::UnknownArgument,
+                vec![(ContextKind::InvalidArg, ContextValue::Bool(true))]
+            ),
+            "unknown argument `true`; see `windcell plan --help`"
+        );
+        // Any other kind: the parser's first line that says something.
+        let raw = clap::Error::raw(ErrorKind::Io, "the terminal went away\nsecond line\n");
+        assert_eq!(
+            render(&raw, &plan),
+            "the terminal went away; see `windcell plan --help`"
+        );
+    }
+
+    #[test]
+    fn an_option_without_its_value_says_so() {
+        assert_eq!(
+            rendered(&["windcell", "sim-robot", "--checksum"]),
+            "--checksum <CHECKSUM> needs a value; see `windcell sim-robot --help`"
+        );
+    }
 }
