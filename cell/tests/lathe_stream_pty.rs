@@ -199,7 +199,7 @@ fn pause_waits_at_the_layer_boundary_and_resume_completes() {
     let prog = d.path().join("two.nc");
     // Layer 1: 20 lines of 0.1 s each, more bytes than the receive buffer holds, so the pause
     // request arrives while layer 1 is still being sent.
-    let mut text = String::from("G21 G90 G94\n(layer 1)\n");
+    let mut text = String::from("(layer 1)\nG21 G90 G94\n");
     for i in 1..=20 {
         text.push_str(&format!("G1 X{i} F600\n"));
     }
