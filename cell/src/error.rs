@@ -111,14 +111,6 @@ pub enum Error {
         /// What the mesh reader said.
         source: paths::Error,
     },
-    /// An input file could not be read.
-    #[error("{}: {source}", file.display())]
-    Read {
-        /// The file.
-        file: PathBuf,
-        /// The system's error.
-        source: std::io::Error,
-    },
     /// A robot control file's value does not fit the robot's telegram (seed 001 §5.4.1): the
     /// program and the .ROB instruction number (`None`: the header's speeds).
     #[error("program {program}: {}: {source}", place(*instruction))]
@@ -233,7 +225,6 @@ impl Error {
                 | Error::ProgramMemory { .. }
                 | Error::InstructionNumber { .. }
                 | Error::Mesh { .. }
-                | Error::Read { .. }
                 | Error::RobotTransfer { .. }
                 | Error::IndexerTransfer { .. }
                 | Error::Lathe {

@@ -73,7 +73,6 @@ fn located(text: &str, file: &Path, source: paths::Error, span: Range<usize>) ->
 fn named(text: &str, file: &Path, span: Range<usize>, error: Error) -> Error {
     let whole_file = match &error {
         Error::File(e) => !matches!(e, sequences::Error::Parse { .. }),
-        Error::Read { .. } => true,
         Error::Mesh { source, .. } => matches!(
             source,
             paths::Error::MeshSyntax { line: None, .. }
