@@ -29,8 +29,8 @@ fn out_of_range(name: &'static str, value: f64, expected: &'static str) -> Encod
     }
 }
 
-/// A Cartesian coordinate on the wire: i16 at 0.0625 mm per LSB, ±2047.9375 mm (spec/protocols.md
-/// §5.6: the range is symmetric, so the raw value −32768 is refused).
+/// A Cartesian coordinate on the wire: i16 at 0.0625 mm per LSB, ±2047.9375 mm (`docs/protocol.md` §4
+/// "Field encodings": the range is symmetric, so the raw value −32768 is refused).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Length(pub i16);
 
@@ -43,7 +43,7 @@ impl Length {
         }
         Ok(Length(raw as i16))
     }
-    /// True when the raw value lies in the wire range ±2047.9375 mm (spec/protocols.md §5.6);
+    /// True when the raw value lies in the wire range ±2047.9375 mm (`docs/protocol.md` §4 "Field encodings");
     /// −32768 (−2048.0 mm) is outside it.
     pub fn in_range(self) -> bool {
         self.0 != i16::MIN
@@ -1082,7 +1082,7 @@ mod tests {
     fn out_of_range_is_an_error_not_a_clamp() {
         assert!(Length::from_mm("x", 2048.0).is_err());
         assert!(Length::from_mm("x", -2048.05).is_err());
-        // spec/protocols.md §5.6: the range is ±2047.9375 mm, so −2048.0 is refused.
+        // `docs/protocol.md` §4 "Field encodings": the range is ±2047.9375 mm, so −2048.0 is refused.
         assert!(Length::from_mm("x", -2048.0).is_err());
         assert_eq!(Length::from_mm("x", -2047.9375).unwrap(), Length(-i16::MAX));
         assert_eq!(Length::from_mm("x", 2047.9375).unwrap(), Length(i16::MAX));

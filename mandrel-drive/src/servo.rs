@@ -1,4 +1,4 @@
-//! The lathe winder's DC servo axes (seed 000 Ch. 6–7, §9.11, App. B; notes-000 §1.3–1.5, §2.8).
+//! The lathe winder's DC servo axes (seed 000 Ch. 6–7, §9.11, App. B; constants in `docs/lathe.md` "Parameters").
 //!
 //! Each axis is a DAC channel (12 bits, ±10 V, offset binary with code 2048 at 0 V), a servo
 //! amplifier, a DC motor with its load, and a 1000-line encoder read in quadrature (4000 counts per
@@ -95,7 +95,7 @@ pub enum Amplifier {
 
 /// Motor torque constant K_T, N·m/A (§6.3).
 pub const TORQUE_CONSTANT_NM_PER_A: f64 = 0.082;
-/// Reflected inertia for τ_m = 0.0214 s, kg·m² (notes-000 §7 item 10).
+/// Reflected inertia for τ_m = 0.0214 s, kg·m² (`docs/seed-readings.md` R000-1).
 pub const AXIS_INERTIA_KG_M2: f64 = 3.597e-4;
 /// Viscous friction over inertia of the current-amplifier variant, 1/s [reading].
 pub const CURRENT_MODE_FRICTION_PER_S: f64 = 1.0;
@@ -450,7 +450,7 @@ mod tests {
 
     #[test]
     fn plant_constants_follow_the_thesis() {
-        // (20/4096)·570·(4000/2π) = 1771.8 (notes-000 §7 item 10).
+        // (20/4096)·570·(4000/2π) = 1771.8 (`docs/seed-readings.md` R000-1).
         let k = DAC_VOLTS_PER_CODE * 570.0 * 4000.0 / std::f64::consts::TAU;
         assert_abs_diff_eq!(k, 1772.0, epsilon = 0.5);
         assert_eq!(Amplifier::Voltage { k_amp: 1.0 }.plant(), (1772.0, 46.7));

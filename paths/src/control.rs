@@ -9,7 +9,7 @@
 //! - [`ContinuousTf`] and [`DiscreteTf`]: transfer functions in `s` and `z`, Tustin and zero-order
 //!   hold discretisation, series and unity-feedback connection, poles, difference equations and
 //!   step responses with their metrics, enough to design and run the seed 004 lead compensator
-//!   (Mbaocha et al. 2015, Eqs. 17, 22–25; notes-002-004 §3).
+//!   (Mbaocha et al. 2015, Eqs. 17, 22–25; `docs/seed-readings.md` R004-1).
 //!
 //! Polynomials are coefficient vectors in *descending* powers (`[1, 0.1, 0]` is `s² + 0.1 s`).
 
@@ -32,7 +32,7 @@ impl Proportional {
 }
 
 /// The PD law of seed 000 §5.5.2: `C_n = K_p (θ_d[n] − θ[n]) − K_d (θ[n] − θ[n−1]) + K_ff v_d[n]`,
-/// all in encoder counts per interrupt; `K_ff = 0` is the thesis's law as printed (notes-000 §2.6).
+/// all in encoder counts per interrupt; `K_ff = 0` is the thesis's law as printed (`docs/seed-readings.md` R000-3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pd {
     /// K_p (thesis: 2), output per count of position error.
@@ -714,7 +714,7 @@ mod tests {
 
     #[test]
     fn seed_004_difference_equations_by_hand() {
-        // The controller and plant difference equations of notes-002-004 §3.5, run directly.
+        // The controller and plant difference equations of `docs/seed-readings.md` R004-1, run directly.
         let (mut u1, mut e1) = (0.0, 0.0);
         let (mut y1, mut y2, mut u2) = (0.0, 0.0, 0.0);
         let mut ys = Vec::new();

@@ -859,13 +859,13 @@ impl Band {
     }
 }
 
-/// The lathe winder's uniform cubic approximating B-spline (seed 000 §8.8.1, §9.6; notes §3.7).
+/// The lathe winder's uniform cubic approximating B-spline (seed 000 §8.8.1, §9.6; `docs/seed-readings.md` V000-1 to V000-6).
 ///
 /// Segment `i` (0-based) uses control points `P_i … P_{i+3}` and is
 /// `P(t) = B₀(t) P_i + B₁(t) P_{i+1} + B₂(t) P_{i+2} + B₃(t) P_{i+3}`, `t ∈ [0, 1]`, with
 /// `B₀ = (1−t)³/6`, `B₁ = (3t³−6t²+4)/6`, `B₂ = (−3t³+3t²+3t+1)/6`, `B₃ = t³/6`.
 /// It approximates: the curve passes near, not through, interior points (node residual
-/// `d_i = (P_{i−1} − 2P_i + P_{i+1})/6`, notes §3.9).
+/// `d_i = (P_{i−1} − 2P_i + P_{i+1})/6`, `docs/seed-readings.md` R000-8).
 #[derive(Debug, Clone, PartialEq)]
 pub struct UniformCubic<const D: usize> {
     control_points: Vec<SVector<f64, D>>,
@@ -949,7 +949,7 @@ impl<const D: usize> UniformCubic<D> {
     /// The knot-points (§9.6, Fig 9-3): every segment sampled at `t = j/N`, `j = 0 … N−1`, plus
     /// the final point, `K = (m − 3) N + 1` points for `m` control points. `N` is the FW-CNC.PAR
     /// "number of knot points to be interpolated between two points", read as intervals per
-    /// segment (notes §8 item 13).
+    /// segment (`docs/seed-readings.md` R000-5).
     pub fn sample(&self, knots_per_segment: usize) -> Result<Vec<SVector<f64, D>>, Error> {
         if knots_per_segment == 0 {
             return Err(Error::OutOfRange {
@@ -978,7 +978,7 @@ impl<const D: usize> UniformCubic<D> {
     }
 
     /// The node residuals `d_i = (P_{i−1} − 2P_i + P_{i+1})/6` of the interior control points
-    /// `i = 1 … m−2` (notes §3.9): how far the curve at node `i` falls short of `P_i`
+    /// `i = 1 … m−2` (`docs/seed-readings.md` R000-8): how far the curve at node `i` falls short of `P_i`
     /// (the curve there is `P_i + d_i`).
     pub fn node_residuals(&self) -> Vec<SVector<f64, D>> {
         self.control_points
@@ -1233,7 +1233,7 @@ mod tests {
         assert!(s.equal_length(0).is_err());
     }
 
-    // Seed 000 test vectors (notes §7).
+    // Seed 000 test vectors (`docs/seed-readings.md` V000-1 to V000-6).
 
     #[test]
     fn uniform_cubic_reproduces_a_line_and_the_coefficients() {

@@ -15,7 +15,7 @@
 //! - [`Interpolation::BSpline`] (§8.7–8.8, §9.6): the uniform cubic B-spline of the points with
 //!   tripled ends, sampled at `N` knot-points per segment, run at a constant time per unit of the
 //!   spline parameter (so velocity and acceleration stay continuous) and slowed where an axis would
-//!   exceed its velocity limit (notes-000 §3.8's reading: "uniform-t with clamp").
+//!   exceed its velocity limit (`docs/seed-readings.md` R000-7: "uniform-t with clamp").
 //!
 //! Times are in interrupts; a segment's time may be fractional, and the desired positions are the
 //! planned path sampled at whole interrupts, so the last one is exactly the last point.
@@ -125,7 +125,7 @@ pub fn peaks<const D: usize>(samples: &[SVector<f64, D>], rate_hz: f64) -> Peaks
     out
 }
 
-/// A way to bring the path closer to a given point (§8.8, §10.7, Ch. 11; notes-000 §3.9).
+/// A way to bring the path closer to a given point (§8.8, §10.7, Ch. 11; `docs/seed-readings.md` R000-8).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Remedy {
     /// Repeat the point twice more (three coincident points): the B-spline then passes through

@@ -12,7 +12,7 @@
 //! with the same polar opening); seed 002's Eqs. 10–11 show the dome really thickens towards the
 //! opening, so this understates the dome's growth near the pole.
 //!
-//! Dome strokes (seed 002 §1.9 of our notes, Appendix A). One stroke runs pole → cylinder →
+//! Dome strokes (seed 002 Eq. 17, Appendix A; `docs/seed-readings.md` R002-1). One stroke runs pole → cylinder →
 //! pole: the departure from the near dome (α from 90° to 180°), one straight move along the
 //! cylinder (Eq. 20: the helix is linear in carriage and mandrel angle, so it needs no
 //! segmentation), and the arrival on the far dome (α from 0° to 90°). Each dome part is split at

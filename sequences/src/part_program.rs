@@ -1,5 +1,5 @@
 //! Lathe-winder part programs in the NC format of seed 000 Fig 9-1 (Haq 1994 §9.4), and the
-//! FW-CNC.PAR machine parameter file (App. A; notes-000 §4.2–4.3).
+//! FW-CNC.PAR machine parameter file (App. A, §9.4; `docs/seed-readings.md` V000-7, V000-8).
 //!
 //! A part program is one or more programs (`O` numbers) of blocks ended by `;` or a line end.
 //! Words: `N` sequence, `G01` linear feed, `G90` absolute, `G91` incremental, `F` feed, axes
@@ -78,7 +78,7 @@ pub struct Block {
     /// `G90` / `G91`.
     pub distance: Option<Distance>,
     /// `F` word, as written (its unit is not defined by the seed; the controller's feed is the
-    /// FW-CNC.PAR value in counts per interrupt, notes-000 §8 item 10).
+    /// FW-CNC.PAR value in counts per interrupt, `docs/seed-readings.md` R000-4).
     pub feed: Option<f64>,
     /// `A` word: mandrel rotation in degrees.
     pub a_deg: Option<f64>,
@@ -684,7 +684,7 @@ impl fmt::Display for PartProgram {
     }
 }
 
-/// The FW-CNC.PAR machine parameters (App. A; notes-000 §4.2): feeds in encoder counts per
+/// The FW-CNC.PAR machine parameters (App. A; `docs/seed-readings.md` V000-8): feeds in encoder counts per
 /// interrupt of the fastest axis (glossary: "feed rate").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MachineParameters {
@@ -697,7 +697,7 @@ pub struct MachineParameters {
     /// "Number of interrupts after which actual positions are recorded" (1 … 32 767, §9.9).
     pub record_interval: u32,
     /// "Number of knot points to be interpolated between two points", read as intervals per
-    /// segment `N` (notes-000 §8 item 13).
+    /// segment `N` (`docs/seed-readings.md` R000-5).
     pub knots_per_segment: u32,
 }
 

@@ -3,7 +3,7 @@ use crate::motion::{AxisLimit, Estimate, Recording};
 use approx::assert_abs_diff_eq;
 
 /// Seed 002 Appendix A, O0004 (the forward stroke): ΔX (mandrel, °), ΔY (carriage, mm),
-/// ΔZ (cross-feed, mm), ΔA (eye, °), as printed (OCR repaired as in our extraction notes):
+/// ΔZ (cross-feed, mm), ΔA (eye, °), as printed (print damage repaired as in `docs/seed-readings.md` R002-2):
 /// 20 moves leaving the near pole, the cylinder, 20 moves arriving at the far pole.
 pub(crate) const APPENDIX_FORWARD: [[f64; 4]; 41] = [
     [2.283, 4.731, 3.535, 11.042],
