@@ -47,7 +47,32 @@ pub fn certified_min(
     resolution: f64,
     threshold: f64,
 ) -> Minimum {
-    search(f, lipschitz, resolution, threshold, true)
+    search(f, lipschitz, resolution, threshold, f64::INFINITY, true)
+}
+
+/// Like [`certified_min`], with two savings for a search that is one of many (the moves of a
+/// job, each after the last):
+///
+/// - The minimum is certified only where it could lie below `ceiling` (the least value already
+///   known elsewhere): an interval whose bound cannot fall below `min(value, ceiling)` by more
+///   than the tolerance `max(resolution, RELATIVE·|min(value, ceiling)|)` is not split. So
+///   either `value` is the minimum to within that tolerance, or the true minimum lies no more
+///   than the tolerance below `ceiling`.
+/// - `f(t, cap)` may stop short of the exact value when it is at least `cap`: it must return the
+///   exact value when that is below `cap`, and otherwise any value from `cap` up to the exact
+///   one. The search asks for a `cap` above which the value would change nothing: neither half
+///   of the interval would be split, and neither the least value nor the first dip would move.
+///   A lower bound in place of the value keeps every interval's bound a true bound.
+///
+/// Dips below `threshold` are searched for as in [`certified_min`].
+pub fn certified_min_below(
+    f: &mut dyn FnMut(f64, f64) -> f64,
+    lipschitz: f64,
+    resolution: f64,
+    threshold: f64,
+    ceiling: f64,
+) -> Minimum {
+    search_capped(f, lipschitz, resolution, threshold, ceiling, true)
 }
 
 /// Like [`certified_min`], but only for the earliest dip below `threshold`: intervals are split
@@ -61,7 +86,7 @@ pub fn first_below(
     resolution: f64,
     threshold: f64,
 ) -> Minimum {
-    search(f, lipschitz, resolution, threshold, false)
+    search(f, lipschitz, resolution, threshold, f64::INFINITY, false)
 }
 
 fn search(
@@ -69,6 +94,25 @@ fn search(
     lipschitz: f64,
     resolution: f64,
     threshold: f64,
+    ceiling: f64,
+    certify_min: bool,
+) -> Minimum {
+    search_capped(
+        &mut |t, _| f(t),
+        lipschitz,
+        resolution,
+        threshold,
+        ceiling,
+        certify_min,
+    )
+}
+
+fn search_capped(
+    f: &mut dyn FnMut(f64, f64) -> f64,
+    lipschitz: f64,
+    resolution: f64,
+    threshold: f64,
+    ceiling: f64,
     certify_min: bool,
 ) -> Minimum {
     let lipschitz = if lipschitz.is_finite() {
@@ -76,8 +120,8 @@ fn search(
     } else {
         f64::MAX
     };
-    let f0 = f(0.0);
-    let f1 = f(1.0);
+    let f0 = f(0.0, f64::INFINITY);
+    let f1 = f(1.0, f64::INFINITY);
     let mut m = Minimum {
         value: f0.min(f1),
         at: if f0 <= f1 { 0.0 } else { 1.0 },
@@ -96,7 +140,8 @@ fn search(
     while let Some((a, b, fa, fb)) = stack.pop() {
         let lower = 0.5 * (fa + fb - lipschitz * (b - a));
         let first_at = m.first_below.map_or(f64::INFINITY, |(t, _)| t);
-        let for_min = certify_min && lower < m.value - resolution.max(RELATIVE * m.value.abs());
+        let least = m.value.min(ceiling);
+        let for_min = certify_min && lower < least - resolution.max(RELATIVE * least.abs());
         let for_first = a < first_at && lower < threshold - resolution;
         if !(for_min || for_first) || b - a <= min_width {
             continue;
@@ -106,7 +151,21 @@ fn search(
             break;
         }
         let mid = 0.5 * (a + b);
-        let fm = f(mid);
+        // A half `[x, mid]` (width `w/2`) with end value `fx` is split again only while
+        // `(fx + fm − L·w/2)/2` lies below the level it is searched to; with `fm` at or above
+        // `cap` it would not be, for either half and either purpose.
+        let half = lipschitz * (b - a) * 0.5;
+        let fx = fa.min(fb);
+        let mut cap = m.value.max(threshold);
+        if certify_min {
+            let least = m.value.min(ceiling);
+            let tol = resolution.max(RELATIVE * least.abs());
+            cap = cap.max(2.0 * (least - tol) + half - fx);
+        }
+        if a < first_at {
+            cap = cap.max(2.0 * (threshold - resolution) + half - fx);
+        }
+        let fm = f(mid, cap);
         m.evaluations += 1;
         if fm < m.value {
             m.value = fm;
@@ -170,6 +229,101 @@ mod tests {
         let m = first_below(&mut flat, 1.0, 0.005, -0.01);
         assert!(m.first_below.is_none());
         assert!(m.evaluations < 200, "{}", m.evaluations);
+    }
+
+    /// A 1-Lipschitz saw of notches: `count` dips of random depth and place on a level of 3.
+    fn notches(seed: u64, count: usize) -> Vec<(f64, f64)> {
+        let mut x = seed;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        (0..count).map(|_| (next(), 4.0 * next())).collect()
+    }
+
+    fn saw(dips: &[(f64, f64)], t: f64) -> f64 {
+        dips.iter()
+            .map(|&(at, depth)| 3.0 - (depth - 10.0 * (t - at).abs()).max(0.0))
+            .fold(3.0, f64::min)
+    }
+
+    /// The capped search against the plain one on random saws: answering only `cap` wherever
+    /// the value is at least `cap` (the least a capped function may say) changes neither the
+    /// minimum (to its tolerance) nor the first dip below the threshold; a ceiling below the
+    /// minimum leaves it uncertified but never reports a value below the true minimum.
+    #[test]
+    fn capped_search_finds_what_the_plain_search_finds() {
+        for seed in 1..200u64 {
+            let dips = notches(
+                seed.wrapping_mul(0x9e37_79b9_7f4a_7c15),
+                1 + (seed % 5) as usize,
+            );
+            let exact = |t: f64| saw(&dips, t);
+            let dense = (0..=200_000)
+                .map(|i| exact(i as f64 / 200_000.0))
+                .fold(f64::INFINITY, f64::min);
+            let plain = certified_min(&mut |t| exact(t), 10.0, 1e-4, 0.0);
+            let mut asked = 0;
+            let mut stopped = 0;
+            let capped = certified_min_below(
+                &mut |t, cap| {
+                    asked += 1;
+                    let v = exact(t);
+                    if v >= cap {
+                        stopped += 1;
+                        cap
+                    } else {
+                        v
+                    }
+                },
+                10.0,
+                1e-4,
+                0.0,
+                f64::INFINITY,
+            );
+            // Both to their stated tolerance (relative to the value found).
+            for m in [&capped, &plain] {
+                let tol = 1e-4f64.max(RELATIVE * m.value.abs()) + 1e-9;
+                assert!((m.value - dense).abs() <= tol, "{seed}: {m:?} vs {dense}");
+            }
+            assert!(
+                capped.value >= dense - 1e-4,
+                "{seed}: below the least sample"
+            );
+            match (plain.first_below, capped.first_below) {
+                (None, None) => {}
+                (Some((a, _)), Some((b, v))) => {
+                    assert!((a - b).abs() < 0.01, "{seed}: first dip {a} vs {b}");
+                    assert!(v < 0.0 && (v - exact(b)).abs() < 1e-12);
+                }
+                other => panic!("{seed}: first dips differ: {other:?}"),
+            }
+            assert!(asked >= 2 && stopped <= asked);
+            // A ceiling below the minimum: nothing is certified, but the value is one the
+            // function takes, and the truth lies no lower than the ceiling's tolerance.
+            let low = certified_min_below(
+                &mut |t, _| exact(t),
+                10.0,
+                1e-4,
+                f64::NEG_INFINITY,
+                dense - 1.0,
+            );
+            assert!(low.value >= dense - 1e-4, "{seed}: below the least sample");
+        }
+    }
+
+    /// A ceiling saves evaluations: a function whose least value lies far above the ceiling
+    /// needs only its two ends.
+    #[test]
+    fn a_ceiling_below_the_function_saves_evaluations() {
+        let dips = notches(7, 4);
+        let mut f = |t: f64, _cap: f64| saw(&dips, t) - 2.5;
+        let free = certified_min_below(&mut f, 10.0, 1e-4, f64::NEG_INFINITY, f64::INFINITY);
+        let ceiling = certified_min_below(&mut f, 10.0, 1e-4, f64::NEG_INFINITY, -20.0);
+        assert!(free.evaluations > 10, "{}", free.evaluations);
+        assert_eq!(ceiling.evaluations, 2, "{}", ceiling.evaluations);
     }
 
     #[test]

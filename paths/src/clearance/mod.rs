@@ -23,7 +23,7 @@ pub mod sweep;
 use nalgebra::{Point3, Vector3};
 
 pub use crate::robot::Capsule;
-pub use minimum::{Minimum, certified_min};
+pub use minimum::{Minimum, certified_min, certified_min_below};
 pub use solid::{MeshSolid, Solid, TubeSolid};
 pub use sweep::{Finding, Part, Report, SegmentClearance, sweep};
 

@@ -9,7 +9,7 @@ use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
 use parry3d_f64::shape::{TriMesh, TriMeshFlags};
 
 use super::minimum::first_below;
-use super::{RESOLUTION_MM, certified_min, golden_min};
+use super::{RESOLUTION_MM, certified_min, certified_min_below, golden_min};
 use crate::mesh::Mesh;
 use crate::{Error, Tube};
 
@@ -20,6 +20,13 @@ pub trait Solid: fmt::Debug + Send + Sync {
 
     /// The surface point nearest to `p`.
     fn surface_point(&self, p: &Point3<f64>) -> Point3<f64>;
+
+    /// The largest distance of any point of the solid from the rotation axis (the frame's `z`
+    /// axis), mm, or infinity when not known. Turning the solid by `δφ` about that axis moves
+    /// none of its points by more than `δφ` times this, so no distance to it changes by more.
+    fn axis_radius_mm(&self) -> f64 {
+        f64::INFINITY
+    }
 
     /// The least signed distance over the segment `a–b`, to within [`RESOLUTION_MM`] (exact for
     /// the straight tube and for a segment that stays outside a mesh).
@@ -32,6 +39,13 @@ pub trait Solid: fmt::Debug + Send + Sync {
             f64::NEG_INFINITY,
         )
         .value
+    }
+
+    /// [`Solid::segment_min_mm`], or any value from `cap` up to it when it is at least `cap`
+    /// (a search that needs only to know that the segment is that far out stops early).
+    fn segment_min_capped_mm(&self, a: &Point3<f64>, b: &Point3<f64>, cap: f64) -> f64 {
+        let _ = cap;
+        self.segment_min_mm(a, b)
     }
 
     /// The earliest point of the segment `a–b` (as a fraction of it) more than `depth_mm` inside
@@ -68,10 +82,12 @@ const SAMPLE_MM: f64 = 10.0;
 #[derive(Debug, Clone)]
 pub struct TubeSolid {
     tube: Tube,
+    /// Largest distance from the `z` axis (straight spines; infinity for a bent one).
+    axis_radius_mm: f64,
     /// Straight spine: bottom centre, unit axis, axial length.
     straight: Option<(Point3<f64>, Vector3<f64>, f64)>,
-    /// Bent spine: sample heights for the nearest-point search.
-    samples: Vec<f64>,
+    /// Bent spine: sample heights and the spine's offset there, for the nearest-point search.
+    samples: Vec<(f64, f64)>,
 }
 
 impl TubeSolid {
@@ -87,10 +103,17 @@ impl TubeSolid {
         });
         let count = ((u1 - u0) / SAMPLE_MM).ceil().max(1.0) as usize;
         let samples = (0..=count)
-            .map(|i| u0 + (u1 - u0) * i as f64 / count as f64)
+            .map(|i| {
+                let u = u0 + (u1 - u0) * i as f64 / count as f64;
+                (u, tube.spine().offset_mm(u))
+            })
             .collect();
+        // Every point of the tube (and of its flat ends) lies within the radius of a spine point
+        // between the ends, and a spine point lies `|offset|` from the axis.
+        let axis_radius_mm = max_abs_offset_mm(tube.spine(), u0, u1) + tube.radius_mm();
         TubeSolid {
             tube: tube.clone(),
+            axis_radius_mm,
             straight,
             samples,
         }
@@ -103,10 +126,10 @@ impl TubeSolid {
             let x = spine.offset_mm(u);
             (x - p.x) * (x - p.x) + (u - p.z) * (u - p.z)
         };
-        let mut best = self.samples[0];
-        let mut best_d2 = d2(best);
-        for &u in &self.samples[1..] {
-            let d = d2(u);
+        let at = |(u, x): (f64, f64)| (x - p.x) * (x - p.x) + (u - p.z) * (u - p.z);
+        let (mut best, mut best_d2) = (self.samples[0].0, at(self.samples[0]));
+        for &sample in &self.samples[1..] {
+            let (u, d) = (sample.0, at(sample));
             if d < best_d2 {
                 best = u;
                 best_d2 = d;
@@ -132,6 +155,38 @@ impl TubeSolid {
     }
 }
 
+/// The largest `|offset|` of the spine over heights `u0 … u1`, mm, bounded from above: each
+/// cubic piece is sampled every [`OFFSET_STEP_MM`] and, from each sample, its Taylor expansion
+/// (exact on the piece) bounds the offset up to the next sample.
+fn max_abs_offset_mm(spine: &crate::Spine, u0: f64, u1: f64) -> f64 {
+    let knots = spine.knot_heights_mm();
+    let mut bound = spine.offset_mm(u0).abs().max(spine.offset_mm(u1).abs());
+    let pieces = knots.len().saturating_sub(1);
+    for piece in 0..pieces {
+        // The end pieces extend beyond the end knots.
+        let lo = if piece == 0 { u0 } else { knots[piece].max(u0) };
+        let hi = if piece + 1 == pieces {
+            u1
+        } else {
+            knots[piece + 1].min(u1)
+        };
+        if lo > hi {
+            continue;
+        }
+        let count = ((hi - lo) / OFFSET_STEP_MM).ceil().max(1.0) as usize;
+        let h = (hi - lo) / count as f64;
+        for k in 0..count {
+            let [x, g, dg, d3] = spine.eval_piece(piece, lo + h * k as f64);
+            let reach = x.abs() + g.abs() * h + dg.abs() * h * h / 2.0 + d3.abs() * h * h * h / 6.0;
+            bound = bound.max(reach);
+        }
+    }
+    bound
+}
+
+/// Sample spacing of [`max_abs_offset_mm`], mm.
+const OFFSET_STEP_MM: f64 = 1.0;
+
 /// Signed distance of a capped cylinder from the radial and axial excesses (`ρ − r`, distance
 /// beyond the nearer end, negative inside).
 fn capped(radial: f64, axial: f64) -> f64 {
@@ -140,6 +195,10 @@ fn capped(radial: f64, axial: f64) -> f64 {
 }
 
 impl Solid for TubeSolid {
+    fn axis_radius_mm(&self) -> f64 {
+        self.axis_radius_mm
+    }
+
     fn inside_beyond(
         &self,
         a: &Point3<f64>,
@@ -217,15 +276,22 @@ impl Solid for TubeSolid {
     }
 
     fn segment_min_mm(&self, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
+        self.segment_min_capped_mm(a, b, f64::INFINITY)
+    }
+
+    fn segment_min_capped_mm(&self, a: &Point3<f64>, b: &Point3<f64>, cap: f64) -> f64 {
         let Some((base, axis, length)) = &self.straight else {
+            // Bent spine: the signed distance is `length`-Lipschitz along the segment; its
+            // minimum is searched to the resolution only where it could lie below `cap`.
             let length = (b - a).norm();
-            return certified_min(
-                &mut |t| self.signed_distance_mm(&(a + (b - a) * t)),
+            let m = certified_min_below(
+                &mut |t, _| self.signed_distance_mm(&(a + (b - a) * t)),
                 length,
                 RESOLUTION_MM,
                 f64::NEG_INFINITY,
-            )
-            .value;
+                cap,
+            );
+            return if m.value < cap { m.value } else { cap };
         };
         // Closed form: the segment's least distance from the axis line, when there the point lies
         // between the end planes (then the radial excess is the signed distance, and nowhere on
@@ -258,6 +324,8 @@ impl Solid for TubeSolid {
 /// outside from its angle-weighted pseudo-normals.
 pub struct MeshSolid {
     shape: TriMesh,
+    /// Largest distance of a vertex from the `z` axis (the surface lies in their convex hull).
+    axis_radius_mm: f64,
 }
 
 impl fmt::Debug for MeshSolid {
@@ -282,7 +350,15 @@ impl MeshSolid {
                     triangle: None,
                     reason: format!("the collision mesh cannot be built: {e:?}"),
                 })?;
-        Ok(MeshSolid { shape })
+        let axis_radius_mm = mesh
+            .vertices()
+            .iter()
+            .map(|v| v.x.hypot(v.y))
+            .fold(0.0, f64::max);
+        Ok(MeshSolid {
+            shape,
+            axis_radius_mm,
+        })
     }
 }
 
@@ -443,6 +519,12 @@ impl MeshSolid {
     /// than the gap between it and the segment's own box, nor than the distance from its centre
     /// less its half-diagonal.
     pub fn segment_distance_mm(&self, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
+        self.segment_distance_capped_mm(a, b, f64::INFINITY)
+    }
+
+    /// [`MeshSolid::segment_distance_mm`] when it is below `cap`; otherwise `cap` (no triangle
+    /// lies nearer: the walk skips every box no nearer than `cap`).
+    pub fn segment_distance_capped_mm(&self, a: &Point3<f64>, b: &Point3<f64>, cap: f64) -> f64 {
         let d = b - a;
         let dd = d.norm_squared();
         let origin = to_parry(a);
@@ -468,10 +550,10 @@ impl MeshSolid {
         };
         self.shape
             .bvh()
-            .find_best(f64::MAX, box_cost, |triangle, _best| {
+            .find_best(cap, box_cost, |triangle, _best| {
                 Some(segment_triangle_mm(a, b, self.corners(triangle)))
             })
-            .map_or(f64::INFINITY, |(_, distance)| distance)
+            .map_or(cap, |(_, distance)| distance)
     }
 
     /// The free fibre's check on a mesh ([`Solid::inside_beyond`]) from the segment's crossings
@@ -606,6 +688,10 @@ impl MeshSolid {
 }
 
 impl Solid for MeshSolid {
+    fn axis_radius_mm(&self) -> f64 {
+        self.axis_radius_mm
+    }
+
     fn inside_beyond(
         &self,
         a: &Point3<f64>,
@@ -640,7 +726,15 @@ impl Solid for MeshSolid {
     }
 
     fn segment_min_mm(&self, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
-        let distance = self.segment_distance_mm(a, b);
+        self.segment_min_capped_mm(a, b, f64::INFINITY)
+    }
+
+    fn segment_min_capped_mm(&self, a: &Point3<f64>, b: &Point3<f64>, cap: f64) -> f64 {
+        // Apart from the surface by `cap` or more, the segment is wholly outside (then `cap`
+        // will do) or wholly inside (then the value is negative and is searched in full). A cap
+        // at or below zero saves nothing: the distance is found in full.
+        let walk_cap = if cap > 0.0 { cap } else { f64::INFINITY };
+        let distance = self.segment_distance_capped_mm(a, b, walk_cap);
         if distance > 0.0 {
             // Apart from the surface: wholly outside or wholly inside.
             return if self.signed_distance_mm(a) >= 0.0 {
@@ -941,6 +1035,107 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The capped minimum: the plain one below the cap; at or above it, a value between the cap
+    /// and the plain one (a true lower bound). Caps below, near and above each segment's minimum.
+    #[test]
+    fn capped_segment_minimum_is_exact_below_the_cap_and_a_bound_above() {
+        let sbend = Tube::new(
+            Spine::smoothing(
+                &crate::spine::SBEND_TABLE_6_1_MM,
+                crate::spine::SBEND_SMOOTHING_MM,
+            )
+            .unwrap(),
+            28.5,
+        )
+        .unwrap();
+        let cylinder = Tube::cylinder(57.0, 200.0, 30.0, 30.0).unwrap();
+        let mesh = {
+            let raw = triasym::tube(&cylinder, 64, 5.0, true).unwrap();
+            prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap().0
+        };
+        let solids: Vec<Box<dyn Solid>> = vec![
+            Box::new(TubeSolid::new(&sbend)),
+            Box::new(MeshSolid::new(&mesh).unwrap()),
+        ];
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut capped_below = 0;
+        for solid in &solids {
+            for _ in 0..60 {
+                let mut p = || {
+                    Point3::new(
+                        -150.0 + 300.0 * next(),
+                        -150.0 + 300.0 * next(),
+                        -50.0 + 350.0 * next(),
+                    )
+                };
+                let (a, b) = (p(), p());
+                let exact = solid.segment_min_mm(&a, &b);
+                let tol = RESOLUTION_MM.max(super::super::minimum::RELATIVE * exact.abs());
+                for cap in [exact - 10.0, exact - 0.5, exact + 0.5, exact + 10.0, 0.0] {
+                    let got = solid.segment_min_capped_mm(&a, &b, cap);
+                    if exact < cap - tol {
+                        assert!((got - exact).abs() <= 1e-9, "{solid:?}: {got} vs {exact}");
+                    } else {
+                        assert!(got >= cap - tol, "{solid:?}: {got} below cap {cap}");
+                        assert!(got <= exact + 1e-9, "{solid:?}: {got} above {exact}");
+                        capped_below += usize::from(got < exact - 1e-6);
+                    }
+                }
+            }
+        }
+        // The caps save work: some answers stop at the cap.
+        assert!(capped_below > 20, "{capped_below}");
+    }
+
+    /// The distance from the rotation axis bounds every surface point (dense sampling of the
+    /// S-bend, offset and tilted tubes and a mesh) and is loose by no more than 2 mm (the
+    /// tilted section's circle and the sampling step's slope term).
+    #[test]
+    fn axis_radius_bounds_every_surface_point() {
+        let sbend = Tube::new(
+            Spine::smoothing(
+                &crate::spine::SBEND_TABLE_6_1_MM,
+                crate::spine::SBEND_SMOOTHING_MM,
+            )
+            .unwrap(),
+            28.5,
+        )
+        .unwrap();
+        let tilted = Tube::cylinder(57.0, 200.0, 30.0, -20.0).unwrap();
+        for tube in [&sbend, &tilted] {
+            let solid = TubeSolid::new(tube);
+            let mut largest = 0.0f64;
+            let (u0, u1) = (tube.u_min(), tube.u_max());
+            for i in 0..=2000 {
+                let u = u0 + (u1 - u0) * i as f64 / 2000.0;
+                for j in 0..72 {
+                    let v = j as f64 * std::f64::consts::TAU / 72.0;
+                    let q = tube.point(u, v);
+                    largest = largest.max(q.x.hypot(q.y));
+                }
+            }
+            let r = solid.axis_radius_mm();
+            assert!(r >= largest - 1e-9, "{r} < {largest}");
+            assert!(r <= largest + 2.0, "{r} loose against {largest}");
+        }
+        let mesh = {
+            let raw = triasym::tube(&tilted, 64, 5.0, true).unwrap();
+            prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap().0
+        };
+        let largest = mesh
+            .vertices()
+            .iter()
+            .map(|v| v.x.hypot(v.y))
+            .fold(0.0, f64::max);
+        assert_eq!(MeshSolid::new(&mesh).unwrap().axis_radius_mm(), largest);
     }
 
     #[test]
