@@ -64,7 +64,10 @@ pub fn certified_min(
 ///   of the interval would be split, and neither the least value nor the first dip would move.
 ///   A lower bound in place of the value keeps every interval's bound a true bound.
 ///
-/// Dips below `threshold` are searched for as in [`certified_min`].
+/// Dips below `threshold` are searched for as in [`certified_min`]. When both ends answer at or
+/// above their cap (the whole interval then lies above the ceiling, less the tolerance, and above
+/// the threshold), the search ends at once with `value` the lesser answer: a bound, not a value
+/// the function takes.
 pub fn certified_min_below(
     f: &mut dyn FnMut(f64, f64) -> f64,
     lipschitz: f64,
@@ -120,8 +123,19 @@ fn search_capped(
     } else {
         f64::MAX
     };
-    let f0 = f(0.0, f64::INFINITY);
-    let f1 = f(1.0, f64::INFINITY);
+    // The ends are needed exactly only where the whole interval could hold a value below the
+    // ceiling (or a dip below the threshold): at or above `end_cap` at both ends, it cannot.
+    let end_cap = if ceiling.is_finite() && lipschitz < f64::MAX {
+        let mut level = threshold - resolution;
+        if certify_min {
+            level = level.max(ceiling - resolution.max(RELATIVE * ceiling.abs()));
+        }
+        level + 0.5 * lipschitz
+    } else {
+        f64::INFINITY
+    };
+    let f0 = f(0.0, end_cap);
+    let f1 = f(1.0, end_cap);
     let mut m = Minimum {
         value: f0.min(f1),
         at: if f0 <= f1 { 0.0 } else { 1.0 },

@@ -737,7 +737,7 @@ impl Solid for MeshSolid {
         let distance = self.segment_distance_capped_mm(a, b, walk_cap);
         if distance > 0.0 {
             // Apart from the surface: wholly outside or wholly inside.
-            return if self.signed_distance_mm(a) >= 0.0 {
+            return if !self.is_inside(a) {
                 distance
             } else {
                 let length = (b - a).norm();

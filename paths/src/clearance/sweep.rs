@@ -16,10 +16,11 @@
 //!   So clearance is `L`-Lipschitz in `τ`, and [`certified_min_below`] finds every dip below zero
 //!   deeper than [`super::RESOLUTION_MM`] and the job's least clearance of each part to 1 % of
 //!   itself (0.001 mm near contact). A move's own least clearance is certified only where it
-//!   could undercut the least found on the moves before it, so each row of the report holds the
-//!   least value found on that move, and the least over all rows is the certified one. The arm's
-//!   links take `L` from the joint travel times the arm's reach (doubled, since joints do not
-//!   move linearly in `τ`).
+//!   could undercut the least found on the poses and moves before it (its ends are found
+//!   exactly only then), so a row of the report may hold only a bound for its move, and the
+//!   least over all rows is the certified one. The arm's links (pedestal, upper arm, forearm,
+//!   wrist) hang on the first three joints: their `L` is those joints' travel times the links'
+//!   distance from each joint's axis (doubled, since joints do not move linearly in `τ`).
 //! - **Free fibre** (the tow line from the tangent point to the eye) against the mandrel:
 //!   its clearance sits at 0 along the whole sweep (the fibre touches at its tangent point), so a
 //!   Lipschitz bound would need thousands of evaluations per segment. It is **sampled**: at both
@@ -116,7 +117,9 @@ pub struct Finding {
 
 /// The least clearances found over one segment (or approach move). The least of each field over
 /// all rows is the job's least clearance of that part, to 1 % of itself (see the module
-/// documentation); a row's own value is an upper bound on its move's least clearance.
+/// documentation). A row's own value is its move's least clearance to that tolerance wherever
+/// the move could undercut the moves checked before it; elsewhere it is only a bound at or above
+/// their least.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SegmentClearance {
     /// Segment, from 1; 0 is the approach or link move.
@@ -319,10 +322,33 @@ pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<
         findings: Vec::new(),
         worst: None,
     };
+    // The least clearances at the poses themselves bound the job's least from above: with them
+    // as ceilings from the start, a move is searched only where it could undercut them (each
+    // found with the least so far as its cap, so most stop early).
     let mut least = Least {
         eye_mm: f64::INFINITY,
         arm_mm: f64::INFINITY,
     };
+    for plan in paths {
+        for pose in std::iter::once(&plan.start).chain(plan.segments.iter().map(|s| &s.pose)) {
+            let axis = axis_of(&pose.wrist_q);
+            let back = pose.eye_mm - axis * cell.eye.length_mm;
+            let (eye, _) = ctx.capsule(
+                &pose.eye_mm,
+                &back,
+                cell.eye.radius_mm,
+                pose.mandrel_rad,
+                true,
+                least.eye_mm,
+            );
+            least.eye_mm = least.eye_mm.min(eye);
+            if let Some((arm, _, _)) =
+                ctx.arm(&pose.eye_mm, &axis, pose.mandrel_rad, least.arm_mm)?
+            {
+                least.arm_mm = least.arm_mm.min(arm);
+            }
+        }
+    }
     let mut previous: Option<End> = cell.home_mm.map(|home| End {
         eye: home,
         q: paths
@@ -542,18 +568,23 @@ fn check_move(
             value: 0.0,
             expected: "must be given",
         })?;
-        let joint_travel: f64 = match (j0, j1) {
-            (Some(a), Some(b)) => a
-                .to_array()
-                .iter()
-                .zip(b.to_array())
-                .map(|(x, y)| (x - y).abs())
-                .sum(),
-            _ => 0.0,
+        // The links checked (pedestal, upper arm, forearm, wrist) hang on the first three
+        // joints only: pitch and roll turn the eye mechanism, not them. A point of them lies
+        // within `upper + forearm` of the base's axis and of the shoulder's, and within the
+        // forearm of the elbow's, so it moves at most `(|Δq1| + |Δq2|)(upper + forearm) +
+        // |Δq3| forearm` (doubled, since joints do not move linearly in `τ`).
+        let travel: [f64; 3] = match (j0, j1) {
+            (Some(a), Some(b)) => [
+                (a.base_yaw_rad - b.base_yaw_rad).abs(),
+                (a.shoulder_rad - b.shoulder_rad).abs(),
+                (a.elbow_rad - b.elbow_rad).abs(),
+            ],
+            _ => [0.0; 3],
         };
-        let arm_reach = arm.shoulder_height_mm + arm.upper_arm_mm + arm.forearm_mm + eye_len;
-        let l_arm =
-            2.0 * joint_travel * arm_reach + d_phi * (ctx.origin.x + arm_reach).min(spin_radius);
+        let chain = arm.upper_arm_mm + arm.forearm_mm;
+        let link_motion = (travel[0] + travel[1]) * chain + travel[2] * arm.forearm_mm;
+        let arm_reach = arm.shoulder_height_mm + chain;
+        let l_arm = 2.0 * link_motion + d_phi * (ctx.origin.x + arm_reach).min(spin_radius);
         let mut failure: Option<Error> = None;
         let mut arm_fn = |tau: f64, cap: f64| {
             let (eye, axis, phi) = at(tau);
