@@ -119,7 +119,9 @@ impl TubeSolid {
         }
     }
 
-    /// The nearest spine height to `p` (clamped to the spine's ends).
+    /// The nearest spine height to `p` (clamped to the spine's ends): Newton's method on the
+    /// squared distance from every sample that is a local minimum of the sampled distances,
+    /// among the samples that could be nearest.
     fn nearest_u(&self, p: &Point3<f64>) -> f64 {
         let spine = self.tube.spine();
         let d2 = |u: f64| {
@@ -127,31 +129,97 @@ impl TubeSolid {
             (x - p.x) * (x - p.x) + (u - p.z) * (u - p.z)
         };
         let at = |(u, x): (f64, f64)| (x - p.x) * (x - p.x) + (u - p.z) * (u - p.z);
-        let (mut best, mut best_d2) = (self.samples[0].0, at(self.samples[0]));
-        for &sample in &self.samples[1..] {
-            let (u, d) = (sample.0, at(sample));
-            if d < best_d2 {
-                best = u;
-                best_d2 = d;
+        let samples = &self.samples;
+        let n = samples.len();
+        // The samples are evenly spaced in height and a sample's squared distance is at least
+        // its squared height difference: start at the sample level with `p` and stop on each
+        // side once the height difference alone exceeds the best distance.
+        let (first, last) = (samples[0].0, samples[n - 1].0);
+        let start = if n > 1 && last > first {
+            let k = ((p.z - first) / (last - first) * (n - 1) as f64).round();
+            if k.is_nan() {
+                0
+            } else {
+                k.clamp(0.0, (n - 1) as f64) as usize
             }
+        } else {
+            0
+        };
+        let mut best_d2 = at(samples[start]);
+        let (mut lo, mut hi) = (start, start);
+        while hi + 1 < n && (samples[hi + 1].0 - p.z).powi(2) < best_d2 {
+            hi += 1;
+            best_d2 = best_d2.min(at(samples[hi]));
+        }
+        while lo > 0 && (samples[lo - 1].0 - p.z).powi(2) < best_d2 {
+            lo -= 1;
+            best_d2 = best_d2.min(at(samples[lo]));
         }
         let (u0, u1) = (self.tube.u_min(), self.tube.u_max());
-        let mut u = best;
-        for _ in 0..8 {
-            let [x, g, dg, _] = spine.eval(u);
-            let first = (x - p.x) * g + (u - p.z);
-            let second = g * g + (x - p.x) * dg + 1.0;
-            if second <= 0.0 {
-                break;
-            }
-            let next = (u - first / second).clamp(u0, u1);
-            if (next - u).abs() < 1e-12 {
+        // Newton's method from a sample; `None` where the squared distance is not convex on the
+        // way or it does not settle.
+        let newton = |mut u: f64| {
+            for _ in 0..8 {
+                let [x, g, dg, _] = spine.eval(u);
+                let first = (x - p.x) * g + (u - p.z);
+                let second = g * g + (x - p.x) * dg + 1.0;
+                if second <= 0.0 {
+                    return None;
+                }
+                let next = (u - first / second).clamp(u0, u1);
+                if (next - u).abs() < 1e-12 {
+                    return Some(next);
+                }
                 u = next;
-                break;
             }
-            u = next;
+            None
+        };
+        // Golden-section search of a bracket, to a nanometre.
+        let golden = |mut a: f64, mut b: f64| {
+            let ratio = 0.5 * (5f64.sqrt() - 1.0);
+            let (mut x1, mut x2) = (b - ratio * (b - a), a + ratio * (b - a));
+            let (mut f1, mut f2) = (d2(x1), d2(x2));
+            while b - a > 1e-9 {
+                if f1 < f2 {
+                    (b, x2, f2) = (x2, x1, f1);
+                    x1 = b - ratio * (b - a);
+                    f1 = d2(x1);
+                } else {
+                    (a, x1, f1) = (x1, x2, f2);
+                    x2 = a + ratio * (b - a);
+                    f2 = d2(x2);
+                }
+            }
+            if f1 < f2 { x1 } else { x2 }
+        };
+        let (mut best, mut best_value) = (samples[start].0, f64::INFINITY);
+        for k in lo..=hi {
+            let v = at(samples[k]);
+            let left = k == 0 || at(samples[k - 1]) >= v;
+            let right = k + 1 == n || at(samples[k + 1]) >= v;
+            if !(left && right) {
+                continue;
+            }
+            // A minimum lies between the neighbouring samples: Newton from the sample, or the
+            // bracket searched where Newton cannot be trusted; kept only where it improves on
+            // the sample itself.
+            let bracket = (
+                samples[k.saturating_sub(1)].0,
+                samples[(k + 1).min(n - 1)].0,
+            );
+            let u = newton(samples[k].0)
+                .filter(|u| (bracket.0..=bracket.1).contains(u))
+                .unwrap_or_else(|| golden(bracket.0, bracket.1));
+            let (u, d) = match d2(u) {
+                d if d <= v => (u, d),
+                _ => (samples[k].0, v),
+            };
+            if d < best_value {
+                best = u;
+                best_value = d;
+            }
         }
-        if d2(u) <= best_d2 { u } else { best }
+        best
     }
 }
 
@@ -1130,6 +1198,53 @@ mod tests {
         }
         // The caps save work: some answers stop at the cap.
         assert!(capped_below > 20, "{capped_below}");
+    }
+
+    /// The nearest spine height on the S-bend against a dense scan of the spine (every 0.01 mm
+    /// of height) from random points around the tube: never farther than the scan's best.
+    #[test]
+    fn nearest_spine_height_is_the_global_one() {
+        let tube = Tube::new(
+            Spine::smoothing(
+                &crate::spine::SBEND_TABLE_6_1_MM,
+                crate::spine::SBEND_SMOOTHING_MM,
+            )
+            .unwrap(),
+            28.5,
+        )
+        .unwrap();
+        let solid = TubeSolid::new(&tube);
+        let spine = tube.spine();
+        let (u0, u1) = (tube.u_min(), tube.u_max());
+        let steps = ((u1 - u0) / 0.01) as usize;
+        let heights: Vec<(f64, f64)> = (0..=steps)
+            .map(|i| {
+                let u = u0 + (u1 - u0) * i as f64 / steps as f64;
+                (u, spine.offset_mm(u))
+            })
+            .collect();
+        let mut rng = 0x1234_5678_9abc_def1u64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..300 {
+            let p = Point3::new(
+                -120.0 + 300.0 * next(),
+                -60.0 + 120.0 * next(),
+                u0 - 60.0 + (u1 - u0 + 120.0) * next(),
+            );
+            let d2 = |u: f64, x: f64| (x - p.x).powi(2) + (u - p.z).powi(2);
+            let scan = heights
+                .iter()
+                .map(|&(u, x)| d2(u, x))
+                .fold(f64::INFINITY, f64::min);
+            let u = solid.nearest_u(&p);
+            let got = d2(u, spine.offset_mm(u));
+            assert!(got <= scan + 1e-6, "{p}: {got} vs {scan}");
+        }
     }
 
     /// Inside or outside by the ray agrees with the sign of the nearest-point query on random
