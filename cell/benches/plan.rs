@@ -1,8 +1,9 @@
 //! The whole TOOL step for each example job, through the library path `windcell plan` takes
 //! (`sequences::Job::load`, `cell::tool::plan`, `cell::tool::control_files`,
-//! `cell::output::write_all`): `plan/NAME` parses, traces, segments, plans (the arm's inverse
-//! kinematics, limits and speeds included) and writes the control files; `plan_only/NAME` stops
-//! after planning (target: under 50 ms each). Run with `cargo bench -p cell --bench plan`.
+//! `cell::check::check`, `cell::output::write_all`): `plan/NAME` parses, traces, segments, plans
+//! (the arm's inverse kinematics, limits and speeds included), checks the job for collisions and
+//! snags, and writes the control files, as `windcell plan` does; `plan_only/NAME` stops after
+//! planning (target: under 50 ms each). Run with `cargo bench -p cell --bench plan`.
 
 use std::path::Path;
 
@@ -41,6 +42,8 @@ fn plan_examples(c: &mut Criterion) {
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
                 let plan = cell::tool::plan(&job, &text, &job_path).unwrap();
                 let files = cell::tool::control_files(&job, &plan).unwrap();
+                let checked = cell::check::check(&job, &text, &job_path, plan).unwrap();
+                assert!(checked.report.is_clear());
                 cell::output::write_all(
                     &out.path().join("plan"),
                     &files,
