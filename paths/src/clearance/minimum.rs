@@ -35,6 +35,9 @@ pub struct Minimum {
 /// Relative resolution of the reported minimum (see the module documentation).
 pub const RELATIVE: f64 = 0.01;
 
+/// Relative margin added to the cap handed to a capped function, against rounding.
+const CAP_MARGIN: f64 = 1e-12;
+
 /// Most evaluations of one search; reached only with a Lipschitz constant far beyond any real
 /// motion (about `2 L / resolution`), and then reported through [`Minimum::complete`].
 pub const MAX_EVALUATIONS: usize = 1 << 16;
@@ -130,7 +133,8 @@ fn search_capped(
         if certify_min {
             level = level.max(ceiling - resolution.max(RELATIVE * ceiling.abs()));
         }
-        level + 0.5 * lipschitz
+        let cap = level + 0.5 * lipschitz;
+        cap + CAP_MARGIN * (1.0 + cap.abs())
     } else {
         f64::INFINITY
     };
@@ -179,6 +183,9 @@ fn search_capped(
         if a < first_at {
             cap = cap.max(2.0 * (threshold - resolution) + half - fx);
         }
+        // A hair above, so that the halves' bounds computed from `cap` itself clear their level
+        // despite rounding.
+        let cap = cap + CAP_MARGIN * (1.0 + cap.abs());
         let fm = f(mid, cap);
         m.evaluations += 1;
         if fm < m.value {
@@ -326,6 +333,79 @@ mod tests {
             );
             assert!(low.value >= dense - 1e-4, "{seed}: below the least sample");
         }
+    }
+
+    /// The cap is enough: answering only `cap` wherever the value is at least `cap` splits no
+    /// interval that the exact value would not, so the search makes the same evaluations, finds
+    /// the same first dip and, without a ceiling, the same minimum at the same place; with a
+    /// ceiling the minimum differs only where both ends stopped at their cap.
+    #[test]
+    fn answering_only_the_cap_changes_nothing_but_the_work() {
+        let mut extra = [0usize; 4];
+        for seed in 1..300u64 {
+            let dips = notches(
+                seed.wrapping_mul(0x2545_f491_4f6c_dd1d),
+                1 + (seed % 6) as usize,
+            );
+            let exact = |t: f64| saw(&dips, t) - 2.0;
+            let dense = (0..=20_000)
+                .map(|i| exact(i as f64 / 20_000.0))
+                .fold(f64::INFINITY, f64::min);
+            for (k, ceiling) in [f64::INFINITY, dense + 1.0, dense + 0.01, dense - 0.5]
+                .into_iter()
+                .enumerate()
+            {
+                let full = certified_min_below(&mut |t, _| exact(t), 10.0, 1e-4, 0.0, ceiling);
+                let mut stops = 0;
+                let weakest = certified_min_below(
+                    &mut |t, cap| {
+                        let v = exact(t);
+                        if v >= cap {
+                            stops += 1;
+                            cap
+                        } else {
+                            v
+                        }
+                    },
+                    10.0,
+                    1e-4,
+                    0.0,
+                    ceiling,
+                );
+                assert_eq!(full.evaluations, weakest.evaluations, "{seed} {ceiling}");
+                assert_eq!(full.first_below, weakest.first_below, "{seed} {ceiling}");
+                if ceiling.is_infinite() {
+                    assert_eq!(full, weakest, "{seed}");
+                } else if weakest.evaluations > 2 {
+                    assert_eq!(full.value, weakest.value, "{seed} {ceiling}");
+                }
+                assert!(stops <= weakest.evaluations);
+                // And the cap is no higher than it must be: answering a little less (still no
+                // less than any value already returned nor the threshold, so still a valid
+                // answer) splits more.
+                let mut least = f64::INFINITY;
+                let under = certified_min_below(
+                    &mut |t, cap| {
+                        let v = exact(t);
+                        let answer = if v >= cap {
+                            (cap - 1e-6 * (1.0 + cap.abs())).max(least).max(0.0)
+                        } else {
+                            v
+                        };
+                        least = least.min(answer);
+                        answer
+                    },
+                    10.0,
+                    1e-4,
+                    0.0,
+                    ceiling,
+                );
+                assert!(under.evaluations >= full.evaluations, "{seed} {ceiling}");
+                extra[k] += under.evaluations - full.evaluations;
+            }
+        }
+        // Every kind of search splits more somewhere when answered below its caps.
+        assert!(extra.iter().all(|&e| e > 0), "{extra:?}");
     }
 
     /// A ceiling saves evaluations: a function whose least value lies far above the ceiling
