@@ -383,7 +383,7 @@ mod tests {
                 // And the cap is no higher than it must be: answering a little less (still no
                 // less than any value already returned nor the threshold, so still a valid
                 // answer) splits more.
-                let mut least = f64::INFINITY;
+                let mut least = f64::NEG_INFINITY;
                 let under = certified_min_below(
                     &mut |t, cap| {
                         let v = exact(t);
@@ -392,7 +392,11 @@ mod tests {
                         } else {
                             v
                         };
-                        least = least.min(answer);
+                        least = if least.is_finite() {
+                            least.min(answer)
+                        } else {
+                            answer
+                        };
                         answer
                     },
                     10.0,
@@ -418,6 +422,34 @@ mod tests {
         let ceiling = certified_min_below(&mut f, 10.0, 1e-4, f64::NEG_INFINITY, -20.0);
         assert!(free.evaluations > 10, "{}", free.evaluations);
         assert_eq!(ceiling.evaluations, 2, "{}", ceiling.evaluations);
+        // The ends are asked with a cap that both clear (so neither needs its exact value):
+        // the ceiling less its tolerance, plus half the Lipschitz bound, here −20.2 + 5.
+        let mut caps = Vec::new();
+        let capped = certified_min_below(
+            &mut |t, cap| {
+                caps.push(cap);
+                let v = saw(&dips, t) - 2.5;
+                if v >= cap { cap } else { v }
+            },
+            10.0,
+            1e-4,
+            f64::NEG_INFINITY,
+            -20.0,
+        );
+        assert_eq!(capped.evaluations, 2);
+        assert_eq!(caps.len(), 2);
+        for cap in caps {
+            assert!((cap - (-20.2 + 5.0)).abs() < 1e-9, "{cap}");
+        }
+        // Answered just under that cap, the ends no longer settle the interval.
+        let under = certified_min_below(
+            &mut |_, cap| cap - 1e-6,
+            10.0,
+            1e-4,
+            f64::NEG_INFINITY,
+            -20.0,
+        );
+        assert!(under.evaluations > 2, "{}", under.evaluations);
     }
 
     #[test]
