@@ -78,9 +78,7 @@ fn every_other_robot_cell_example_checks_clear() {
         }
         let text = std::fs::read_to_string(&path).unwrap();
         // Cell files and the analytic-vessel job are not robot-cell jobs with paths.
-        // Mesh mandrels are left out: their check takes tens of seconds (docs/benchmarks.md,
-        // "Clearance"); sbend-mesh.toml checks clear there.
-        if !text.contains("[[path]]") || text.contains("kind = \"mesh\"") {
+        if !text.contains("[[path]]") {
             continue;
         }
         let out = windcell(&["check", path.to_str().unwrap()]);
@@ -94,7 +92,8 @@ fn every_other_robot_cell_example_checks_clear() {
         assert!(stdout.starts_with("check: clear"), "{name}: {stdout}");
         checked += 1;
     }
-    assert!(checked >= 7, "{checked} examples checked");
+    // The seven analytic examples, the DXF path and the mesh mandrel.
+    assert!(checked >= 9, "{checked} examples checked");
 }
 
 /// The snag fixture's mandrel: a cylinder of radius 28.5 mm and 200 mm long with a smooth ring
