@@ -1200,6 +1200,33 @@ mod tests {
         assert!(capped_below > 20, "{capped_below}");
     }
 
+    /// A solid that gives only the two required answers: a ball of radius 10 mm at the origin.
+    #[derive(Debug)]
+    struct Ball;
+
+    impl Solid for Ball {
+        fn signed_distance_mm(&self, p: &Point3<f64>) -> f64 {
+            p.coords.norm() - 10.0
+        }
+        fn surface_point(&self, p: &Point3<f64>) -> Point3<f64> {
+            Point3::from(p.coords.normalize() * 10.0)
+        }
+    }
+
+    /// The trait's defaults: no radius about the axis is known (so the mandrel's turn is bounded
+    /// by the moving part's own radius), and the capped minimum is the plain one, which any cap
+    /// allows.
+    #[test]
+    fn a_solid_without_its_own_bounds_gets_the_safe_defaults() {
+        assert_eq!(Ball.axis_radius_mm(), f64::INFINITY);
+        let (a, b) = (Point3::new(-30.0, 15.0, 0.0), Point3::new(30.0, 15.0, 0.0));
+        let plain = Ball.segment_min_mm(&a, &b);
+        assert!((plain - 5.0).abs() <= RESOLUTION_MM, "{plain}");
+        for cap in [0.0, 3.0, 5.0, 100.0] {
+            assert_eq!(Ball.segment_min_capped_mm(&a, &b, cap), plain);
+        }
+    }
+
     /// The nearest spine height on the S-bend against a dense scan of the spine (every 0.01 mm
     /// of height) from random points around the tube: never farther than the scan's best.
     #[test]
