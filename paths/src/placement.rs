@@ -620,10 +620,11 @@ pub fn distances(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Vec<f64> {
             (cursor + WINDOW).min(segments - 1),
         );
         let (best, best_k) = loop {
+            // Compared squared; the root taken once, of the best.
             let (mut best, mut best_k) = (f64::INFINITY, lo);
             for k in lo..=hi {
                 let (a, b) = segment(k);
-                let d = distance_to_segment(p, &a, &b);
+                let d = squared_distance_to_segment(p, &a, &b);
                 if d < best {
                     best = d;
                     best_k = k;
@@ -638,7 +639,7 @@ pub fn distances(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Vec<f64> {
             hi = (hi + WINDOW).min(segments - 1);
         };
         cursor = best_k;
-        out.push(best);
+        out.push(best.sqrt());
     }
     out
 }
@@ -648,6 +649,11 @@ const WINDOW: usize = 32;
 
 /// Distance from `p` to the segment `ab`.
 pub fn distance_to_segment(p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
+    squared_distance_to_segment(p, a, b).sqrt()
+}
+
+/// Squared distance from `p` to the segment `ab`.
+fn squared_distance_to_segment(p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
     let ab = b - a;
     let len2 = ab.norm_squared();
     let t = if len2 > 0.0 {
@@ -655,7 +661,7 @@ pub fn distance_to_segment(p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>) ->
     } else {
         0.0
     };
-    (p - (a + ab * t)).norm()
+    (p - (a + ab * t)).norm_squared()
 }
 
 #[cfg(test)]
