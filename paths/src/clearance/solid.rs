@@ -1326,6 +1326,16 @@ mod tests {
             }
         }
         assert!(inside > 1000 && near > 2000, "{inside} inside, {near} near");
+        // A point on the surface (a vertex: the ray starts on a crossing, so the nearest point
+        // decides) is not inside, as the signed distance (0) says.
+        let mesh = {
+            let raw = triasym::tube(&tilted, 48, 4.0, true).unwrap();
+            prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap().0
+        };
+        let solid = MeshSolid::new(&mesh).unwrap();
+        for v in mesh.vertices().iter().step_by(97) {
+            assert!(!solid.is_inside(v), "vertex {v}");
+        }
     }
 
     /// The distance from the rotation axis bounds every surface point (dense sampling of the
