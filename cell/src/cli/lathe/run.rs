@@ -69,6 +69,10 @@ pub struct LatheRunArgs {
     /// Interrupt rate, Hz (1 … 1000).
     #[arg(long, value_name = "HZ", default_value_t = 200.0)]
     pub rate: f64,
+    /// With `--clock real`: busy-wait this long before each interrupt instead of sleeping
+    /// (default 150 µs; a whole period or more never sleeps, at the cost of a core).
+    #[arg(long, value_name = "MICROSECONDS", default_value_t = 150)]
+    pub spin_us: u64,
     /// Servo amplifier gain K_amp (voltage amplifier, Ch. 7).
     #[arg(long, default_value_t = 0.45)]
     pub k_amp: f64,
@@ -186,7 +190,11 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     };
     let mut sim_clock = SimulatedClock;
     let mut wall = match args.clock {
-        ClockArg::Real => Some(WallClock::new(args.rate).map_err(Failure::input)?),
+        ClockArg::Real => Some(
+            WallClock::new(args.rate)
+                .map_err(Failure::input)?
+                .with_spin(std::time::Duration::from_micros(args.spin_us)),
+        ),
         ClockArg::Sim => None,
     };
     let clock: &mut dyn InterruptClock = match wall.as_mut() {
