@@ -911,6 +911,71 @@ mod tests {
         assert!(tightest > 0.2, "{tightest}");
     }
 
+    /// A capsule asked with a cap, on a mesh mandrel (whose queries honour caps) and beside a
+    /// box: the exact clearance when it is below the cap, otherwise a value from the cap up to
+    /// it, never less; on random capsules around the cylinder at five caps each.
+    #[test]
+    fn capped_capsule_is_exact_below_its_cap_and_a_bound_above() {
+        use crate::mesh::{Closure, DEFAULT_WELD_MM, prepare, triasym};
+        let setup = setup();
+        let tube = Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap();
+        let mesh = {
+            let raw = triasym::tube(&tube, 64, 4.0, true).unwrap();
+            prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap().0
+        };
+        let solid = crate::clearance::MeshSolid::new(&mesh).unwrap();
+        let origin = Vector3::new(setup.robot_distance_mm, 0.0, setup.mandrel_height_mm);
+        let post = origin + Vector3::new(-60.0, 10.0, 80.0);
+        let obstacles = [Obstacle {
+            name: "post".into(),
+            min_mm: Point3::from(post - Vector3::repeat(5.0)),
+            max_mm: Point3::from(post + Vector3::repeat(5.0)),
+        }];
+        let c = cell(&setup, &obstacles);
+        let ctx = Context {
+            cell: &c,
+            solid: &solid,
+            origin,
+        };
+        let mut rng = 0x5851_f42d_4c95_7f2du64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut stopped = 0;
+        for _ in 0..200 {
+            let mut p = || {
+                Point3::from(
+                    origin
+                        + Vector3::new(
+                            -120.0 + 240.0 * next(),
+                            -120.0 + 240.0 * next(),
+                            -20.0 + 220.0 * next(),
+                        ),
+                )
+            };
+            let (a, b) = (p(), p());
+            let phi = next() * std::f64::consts::TAU;
+            let exact = ctx.capsule(&a, &b, 2.0, phi, true, f64::INFINITY).0;
+            for cap in [exact - 5.0, exact - 0.1, exact + 0.1, exact + 5.0, 1.0] {
+                let got = ctx.capsule(&a, &b, 2.0, phi, true, cap).0;
+                if exact < cap - RESOLUTION_MM {
+                    assert!(
+                        (got - exact).abs() <= RESOLUTION_MM,
+                        "{got} vs {exact} below {cap}"
+                    );
+                } else {
+                    assert!(got >= cap - RESOLUTION_MM, "{got} below its cap {cap}");
+                    assert!(got <= exact + RESOLUTION_MM, "{got} above {exact}");
+                    stopped += usize::from(got < exact - 1e-6);
+                }
+            }
+        }
+        assert!(stopped > 20, "{stopped}");
+    }
+
     /// The bound on what the free-fibre sampling can miss: consecutive sampled tow lines are at
     /// most [`TOW_SAMPLE_MM`] of eye travel apart in the mandrel frame.
     #[test]
