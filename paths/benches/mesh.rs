@@ -99,6 +99,51 @@ fn locality(c: &mut Criterion) {
     group.finish();
 }
 
+/// Bounding-volume-hierarchy queries per second on the same two cylinders (shuffled file order,
+/// then sorted), through `MeshSolid::inside_beyond` (the BVH walk along the segment and its
+/// crossing tests): 1000 tow-like segments from just off the surface along a tangent to 100 mm
+/// out. Near its tangent point a segment grazes the surface, through more (smaller) triangles'
+/// boxes on the finer mesh, so the ratio holds that extra work as well as the memory order.
+fn bvh_locality(c: &mut Criterion) {
+    use paths::clearance::{MeshSolid, Solid};
+    let mut group = c.benchmark_group("mesh");
+    let place = |k: usize| {
+        let theta = k as f64 * 2.399_963;
+        let z = 20.0 + (k as f64 * 37.1) % 360.0;
+        (theta.sin_cos(), z)
+    };
+    let tow: Vec<(Point3<f64>, Point3<f64>)> = (0..1000)
+        .map(|k| {
+            let ((s, c), z) = place(k);
+            let t = Point3::new(28.5 * c, 28.5 * s, z);
+            let dir = Vector3::new(-s, c, 0.3).normalize();
+            (t + dir * 0.25, t + dir * 100.0)
+        })
+        .collect();
+    for (facets, rings) in [(192, 121), (768, 457)] {
+        let file = cylinder_in_file_order(facets, rings, "shuffled");
+        let sorted = prepare(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap().0;
+        for (name, mesh) in [("file_order", &file), ("sorted", &sorted)] {
+            let solid = MeshSolid::new(mesh).unwrap();
+            group.throughput(Throughput::Elements(tow.len() as u64));
+            group.bench_function(
+                format!(
+                    "bvh_tow_queries_shuffled_cylinder_{}_triangles_{name}",
+                    mesh.triangles().len()
+                ),
+                |b| {
+                    b.iter(|| {
+                        for (a, e) in &tow {
+                            black_box(solid.inside_beyond(a, e, 0.5));
+                        }
+                    })
+                },
+            );
+        }
+    }
+    group.finish();
+}
+
 fn load(c: &mut Criterion) {
     // 1000 facets × 500 intervals × 2 = 1 000 000 triangles, plus 2000 cap triangles.
     let profile: Vec<(f64, f64)> = (0..=500).map(|i| (i as f64 * 0.7, 28.5)).collect();
@@ -179,5 +224,5 @@ fn coverage(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, trace, locality, load, coverage);
+criterion_group!(benches, trace, locality, bvh_locality, load, coverage);
 criterion_main!(benches);
