@@ -1083,6 +1083,54 @@ N 35 M30;
     }
 
     #[test]
+    fn a_motion_block_carries_all_three_axes() {
+        let b = Block::motion(1.5, -2.0, 0.0);
+        assert_eq!(
+            (b.a_deg, b.x_mm, b.y_mm),
+            (Some(1.5), Some(-2.0), Some(0.0))
+        );
+        assert!(b.moves());
+    }
+
+    #[test]
+    fn a_lone_program_without_m99_or_m30_is_the_main_one() {
+        let p = PartProgram::parse("O 5; X 1; Y 2;").unwrap();
+        assert_eq!(p.main().unwrap().number, 5);
+        assert_eq!(p.expand().unwrap().targets().count(), 2);
+    }
+
+    /// `MAX_CALL_DEPTH` calls within calls are accepted, one more is refused.
+    #[test]
+    fn call_depth_is_accepted_up_to_its_limit() {
+        let chain = |depth: usize| {
+            let mut text = String::new();
+            for k in 1..depth {
+                text.push_str(&format!("O {k}; M98 P {}; M99;\n", k + 1));
+            }
+            text.push_str(&format!("O {depth}; X 1; M99;\nO 100; M98 P 1; M30;\n"));
+            PartProgram::parse(&text).unwrap().expand()
+        };
+        assert!(chain(MAX_CALL_DEPTH).is_ok());
+        assert!(chain(MAX_CALL_DEPTH + 1).is_err());
+    }
+
+    #[test]
+    fn whole_number_words_refuse_fractions_signs_overlong_and_overlarge_values() {
+        for text in [
+            "O 1; N 1.5 X 1; M30;",
+            "O 1; N -5 X 1; M30;",
+            "O 1; N 12345678901 X 1; M30;",
+            "O 1; N 100000 X 1; M30;",
+            "O 1; G 100; M30;",
+            "O 1; M98 P 2 L 10000; M30;\nO 2; X 1; M99;",
+        ] {
+            let e = err(text);
+            assert!(e.contains("is not a whole number"), "{text}: {e}");
+        }
+        assert!(PartProgram::parse("O 1; N 99999 X 1; M30;").is_ok());
+    }
+
+    #[test]
     fn deep_or_huge_expansions_are_refused() {
         let mut text = String::new();
         for k in 1..=12 {
