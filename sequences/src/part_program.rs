@@ -1082,6 +1082,17 @@ N 35 M30;
         assert_eq!(main.blocks[1].comment.as_deref(), Some("out"));
     }
 
+    /// The written layout: `%`, the first program at once, a blank line before each later one.
+    #[test]
+    fn written_programs_are_separated_by_one_blank_line() {
+        let text = PartProgram::parse(FIG_9_1).unwrap().to_string();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(&lines[..2], &["%", "O 999;"]);
+        let second = lines.iter().position(|l| *l == "O 998;").unwrap();
+        assert_eq!(lines[second - 1], "");
+        assert_eq!(lines.iter().filter(|l| l.is_empty()).count(), 1);
+    }
+
     #[test]
     fn a_motion_block_carries_all_three_axes() {
         let b = Block::motion(1.5, -2.0, 0.0);
