@@ -254,13 +254,7 @@ mod tests {
 
     /// A 1-Lipschitz saw of notches: `count` dips of random depth and place on a level of 3.
     fn notches(seed: u64, count: usize) -> Vec<(f64, f64)> {
-        let mut x = seed;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::clearance::test_support::uniform(seed);
         (0..count).map(|_| (next(), 4.0 * next())).collect()
     }
 

@@ -210,3 +210,32 @@ mod tests {
         assert!(d([-5.0, 5.0, 5.0], [15.0, 5.0, 5.0]) < 1e-9);
     }
 }
+
+/// Shared by the clearance tests.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use crate::{Spine, Tube};
+
+    /// The S-bend of seed 001 Table 6.1, smoothed as the examples smooth it, radius 28.5 mm.
+    pub(crate) fn sbend_tube() -> Tube {
+        Tube::new(
+            Spine::smoothing(
+                &crate::spine::SBEND_TABLE_6_1_MM,
+                crate::spine::SBEND_SMOOTHING_MM,
+            )
+            .unwrap(),
+            28.5,
+        )
+        .unwrap()
+    }
+
+    /// A reproducible stream of numbers uniform in `[0, 1)` (xorshift64 from `seed`).
+    pub(crate) fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+}

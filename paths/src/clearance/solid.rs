@@ -870,7 +870,7 @@ impl Solid for MeshSolid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Spine;
+    use crate::clearance::test_support::{sbend_tube, uniform};
     use crate::mesh::{Closure, DEFAULT_WELD_MM, prepare, triasym};
 
     /// Distance from `p` to triangle `abc`: to the plane when the foot lies inside (signed areas),
@@ -901,13 +901,7 @@ mod tests {
         let raw = triasym::tube(&tube, 24, 10.0, true).unwrap();
         let (mesh, _) = prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap();
         let solid = MeshSolid::new(&mesh).unwrap();
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform(0x2545_f491_4f6c_dd1du64);
         let mut worst = 0.0f64;
         for _ in 0..10_000 {
             let p = Point3::new(
@@ -935,13 +929,7 @@ mod tests {
         let raw = triasym::tube(&tube, 24, 10.0, true).unwrap();
         let (mesh, _) = prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap();
         let solid = MeshSolid::new(&mesh).unwrap();
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform(0x9e37_79b9_7f4a_7c15u64);
         let point = |u: &mut dyn FnMut() -> f64| {
             Point3::new(
                 -90.0 + 180.0 * u(),
@@ -1034,13 +1022,7 @@ mod tests {
         let analytic = TubeSolid::new(&tube);
         let sagitta = r * (1.0 - (std::f64::consts::PI / 128.0).cos());
         let tolerance = 0.01;
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform(0x2545_f491_4f6c_dd1du64);
         let (mut snags, mut clear) = (0, 0);
         for _ in 0..400 {
             // A line through a point at r + ρ from the axis, in a random direction across it.
@@ -1091,15 +1073,7 @@ mod tests {
 
     #[test]
     fn segment_minimum_matches_dense_sampling_on_tubes_and_meshes() {
-        let sbend = Tube::new(
-            Spine::smoothing(
-                &crate::spine::SBEND_TABLE_6_1_MM,
-                crate::spine::SBEND_SMOOTHING_MM,
-            )
-            .unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let sbend = sbend_tube();
         let cylinder = Tube::cylinder(57.0, 200.0, 30.0, 30.0).unwrap();
         let mesh = {
             let raw = triasym::tube(&cylinder, 64, 5.0, true).unwrap();
@@ -1146,15 +1120,7 @@ mod tests {
     /// and the plain one (a true lower bound). Caps below, near and above each segment's minimum.
     #[test]
     fn capped_segment_minimum_is_exact_below_the_cap_and_a_bound_above() {
-        let sbend = Tube::new(
-            Spine::smoothing(
-                &crate::spine::SBEND_TABLE_6_1_MM,
-                crate::spine::SBEND_SMOOTHING_MM,
-            )
-            .unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let sbend = sbend_tube();
         let cylinder = Tube::cylinder(57.0, 200.0, 30.0, 30.0).unwrap();
         let mesh = {
             let raw = triasym::tube(&cylinder, 64, 5.0, true).unwrap();
@@ -1164,13 +1130,7 @@ mod tests {
             Box::new(TubeSolid::new(&sbend)),
             Box::new(MeshSolid::new(&mesh).unwrap()),
         ];
-        let mut rng = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(0x2545_f491_4f6c_dd1du64);
         let mut capped_below = 0;
         for solid in &solids {
             for _ in 0..60 {
@@ -1231,15 +1191,7 @@ mod tests {
     /// of height) from random points around the tube: never farther than the scan's best.
     #[test]
     fn nearest_spine_height_is_the_global_one() {
-        let tube = Tube::new(
-            Spine::smoothing(
-                &crate::spine::SBEND_TABLE_6_1_MM,
-                crate::spine::SBEND_SMOOTHING_MM,
-            )
-            .unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let tube = sbend_tube();
         let solid = TubeSolid::new(&tube);
         let spine = tube.spine();
         let (u0, u1) = (tube.u_min(), tube.u_max());
@@ -1250,13 +1202,7 @@ mod tests {
                 (u, spine.offset_mm(u))
             })
             .collect();
-        let mut rng = 0x1234_5678_9abc_def1u64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(0x1234_5678_9abc_def1u64);
         for _ in 0..300 {
             let p = Point3::new(
                 -120.0 + 300.0 * next(),
@@ -1278,23 +1224,9 @@ mod tests {
     /// points in and around two meshes, many within a millimetre of the surface.
     #[test]
     fn ray_inside_test_agrees_with_the_nearest_point() {
-        let sbend = Tube::new(
-            Spine::smoothing(
-                &crate::spine::SBEND_TABLE_6_1_MM,
-                crate::spine::SBEND_SMOOTHING_MM,
-            )
-            .unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let sbend = sbend_tube();
         let tilted = Tube::cylinder(57.0, 200.0, 30.0, -20.0).unwrap();
-        let mut rng = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(0x9e37_79b9_7f4a_7c15u64);
         let (mut inside, mut near) = (0, 0);
         for tube in [&sbend, &tilted] {
             let mesh = {
@@ -1343,15 +1275,7 @@ mod tests {
     /// tilted section's circle and the sampling step's slope term).
     #[test]
     fn axis_radius_bounds_every_surface_point() {
-        let sbend = Tube::new(
-            Spine::smoothing(
-                &crate::spine::SBEND_TABLE_6_1_MM,
-                crate::spine::SBEND_SMOOTHING_MM,
-            )
-            .unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let sbend = sbend_tube();
         let tilted = Tube::cylinder(57.0, 200.0, 30.0, -20.0).unwrap();
         for tube in [&sbend, &tilted] {
             let solid = TubeSolid::new(tube);
@@ -1383,15 +1307,7 @@ mod tests {
 
     #[test]
     fn surface_points_lie_on_the_surface() {
-        let tube = Tube::new(
-            Spine::smoothing(
-                &crate::spine::SBEND_TABLE_6_1_MM,
-                crate::spine::SBEND_SMOOTHING_MM,
-            )
-            .unwrap(),
-            28.5,
-        )
-        .unwrap();
+        let tube = sbend_tube();
         let solid = TubeSolid::new(&tube);
         for p in [
             Point3::new(10.0, 10.0, 100.0),

@@ -667,6 +667,7 @@ fn note_worst(
 mod tests {
     use super::*;
     use crate::clearance::TubeSolid;
+    use crate::clearance::test_support::uniform;
     use crate::geodesic::{self, Direction, PathStart};
     use crate::plan::{ENTRY_ANGLE_MAX_DEG, plan};
     use crate::segment::equal_length;
@@ -937,13 +938,7 @@ mod tests {
             solid: &solid,
             origin,
         };
-        let mut rng = 0x5851_f42d_4c95_7f2du64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(0x5851_f42d_4c95_7f2du64);
         let mut stopped = 0;
         for _ in 0..200 {
             let mut p = || {
