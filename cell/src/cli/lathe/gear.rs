@@ -36,18 +36,8 @@ pub struct LatheGearArgs {
 
 /// Runs `windcell lathe gear`.
 pub fn run(args: LatheGearArgs) -> Result<(), Failure> {
-    if !(1.0..=1000.0).contains(&args.rate) {
-        return Err(Failure::input(format!(
-            "--rate: {} Hz is outside 1 … 1000 Hz",
-            args.rate
-        )));
-    }
-    if !(args.k_amp > 0.0 && args.k_amp <= 8.0) {
-        return Err(Failure::input(format!(
-            "--k-amp: {} is outside (0, 8] (Ch. 7)",
-            args.k_amp
-        )));
-    }
+    super::check_rate(args.rate)?;
+    super::check_k_amp(args.k_amp)?;
     let setup = cell::lathe::Setup {
         amplifier: Amplifier::Voltage { k_amp: args.k_amp },
         interrupt_hz: args.rate,

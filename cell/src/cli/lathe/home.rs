@@ -42,12 +42,7 @@ pub fn run(args: LatheHomeArgs) -> Result<(), Failure> {
             args.from
         )));
     };
-    if !(args.k_amp > 0.0 && args.k_amp <= 8.0) {
-        return Err(Failure::input(format!(
-            "--k-amp: {} is outside (0, 8] (Ch. 7)",
-            args.k_amp
-        )));
-    }
+    super::check_k_amp(args.k_amp)?;
     let setup = cell::lathe::Setup {
         amplifier: Amplifier::Voltage { k_amp: args.k_amp },
         counter_start: args.counter_start,

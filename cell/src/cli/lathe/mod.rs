@@ -47,3 +47,23 @@ pub fn run(args: LatheArgs) -> Result<(), Failure> {
         LatheCommand::Gear(a) => gear::run(a),
     }
 }
+
+/// `--rate`: the interrupt rate the controller runs at, 1 … 1000 Hz.
+fn check_rate(hz: f64) -> Result<(), Failure> {
+    if !(1.0..=1000.0).contains(&hz) {
+        return Err(Failure::input(format!(
+            "--rate: {hz} Hz is outside 1 … 1000 Hz"
+        )));
+    }
+    Ok(())
+}
+
+/// `--k-amp`: the voltage amplifier's gain, (0, 8] (seed 000 Ch. 7).
+fn check_k_amp(k_amp: f64) -> Result<(), Failure> {
+    if !(k_amp > 0.0 && k_amp <= 8.0) {
+        return Err(Failure::input(format!(
+            "--k-amp: {k_amp} is outside (0, 8] (Ch. 7)"
+        )));
+    }
+    Ok(())
+}

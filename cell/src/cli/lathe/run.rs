@@ -124,12 +124,7 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     if !(feed > 0.0 && feed.is_finite()) {
         return Err(Failure::input(format!("--feed: {feed} must be > 0")));
     }
-    if !(1.0..=1000.0).contains(&args.rate) {
-        return Err(Failure::input(format!(
-            "--rate: {} Hz is outside 1 … 1000 Hz",
-            args.rate
-        )));
-    }
+    super::check_rate(args.rate)?;
     if args.circuits_per_layer == 0 {
         return Err(Failure::input("--circuits-per-layer: must be ≥ 1"));
     }

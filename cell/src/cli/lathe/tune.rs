@@ -29,12 +29,7 @@ pub struct LatheTuneArgs {
 
 /// Runs `windcell lathe tune`.
 pub fn run(args: LatheTuneArgs) -> Result<(), Failure> {
-    if !(args.k_amp > 0.0 && args.k_amp <= 8.0) {
-        return Err(Failure::input(format!(
-            "--k-amp: {} is outside (0, 8] (Ch. 7)",
-            args.k_amp
-        )));
-    }
+    super::check_k_amp(args.k_amp)?;
     if !(args.rate > 0.0 && args.rate.is_finite()) {
         return Err(Failure::input(format!("--rate: {} must be > 0", args.rate)));
     }
