@@ -24,7 +24,7 @@ use nalgebra::{Point3, Vector3};
 
 pub use crate::robot::Capsule;
 pub use minimum::{Minimum, certified_min, certified_min_below};
-pub use solid::{MeshSolid, Solid, TubeSolid};
+pub use solid::{MeshSolid, Solid, TubeSolid, WalkWork};
 pub use sweep::{Finding, Part, Report, SegmentClearance, sweep};
 
 /// Depth by which the free fibre may pass inside the mandrel before it is a snag, mm.

@@ -430,6 +430,15 @@ impl MeshSolid {
     }
 }
 
+/// What one walk of the bounding-volume hierarchy tested ([`MeshSolid::segment_walk_work`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct WalkWork {
+    /// Bounding boxes (inner nodes and leaves) tested against the segment.
+    pub boxes: u64,
+    /// Triangles reached (their leaf box meets the segment), each tested for a crossing.
+    pub triangles: u64,
+}
+
 /// Crossings of a segment with the surface closer together than this (in mm along the segment)
 /// are one crossing (an edge or a vertex shared by several triangles).
 const SAME_CROSSING_MM: f64 = 1e-7;
@@ -569,6 +578,31 @@ impl MeshSolid {
         let (projection, (triangle, _)) = self.shape.project_local_point_and_get_location(q, false);
         let d = (projection.point - q).length();
         (if projection.is_inside { -d } else { d }, triangle)
+    }
+
+    /// The work of walking the bounding-volume hierarchy along the segment `a–b`, as
+    /// [`Solid::inside_beyond`] walks it to find the segment's crossings: the boxes tested and
+    /// the triangles whose boxes the segment meets (each then tested for a crossing). A measure
+    /// of work, not of geometry: the benchmarks divide query time by it (`docs/benchmarks.md`,
+    /// "Face order and locality"), so that a finer mesh's larger walk is not counted as a loss
+    /// of memory locality.
+    pub fn segment_walk_work(&self, a: &Point3<f64>, b: &Point3<f64>) -> WalkWork {
+        let d = b - a;
+        let origin = to_parry(a);
+        let inv = Vector::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+        let boxes = std::cell::Cell::new(0u64);
+        let triangles = self
+            .shape
+            .bvh()
+            .leaves(|node| {
+                boxes.set(boxes.get() + 1);
+                segment_meets_box(&origin, &inv, node.mins(), node.maxs())
+            })
+            .count() as u64;
+        WalkWork {
+            boxes: boxes.get(),
+            triangles,
+        }
     }
 
     /// True when `p` is inside: outside the mesh's bounding box without a query; within it, by
@@ -957,6 +991,49 @@ mod tests {
             crossing_seen |= d == 0.0;
         }
         assert!(crossing_seen, "no segment crossed the surface");
+    }
+
+    /// The walk's work counter: every triangle a segment crosses (found by testing all of them)
+    /// is among those the walk reaches; a segment far from the mesh reaches none after the
+    /// root's boxes; and the walk reaches far fewer than all triangles.
+    #[test]
+    fn walk_work_reaches_every_crossed_triangle_and_few_others() {
+        let tube = Tube::cylinder(57.0, 120.0, 0.0, 0.0).unwrap();
+        let raw = triasym::tube(&tube, 48, 5.0, true).unwrap();
+        let (mesh, _) = prepare(&raw, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        let solid = MeshSolid::new(&mesh).unwrap();
+        let all = mesh.triangles().len() as u64;
+        let mut uniform = uniform(0x5851_f42d_4c95_7f2du64);
+        let mut crossed_total = 0;
+        for _ in 0..40 {
+            let mut p = || {
+                Point3::new(
+                    -60.0 + 120.0 * uniform(),
+                    -60.0 + 120.0 * uniform(),
+                    -10.0 + 140.0 * uniform(),
+                )
+            };
+            let (a, b) = (p(), p());
+            let crossed = (0..mesh.triangles().len())
+                .filter(|&t| matches!(crossing(&a, &(b - a), mesh.corners(t)), Some(Some(_))))
+                .count() as u64;
+            crossed_total += crossed;
+            let work = solid.segment_walk_work(&a, &b);
+            assert!(work.triangles >= crossed, "{a} {b}: {work:?} < {crossed}");
+            assert!(work.boxes > work.triangles, "{work:?}");
+            assert!(work.triangles < all / 4, "{a} {b}: {work:?} of {all}");
+        }
+        assert!(crossed_total > 20, "too few crossings: {crossed_total}");
+        let far =
+            solid.segment_walk_work(&Point3::new(500.0, 0.0, 0.0), &Point3::new(600.0, 0.0, 0.0));
+        // parry3d keeps the root as a pair of boxes: both are tested, neither met.
+        assert_eq!(
+            far,
+            WalkWork {
+                boxes: 2,
+                triangles: 0
+            }
+        );
     }
 
     /// The free fibre on a mesh: a straight line through a cylinder mesh at a known distance from
