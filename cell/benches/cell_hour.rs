@@ -1,7 +1,9 @@
 //! Criterion: one simulated hour of the whole cell on its one virtual clock: the robot running a
 //! stored program of 420 positionings (300 mm strokes at 35 mm/s, about an hour of motion) while
-//! the indexer turns the mandrel continuously, both simulators and the sync lines polled every
-//! `simcell::TICK` (5 ms), 720 000 polls. Target: under 100 ms.
+//! the indexer turns the mandrel continuously. The cell advances from event to event (each
+//! move's end, the link's timers); for comparison, the same hour with an observer attached, which
+//! polls both simulators and the sync lines every `simcell::TICK` (5 ms, 720 000 polls).
+//! Target: under 100 ms.
 //! `cargo bench -p cell --bench cell_hour` (docs/benchmarks.md, "Simulators").
 
 use std::time::Duration;
@@ -11,7 +13,7 @@ use asea_protocol::command::{Control, Instruction};
 use asea_protocol::frame::Frame;
 use asea_protocol::{Command, Flags, FrameConfig, Pose, Positioning, Speed, Zone};
 use cell::device::Timebase as _;
-use cell::simcell::{SimCell, SimCellConfig};
+use cell::simcell::{Observer, SimCell, SimCellConfig};
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use mandrel_drive::sim::Frontend as _;
 
@@ -27,8 +29,20 @@ fn frame(cmd: &Command) -> Frame {
 
 /// A homed robot running its program and a mandrel turning at 0.5 motor rev/s, at cell time 4 s.
 fn started() -> SimCell {
+    started_with(false)
+}
+
+/// As [`started`], with an observer attached: the cell is then polled every tick.
+fn started_ticked() -> SimCell {
+    started_with(true)
+}
+
+fn started_with(ticked: bool) -> SimCell {
     let cell = SimCell::new(&SimCellConfig::default());
     cell.with(|p| {
+        if ticked {
+            p.observer = Some(Observer(Box::new(|_, _, _, _| {})));
+        }
         let m = &mut p.robot.machine;
         for n in 1..=POINTS {
             let z = if n % 2 == 0 { 500.0 } else { 800.0 };
@@ -86,6 +100,10 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     g.bench_function("one_hour_robot_and_indexer_one_clock", |b| {
         b.iter_batched(started, hour, BatchSize::PerIteration)
+    });
+    assert_eq!(hour(started_ticked()), hour(started()));
+    g.bench_function("one_hour_polled_every_tick", |b| {
+        b.iter_batched(started_ticked, hour, BatchSize::PerIteration)
     });
     g.finish();
 }

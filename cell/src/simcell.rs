@@ -8,8 +8,13 @@
 //! serial lines at `baud`, paced in the same virtual time.
 //!
 //! Time is one [`VirtualClock`]: it moves only when the coordinator waits (a link read, a
-//! [`Timebase::sleep`]), and then both simulators and the lines run to the new time, polled every
-//! [`TICK`] and exactly at each line edge's arrival. A whole S-bend batch runs in milliseconds.
+//! [`Timebase::sleep`]), and then both simulators and the lines run to the new time, polled at
+//! each event that can change the cell: a move's end on either device, a reset's end, a byte's
+//! arrival, a line edge's arrival through its opto-isolator, a link timer. Between events each
+//! simulator's motion is in closed form, so nothing is lost by not looking (a test compares a
+//! long sleep with polling every [`TICK`]). While a [`Trace`] or an [`Observer`] samples the
+//! motion the cell is also polled every [`TICK`]. An hour of winding runs in a fraction of a
+//! millisecond.
 //!
 //! Both simulators can log every instruction they execute as JSON lines (docs/file-formats.md,
 //! "Simulator logs") with the cell's clock time.
@@ -476,18 +481,41 @@ impl Peer for CellPeer {
         out
     }
 
+    /// The next time anything in the cell can change on its own: the robot link's timers, the
+    /// robot's and the indexer's next mechanical events (a move's end, a reset's end; every
+    /// [`TICK`] while the indexer ramps towards a rate its translator cannot pass), a byte
+    /// reaching the card, an edge crossing an opto-isolator. While a [`Trace`] or an
+    /// [`Observer`] watches the motion, also every [`TICK`] (they sample the cell at each poll).
+    /// Between these events nothing is polled: an hour of steady winding is a few thousand polls.
     fn deadline(&self) -> Option<Duration> {
-        let mut d = self.last_poll + TICK;
+        let mut d: Option<Duration> = None;
+        let mut at = |t: Duration| d = Some(d.map_or(t, |x: Duration| x.min(t)));
+        if self.trace.is_some() || self.observer.is_some() {
+            at(self.last_poll + TICK);
+        }
         if let Some(r) = self.robot.deadline() {
-            d = d.min(r);
+            at(r);
+        }
+        // A mechanical event the last poll did not reach (rounding of the clock) is polled
+        // again a microsecond later, never in a loop at one instant.
+        let mechanical = |t_s: f64| {
+            Duration::try_from_secs_f64(t_s.max(0.0))
+                .unwrap_or(Duration::MAX)
+                .max(self.last_poll + Duration::from_micros(1))
+        };
+        if let Some(t) = self.robot.machine.next_event_s() {
+            at(mechanical(t));
+        }
+        if let Some(t) = self.card.next_event_s(TICK.as_secs_f64()) {
+            at(mechanical(t));
         }
         if let Some(&(t, _)) = self.to_card.front() {
-            d = d.min(t);
+            at(t);
         }
         if let Some(e) = self.edge_due {
-            d = d.min(e);
+            at(e);
         }
-        Some(d)
+        d
     }
 }
 
@@ -686,14 +714,17 @@ impl mandrel_drive::Link for SimIndexerLink {
             if now >= deadline {
                 return Ok(0);
             }
-            let next = w
+            // Up to the first byte due, or the cell's next event (which may queue an earlier
+            // one: the card's answer when its move ends).
+            let mut next = w
                 .peer
                 .from_card
                 .front()
                 .map_or(deadline, |(t, _)| (*t).min(deadline));
-            let step = next
-                .saturating_sub(now)
-                .clamp(Duration::from_nanos(1), TICK);
+            if let Some(event) = w.peer.deadline() {
+                next = next.min(event);
+            }
+            let step = next.saturating_sub(now).max(Duration::from_nanos(1));
             w.run_for(step);
         }
     }

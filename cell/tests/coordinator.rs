@@ -830,3 +830,79 @@ fn an_interrupted_link_refuses_its_exchanges_but_the_stops_go_through() {
     assert_eq!(d.robot.state().unwrap().state, State::Stopped);
     assert!(!d.mandrel.busy().unwrap().0);
 }
+
+/// The simulated cell polls its devices only when something can change (a move's end, a byte,
+/// an edge, a link timer). Polled besides at every `TICK` (as it is while an observer watches),
+/// the same batch gives the same moves in the same order, and each within a few ticks of the
+/// same time: the events a tick would find late are found on time.
+#[test]
+fn event_driven_polling_winds_as_polling_every_tick_does() {
+    let l = sbend(Some(RunMode::Fine));
+    let b = checked(&l);
+    let dir = tempfile::tempdir().unwrap();
+    let run = |ticked: bool| {
+        let cell = SimCell::new(&SimCellConfig::default());
+        if ticked {
+            cell.with(|p| p.observer = Some(cell::simcell::Observer(Box::new(|_, _, _, _| {}))))
+                .unwrap();
+        }
+        let jp = dir.path().join(format!("SBEND{ticked}.journal"));
+        wind(
+            &cell,
+            &b,
+            Journal::create(&jp).unwrap(),
+            &ResumePoint::default(),
+            true,
+            None,
+        )
+        .unwrap();
+        let log = cell.with(|p| p.log.clone()).unwrap();
+        (log, cell.clock().now_s())
+    };
+    let (evented, evented_end) = run(false);
+    let (ticked, ticked_end) = run(true);
+    assert_eq!(evented.len(), ticked.len());
+    let t = |r: &LogRecord| match r {
+        LogRecord::Robot { t_s, .. } | LogRecord::Indexer { t_s, .. } => *t_s,
+    };
+    let mut worst: f64 = 0.0;
+    for (e, k) in evented.iter().zip(&ticked) {
+        match (e, k) {
+            (
+                LogRecord::Robot {
+                    program: p1,
+                    instruction: i1,
+                    target_mm: m1,
+                    completed: c1,
+                    ..
+                },
+                LogRecord::Robot {
+                    program: p2,
+                    instruction: i2,
+                    target_mm: m2,
+                    completed: c2,
+                    ..
+                },
+            ) => assert_eq!((p1, i1, m1, c1), (p2, i2, m2, c2)),
+            (
+                LogRecord::Indexer {
+                    steps: s1,
+                    completed: c1,
+                    ..
+                },
+                LogRecord::Indexer {
+                    steps: s2,
+                    completed: c2,
+                    ..
+                },
+            ) => assert_eq!((s1, c1), (s2, c2)),
+            _ => panic!("{e:?} vs {k:?}"),
+        }
+        worst = worst.max((t(e) - t(k)).abs());
+    }
+    eprintln!(
+        "{} records, worst time difference {worst:.4} s, ends {evented_end:.3} vs {ticked_end:.3} s",
+        evented.len()
+    );
+    assert!(worst < 0.05, "worst time difference {worst} s");
+}

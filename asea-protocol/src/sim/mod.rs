@@ -641,6 +641,24 @@ impl Machine {
         }
     }
 
+    /// When the machine next changes on its own (clock time, s): the end of the current move
+    /// (the next instruction starts, or the in-position output rises), the end of a stop's
+    /// deceleration, or the end of home synchronisation. `None` when idle or waiting for an
+    /// input (only a telegram or an input edge can change anything). Advancing at these times,
+    /// and whenever a telegram or an edge arrives, gives the same states at the same times as
+    /// advancing at every instant.
+    pub fn next_event_s(&self) -> Option<f64> {
+        match &self.activity {
+            Activity::Idle | Activity::Waiting { .. } => None,
+            Activity::Homing { until } => Some(*until),
+            Activity::Stopping { traj } => Some(traj.t1()),
+            Activity::Moving { traj, .. } => Some(
+                traj.move_at(self.now_s)
+                    .map_or_else(|| traj.t1(), |m| m.t1()),
+            ),
+        }
+    }
+
     /// Lets time run to `now_s`: moves progress, programs continue, homing completes.
     pub fn advance(&mut self, now_s: f64) {
         let now_s = now_s.max(self.now_s);
@@ -948,6 +966,61 @@ mod tests {
         m.execute(&frame(Command::AckError { seq: s.error_seq }), 12.0);
         assert_eq!(m.last_error(), RobotError::NoProgram.code());
         assert_eq!(m.error_seq(), s.error_seq.wrapping_add(1));
+    }
+
+    /// The machine names the instants it changes on its own: the end of home synchronisation,
+    /// the end of a move (in-position rises there, not a microsecond earlier), and nothing while
+    /// idle or waiting for an input.
+    #[test]
+    fn next_event_is_where_the_state_changes() {
+        let mut m = Machine::default();
+        assert_eq!(m.next_event_s(), None, "standby");
+        m.execute(&frame(Command::Operate), 0.0);
+        m.execute(&frame(Command::SyncHome), 0.0);
+        let homed_at = m.next_event_s().unwrap();
+        assert!(homed_at > 0.0);
+        m.advance(homed_at - 1e-6);
+        assert!(!m.homed());
+        m.advance(homed_at);
+        assert!(m.homed());
+        assert_eq!(m.next_event_s(), None, "idle");
+
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 300.0, 800.0],
+                Reference::Absolute,
+            ))),
+            10.0,
+        );
+        let end = m.next_event_s().unwrap();
+        assert_eq!(end, m.trajectory().unwrap().t1());
+        assert!(end > 10.0);
+        m.advance(end - 1e-6);
+        assert!(!m.io().output(IN_POSITION_OUTPUT));
+        m.advance(end);
+        assert!(m.io().output(IN_POSITION_OUTPUT));
+        assert_eq!(m.next_event_s(), None);
+
+        // A stop names the end of its braking ramp.
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, -300.0, 800.0],
+                Reference::Absolute,
+            ))),
+            20.0,
+        );
+        let planned = m.next_event_s().unwrap();
+        m.advance(20.2);
+        m.execute(&frame(Command::Stop), 20.2);
+        let braked = m.next_event_s().unwrap();
+        assert!(braked > 20.2 && braked < planned, "{braked} {planned}");
+        let y = |m: &mut Machine, t: f64| {
+            m.advance(t);
+            m.pose().xyz_mm[1]
+        };
+        let at_end = y(&mut m, braked);
+        assert_eq!(y(&mut m, braked + 1.0), at_end, "at rest after the ramp");
+        assert_eq!(m.next_event_s(), None);
     }
 
     #[test]

@@ -84,6 +84,9 @@ pub struct Machine {
     lost_steps: u64,
     now_s: f64,
     completed_s: Option<f64>,
+    /// Clock time of the current preset move's last step, computed when the motion starts or
+    /// changes ([`Machine::next_event_s`]).
+    predicted_end_s: Option<f64>,
 }
 
 impl Machine {
@@ -112,6 +115,7 @@ impl Machine {
             lost_steps: 0,
             now_s: 0.0,
             completed_s: None,
+            predicted_end_s: None,
         }
     }
 
@@ -167,8 +171,39 @@ impl Machine {
             if m.is_done() {
                 self.completed_s = Some(m.last_step_s());
                 self.motion = None;
+                self.predicted_end_s = None;
             }
         }
+    }
+
+    /// When the drive next needs [`Machine::advance`] for its timing to be exact (clock time,
+    /// s): the end of a reset; the last step of a preset move (the card's completion, which
+    /// releases its buffered commands); and, while a ramp runs towards a rate above the
+    /// translator's pulse limit, `sample_s` after the drive's clock, since the share of pulses
+    /// the translator passes is taken from each advance's mean rate. `None` when nothing is due
+    /// (at rest, or cruising without end): the drive then gives the same result however seldom
+    /// it is advanced.
+    pub fn next_event_s(&self, sample_s: f64) -> Option<f64> {
+        let mut due: Option<f64> = None;
+        let mut at = |t: f64| due = Some(due.map_or(t, |d: f64| d.min(t)));
+        if self.now_s < self.reset_until_s {
+            at(self.reset_until_s);
+        }
+        if let Some((m, _)) = &self.motion {
+            if let Some(end) = self.predicted_end_s {
+                at(end);
+            }
+            let limit = self.drive.pulse_limit_pps;
+            if m.is_ramping() && m.target_sps().max(m.rate_sps()) > limit {
+                at(self.now_s + sample_s);
+            }
+        }
+        due
+    }
+
+    /// Recomputes the end of the current preset move after its motion changed.
+    fn predict_end(&mut self) {
+        self.predicted_end_s = self.motion.as_ref().and_then(|(m, _)| m.end_s());
     }
 
     /// Commanded steps from rate `from_sps` before a ramp at the profile's acceleration towards
@@ -217,6 +252,7 @@ impl Machine {
             let m = Motion::preset(self.profile, steps.unsigned_abs(), self.now_s);
             self.motion = Some((m, steps.signum()));
         }
+        self.predict_end();
         Ok(())
     }
 
@@ -231,6 +267,7 @@ impl Machine {
             if self.profile.vmax_sps > v {
                 self.follow_steps = self.steps_before_pull_out(v, self.profile.vmax_sps);
             }
+            self.predict_end();
             return Ok(());
         }
         self.move_start_steps = self.counter_steps;
@@ -245,6 +282,7 @@ impl Machine {
         } else {
             self.motion = None;
         }
+        self.predict_end();
         Ok(())
     }
 
@@ -253,16 +291,19 @@ impl Machine {
         if let Some((m, _)) = self.motion.as_mut() {
             m.decelerate();
         }
+        self.predict_end();
     }
 
     /// Stops at once (no deceleration).
     pub fn kill(&mut self) {
         self.motion = None;
+        self.predicted_end_s = None;
     }
 
     /// Power-up reset: stops, zeroes the counters, clears the stall, busy for `busy_s`.
     pub fn reset(&mut self, busy_s: f64) {
         self.motion = None;
+        self.predicted_end_s = None;
         self.counter_steps = 0;
         self.move_start_steps = 0;
         self.motor_steps = 0;
@@ -561,5 +602,79 @@ mod tests {
         m.advance(1.3);
         assert!(!m.is_busy());
         m.start_preset(10).unwrap();
+    }
+
+    /// Advanced only at the times it names, the drive completes its moves at the instants it
+    /// completes them when advanced every millisecond: the event-driven simulated cell relies
+    /// on this.
+    #[test]
+    fn next_event_is_the_completion() {
+        let p = StepProfile {
+            v0_sps: 200.0,
+            vmax_sps: 2_000.0,
+            accel_sps2: 4_000.0,
+        };
+        let mut polled = Machine::new(Drive::default(), PULL_IN_SPS);
+        polled.profile = p;
+        let mut evented = polled.clone();
+        assert_eq!(evented.next_event_s(1e-3), None, "at rest");
+        for m in [&mut polled, &mut evented] {
+            m.advance(0.25);
+            m.start_preset(-1846).unwrap();
+        }
+        run(&mut polled);
+        let mut events = 0;
+        while let Some(t) = evented.next_event_s(1e-3) {
+            assert!(t > evented.now_s());
+            evented.advance(t);
+            events += 1;
+            assert!(events < 10);
+        }
+        assert_eq!(events, 1, "one event: the last step");
+        assert!(!evented.is_moving());
+        assert_abs_diff_eq!(
+            evented.completed_s().unwrap(),
+            polled.completed_s().unwrap(),
+            epsilon = 1e-9
+        );
+        assert_eq!(evented.counter_steps(), polled.counter_steps());
+        assert_eq!(evented.counter_steps(), -1846);
+        // A reset is due at its end.
+        evented.reset(0.5);
+        let due = evented.next_event_s(1e-3).unwrap();
+        assert_abs_diff_eq!(due, evented.now_s() + 0.5, epsilon = 1e-12);
+        evented.advance(due);
+        assert!(!evented.is_busy());
+        assert_eq!(evented.next_event_s(1e-3), None);
+        // A stop during a continuous run brings the braking ramp's end forward.
+        evented.start_continuous(1).unwrap();
+        assert_eq!(
+            evented.next_event_s(1e-3),
+            None,
+            "no end, under the pulse limit"
+        );
+        evented.advance(due + 2.0);
+        evented.stop();
+        let end = evented.next_event_s(1e-3).unwrap();
+        assert_abs_diff_eq!(end, due + 2.0 + (2_000.0 - 200.0) / 4_000.0, epsilon = 2e-3);
+        evented.advance(end);
+        assert!(!evented.is_moving());
+    }
+
+    /// Towards a rate the translator cannot pass, the drive asks to be sampled finely while it
+    /// ramps (the share of pulses passed follows the mean rate of each advance), and not once it
+    /// cruises.
+    #[test]
+    fn ramping_past_the_pulse_limit_is_sampled() {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = StepProfile {
+            v0_sps: 200.0,
+            vmax_sps: 12_500.0,
+            accel_sps2: 50_000.0,
+        };
+        m.start_continuous(1).unwrap();
+        assert_abs_diff_eq!(m.next_event_s(1e-3).unwrap(), 1e-3, epsilon = 1e-12);
+        m.advance(1.0);
+        assert_eq!(m.next_event_s(1e-3), None);
     }
 }

@@ -29,6 +29,12 @@ pub trait Frontend: Send {
     fn take_output(&mut self) -> Vec<u8>;
     /// The simulated hardware (mandrel angle, steps, flags).
     fn machine(&self) -> &Machine;
+    /// When the front end next needs [`Frontend::poll`] for its timing to be exact (clock time,
+    /// s), `sample_s` being the finest step a ramp needs ([`Machine::next_event_s`]); `None`
+    /// when only bytes from the host or a trigger can change anything.
+    fn next_event_s(&self, sample_s: f64) -> Option<f64> {
+        self.machine().next_event_s(sample_s)
+    }
 }
 
 /// How long the serving loop waits for host bytes before letting the clock run.

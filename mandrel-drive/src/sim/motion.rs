@@ -71,6 +71,33 @@ impl Motion {
         self.t_s
     }
 
+    /// Clock time of a preset move's last step, computed ahead by running a copy of the motion
+    /// to its end (its ramps and cruise in closed form, as [`Motion::advance`] does); `None` for
+    /// a continuous run, or a move that would never end (a zero rate).
+    pub fn end_s(&self) -> Option<f64> {
+        self.remaining?;
+        let mut ahead = self.clone();
+        ahead.advance(f64::INFINITY);
+        ahead.is_done().then_some(ahead.t_s)
+    }
+
+    /// True while the rate is changing (accelerating, slowing to a new target or braking).
+    pub fn is_ramping(&self) -> bool {
+        !self.is_done() && (self.braking || self.v_sps != self.target_sps || self.stop_steps_due())
+    }
+
+    /// True when a preset move has reached the steps where its braking ramp begins.
+    fn stop_steps_due(&self) -> bool {
+        self.remaining.is_some_and(|r| {
+            (r as f64) <= self.stop_steps() + 1e-9 && self.v_sps > self.profile.v0_sps
+        })
+    }
+
+    /// The rate the motion is heading for (steps/s): its cruise rate.
+    pub fn target_sps(&self) -> f64 {
+        self.target_sps
+    }
+
     /// Steps needed to slow from the current rate to the stop velocity.
     fn stop_steps(&self) -> f64 {
         let (v, v0, a) = (self.v_sps, self.profile.v0_sps, self.profile.accel_sps2);
@@ -286,5 +313,48 @@ mod tests {
         let n2 = m.advance(20.0);
         assert!(m.is_done());
         assert!((n2 as f64 - 495.0).abs() <= 2.0, "{n2}");
+    }
+
+    /// The end computed ahead is the end reached by advancing in 10 ms slices, and the analytic
+    /// trapezoid's duration (seed 001 §4.1.5 ramp profile); a continuous run has none.
+    #[test]
+    fn end_ahead_is_the_end_reached() {
+        for (d, v0, vmax, a) in [
+            (1846u64, 200.0, 2000.0, 4000.0),
+            (37, 200.0, 2000.0, 4000.0),
+            (1, 100.0, 1000.0, 1000.0),
+            (50_000, 400.0, 9000.0, 20_000.0),
+        ] {
+            let p = StepProfile {
+                v0_sps: v0,
+                vmax_sps: vmax,
+                accel_sps2: a,
+            };
+            let m = Motion::preset(p, d, 2.0);
+            let ahead = m.end_s().unwrap();
+            let (_, reached) = run_to_end(m);
+            assert_abs_diff_eq!(ahead, reached, epsilon = 1e-9);
+            // Within one step period at the start rate of the continuous-time trapezoid (the
+            // steps are discrete).
+            assert_abs_diff_eq!(
+                ahead,
+                2.0 + trapezoid_duration_s(d as f64, p),
+                epsilon = 1.0 / v0
+            );
+        }
+        let p = StepProfile {
+            v0_sps: 100.0,
+            vmax_sps: 1000.0,
+            accel_sps2: 1000.0,
+        };
+        let mut m = Motion::continuous(p, 0.0);
+        assert_eq!(m.end_s(), None);
+        assert!(m.is_ramping());
+        m.advance(5.0);
+        assert!(!m.is_ramping(), "cruising at the target rate");
+        m.decelerate();
+        assert!(m.is_ramping());
+        // Braking from 1000 to 100 steps/s at 1000 steps/s²: 0.9 s.
+        assert_abs_diff_eq!(m.end_s().unwrap(), 5.9, epsilon = 2e-3);
     }
 }

@@ -148,6 +148,61 @@ mod tests {
         assert_eq!(morton([3, 3, 3]), 0b111_111);
     }
 
+    /// A fine flat grid far from the origin, its triangles in scrambled file order: the key must
+    /// quantise the centroids relative to the mesh's own bounds and at full resolution, or
+    /// neighbouring triangles share a key and keep the scrambled order. Morton order on a grid of
+    /// 1/8 mm squares steps on average about one square side; scrambled order steps about a third of
+    /// the grid's width.
+    #[test]
+    fn orders_a_fine_grid_far_from_the_origin() {
+        // 56 squares of 1/8 mm: 7 mm across, exact in binary.
+        let n = 56u32;
+        let side = 0.125;
+        let origin = 1.0e6;
+        let vertices: Vec<Point3<f64>> = (0..=n)
+            .flat_map(|j| {
+                (0..=n).map(move |i| {
+                    Point3::new(origin + i as f64 * side, origin + j as f64 * side, 0.0)
+                })
+            })
+            .collect();
+        let v = |i: u32, j: u32| j * (n + 1) + i;
+        let mut triangles = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+                triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+            }
+        }
+        // Scramble: sorted by a splitmix64 hash of the index (no spatial pattern left).
+        let count = triangles.len();
+        let hash = |k: u64| {
+            let mut z = k.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            z ^ (z >> 31)
+        };
+        let mut keyed: Vec<(u64, [u32; 3])> = triangles
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| (hash(k as u64), t))
+            .collect();
+        keyed.sort_unstable();
+        let scrambled: Vec<[u32; 3]> = keyed.into_iter().map(|(_, t)| t).collect();
+        let mesh = Mesh::new(vertices, scrambled).unwrap();
+        let adjacency = mesh.validate(Closure::Open).unwrap();
+        let (sorted, _) = by_locality(&mesh, &adjacency);
+        let centroid = |t: usize| {
+            let [a, b, c] = sorted.corners(t);
+            (a.coords + b.coords + c.coords) / 3.0
+        };
+        let mean_step: f64 = (1..count)
+            .map(|t| (centroid(t) - centroid(t - 1)).norm())
+            .sum::<f64>()
+            / (count - 1) as f64;
+        assert!(mean_step < 2.0 * side, "mean step {mean_step} mm");
+    }
+
     /// Reversed file order: the sort must undo it, keep every triangle's geometry and corner
     /// order, and give the adjacency a fresh validation would give.
     #[test]
