@@ -3,7 +3,13 @@
 //!
 //! Within a session the [`Host`] state machine retries by itself (ENQ up to `N_ENQ`, the telegram
 //! up to `N_TX`). A whole new session is started again only for requests without side effects
-//! (ENQUIRE, READ_BACK, PROGRAM_INFO). A command is sent again only once the robot's status proves
+//! (ENQUIRE, READ_BACK, PROGRAM_INFO), and never after a session in which the robot answered none
+//! of its `N_ENQ` ENQs ([`crate::error::LinkError::NoResponse`]): that is a silent robot, not
+//! noise, and is reported at once (within `N_ENQ × T_ENQ`, 12 s by default). A robot that refused
+//! every ENQ of a session as busy ([`crate::error::LinkError::Busy`]) is asked again in new
+//! sessions by the request, but the layers above (agreeing status reads, read-backs, command
+//! confirmation, STOP's confirmation) do not repeat that: either is reported rather than retried
+//! by every layer, which multiplied a hung robot into minutes. A command is sent again only once the robot's status proves
 //! that it was not executed ([`Client::command_confirmed`]); stored instructions are proven by
 //! reading them back ([`Client::store_verified`]). The guarantee of each command class is the
 //! table in docs/protocol.md §7.
@@ -290,6 +296,7 @@ impl<L: Link, C: Clock> Client<L, C> {
                     }
                 },
                 Ok(None) => last = Some(Error::UnexpectedReply("no reply telegram")),
+                Err(e) if is_silent(&e) => return Err(e),
                 Err(Error::Link(e)) => last = Some(Error::Link(e)),
                 Err(e) => return Err(e),
             }
@@ -548,8 +555,11 @@ impl<L: Link, C: Clock> Client<L, C> {
         self.last_executed = None;
         let r = match sent {
             Err(Error::Io(e)) => Err(Error::Io(e)),
+            // Not one ENQ taken: no status will be either.
+            Err(e) if is_unanswered(&e) => Err(e),
             _ => match self.status_agreed() {
                 Ok(s) if s.state == crate::command::State::Stopped => Ok(s),
+                Err(e) if is_unanswered(&e) => Err(e),
                 Ok(_) | Err(Error::Link(_)) => self.command_confirmed(&Command::Stop, effect_of),
                 Err(e) => Err(e),
             },
@@ -891,7 +901,19 @@ fn is_link_noise(e: &Error) -> bool {
     matches!(
         e,
         Error::Link(_) | Error::Parse(_) | Error::Reply { .. } | Error::UnexpectedReply(_)
-    )
+    ) && !is_unanswered(e)
+}
+
+/// A session in which the robot took none of its ENQs: silent, or busy every time.
+fn is_unanswered(e: &Error) -> bool {
+    is_silent(e) || matches!(e, Error::Link(crate::error::LinkError::Busy { .. }))
+}
+
+/// A session in which the robot answered none of its ENQs: the robot (or its line) is silent.
+/// Noise that loses all `N_ENQ` ENQs or their answers in a row is as rare as the noise rate to
+/// the twelfth power; retrying it would only multiply the silence.
+fn is_silent(e: &Error) -> bool {
+    matches!(e, Error::Link(crate::error::LinkError::NoResponse { .. }))
 }
 
 /// The name of a request telegram in errors.

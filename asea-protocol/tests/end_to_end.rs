@@ -9,7 +9,7 @@ use std::time::Duration;
 use asea_protocol::clock::{Clock, RealClock, VirtualClock};
 use asea_protocol::command::{Control, Instruction};
 use asea_protocol::link::{FaultRates, Faults, Paced, Peer};
-use asea_protocol::session::{N_ENQ, N_TX, T_ENQ, Timers};
+use asea_protocol::session::{N_ENQ, N_TX, T_BUSY, T_ENQ, Timers};
 use asea_protocol::sim::{IN_POSITION_OUTPUT, Malformed, MotionParams, Robot, serve};
 use asea_protocol::{
     Checksum, Client, ClientConfig, Command, Error, Flags, FrameConfig, LinkError, Mode, Pose,
@@ -323,6 +323,93 @@ fn silence_is_no_response_within_n_enq_times_t_enq() {
         elapsed < T_ENQ * N_ENQ + Duration::from_millis(50),
         "{elapsed:?}"
     );
+}
+
+/// A silent robot is reported after one session of unanswered ENQs by every call the
+/// coordinator makes, not retried by each layer above (requests, agreeing status reads, the
+/// confirmation of a command, the confirmation of STOP): a cell whose robot hangs hears of it
+/// within `N_ENQ × T_ENQ`, and a stop that cannot reach the robot returns as soon.
+#[test]
+fn a_silent_robot_is_reported_after_one_session_by_every_call() {
+    let window = T_ENQ * N_ENQ + Duration::from_millis(50);
+    type Call = fn(&mut Client<Paced<Silent>, VirtualClock>) -> Result<(), Error>;
+    let calls: [(&str, Call); 5] = [
+        ("status", |c| c.status().map(|_| ())),
+        ("status_agreed", |c| c.status_agreed().map(|_| ())),
+        ("operate", |c| c.operate().map(|_| ())),
+        ("stop_at_once", |c| c.stop_at_once().map(|_| ())),
+        ("position", |c| c.position().map(|_| ())),
+    ];
+    for (name, call) in calls {
+        let clock = VirtualClock::new();
+        let mut c = Client::with_clock(
+            Paced::new(clock.clone(), 9600, Silent),
+            clock.clone(),
+            ClientConfig::default(),
+        );
+        let e = call(&mut c).unwrap_err();
+        assert!(
+            matches!(e, Error::Link(LinkError::NoResponse { attempts }) if attempts == N_ENQ),
+            "{name}: {e}"
+        );
+        let elapsed = clock.now();
+        assert!(elapsed < window, "{name}: {elapsed:?}");
+    }
+}
+
+/// A robot that refuses every ENQ as busy (NAK).
+#[derive(Debug, Default)]
+struct AlwaysBusy(Vec<u8>);
+impl Peer for AlwaysBusy {
+    fn receive(&mut self, bytes: &[u8], _: Duration) {
+        for &b in bytes {
+            if b == 0x05 {
+                self.0.push(0x15);
+            }
+        }
+    }
+    fn poll(&mut self, _: Duration) {}
+    fn take_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.0)
+    }
+    fn deadline(&self) -> Option<Duration> {
+        None
+    }
+}
+
+/// A robot busy through every ENQ: a request asks again in `request_sessions` new sessions
+/// (the robot may be busy for a while), but nothing above repeats that, and STOP, which must
+/// not wait, gives up after its one session.
+#[test]
+fn a_robot_busy_throughout_is_reported_after_the_request_sessions() {
+    // N_ENQ refusals, T_BUSY between them.
+    let session = T_BUSY * (N_ENQ - 1);
+    let sessions = ClientConfig::default().retry.request_sessions;
+    type Call = fn(&mut Client<Paced<AlwaysBusy>, VirtualClock>) -> Result<(), Error>;
+    let calls: [(&str, Call, u32); 4] = [
+        ("status", |c| c.status().map(|_| ()), sessions),
+        ("status_agreed", |c| c.status_agreed().map(|_| ()), sessions),
+        ("operate", |c| c.operate().map(|_| ()), sessions),
+        ("stop_at_once", |c| c.stop_at_once().map(|_| ()), 1),
+    ];
+    for (name, call, n) in calls {
+        let clock = VirtualClock::new();
+        let mut c = Client::with_clock(
+            Paced::new(clock.clone(), 9600, AlwaysBusy::default()),
+            clock.clone(),
+            ClientConfig::default(),
+        );
+        let e = call(&mut c).unwrap_err();
+        assert!(
+            matches!(e, Error::Link(LinkError::Busy { attempts }) if attempts == N_ENQ),
+            "{name}: {e}"
+        );
+        let elapsed = clock.now();
+        assert!(
+            elapsed >= session * n && elapsed < (session + Duration::from_millis(100)) * n,
+            "{name}: {elapsed:?} for {n} sessions of {session:?}"
+        );
+    }
 }
 
 #[test]

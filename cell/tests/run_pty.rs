@@ -335,18 +335,11 @@ fn log_records(p: &Path) -> Vec<serde_json::Value> {
         .collect()
 }
 
-/// Starts `windcell run CYL.SEQ --mode discrete` on the cell of `d`, sends it `signal` once the
-/// journal holds `segments` segment records and `after` more has passed, and returns its output
-/// and the Unix time the signal was sent.
-fn run_and_signal(
-    d: &Path,
-    segments: usize,
-    after: std::time::Duration,
-    signal: nix::sys::signal::Signal,
-) -> (std::process::Output, f64) {
+/// Starts `windcell run CYL.SEQ --mode discrete` on the cell of `d`.
+fn start_run(d: &Path) -> std::process::Child {
     let seq = d.join("CYL.SEQ");
     let cell = d.join("cell.toml");
-    let child = Command::new(env!("CARGO_BIN_EXE_windcell"))
+    Command::new(env!("CARGO_BIN_EXE_windcell"))
         .args([
             "run",
             seq.to_str().unwrap(),
@@ -360,7 +353,11 @@ fn run_and_signal(
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .unwrap();
+        .unwrap()
+}
+
+/// Waits until the journal of `d` holds `segments` segment records.
+fn wait_for_segments(d: &Path, segments: usize) {
     let journal = d.join("CYL.journal");
     let t_start = std::time::Instant::now();
     while std::fs::read_to_string(&journal)
@@ -372,10 +369,33 @@ fn run_and_signal(
         assert!(t_start.elapsed().as_secs() < 60, "no segment in 60 s");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
+}
+
+/// Starts `windcell run CYL.SEQ --mode discrete` on the cell of `d`, sends it `signal` once the
+/// journal holds `segments` segment records and `after` more has passed, and returns its output
+/// and the Unix time the signal was sent.
+fn run_and_signal(
+    d: &Path,
+    segments: usize,
+    after: std::time::Duration,
+    signal: nix::sys::signal::Signal,
+) -> (std::process::Output, f64) {
+    let child = start_run(d);
+    wait_for_segments(d, segments);
     std::thread::sleep(after);
     let t = cell::wiretap::unix_now_s();
     nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), signal).unwrap();
     (child.wait_with_output().unwrap(), t)
+}
+
+/// The journal of `d` is whole JSON lines and its last record is `rec`.
+fn journal_ends_with(d: &Path, rec: &str) {
+    let journal = std::fs::read_to_string(d.join("CYL.journal")).unwrap();
+    for l in journal.lines() {
+        serde_json::from_str::<serde_json::Value>(l).unwrap();
+    }
+    let last = journal.lines().last().unwrap();
+    assert!(last.contains(&format!("\"rec\":\"{rec}\"")), "{last}");
 }
 
 /// The first stop each simulator received after `t0` (Unix s).
@@ -409,17 +429,49 @@ fn ctrl_c_over_ptys_stops_both_axes_and_resume_completes_the_batch() {
     let (robot_stop, indexer_stop) = stops_after(&cell, t0);
     assert!(robot_stop.is_some() && indexer_stop.is_some(), "{err}");
     // The journal is whole JSON lines and ends with the stop.
-    let journal = std::fs::read_to_string(d.join("CYL.journal")).unwrap();
-    for l in journal.lines() {
-        serde_json::from_str::<serde_json::Value>(l).unwrap();
-    }
+    journal_ends_with(d, "stopped");
+    resume_and_check(d, cell);
+}
+
+/// The robot computer stops answering mid-batch (its `sim-robot` process is frozen with
+/// SIGSTOP, as a hung controller would be): the run retries within the link's limits, then stops
+/// the indexer, says in one line what failed and how to resume, and exits 1 with the journal
+/// intact. Once the robot answers again (SIGCONT), `--resume` completes the batch.
+#[test]
+fn a_robot_that_stops_answering_over_ptys_stops_the_indexer_and_resume_completes() {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = pty_cell(d, 4);
+    let run = start_run(d);
+    wait_for_segments(d, 2);
+    let robot = Pid::from_raw(cell.robot.id() as i32);
+    let t0 = cell::wiretap::unix_now_s();
+    kill(robot, Signal::SIGSTOP).unwrap();
+    let o = run.wait_with_output().unwrap();
+    let took = cell::wiretap::unix_now_s() - t0;
+    kill(robot, Signal::SIGCONT).unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("robot") && err.contains("--resume"), "{err}");
+    eprintln!("robot silent: the run gave up after {took:.1} s: {err}");
+    // One session of unanswered ENQs (6 × 2 s) finds the silence; the indexer's stop goes on
+    // the wire at once, then one more session tries the robot's STOP: 24 s, not a retry of
+    // every layer (which took 625 s).
+    let session_s = 12.0;
+    assert!(took < 2.0 * session_s + 3.0, "{took} s");
+    let (_, indexer_stop) = stops_after(&cell, t0);
+    let indexer_stop = indexer_stop.expect("the indexer was told to stop");
     assert!(
-        journal
-            .lines()
-            .last()
-            .unwrap()
-            .contains("\"rec\":\"stopped\"")
+        indexer_stop - t0 < session_s + 2.0,
+        "the indexer's stop {:.1} s after the robot fell silent",
+        indexer_stop - t0
     );
+    journal_ends_with(d, "stopped");
+    // Let the robot finish whatever move it was in.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
     resume_and_check(d, cell);
 }
 
@@ -565,4 +617,68 @@ fn stop_latency_from_sigint_to_both_stop_commands_over_ptys() {
         ms[ms.len() - 1]
     );
     assert!(median < 20.0, "median {median:.2} ms");
+}
+
+/// The indexer's motor stalls mid-batch (`sim-indexer` gets SIGUSR1: the motor loses its pull-in
+/// torque and the next move's start stalls): the run stops the robot, says in one line what
+/// failed and how to resume, and exits 1 with the journal intact. With the motor restored
+/// (SIGUSR2), `--resume` completes the batch.
+#[test]
+fn an_indexer_stall_over_ptys_stops_the_robot_and_resume_completes() {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = pty_cell(d, 4);
+    let run = start_run(d);
+    wait_for_segments(d, 2);
+    let indexer = Pid::from_raw(cell.indexer.id() as i32);
+    let t0 = cell::wiretap::unix_now_s();
+    kill(indexer, Signal::SIGUSR1).unwrap();
+    let o = run.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("stall") && err.contains("--resume"), "{err}");
+    // The robot was told to stop after the stall.
+    let (robot_stop, _) = stops_after(&cell, t0);
+    assert!(robot_stop.is_some(), "{err}");
+    journal_ends_with(d, "stopped");
+    kill(indexer, Signal::SIGUSR2).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    resume_and_check(d, cell);
+}
+
+/// A NAK storm mid-batch (`sim-robot` gets SIGUSR1: every ACK it sends reaches the line as NAK):
+/// the run gives up within the link's limits, stops the indexer, says in one line what failed
+/// and how to resume, and exits 1 with the journal intact; the robot ends the move it was in.
+/// With the storm over (SIGUSR2), `--resume` completes the batch.
+#[test]
+fn a_nak_storm_over_ptys_stops_the_indexer_and_resume_completes() {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = pty_cell(d, 4);
+    let run = start_run(d);
+    wait_for_segments(d, 2);
+    let robot = Pid::from_raw(cell.robot.id() as i32);
+    let t0 = cell::wiretap::unix_now_s();
+    kill(robot, Signal::SIGUSR1).unwrap();
+    let o = run.wait_with_output().unwrap();
+    let took = cell::wiretap::unix_now_s() - t0;
+    kill(robot, Signal::SIGUSR2).unwrap();
+    let err = stderr(&o);
+    eprintln!("NAK storm: the run gave up after {took:.1} s: {err}");
+    // Refused sessions of 2.5 s, asked again by each request (3) but by no layer above: about
+    // 30 s, where retrying at every layer took 392 s.
+    assert!(took < 45.0, "{took} s");
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("robot") && err.contains("--resume"), "{err}");
+    let (_, indexer_stop) = stops_after(&cell, t0);
+    assert!(indexer_stop.is_some(), "{err}");
+    journal_ends_with(d, "stopped");
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    resume_and_check(d, cell);
 }

@@ -3,6 +3,10 @@
 //!
 //! Prints the slave device path on one line, serves the simulated indexer on the master side in
 //! real time until SIGINT or SIGTERM, then exits 0.
+//!
+//! Fault injection (X-language): SIGUSR1 takes the motor's pull-in torque away (its pull-in rate
+//! becomes [`WEAK_PULL_IN_SPS`], so the next move's start stalls, as a motor whose drive lost
+//! current would); SIGUSR2 gives it back.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
@@ -14,6 +18,9 @@ use mandrel_drive::sim::{Machine, RealClock, grbl::Controller, serve, xlang::Car
 use serialport::{SerialPort, TTYPort};
 
 use super::{Failure, print};
+
+/// The motor's pull-in rate after SIGUSR1, steps/s: below any start velocity.
+pub const WEAK_PULL_IN_SPS: f64 = 1.0;
 
 /// The command language the simulator speaks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -56,8 +63,15 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
         )));
     }
     let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone())
+    let weaken = Arc::new(AtomicBool::new(false));
+    let restore = Arc::new(AtomicBool::new(false));
+    for (signal, flag) in [
+        (signal_hook::consts::SIGINT, &stop),
+        (signal_hook::consts::SIGTERM, &stop),
+        (signal_hook::consts::SIGUSR1, &weaken),
+        (signal_hook::consts::SIGUSR2, &restore),
+    ] {
+        signal_hook::flag::register(signal, flag.clone())
             .map_err(|e| Failure::runtime(format!("sim-indexer: signal handler: {e}")))?;
     }
     let (master, slave) = TTYPort::pair()
@@ -83,6 +97,27 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
                 cell::wiretap::StopTap::new(master, cell::wiretap::StopPattern::IndexerStop);
             let master = cell::wiretap::IndexerTap(tap);
             std::thread::scope(|scope| {
+                // Fault injection: SIGUSR1 weakens the motor, SIGUSR2 restores it.
+                {
+                    let (card, stop, weaken, restore) = (&card, &stop, &weaken, &restore);
+                    let nominal = args.pull_in_sps;
+                    scope.spawn(move || {
+                        use std::sync::atomic::Ordering::Relaxed;
+                        while !stop.load(Relaxed) {
+                            let set = if weaken.swap(false, Relaxed) {
+                                Some(WEAK_PULL_IN_SPS)
+                            } else if restore.swap(false, Relaxed) {
+                                Some(nominal)
+                            } else {
+                                None
+                            };
+                            if let (Some(rate), Ok(mut c)) = (set, card.lock()) {
+                                c.machine.pull_in_sps = rate;
+                            }
+                            std::thread::sleep(std::time::Duration::from_millis(1));
+                        }
+                    });
+                }
                 if let Some(mut file) = log {
                     let (card, stop, clock, stops) = (&card, &stop, &clock, &stops);
                     scope.spawn(move || {

@@ -3,6 +3,11 @@
 //!
 //! Prints the slave device path on one line, serves the simulated robot computer on the master
 //! side in real time until SIGINT or SIGTERM, then exits 0.
+//!
+//! Fault injection: SIGUSR1 starts a NAK storm (every ACK the robot computer sends reaches the
+//! line as NAK, so the host sees every ENQ and telegram refused, as with a line whose noise
+//! hits every acknowledgement); SIGUSR2 ends it. To make the robot fall silent, stop the process
+//! (SIGSTOP) and continue it (SIGCONT).
 
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
@@ -56,8 +61,15 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
         )));
     }
     let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone())
+    let storm_on = Arc::new(AtomicBool::new(false));
+    let storm_off = Arc::new(AtomicBool::new(false));
+    for (signal, flag) in [
+        (signal_hook::consts::SIGINT, &stop),
+        (signal_hook::consts::SIGTERM, &stop),
+        (signal_hook::consts::SIGUSR1, &storm_on),
+        (signal_hook::consts::SIGUSR2, &storm_off),
+    ] {
+        signal_hook::flag::register(signal, flag.clone())
             .map_err(|e| Failure::runtime(format!("sim-robot: signal handler: {e}")))?;
     }
     let (master, slave) = TTYPort::pair()
@@ -100,6 +112,12 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
     // The log notes when each STOP telegram arrives (wall clock), for the stop latency.
     let (master, stops) =
         cell::wiretap::StopTap::new(master, cell::wiretap::StopPattern::robot(&frame));
+    let master = NakStorm {
+        inner: master,
+        on: storm_on,
+        off: storm_off,
+        storming: false,
+    };
     let served = std::thread::scope(|scope| {
         if let Some(mut file) = log {
             let (robot, stop, clock, stops) = (&robot, &stop, &clock, &stops);
@@ -136,4 +154,51 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
     // The slave end stays open until here so that the master never sees a hang-up.
     drop(slave);
     served.map_err(|e| Failure::runtime(format!("sim-robot: {e}")))
+}
+
+/// The robot's end of the line with a NAK storm that signals switch on and off: while it
+/// storms, every ACK written becomes NAK.
+struct NakStorm<L> {
+    inner: L,
+    /// Set by SIGUSR1.
+    on: Arc<AtomicBool>,
+    /// Set by SIGUSR2.
+    off: Arc<AtomicBool>,
+    storming: bool,
+}
+
+impl<L: asea_protocol::Link> asea_protocol::Link for NakStorm<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        use std::sync::atomic::Ordering::Relaxed;
+        if self.on.swap(false, Relaxed) {
+            self.storming = true;
+        }
+        if self.off.swap(false, Relaxed) {
+            self.storming = false;
+        }
+        if !self.storming {
+            return self.inner.write_all(bytes);
+        }
+        let stormed: Vec<u8> = bytes
+            .iter()
+            .map(|&b| {
+                if b == asea_protocol::frame::ACK {
+                    asea_protocol::frame::NAK
+                } else {
+                    b
+                }
+            })
+            .collect();
+        self.inner.write_all(&stormed)
+    }
+    fn read_timeout(
+        &mut self,
+        buf: &mut [u8],
+        timeout: std::time::Duration,
+    ) -> std::io::Result<usize> {
+        self.inner.read_timeout(buf, timeout)
+    }
+    fn discard_input(&mut self) -> std::io::Result<()> {
+        self.inner.discard_input()
+    }
 }
