@@ -1,6 +1,6 @@
 //! `windcell run` over pseudo-terminals in real time: discrete mode to separate `windcell
 //! sim-robot --pty` and `windcell sim-indexer --pty` processes (a cell without sync lines), fine
-//! mode to `windcell sim-cell --pty` (sync lines on its socket). The cylinder batch is cut to its
+//! and medium mode to `windcell sim-cell --pty` (sync lines on its socket). The cylinder batch is cut to its
 //! first three instructions per path so that the tests take seconds, not minutes (a verified
 //! upload at 9600 baud costs about 0.9 s per instruction).
 
@@ -226,7 +226,13 @@ fn short_cylinder(d: &Path, n: usize) {
 }
 
 #[test]
-fn fine_batch_over_ptys_to_sim_cell() {
+fn fine_and_medium_batches_over_ptys_to_sim_cell() {
+    for mode in ["fine", "medium"] {
+        fine_or_medium_over_ptys_to_sim_cell(mode);
+    }
+}
+
+fn fine_or_medium_over_ptys_to_sim_cell(mode: &str) {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     short_cylinder(d, 3);
@@ -258,18 +264,17 @@ fn fine_batch_over_ptys_to_sim_cell() {
     .unwrap();
     let seq = d.join("CYL.SEQ");
     let cell = d.join("cell.toml");
-    // Medium mode takes the same code path (covered on the fast clock in tests/coordinator.rs).
     let o = windcell(&[
         "run",
         seq.to_str().unwrap(),
         "--mode",
-        "fine",
+        mode,
         "--cell",
         cell.to_str().unwrap(),
         "--force",
     ]);
     stop_cleanly(server);
-    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(o.status.success(), "{mode}: {}", stderr(&o));
     // The cell's log: each program's three instructions once, in order.
     let done: Vec<(u64, u64)> = std::fs::read_to_string(&log)
         .unwrap()
@@ -284,7 +289,7 @@ fn fine_batch_over_ptys_to_sim_cell() {
         })
         .collect();
     let one: Vec<(u64, u64)> = (1..=2).flat_map(|p| (3..=5).map(move |i| (p, i))).collect();
-    assert_eq!(done, one);
+    assert_eq!(done, one, "{mode}");
 }
 
 /// The discrete cylinder batch (`n` instructions per path) over separate `sim-robot --pty` and
