@@ -422,11 +422,7 @@ fn lay_model(
     transform: &paths::calibration::CellTransform,
     steps_per_unit: f64,
 ) -> Result<LaidPath, Error> {
-    let track = SampledEye {
-        eye_mm: eye,
-        mandrel_rad: mandrel,
-        transform,
-    };
+    let track = SampledEye::new(eye, mandrel, transform);
     let t1 = eye.last().map_or(0.0, |s| s.0);
     placement::lay_on_tube(tube, &track, start, 0.0, t1, 1.0 / steps_per_unit)
         .map_err(|e| run_error(format!("placement model: {e}")))
@@ -472,11 +468,7 @@ fn predict_path(
         .iter()
         .map(|&(t, d)| (t, mandrel_of_drive(cal, d)))
         .collect();
-    let track = SampledEye {
-        eye_mm: &trace.eye_mm,
-        mandrel_rad: &mandrel,
-        transform,
-    };
+    let track = SampledEye::new(&trace.eye_mm, &mandrel, transform);
     let laid = placement::lay_on_tube(tube, &track, &start, t0, t1, opt.step_s)
         .map_err(|e| run_error(format!("{}: placement model: {e}", path.name)))?;
     let pts: Vec<Point3<f64>> = laid.points.iter().map(|p| p.1).collect();
@@ -601,11 +593,7 @@ fn predict_path(
             .map_err(|e| run_error(format!("setup sample: {e}")))?;
         let true_transform = true_cal.transform(b, h);
         let shifted: Vec<(f64, f64)> = mandrel.iter().map(|&(t, p)| (t, p + zero)).collect();
-        let track = SampledEye {
-            eye_mm: &trace.eye_mm,
-            mandrel_rad: &shifted,
-            transform: &true_transform,
-        };
+        let track = SampledEye::new(&trace.eye_mm, &shifted, &true_transform);
         let laid = placement::lay_on_tube(&true_tube, &track, &start, t0, t1, opt.sample_step_s)
             .map_err(|e| run_error(format!("{}: setup sample: {e}", path.name)))?;
         setup.push(max_error(&laid, desired));

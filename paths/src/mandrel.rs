@@ -212,6 +212,25 @@ impl Tube {
         self.derivatives_of(self.frame(u), v)
     }
 
+    /// [`Tube::point`], [`Tube::normal`] and [`Tube::derivatives`] at `(u, v)` from one
+    /// evaluation of the spine and one sine and cosine (the contact model asks for all three at
+    /// every step).
+    pub fn surface(&self, u: f64, v: f64) -> (Point3<f64>, Vector3<f64>, SurfaceDerivatives) {
+        let f = self.frame(u);
+        let (s, c) = v.sin_cos();
+        let r = self.radius_mm;
+        let b = Vector3::y();
+        let n = f.n * c + b * s;
+        let d = SurfaceDerivatives {
+            xu: f.dc + f.dn * (r * c),
+            xv: (b * c - f.n * s) * r,
+            xuu: f.ddc + f.ddn * (r * c),
+            xuv: f.dn * (-r * s),
+            xvv: n * (-r),
+        };
+        (Point3::from(f.c + n * r), n, d)
+    }
+
     /// [`Tube::derivatives`] on the spine polynomial of interval `piece` (see
     /// [`Spine::eval_piece`]): `X_uu` holds the spine's third derivative, which jumps at knots.
     pub fn derivatives_on_piece(&self, piece: usize, u: f64, v: f64) -> SurfaceDerivatives {
@@ -292,6 +311,28 @@ mod tests {
             28.5,
         )
         .unwrap()
+    }
+
+    /// The combined evaluation gives exactly what the three separate ones give.
+    #[test]
+    fn surface_is_point_normal_and_derivatives_at_once() {
+        let tube = sbend();
+        for &(u, v) in &[
+            (0.0, 0.0),
+            (75.0, 1.0),
+            (133.0, 2.5),
+            (250.0, -1.2),
+            (350.0, 3.0),
+        ] {
+            let (x, n, d) = tube.surface(u, v);
+            let e = tube.derivatives(u, v);
+            assert_eq!(x, tube.point(u, v));
+            assert_eq!(n, tube.normal(u, v));
+            assert_eq!(
+                [d.xu, d.xv, d.xuu, d.xuv, d.xvv],
+                [e.xu, e.xv, e.xuu, e.xuv, e.xvv]
+            );
+        }
     }
 
     #[test]

@@ -86,7 +86,21 @@ pub struct TubeContact<'a> {
     v: f64,
     t_s: f64,
     state: ContactState,
+    /// The surface where the last step ended (the bits of `(u, v)` beside it): the contact
+    /// point asked for after a step, and where the next step starts.
+    start: Option<([u64; 2], Surface)>,
 }
+
+/// [`Tube::surface`]: point, unit normal and derivatives.
+type Surface = (
+    Point3<f64>,
+    Vector3<f64>,
+    crate::mandrel::SurfaceDerivatives,
+);
+
+/// The eye's position and velocity at a time, carried from the end of one step to the start
+/// of the next (the same instant).
+type EyeAt = Option<(f64, (Point3<f64>, Vector3<f64>))>;
 
 /// Contact geometry at one `(u, v)` for an eye at `e` moving at `e_dot`.
 struct Local {
@@ -110,12 +124,35 @@ impl<'a> TubeContact<'a> {
             v,
             t_s,
             state: ContactState::Wrapping,
+            start: None,
         }
     }
 
     /// The contact point, mandrel frame.
     pub fn point(&self) -> Point3<f64> {
-        self.tube.point(self.u, self.v)
+        match self.start_surface() {
+            Some(s) => s.0,
+            None => self.tube.point(self.u, self.v),
+        }
+    }
+
+    /// Where the contact is: `(u, v, t_s, state)` (its remembered surface stays valid: it is
+    /// keyed by `(u, v)`).
+    fn position(&self) -> (f64, f64, f64, ContactState) {
+        (self.u, self.v, self.t_s, self.state)
+    }
+
+    /// Puts the contact back where [`TubeContact::position`] found it.
+    fn set_position(&mut self, (u, v, t_s, state): (f64, f64, f64, ContactState)) {
+        (self.u, self.v, self.t_s, self.state) = (u, v, t_s, state);
+    }
+
+    /// The surface at the contact, when the last step left it there.
+    fn start_surface(&self) -> Option<&Surface> {
+        self.start
+            .as_ref()
+            .filter(|(at, _)| *at == [self.u.to_bits(), self.v.to_bits()])
+            .map(|(_, s)| s)
     }
 
     /// The surface parameters `(u, v)` of the contact.
@@ -143,9 +180,16 @@ impl<'a> TubeContact<'a> {
     }
 
     fn local(&self, u: f64, v: f64, e: &Point3<f64>, e_dot: &Vector3<f64>) -> Result<Local, Error> {
-        let x = self.tube.point(u, v);
-        let n = self.tube.normal(u, v);
-        let dv = self.tube.derivatives(u, v);
+        Self::local_on(&self.tube.surface(u, v), u, e, e_dot)
+    }
+
+    /// [`TubeContact::local`] on the surface `(x, n, dv)` evaluated at height `u`.
+    fn local_on(
+        &(x, n, dv): &Surface,
+        u: f64,
+        e: &Point3<f64>,
+        e_dot: &Vector3<f64>,
+    ) -> Result<Local, Error> {
         let d = e - x;
         let residual_mm = d.dot(&n);
         let dt = d - n * residual_mm;
@@ -179,16 +223,6 @@ impl<'a> TubeContact<'a> {
         })
     }
 
-    /// `(u̇, v̇)` at `(u, v)`, time `t`, under the current state.
-    fn rate(&self, eye: &impl EyeTrack, t: f64, u: f64, v: f64) -> Result<Vector2<f64>, Error> {
-        if self.state == ContactState::Pivoting {
-            return Ok(Vector2::zeros());
-        }
-        let (e, e_dot) = eye.at(t);
-        let l = self.local(u, v, &e, &e_dot)?;
-        Ok(l.rate_per_lambda * l.lambda.max(0.0))
-    }
-
     /// Advances the contact to `t_end_s` in steps of at most `max_step_s`, returning the contact
     /// point. Refuses a contact that leaves the tube's ends (`u` outside the spine's range).
     pub fn advance(
@@ -196,6 +230,18 @@ impl<'a> TubeContact<'a> {
         eye: &impl EyeTrack,
         t_end_s: f64,
         max_step_s: f64,
+    ) -> Result<Point3<f64>, Error> {
+        self.advance_carrying(eye, t_end_s, max_step_s, &mut None)
+    }
+
+    /// [`TubeContact::advance`] with `carry` holding the eye where the last step along the same
+    /// eye track ended (the next step starts at that instant; looked up again otherwise).
+    fn advance_carrying(
+        &mut self,
+        eye: &impl EyeTrack,
+        t_end_s: f64,
+        max_step_s: f64,
+        carry: &mut EyeAt,
     ) -> Result<Point3<f64>, Error> {
         if max_step_s.is_nan() || max_step_s <= 0.0 || !t_end_s.is_finite() {
             return Err(Error::OutOfRange {
@@ -218,17 +264,23 @@ impl<'a> TubeContact<'a> {
         }
         let h = span / steps;
         for _ in 0..steps as usize {
-            self.step(eye, h)?;
+            self.step(eye, h, carry)?;
         }
         Ok(self.point())
     }
 
-    fn step(&mut self, eye: &impl EyeTrack, h: f64) -> Result<(), Error> {
+    fn step(&mut self, eye: &impl EyeTrack, h: f64, carry: &mut EyeAt) -> Result<(), Error> {
         let t = self.t_s;
         // The state for this step: pivot while the eye is outside the tangent plane or moving out
         // of it; wrap otherwise.
-        let (e, e_dot) = eye.at(t);
-        let here = self.local(self.u, self.v, &e, &e_dot)?;
+        let (e, e_dot) = match carry.take() {
+            Some((at, e)) if at.to_bits() == t.to_bits() => e,
+            _ => eye.at(t),
+        };
+        let here = match self.start_surface() {
+            Some(surface) => Self::local_on(surface, self.u, &e, &e_dot)?,
+            None => self.local(self.u, self.v, &e, &e_dot)?,
+        };
         self.state = if here.residual_mm > TANGENCY_TOLERANCE_MM
             || (here.lambda < 0.0 && here.residual_mm >= -TANGENCY_TOLERANCE_MM)
         {
@@ -237,23 +289,50 @@ impl<'a> TubeContact<'a> {
             ContactState::Wrapping
         };
         let (u, v) = (self.u, self.v);
-        let k1 = self.rate(eye, t, u, v)?;
-        let k2 = self.rate(eye, t + 0.5 * h, u + 0.5 * h * k1.x, v + 0.5 * h * k1.y)?;
-        let k3 = self.rate(eye, t + 0.5 * h, u + 0.5 * h * k2.x, v + 0.5 * h * k2.y)?;
-        let k4 = self.rate(eye, t + h, u + h * k3.x, v + h * k3.y)?;
-        let du = (k1 + 2.0 * k2 + 2.0 * k3 + k4) * (h / 6.0);
+        // Classical RK4 on (u̇, v̇). While pivoting the rate is zero. While wrapping, k1 is the
+        // rate of `here` (the same time and place), the eye is looked up once for both midpoint
+        // stages, and the end's eye serves the correction below too.
+        let (du, end) = if self.state == ContactState::Pivoting {
+            (Vector2::zeros(), eye.at(t + h))
+        } else {
+            let rate = |e: &(Point3<f64>, Vector3<f64>), u: f64, v: f64| {
+                self.local(u, v, &e.0, &e.1)
+                    .map(|l| l.rate_per_lambda * l.lambda.max(0.0))
+            };
+            let k1 = here.rate_per_lambda * here.lambda.max(0.0);
+            let mid = eye.at(t + 0.5 * h);
+            let end = eye.at(t + h);
+            let k2 = rate(&mid, u + 0.5 * h * k1.x, v + 0.5 * h * k1.y)?;
+            let k3 = rate(&mid, u + 0.5 * h * k2.x, v + 0.5 * h * k2.y)?;
+            let k4 = rate(&end, u + h * k3.x, v + h * k3.y)?;
+            ((k1 + 2.0 * k2 + 2.0 * k3 + k4) * (h / 6.0), end)
+        };
         self.u += du.x;
         self.v += du.y;
         self.t_s = t + h;
         // Back onto the tangency condition: one Newton step along the free fibre, forwards only
         // while pivoting (the laid fibre never unwinds).
-        let (e, e_dot) = eye.at(self.t_s);
-        let l = self.local(self.u, self.v, &e, &e_dot)?;
-        if self.state == ContactState::Wrapping || l.residual_mm < 0.0 {
+        let (e, e_dot) = end;
+        *carry = Some((self.t_s, end));
+        // The surface here: where the step started when it did not move (pivoting).
+        let key = [self.u.to_bits(), self.v.to_bits()];
+        let surface = match &self.start {
+            Some((at, s)) if *at == key => *s,
+            _ => self.tube.surface(self.u, self.v),
+        };
+        let l = Self::local_on(&surface, self.u, &e, &e_dot)?;
+        let corrected = self.state == ContactState::Wrapping || l.residual_mm < 0.0;
+        if corrected {
             let correction = -l.residual_mm / l.curvature_mm;
             self.u += l.rate_per_lambda.x * correction;
             self.v += l.rate_per_lambda.y * correction;
         }
+        let moved = [self.u.to_bits(), self.v.to_bits()];
+        self.start = Some(if moved == key {
+            (key, surface)
+        } else {
+            (moved, self.tube.surface(self.u, self.v))
+        });
         if !(self.tube.u_min() - END_MARGIN_MM..=self.tube.u_max() + END_MARGIN_MM)
             .contains(&self.u)
         {
@@ -406,7 +485,10 @@ const MAX_STEPS_PER_ADVANCE: f64 = 1e7;
 /// true motion as a simulator (or a recording) gives it. Both series are interpolated linearly in
 /// time, so the track's velocity is piecewise constant; the eye is seen in the mandrel frame
 /// through the cell's transform: `p_cell = origin + R · R_z(φ) p_mandrel` ([`CellTransform`]).
-#[derive(Debug, Clone, Copy)]
+///
+/// The integrator asks for times that mostly increase: each series remembers where the last
+/// query fell ([`samples_near`]), so a query costs a comparison or two instead of a search.
+#[derive(Debug, Clone)]
 pub struct SampledEye<'a> {
     /// `(t_s, eye)`, cell frame, mm; times increasing.
     pub eye_mm: &'a [(f64, [f64; 3])],
@@ -415,15 +497,82 @@ pub struct SampledEye<'a> {
     pub mandrel_rad: &'a [(f64, f64)],
     /// Drive frame to cell frame.
     pub transform: &'a CellTransform,
+    /// Where the last query of each series fell (eye, mandrel): a hint, never a result.
+    hints: [std::cell::Cell<usize>; 2],
+}
+
+impl<'a> SampledEye<'a> {
+    /// The eye track of the samples `eye_mm` and `mandrel_rad`, seen through `transform`.
+    pub fn new(
+        eye_mm: &'a [(f64, [f64; 3])],
+        mandrel_rad: &'a [(f64, f64)],
+        transform: &'a CellTransform,
+    ) -> Self {
+        SampledEye {
+            eye_mm,
+            mandrel_rad,
+            transform,
+            hints: Default::default(),
+        }
+    }
+}
+
+/// The number of samples of `series` at or before `t` (`series.partition_point(|s| s.0 <= t)`),
+/// searched from `hint` outwards by doubling steps (the
+/// integrator's next query is nearly always a few samples after the last), and `hint` moved to
+/// the answer: a query costs the logarithm of how far it moved, not of the series' length.
+fn samples_near<T>(series: &[(f64, T)], t: f64, hint: &std::cell::Cell<usize>) -> usize {
+    let n = series.len();
+    let h = hint.get().min(n);
+    // The answer is the number of samples at or before t: h itself when
+    // series[h - 1].0 <= t < series[h].0.
+    let at_or_before = |i: usize| series[i].0 <= t;
+    let i = if h < n && at_or_before(h) {
+        // Forward: find a bound past t, doubling the step.
+        let (mut lo, mut step) = (h + 1, 1usize);
+        loop {
+            let probe = h + step;
+            if probe >= n {
+                break lo + series[lo..].partition_point(|s| s.0 <= t);
+            }
+            if !at_or_before(probe) {
+                break lo + series[lo..probe].partition_point(|s| s.0 <= t);
+            }
+            lo = probe + 1;
+            step *= 2;
+        }
+    } else if h > 0 && !at_or_before(h - 1) {
+        // Backward: find a sample at or before t, doubling the step.
+        let (mut hi, mut step) = (h - 1, 1usize);
+        loop {
+            if step > hi {
+                break series[..hi].partition_point(|s| s.0 <= t);
+            }
+            let probe = hi - step;
+            if at_or_before(probe) {
+                break probe + 1 + series[probe + 1..hi].partition_point(|s| s.0 <= t);
+            }
+            hi = probe;
+            step *= 2;
+        }
+    } else {
+        h
+    };
+    hint.set(i);
+    i
 }
 
 /// Linear interpolation of a sampled series at `t` (held constant outside it), with the slope.
-fn interpolate<const N: usize>(series: &[(f64, [f64; N])], t: f64) -> ([f64; N], [f64; N]) {
+fn interpolate<const N: usize>(
+    series: &[(f64, [f64; N])],
+    t: f64,
+    hint: &std::cell::Cell<usize>,
+) -> ([f64; N], [f64; N]) {
     let n = series.len();
     if n == 0 {
         return ([0.0; N], [0.0; N]);
     }
-    let i = series.partition_point(|s| s.0 <= t);
+    let i = samples_near(series, t, hint);
     if i == 0 {
         return (series[0].1, [0.0; N]);
     }
@@ -450,7 +599,7 @@ impl SampledEye<'_> {
         if n == 0 {
             return (0.0, 0.0);
         }
-        let i = self.mandrel_rad.partition_point(|s| s.0 <= t_s);
+        let i = samples_near(self.mandrel_rad, t_s, &self.hints[1]);
         if i == 0 {
             return (self.mandrel_rad[0].1, 0.0);
         }
@@ -468,7 +617,7 @@ impl SampledEye<'_> {
 
 impl EyeTrack for SampledEye<'_> {
     fn at(&self, t_s: f64) -> (Point3<f64>, Vector3<f64>) {
-        let (p, v) = interpolate(self.eye_mm, t_s);
+        let (p, v) = interpolate(self.eye_mm, t_s, &self.hints[0]);
         let (phi, phi_rate) = self.mandrel_at(t_s);
         let rt = self.transform.rotation.transpose();
         let p_drive = Point3::from(rt * (Vector3::from(p) - self.transform.origin));
@@ -541,10 +690,11 @@ pub fn lay_on_tube(
     } else {
         0.0
     };
+    let mut carry = None;
     for k in 1..=steps as usize {
         let t = t0_s + h * k as f64;
-        let before = contact.clone();
-        match contact.advance(eye, t, h) {
+        let before = contact.position();
+        match contact.advance_carrying(eye, t, h, &mut carry) {
             Ok(p) => out.points.push((t, p)),
             Err(Error::ContactOffSurface { time_s, .. }) => {
                 out.left_at_s = Some(time_s);
@@ -553,7 +703,7 @@ pub fn lay_on_tube(
             Err(Error::ContactUndefined { .. }) => {
                 // The free fibre would bridge a concave stretch: the contact is held (the fibre
                 // pivots about it) for this step, and the time is counted.
-                contact = before;
+                contact.set_position(before);
                 contact.hold_until(t);
                 out.bridged_s += h;
                 out.points.push((t, contact.point()));
@@ -587,61 +737,219 @@ pub struct Deviation {
 
 /// The largest distance from each point of `laid` to the polyline `desired` (both mandrel frame,
 /// both ordered along the path). `None` for an empty input.
+///
+/// A point cannot raise the largest distance found so far if it already lies within it of the
+/// segment the last searched point matched (its distance is at most that); only the others are
+/// searched ([`Nearest`]). A path whose error grows steadily searches every point; a typical
+/// one, a few.
 pub fn deviation(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Option<Deviation> {
     if laid.is_empty() || desired.is_empty() {
         return None;
     }
-    let d = distances(laid, desired);
+    let mut search = Nearest::new(desired);
     let mut worst = Deviation { max_mm: 0.0, at: 0 };
-    for (i, &e) in d.iter().enumerate() {
-        if e > worst.max_mm {
-            worst = Deviation { max_mm: e, at: i };
+    let mut worst_sq = 0.0;
+    for (i, p) in laid.iter().enumerate() {
+        search.moved_to(p);
+        // Follow the path from the last match while the distance falls (the laid point has
+        // usually moved on by a few desired segments): a segment's distance bounds the point's.
+        let at_cursor = search.descend(p);
+        if at_cursor <= worst_sq {
+            continue;
+        }
+        let best_sq = search.search(p, at_cursor);
+        if best_sq > worst_sq {
+            worst_sq = best_sq;
+            worst = Deviation {
+                max_mm: best_sq.sqrt(),
+                at: i,
+            };
         }
     }
     Some(worst)
 }
 
+/// Segment `k` of the polyline `desired` (a point's degenerate segment for a single point).
+fn segment_of(desired: &[Point3<f64>], k: usize) -> (Point3<f64>, Point3<f64>) {
+    (desired[k], desired[(k + 1).min(desired.len() - 1)])
+}
+
+/// The squared distance from `p` to the nearest of the `segments` segments of `desired`, and
+/// that segment, searched in a window around `cursor` widened while the best lies on its edge
+/// (so a point is never matched to a farther segment only because the window was short): the
+/// plain search, which the tests hold [`Nearest::search`] to, bit for bit.
+#[cfg(test)]
+fn nearest_segment(
+    p: &Point3<f64>,
+    desired: &[Point3<f64>],
+    segments: usize,
+    cursor: usize,
+) -> (f64, usize) {
+    let (mut lo, mut hi) = (
+        cursor.saturating_sub(WINDOW),
+        (cursor + WINDOW).min(segments - 1),
+    );
+    loop {
+        // Compared squared; the root taken once, of the best.
+        let (mut best, mut best_k) = (f64::INFINITY, lo);
+        for k in lo..=hi {
+            let (a, b) = segment_of(desired, k);
+            let d = squared_distance_to_segment(p, &a, &b);
+            if d < best {
+                best = d;
+                best_k = k;
+            }
+        }
+        let at_low_edge = best_k == lo && lo > 0;
+        let at_high_edge = best_k == hi && hi < segments - 1;
+        if !(at_low_edge || at_high_edge) {
+            return (best, best_k);
+        }
+        lo = lo.saturating_sub(WINDOW);
+        hi = (hi + WINDOW).min(segments - 1);
+    }
+}
+
 /// The distance from each point of `laid` to the polyline `desired` (both ordered along the
-/// path; empty when either is).
+/// path; empty when either is). Both paths run the same way: each point is searched from the
+/// segment the last one matched ([`Nearest`]).
+///
+/// A point's distance to a segment changes by at most how far the point moved (it is
+/// 1-Lipschitz), so each segment keeps the last distance computed to it and the laid path's
+/// length at that time: a segment whose distance, less the path travelled since, still exceeds
+/// the distance to the last match cannot be the nearest and is not computed. Laid points come a
+/// fraction of a millimetre apart, so most segments of the window are passed over.
 pub fn distances(laid: &[Point3<f64>], desired: &[Point3<f64>]) -> Vec<f64> {
     if laid.is_empty() || desired.is_empty() {
         return Vec::new();
     }
-    let mut out = Vec::with_capacity(laid.len());
-    let segments = desired.len().saturating_sub(1).max(1);
-    let segment = |k: usize| (desired[k], desired[(k + 1).min(desired.len() - 1)]);
-    // Both paths run the same way: search a window of desired segments around the last match,
-    // widening it while the best lies on its edge (so a laid point is never matched to a farther
-    // segment only because the window was short).
-    let mut cursor = 0usize;
-    for p in laid {
+    let mut search = Nearest::new(desired);
+    laid.iter()
+        .map(|p| {
+            search.moved_to(p);
+            let at_cursor = search.exact(p, search.cursor);
+            search.search(p, at_cursor).sqrt()
+        })
+        .collect()
+}
+
+/// The search of [`distances`] and [`deviation`]: the nearest segment of `desired` to each
+/// point of a laid path in turn, from the segment the last point matched, in a window around it
+/// widened while the best lies on its edge (so a point is never matched to a farther segment
+/// only because the window was short), segments too far to matter passed over.
+struct Nearest<'a> {
+    desired: &'a [Point3<f64>],
+    segments: usize,
+    /// Per segment: the distance when last computed plus `travelled` at that time (a segment
+    /// never computed: −∞).
+    known: Vec<f64>,
+    /// Length of the laid path so far, mm.
+    travelled: f64,
+    previous: Option<Point3<f64>>,
+    points: usize,
+    /// The segment the last searched point matched.
+    cursor: usize,
+}
+
+impl<'a> Nearest<'a> {
+    fn new(desired: &'a [Point3<f64>]) -> Self {
+        let segments = desired.len().saturating_sub(1).max(1);
+        Nearest {
+            desired,
+            segments,
+            known: vec![f64::NEG_INFINITY; segments],
+            travelled: 0.0,
+            previous: None,
+            points: 0,
+            cursor: 0,
+        }
+    }
+
+    /// The laid path moves on to `p`.
+    fn moved_to(&mut self, p: &Point3<f64>) {
+        if let Some(q) = self.previous {
+            self.travelled += (p - q).norm();
+        }
+        self.previous = Some(*p);
+        self.points += 1;
+    }
+
+    /// Moves the cursor from the last match to neighbouring segments while they are nearer to
+    /// `p` (forwards, or else backwards); returns the squared distance to the cursor's segment.
+    fn descend(&mut self, p: &Point3<f64>) -> f64 {
+        let start = self.cursor;
+        let mut d = self.exact(p, start);
+        let mut k = start;
+        while k + 1 < self.segments {
+            let next = self.exact(p, k + 1);
+            if next >= d {
+                break;
+            }
+            (k, d) = (k + 1, next);
+        }
+        if k == start {
+            while k > 0 {
+                let next = self.exact(p, k - 1);
+                if next >= d {
+                    break;
+                }
+                (k, d) = (k - 1, next);
+            }
+        }
+        self.cursor = k;
+        d
+    }
+
+    /// The squared distance from `p` to segment `k`, remembered.
+    fn exact(&mut self, p: &Point3<f64>, k: usize) -> f64 {
+        let (a, b) = segment_of(self.desired, k);
+        let d2 = squared_distance_to_segment(p, &a, &b);
+        self.known[k] = d2.sqrt() + self.travelled;
+        d2
+    }
+
+    /// The squared distance from `p` to its nearest segment, searched from the cursor (`at_cursor`: the squared distance to the cursor's segment);
+    /// the cursor moves to the match.
+    ///
+    /// A point's distance to a segment changes by at most how far the point moved, so a
+    /// segment whose remembered distance, less the path travelled since, still exceeds the
+    /// distance to the cursor's segment cannot be the nearest (nor tie with it) and is not
+    /// computed. The margin covers rounding: of the root (relative) and of the travelled sum
+    /// (one unit in the last place per point added).
+    fn search(&mut self, p: &Point3<f64>, at_cursor: f64) -> f64 {
+        let cursor = self.cursor;
+        let margin = 1e-9 + self.travelled * f64::EPSILON * 2.0 * self.points as f64;
+        let ceiling = at_cursor.sqrt() * (1.0 + 1e-12) + margin;
         let (mut lo, mut hi) = (
             cursor.saturating_sub(WINDOW),
-            (cursor + WINDOW).min(segments - 1),
+            (cursor + WINDOW).min(self.segments - 1),
         );
         let (best, best_k) = loop {
-            // Compared squared; the root taken once, of the best.
             let (mut best, mut best_k) = (f64::INFINITY, lo);
             for k in lo..=hi {
-                let (a, b) = segment(k);
-                let d = squared_distance_to_segment(p, &a, &b);
+                let d = if k == cursor {
+                    at_cursor
+                } else if self.known[k] - self.travelled > ceiling {
+                    continue;
+                } else {
+                    self.exact(p, k)
+                };
                 if d < best {
                     best = d;
                     best_k = k;
                 }
             }
             let at_low_edge = best_k == lo && lo > 0;
-            let at_high_edge = best_k == hi && hi < segments - 1;
+            let at_high_edge = best_k == hi && hi < self.segments - 1;
             if !(at_low_edge || at_high_edge) {
                 break (best, best_k);
             }
             lo = lo.saturating_sub(WINDOW);
-            hi = (hi + WINDOW).min(segments - 1);
+            hi = (hi + WINDOW).min(self.segments - 1);
         };
-        cursor = best_k;
-        out.push(best.sqrt());
+        self.cursor = best_k;
+        best
     }
-    out
 }
 
 /// Half-width of the first search window of [`deviation`], in desired segments.
@@ -872,11 +1180,7 @@ mod tests {
         // The mandrel turns clockwise seen from above at 1 rad/s: the eye moves
         // counter-clockwise in the mandrel frame.
         let mandrel = [(0.0, 0.0), (10.0, -10.0)];
-        let track = SampledEye {
-            eye_mm: &eye,
-            mandrel_rad: &mandrel,
-            transform: &transform,
-        };
+        let track = SampledEye::new(&eye, &mandrel, &transform);
         // Exact interpolation of a linear motion.
         let (p, v) = track.at(2.5);
         let (s, c) = 2.5f64.sin_cos();
@@ -952,5 +1256,137 @@ mod tests {
         assert!((d.max_mm - 2.0).abs() < 1e-12);
         assert_eq!(d.at, 1);
         assert!(deviation(&[], &desired).is_none());
+    }
+
+    /// The hinted search finds what bisection finds, on uniform, jittered, uneven and repeated
+    /// sample times, at, between, before and after the samples, and for NaN, with queries in
+    /// random and in increasing order.
+    #[test]
+    fn samples_near_is_partition_point() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let uniform: Vec<(f64, ())> = (0..1000).map(|k| (k as f64 * 1e-3, ())).collect();
+        let jittered: Vec<(f64, ())> = (0..1000)
+            .map(|k| (k as f64 * 5e-3 + 4e-3 * next(), ()))
+            .collect();
+        // Dense at the start, sparse after (a trace whose sampling changed), with repeats.
+        let mut uneven: Vec<(f64, ())> = (0..500).map(|k| (k as f64 * 1e-4, ())).collect();
+        uneven.extend((0..50).map(|k| (0.05 + k as f64 * 2.0, ())));
+        uneven.extend([(100.0, ()), (100.0, ()), (100.0, ()), (101.0, ())]);
+        let few: Vec<(f64, ())> = vec![(1.0, ())];
+        for series in [&uniform, &jittered, &uneven, &few] {
+            let lo = series[0].0 - 1.0;
+            let hi = series[series.len() - 1].0 + 1.0;
+            let mut ts: Vec<f64> = (0..4000).map(|_| lo + (hi - lo) * next()).collect();
+            ts.extend(series.iter().map(|s| s.0));
+            ts.extend([lo, hi, f64::NAN, f64::INFINITY, f64::NEG_INFINITY]);
+            let hint = std::cell::Cell::new(0);
+            for &t in &ts {
+                let want = series.partition_point(|s| s.0 <= t);
+                // With the hint of a query anywhere else (these times are in random order).
+                assert_eq!(samples_near(series, t, &hint), want, "t = {t}");
+            }
+            // In increasing order, as the integrator asks.
+            ts.sort_by(f64::total_cmp);
+            for &t in &ts {
+                let want = series.partition_point(|s| s.0 <= t);
+                assert_eq!(samples_near(series, t, &hint), want, "t = {t}");
+            }
+        }
+        let empty: Vec<(f64, ())> = Vec::new();
+        assert_eq!(samples_near(&empty, 1.0, &std::cell::Cell::new(3)), 0);
+    }
+
+    /// The largest distance, found while skipping the points that cannot raise it, equals a
+    /// brute-force search over every segment for every point: along a helix polyline with laid
+    /// points whose error wanders, and with an error growing steadily (every point searched).
+    #[test]
+    fn deviation_equals_a_brute_force_search() {
+        let desired: Vec<Point3<f64>> = (0..=400).map(|k| helix(k as f64 * 0.05, 0.6).0).collect();
+        let brute = |laid: &[Point3<f64>]| -> (f64, usize) {
+            let mut worst = (0.0f64, 0usize);
+            for (i, p) in laid.iter().enumerate() {
+                let d = desired
+                    .windows(2)
+                    .map(|w| distance_to_segment(p, &w[0], &w[1]))
+                    .fold(f64::INFINITY, f64::min);
+                if d > worst.0 {
+                    worst = (d, i);
+                }
+            }
+            worst
+        };
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for growing in [false, true] {
+            let laid: Vec<Point3<f64>> = (0..3000)
+                .map(|k| {
+                    let (p, _) = helix(k as f64 * 20.0 / 3000.0, 0.6);
+                    let size = if growing { k as f64 * 1e-3 } else { 0.8 };
+                    p + Vector3::new(next(), next(), next()) * size
+                })
+                .collect();
+            let d = deviation(&laid, &desired).unwrap();
+            let (max, at) = brute(&laid);
+            assert!((d.max_mm - max).abs() < 1e-12, "{} vs {max}", d.max_mm);
+            assert_eq!(d.at, at);
+            let from_distances = distances(&laid, &desired)
+                .into_iter()
+                .fold(0.0f64, f64::max);
+            assert!((from_distances - max).abs() < 1e-12);
+        }
+    }
+
+    /// The pruned search gives, bit for bit, what searching every segment of the window gives
+    /// ([`nearest_segment`] from the last match): on a helix polyline with laid points that
+    /// wander, that jump, that sit exactly on its vertices (equidistant from two segments), and
+    /// that stand still.
+    #[test]
+    fn distances_prune_without_changing_a_bit() {
+        let desired: Vec<Point3<f64>> = (0..=600).map(|k| helix(k as f64 * 0.05, 0.6).0).collect();
+        let plain = |laid: &[Point3<f64>]| -> Vec<f64> {
+            let segments = desired.len() - 1;
+            let mut cursor = 0;
+            laid.iter()
+                .map(|p| {
+                    let (d, k) = nearest_segment(p, &desired, segments, cursor);
+                    cursor = k;
+                    d.sqrt()
+                })
+                .collect()
+        };
+        let mut state = 0x1234_5678_9abc_def1u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut laid: Vec<Point3<f64>> = (0..5000)
+            .map(|k| {
+                let (p, _) = helix(k as f64 * 30.0 / 5000.0, 0.6);
+                p + Vector3::new(next(), next(), next()) * 2.0
+            })
+            .collect();
+        // Jumps back and forth, vertices, and a point repeated.
+        laid.extend(desired.iter().step_by(7).copied());
+        laid.extend((0..50).map(|k| desired[(k * 97) % desired.len()]));
+        laid.extend([desired[300]; 5]);
+        let got = distances(&laid, &desired);
+        let want = plain(&laid);
+        assert_eq!(got.len(), want.len());
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert_eq!(g.to_bits(), w.to_bits(), "point {i}: {g} vs {w}");
+        }
     }
 }

@@ -156,12 +156,30 @@ impl Spine {
     /// Offset and its first three derivatives with respect to height at `z_mm` (the end intervals
     /// are extended beyond the knots).
     pub fn eval(&self, z_mm: f64) -> [f64; 4] {
-        let i = match self.z_mm.binary_search_by(|k| k.total_cmp(&z_mm)) {
-            Ok(i) => i.min(self.coefficients.len() - 1),
+        self.eval_piece(self.piece_of(z_mm), z_mm)
+    }
+
+    /// The interval holding `z_mm`: the last knot at or below it (in `total_cmp` order),
+    /// clamped to the first and last interval. Tried first where evenly spaced knots would put
+    /// it (the mandrel tables are), then by bisection.
+    fn piece_of(&self, z_mm: f64) -> usize {
+        let k = &self.z_mm;
+        let last = self.coefficients.len() - 1;
+        if let (Some(&first), Some(&top)) = (k.first(), k.last()) {
+            let guess = (z_mm - first) / (top - first) * (k.len() - 1) as f64;
+            if guess >= 0.0 && guess < (k.len() - 1) as f64 {
+                // Truncation is the floor here (the guess is not negative).
+                let i = guess as usize;
+                if k[i].total_cmp(&z_mm).is_le() && z_mm.total_cmp(&k[i + 1]).is_lt() {
+                    return i.min(last);
+                }
+            }
+        }
+        match k.binary_search_by(|k| k.total_cmp(&z_mm)) {
+            Ok(i) => i.min(last),
             Err(0) => 0,
-            Err(i) => (i - 1).min(self.coefficients.len() - 1),
-        };
-        self.eval_piece(i, z_mm)
+            Err(i) => (i - 1).min(last),
+        }
     }
 
     /// Like [`Spine::eval`], but on the polynomial of interval `piece` (between knots `piece` and
@@ -332,5 +350,35 @@ mod tests {
         ));
         assert!(Spine::new(&[(0.0, 0.0)]).is_err());
         assert!(Spine::new(&[(0.0, f64::NAN), (1.0, 0.0)]).is_err());
+    }
+
+    /// The interval found by the even-spacing guess is the one bisection finds, on the S-bend's
+    /// even knots and on uneven ones, at knots, between, outside, at ±0 and for NaN.
+    #[test]
+    fn piece_of_is_the_bisection() {
+        let bisect = |s: &Spine, z: f64| match s.z_mm.binary_search_by(|k| k.total_cmp(&z)) {
+            Ok(i) => i.min(s.coefficients.len() - 1),
+            Err(0) => 0,
+            Err(i) => (i - 1).min(s.coefficients.len() - 1),
+        };
+        let even = Spine::new(&SBEND_TABLE_6_1_MM).unwrap();
+        let uneven =
+            Spine::new(&[(0.0, 0.0), (1.0, 0.5), (7.5, 1.0), (8.0, 0.2), (40.0, 3.0)]).unwrap();
+        for spine in [&even, &uneven] {
+            let mut zs: Vec<f64> = (-200..=4000).map(|k| k as f64 * 0.1 - 5.0).collect();
+            zs.extend(spine.z_mm.iter().copied());
+            zs.extend(spine.z_mm.iter().map(|z| z.next_down()));
+            zs.extend([
+                0.0,
+                -0.0,
+                f64::NAN,
+                -f64::NAN,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ]);
+            for z in zs {
+                assert_eq!(spine.piece_of(z), bisect(spine, z), "z = {z}");
+            }
+        }
     }
 }
