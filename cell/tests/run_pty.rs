@@ -1,8 +1,8 @@
 //! `windcell run` over pseudo-terminals in real time: discrete mode to separate `windcell
 //! sim-robot --pty` and `windcell sim-indexer --pty` processes (a cell without sync lines), fine
-//! and medium mode to `windcell sim-cell --pty` (sync lines on its socket). The cylinder batch is cut to its
-//! first three instructions per path so that the tests take seconds, not minutes (a verified
-//! upload at 9600 baud costs about 0.9 s per instruction).
+//! and medium mode to `windcell sim-cell --pty` (sync lines on its socket). The cylinder batch is
+//! cut to its first three instructions per path so that the tests take seconds, not minutes (a
+//! verified upload at 9600 baud costs about 0.9 s per instruction).
 
 mod common;
 
