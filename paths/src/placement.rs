@@ -1389,4 +1389,48 @@ mod tests {
             assert_eq!(g.to_bits(), w.to_bits(), "point {i}: {g} vs {w}");
         }
     }
+
+    /// Laid points that advance several desired segments per point: the segment now nearest was
+    /// computed last from far behind, so only its distance less the path travelled since lets it
+    /// be searched again. Bit for bit against the plain search; and an empty polyline or path
+    /// gives no distances.
+    #[test]
+    fn distances_follow_a_path_that_outruns_its_remembered_bounds() {
+        let desired: Vec<Point3<f64>> = (0..=600).map(|k| helix(k as f64 * 0.05, 0.6).0).collect();
+        for stride in [2.5, 5.0, 9.0] {
+            let laid: Vec<Point3<f64>> = (0..(600.0 / stride) as usize)
+                .map(|k| helix(k as f64 * stride * 0.05, 0.6).0 + Vector3::new(0.0, 0.0, 0.01))
+                .collect();
+            let got = distances(&laid, &desired);
+            let segments = desired.len() - 1;
+            let mut cursor = 0;
+            for (i, p) in laid.iter().enumerate() {
+                let (d, k) = nearest_segment(p, &desired, segments, cursor);
+                cursor = k;
+                assert_eq!(
+                    got[i].to_bits(),
+                    d.sqrt().to_bits(),
+                    "stride {stride}, point {i}"
+                );
+            }
+        }
+        assert!(distances(&desired, &[]).is_empty());
+        assert!(distances(&[], &desired).is_empty());
+        assert!(deviation(&desired, &[]).is_none());
+    }
+
+    /// Two laid points equally far from the desired path, the largest: the first is named.
+    #[test]
+    fn deviation_names_the_first_of_equal_largest_distances() {
+        let desired = [Point3::new(0.0, 0.0, 0.0), Point3::new(100.0, 0.0, 0.0)];
+        let laid = [
+            Point3::new(10.0, 1.0, 0.0),
+            Point3::new(20.0, 3.0, 0.0),
+            Point3::new(30.0, 2.0, 0.0),
+            Point3::new(40.0, 0.0, 3.0),
+            Point3::new(50.0, 1.0, 0.0),
+        ];
+        let d = deviation(&laid, &desired).unwrap();
+        assert_eq!((d.max_mm, d.at), (3.0, 1));
+    }
 }
