@@ -823,6 +823,84 @@ fn unroll(tube: &Tube, p: &Point3<f64>, previous: Option<f64>) -> (f64, f64) {
     (a, p.z)
 }
 
+/// Cell time between two modes in a recording of a prediction, s.
+const RECORD_MODE_GAP_S: f64 = 1.0;
+/// How often a recording of a prediction shows the laid fibre growing, s of cell time.
+const RECORD_STEP_S: f64 = 2.0;
+/// Spacing of the laid fibre's points in a recording, mm (the model's points are a fraction of
+/// a millimetre apart).
+const RECORD_SPACING_MM: f64 = 0.5;
+
+/// The points of `laid` (time, point) up to `until_s`, thinned to one every
+/// [`RECORD_SPACING_MM`] of arc (the last one kept).
+fn laid_until(laid: &[(f64, Point3<f64>)], until_s: f64) -> Vec<Point3<f64>> {
+    let mut out: Vec<Point3<f64>> = Vec::new();
+    let mut last = None;
+    for &(t, p) in laid.iter().take_while(|(t, _)| *t <= until_s) {
+        last = Some((t, p));
+        if out
+            .last()
+            .is_none_or(|q| (p - q).norm() >= RECORD_SPACING_MM)
+        {
+            out.push(p);
+        }
+    }
+    if let Some((_, p)) = last
+        && out.last() != Some(&p)
+    {
+        out.push(p);
+    }
+    out
+}
+
+impl Prediction {
+    /// Writes the prediction to `rec`: the modes one after another on one timeline
+    /// ([`RECORD_MODE_GAP_S`] apart), each path's desired fibre and its laid fibre growing every
+    /// [`RECORD_STEP_S`] of cell time (`/scene/fibre`, entities `MODE/PATH/desired` and
+    /// `MODE/PATH/laid`), and one log line per path with its time and error (`/log`). Returns
+    /// the timeline's length, s.
+    pub fn record(&self, rec: &crate::record::Recorder) -> f64 {
+        use crate::record::Level;
+        let mut t0 = 0.0;
+        for m in &self.modes {
+            let mode = m.mode.keyword();
+            match &m.outcome {
+                Err(why) => {
+                    rec.log(t0, Level::Warning, &format!("{mode}: {why}"));
+                    t0 += RECORD_MODE_GAP_S;
+                }
+                Ok(paths) => {
+                    for p in paths {
+                        let id = format!("{mode}/{}", p.name);
+                        let mut t = 0.0;
+                        while t < p.time_s {
+                            rec.fibre(t0 + t, &id, &p.desired_mm, &laid_until(&p.laid, t));
+                            t += RECORD_STEP_S;
+                        }
+                        rec.fibre(
+                            t0 + p.time_s,
+                            &id,
+                            &p.desired_mm,
+                            &laid_until(&p.laid, f64::INFINITY),
+                        );
+                        rec.log(
+                            t0 + p.time_s,
+                            Level::Info,
+                            &format!(
+                                "{id}: {:.1} s, largest error {:.3} mm at segment {}",
+                                p.time_s, p.max_error_mm, p.at_segment
+                            ),
+                        );
+                        t0 += p.time_s;
+                    }
+                    t0 += RECORD_MODE_GAP_S;
+                }
+            }
+        }
+        t0
+    }
+}
+
 impl Prediction {
     /// The desired and predicted paths unrolled on the mandrel (angle about the spine times the
     /// radius against height) and the error along each path, as SVG.

@@ -108,3 +108,54 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
         "{line} (whole chunks: {whole})"
     );
 }
+
+/// `windcell predict --record`: every mode's paths appear as desired and laid fibre, the laid one
+/// growing over the timeline (the last update of each holds the whole laid path), with a log line
+/// per path; the file reads back with the `mcap` crate.
+#[test]
+fn a_recorded_prediction_holds_every_mode_and_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap_path = dir.path().join("predict.mcap");
+    let o = windcell(&[
+        "predict",
+        example("cylinder.toml").to_str().unwrap(),
+        "--samples",
+        "2",
+        "--record",
+        mcap_path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = std::fs::read(&mcap_path).unwrap();
+    let mut logs = 0;
+    let mut fibre = 0;
+    let mut ids = std::collections::BTreeSet::new();
+    let mut last_time = 0u64;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        assert!(m.log_time >= last_time, "log times out of order");
+        last_time = m.log_time;
+        match m.channel.topic.as_str() {
+            "/log" => logs += 1,
+            "/scene/fibre" => {
+                fibre += 1;
+                use foxglove::Decode as _;
+                let update = foxglove::schemas::SceneUpdate::decode(m.data.as_ref()).unwrap();
+                for e in update.entities {
+                    ids.insert(e.id);
+                }
+            }
+            _ => {}
+        }
+    }
+    // Three modes, two paths each.
+    assert_eq!(logs, 6, "{logs} log lines");
+    assert_eq!(ids.len(), 12, "{ids:?}");
+    for mode in ["discrete", "fine", "medium"] {
+        assert!(
+            ids.iter()
+                .any(|i| i.starts_with(&format!("{mode}/")) && i.ends_with("/laid"))
+        );
+    }
+    // Growing: several updates per path.
+    assert!(fibre > 6 * 3, "{fibre} fibre updates");
+}

@@ -1,5 +1,6 @@
-//! `windcell predict JOB.toml [--mode M …] [--mandrel-rps R] [--json] [--svg FILE]`: time and
-//! placement error of each mode before winding (seed 001 Chapter 6; `cell::predict`).
+//! `windcell predict JOB.toml [--mode M …] [--mandrel-rps R] [--json] [--svg FILE] [--record
+//! FILE.mcap]`: time and placement error of each mode before winding (seed 001 Chapter 6;
+//! `cell::predict`).
 
 use std::path::PathBuf;
 
@@ -48,6 +49,10 @@ pub struct PredictArgs {
     /// Draw the desired and predicted paths unrolled, and the error along them, as SVG.
     #[arg(long, value_name = "FILE")]
     pub svg: Option<PathBuf>,
+    /// Record the desired and laid fibre of every mode and path, the laid fibre growing over
+    /// cell time, as MCAP for Foxglove (docs/operator.md).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
 }
 
 /// Most Monte Carlo samples accepted.
@@ -97,6 +102,18 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
             .map_err(|e| Failure::runtime(format!("{}: {e}", svg.display())))?;
         std::fs::write(svg, text)
             .map_err(|e| Failure::runtime(format!("{}: {e}", svg.display())))?;
+    }
+    if let Some(path) = &args.record {
+        let sinks = cell::record::Sinks {
+            mcap: Some(path.clone()),
+            live: None,
+        };
+        let epoch_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64);
+        let rec = cell::record::Recorder::open(&sinks, epoch_ns).map_err(Failure::from_cell)?;
+        prediction.record(&rec);
+        rec.finish().map_err(Failure::from_cell)?;
     }
     if args.json {
         let mut out = serde_json::to_string_pretty(&prediction.json()).map_err(Failure::runtime)?;
