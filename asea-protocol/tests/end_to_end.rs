@@ -283,20 +283,39 @@ impl Peer for Silent {
     }
 }
 
-/// A device that acknowledges ENQ and never answers a telegram (neither ACK nor NAK).
-#[derive(Debug, Default)]
-struct Mute(Vec<u8>);
-impl Peer for Mute {
+/// A device that answers every ENQ with one byte and nothing else: ACK for [`EnqOnly::mute`]
+/// (it takes every session and never answers a telegram, neither ACK nor NAK), NAK for
+/// [`EnqOnly::busy`] (it refuses every session as busy).
+#[derive(Debug)]
+struct EnqOnly {
+    answer: u8,
+    out: Vec<u8>,
+}
+impl EnqOnly {
+    fn mute() -> Self {
+        EnqOnly {
+            answer: 0x06,
+            out: Vec::new(),
+        }
+    }
+    fn busy() -> Self {
+        EnqOnly {
+            answer: 0x15,
+            out: Vec::new(),
+        }
+    }
+}
+impl Peer for EnqOnly {
     fn receive(&mut self, bytes: &[u8], _: Duration) {
         for &b in bytes {
             if b == 0x05 {
-                self.0.push(0x06);
+                self.out.push(self.answer);
             }
         }
     }
     fn poll(&mut self, _: Duration) {}
     fn take_output(&mut self) -> Vec<u8> {
-        std::mem::take(&mut self.0)
+        std::mem::take(&mut self.out)
     }
     fn deadline(&self) -> Option<Duration> {
         None
@@ -357,26 +376,6 @@ fn a_silent_robot_is_reported_after_one_session_by_every_call() {
     }
 }
 
-/// A robot that refuses every ENQ as busy (NAK).
-#[derive(Debug, Default)]
-struct AlwaysBusy(Vec<u8>);
-impl Peer for AlwaysBusy {
-    fn receive(&mut self, bytes: &[u8], _: Duration) {
-        for &b in bytes {
-            if b == 0x05 {
-                self.0.push(0x15);
-            }
-        }
-    }
-    fn poll(&mut self, _: Duration) {}
-    fn take_output(&mut self) -> Vec<u8> {
-        std::mem::take(&mut self.0)
-    }
-    fn deadline(&self) -> Option<Duration> {
-        None
-    }
-}
-
 /// A robot busy through every ENQ: a request asks again in `request_sessions` new sessions
 /// (the robot may be busy for a while), but nothing above repeats that, and STOP, which must
 /// not wait, gives up after its one session.
@@ -385,7 +384,7 @@ fn a_robot_busy_throughout_is_reported_after_the_request_sessions() {
     // N_ENQ refusals, T_BUSY between them.
     let session = T_BUSY * (N_ENQ - 1);
     let sessions = ClientConfig::default().retry.request_sessions;
-    type Call = fn(&mut Client<Paced<AlwaysBusy>, VirtualClock>) -> Result<(), Error>;
+    type Call = fn(&mut Client<Paced<EnqOnly>, VirtualClock>) -> Result<(), Error>;
     let calls: [(&str, Call, u32); 4] = [
         ("status", |c| c.status().map(|_| ()), sessions),
         ("status_agreed", |c| c.status_agreed().map(|_| ()), sessions),
@@ -395,7 +394,7 @@ fn a_robot_busy_throughout_is_reported_after_the_request_sessions() {
     for (name, call, n) in calls {
         let clock = VirtualClock::new();
         let mut c = Client::with_clock(
-            Paced::new(clock.clone(), 9600, AlwaysBusy::default()),
+            Paced::new(clock.clone(), 9600, EnqOnly::busy()),
             clock.clone(),
             ClientConfig::default(),
         );
@@ -461,7 +460,7 @@ fn nak_storm_is_a_retries_error() {
     // A device that only acknowledges ENQ: every telegram waits T_ACK, N_TX times.
     let clock = VirtualClock::new();
     let mut c = Client::with_clock(
-        Paced::new(clock.clone(), 9600, Mute::default()),
+        Paced::new(clock.clone(), 9600, EnqOnly::mute()),
         clock.clone(),
         ClientConfig::default(),
     );

@@ -8,75 +8,25 @@
 
 use std::time::Duration;
 
-use asea_protocol::client::store_command;
-use asea_protocol::command::{Control, Instruction};
-use asea_protocol::frame::Frame;
-use asea_protocol::{Command, Flags, FrameConfig, Pose, Positioning, Speed, Zone};
 use cell::device::Timebase as _;
-use cell::simcell::{Observer, SimCell, SimCellConfig};
+use cell::simcell::SimCell;
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use mandrel_drive::sim::Frontend as _;
 
+#[path = "../tests/support/strokes.rs"]
+mod strokes;
+
 const POINTS: u16 = 420;
 
-fn frame(cmd: &Command) -> Frame {
-    let bytes = cmd.encode(&FrameConfig::default()).unwrap();
-    Frame {
-        code: bytes[1],
-        data: bytes[3..bytes.len() - 2].to_vec(),
-    }
-}
-
-/// A homed robot running its program and a mandrel turning at 0.5 motor rev/s, at cell time 4 s.
+/// A homed robot running its program (strokes at 35 mm/s) and a mandrel turning at 0.5 motor
+/// rev/s, at cell time 4 s.
 fn started() -> SimCell {
-    started_with(false)
+    strokes::stroking_cell(POINTS, 0.035, false)
 }
 
 /// As [`started`], with an observer attached: the cell is then polled every tick.
 fn started_ticked() -> SimCell {
-    started_with(true)
-}
-
-fn started_with(ticked: bool) -> SimCell {
-    let cell = SimCell::new(&SimCellConfig::default());
-    cell.with(|p| {
-        if ticked {
-            p.observer = Some(Observer(Box::new(|_, _, _, _| {})));
-        }
-        let m = &mut p.robot.machine;
-        for n in 1..=POINTS {
-            let z = if n % 2 == 0 { 500.0 } else { 800.0 };
-            let i = Instruction::Position(Positioning {
-                flags: Flags {
-                    zone: Zone::Fine,
-                    ..Flags::default()
-                },
-                pose: Pose::from_mm([900.0, 0.0, z], [1.0, 0.0, 0.0, 0.0]).unwrap(),
-                speed: Speed::from_value("speed", 0.035).unwrap(),
-            });
-            m.execute(&frame(&store_command(1, n, &i)), 0.0);
-        }
-        m.execute(
-            &frame(&store_command(1, POINTS + 1, &Control::End.into())),
-            0.0,
-        );
-        m.execute(&frame(&Command::Operate), 0.0);
-        m.execute(&frame(&Command::SyncHome), 0.0);
-        assert_eq!(m.last_error(), 0);
-    })
-    .unwrap();
-    let t = cell.timebase();
-    t.sleep(Duration::from_secs(4));
-    let now = t.now_s();
-    cell.with(|p| {
-        p.robot
-            .machine
-            .execute(&frame(&Command::RunProgram { program: 1 }), now);
-        assert_eq!(p.robot.machine.last_error(), 0);
-        p.card.receive(b"1A10 1MC 1H+ 1V0.5 1G\r", now);
-    })
-    .unwrap();
-    cell
+    strokes::stroking_cell(POINTS, 0.035, true)
 }
 
 fn hour(cell: SimCell) -> (u16, i64) {

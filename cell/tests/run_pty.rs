@@ -438,29 +438,69 @@ fn ctrl_c_over_ptys_stops_both_axes_and_resume_completes_the_batch() {
     resume_and_check(d, cell);
 }
 
+/// Which simulator process a fault is sent to.
+#[derive(Clone, Copy)]
+enum Faulty {
+    Robot,
+    Indexer,
+}
+
+/// What [`fault_mid_batch`] saw: the run's standard error, the Unix time the fault was sent and
+/// the seconds from then until the run exited.
+struct Faulted {
+    err: String,
+    t0: f64,
+    took: f64,
+}
+
+/// Runs the discrete batch on `cell` (of `d`), sends `fault` to one simulator process once two
+/// segments are journaled, waits for the run to give up and sends `clear`. The run must exit 1
+/// with one line naming `what` and how to resume, and leave a whole journal ending with the stop.
+fn fault_mid_batch(
+    d: &Path,
+    cell: &PtyCell,
+    device: Faulty,
+    (fault, clear): (nix::sys::signal::Signal, nix::sys::signal::Signal),
+    what: &str,
+) -> Faulted {
+    use nix::sys::signal::kill;
+    use nix::unistd::Pid;
+    let run = start_run(d);
+    wait_for_segments(d, 2);
+    let pid = Pid::from_raw(match device {
+        Faulty::Robot => cell.robot.id(),
+        Faulty::Indexer => cell.indexer.id(),
+    } as i32);
+    let t0 = cell::wiretap::unix_now_s();
+    kill(pid, fault).unwrap();
+    let o = run.wait_with_output().unwrap();
+    let took = cell::wiretap::unix_now_s() - t0;
+    kill(pid, clear).unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains(what) && err.contains("--resume"), "{err}");
+    journal_ends_with(d, "stopped");
+    Faulted { err, t0, took }
+}
+
 /// The robot computer stops answering mid-batch (its `sim-robot` process is frozen with
 /// SIGSTOP, as a hung controller would be): the run retries within the link's limits, then stops
 /// the indexer, says in one line what failed and how to resume, and exits 1 with the journal
 /// intact. Once the robot answers again (SIGCONT), `--resume` completes the batch.
 #[test]
 fn a_robot_that_stops_answering_over_ptys_stops_the_indexer_and_resume_completes() {
-    use nix::sys::signal::{Signal, kill};
-    use nix::unistd::Pid;
+    use nix::sys::signal::Signal;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cell = pty_cell(d, 4);
-    let run = start_run(d);
-    wait_for_segments(d, 2);
-    let robot = Pid::from_raw(cell.robot.id() as i32);
-    let t0 = cell::wiretap::unix_now_s();
-    kill(robot, Signal::SIGSTOP).unwrap();
-    let o = run.wait_with_output().unwrap();
-    let took = cell::wiretap::unix_now_s() - t0;
-    kill(robot, Signal::SIGCONT).unwrap();
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
-    assert!(err.contains("robot") && err.contains("--resume"), "{err}");
+    let Faulted { err, t0, took } = fault_mid_batch(
+        d,
+        &cell,
+        Faulty::Robot,
+        (Signal::SIGSTOP, Signal::SIGCONT),
+        "robot",
+    );
     eprintln!("robot silent: the run gave up after {took:.1} s: {err}");
     // One session of unanswered ENQs (6 × 2 s) finds the silence; the indexer's stop goes on
     // the wire at once, then one more session tries the robot's STOP: 24 s, not a retry of
@@ -474,7 +514,6 @@ fn a_robot_that_stops_answering_over_ptys_stops_the_indexer_and_resume_completes
         "the indexer's stop {:.1} s after the robot fell silent",
         indexer_stop - t0
     );
-    journal_ends_with(d, "stopped");
     // Let the robot finish whatever move it was in.
     std::thread::sleep(std::time::Duration::from_millis(1500));
     resume_and_check(d, cell);
@@ -630,26 +669,20 @@ fn stop_latency_from_sigint_to_both_stop_commands_over_ptys() {
 /// (SIGUSR2), `--resume` completes the batch.
 #[test]
 fn an_indexer_stall_over_ptys_stops_the_robot_and_resume_completes() {
-    use nix::sys::signal::{Signal, kill};
-    use nix::unistd::Pid;
+    use nix::sys::signal::Signal;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cell = pty_cell(d, 4);
-    let run = start_run(d);
-    wait_for_segments(d, 2);
-    let indexer = Pid::from_raw(cell.indexer.id() as i32);
-    let t0 = cell::wiretap::unix_now_s();
-    kill(indexer, Signal::SIGUSR1).unwrap();
-    let o = run.wait_with_output().unwrap();
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
-    assert!(err.contains("stall") && err.contains("--resume"), "{err}");
+    let Faulted { err, t0, .. } = fault_mid_batch(
+        d,
+        &cell,
+        Faulty::Indexer,
+        (Signal::SIGUSR1, Signal::SIGUSR2),
+        "stall",
+    );
     // The robot was told to stop after the stall.
     let (robot_stop, _) = stops_after(&cell, t0);
     assert!(robot_stop.is_some(), "{err}");
-    journal_ends_with(d, "stopped");
-    kill(indexer, Signal::SIGUSR2).unwrap();
     std::thread::sleep(std::time::Duration::from_millis(200));
     resume_and_check(d, cell);
 }
@@ -660,30 +693,23 @@ fn an_indexer_stall_over_ptys_stops_the_robot_and_resume_completes() {
 /// With the storm over (SIGUSR2), `--resume` completes the batch.
 #[test]
 fn a_nak_storm_over_ptys_stops_the_indexer_and_resume_completes() {
-    use nix::sys::signal::{Signal, kill};
-    use nix::unistd::Pid;
+    use nix::sys::signal::Signal;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cell = pty_cell(d, 4);
-    let run = start_run(d);
-    wait_for_segments(d, 2);
-    let robot = Pid::from_raw(cell.robot.id() as i32);
-    let t0 = cell::wiretap::unix_now_s();
-    kill(robot, Signal::SIGUSR1).unwrap();
-    let o = run.wait_with_output().unwrap();
-    let took = cell::wiretap::unix_now_s() - t0;
-    kill(robot, Signal::SIGUSR2).unwrap();
-    let err = stderr(&o);
+    let Faulted { err, t0, took } = fault_mid_batch(
+        d,
+        &cell,
+        Faulty::Robot,
+        (Signal::SIGUSR1, Signal::SIGUSR2),
+        "robot",
+    );
     eprintln!("NAK storm: the run gave up after {took:.1} s: {err}");
     // Refused sessions of 2.5 s, asked again by each request (3) but by no layer above: about
     // 30 s, where retrying at every layer took 392 s.
     assert!(took < 45.0, "{took} s");
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
-    assert!(err.contains("robot") && err.contains("--resume"), "{err}");
     let (_, indexer_stop) = stops_after(&cell, t0);
     assert!(indexer_stop.is_some(), "{err}");
-    journal_ends_with(d, "stopped");
     std::thread::sleep(std::time::Duration::from_millis(1500));
     resume_and_check(d, cell);
 }

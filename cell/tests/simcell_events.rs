@@ -5,68 +5,20 @@
 
 use std::time::Duration;
 
-use asea_protocol::client::store_command;
-use asea_protocol::command::{Control, Instruction};
-use asea_protocol::frame::Frame;
-use asea_protocol::link::Peer as _;
-use asea_protocol::{Command, Flags, FrameConfig, Pose, Positioning, Speed, Zone};
 use cell::device::Timebase as _;
-use cell::simcell::{LogRecord, Observer, SimCell, SimCellConfig, TICK};
+use cell::simcell::{LogRecord, TICK};
 use mandrel_drive::sim::Frontend as _;
 
-const POINTS: u16 = 40;
+#[path = "support/strokes.rs"]
+mod strokes;
 
-fn frame(cmd: &Command) -> Frame {
-    let bytes = cmd.encode(&FrameConfig::default()).unwrap();
-    Frame {
-        code: bytes[1],
-        data: bytes[3..bytes.len() - 2].to_vec(),
-    }
-}
+const POINTS: u16 = 40;
 
 /// A robot running a stored program of 300 mm strokes at 200 mm/s and the mandrel turning
 /// continuously, then a preset mandrel move, all in one sleep of the cell's clock.
 fn wind(ticked: bool) -> (Vec<LogRecord>, u16, i64, f64) {
-    let cell = SimCell::new(&SimCellConfig::default());
-    cell.with(|p| {
-        if ticked {
-            p.observer = Some(Observer(Box::new(|_, _, _, _| {})));
-        }
-        let m = &mut p.robot.machine;
-        for n in 1..=POINTS {
-            let z = if n % 2 == 0 { 500.0 } else { 800.0 };
-            let i = Instruction::Position(Positioning {
-                flags: Flags {
-                    zone: Zone::Fine,
-                    ..Flags::default()
-                },
-                pose: Pose::from_mm([900.0, 0.0, z], [1.0, 0.0, 0.0, 0.0]).unwrap(),
-                speed: Speed::from_value("speed", 0.2).unwrap(),
-            });
-            m.execute(&frame(&store_command(1, n, &i)), 0.0);
-        }
-        m.execute(
-            &frame(&store_command(1, POINTS + 1, &Control::End.into())),
-            0.0,
-        );
-        m.execute(&frame(&Command::Operate), 0.0);
-        m.execute(&frame(&Command::SyncHome), 0.0);
-        assert_eq!(m.last_error(), 0);
-    })
-    .unwrap();
+    let cell = strokes::stroking_cell(POINTS, 0.2, ticked);
     let t = cell.timebase();
-    t.sleep(Duration::from_secs(4));
-    let now = t.now_s();
-    cell.with(|p| {
-        p.robot
-            .machine
-            .execute(&frame(&Command::RunProgram { program: 1 }), now);
-        assert_eq!(p.robot.machine.last_error(), 0);
-        // As a RUN telegram's arrival does: the watch sees the program start.
-        p.poll(Duration::from_secs_f64(now));
-        p.card.receive(b"1A10 1MC 1H+ 1V0.5 1G\r", now);
-    })
-    .unwrap();
     t.sleep(Duration::from_secs(30));
     let now = t.now_s();
     cell.with(|p| p.card.receive(b"1S\r", now)).unwrap();
