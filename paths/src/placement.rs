@@ -316,10 +316,10 @@ impl<'a> TubeContact<'a> {
         *carry = Some((self.t_s, end));
         // The surface here: where the step started when it did not move (pivoting).
         let key = [self.u.to_bits(), self.v.to_bits()];
-        let surface = match &self.start {
-            Some((at, s)) if *at == key => *s,
-            _ => self.tube.surface(self.u, self.v),
-        };
+        let surface = self
+            .start_surface()
+            .copied()
+            .unwrap_or_else(|| self.tube.surface(self.u, self.v));
         let l = Self::local_on(&surface, self.u, &e, &e_dot)?;
         let corrected = self.state == ContactState::Wrapping || l.residual_mm < 0.0;
         if corrected {
