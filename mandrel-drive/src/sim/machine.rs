@@ -678,5 +678,12 @@ mod tests {
         assert_abs_diff_eq!(m.next_event_s(1e-3).unwrap(), 1e-3, epsilon = 1e-12);
         m.advance(1.0);
         assert_eq!(m.next_event_s(1e-3), None);
+        // A long preset move cruising above the limit is not sampled until its braking ramp:
+        // its next event is its end.
+        m.kill();
+        m.start_preset(200_000).unwrap();
+        m.advance(2.0);
+        let end = m.next_event_s(1e-3).unwrap();
+        assert!(end > 10.0, "{end}");
     }
 }
