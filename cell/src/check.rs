@@ -15,7 +15,7 @@ use paths::clearance::{
     Report, Solid, TubeSolid, sweep::Cell,
 };
 use paths::{Arm, ElbowBranch, Tube};
-use sequences::job::{Job, MandrelKind};
+use sequences::job::Job;
 
 use crate::Error;
 use crate::tool::{self, JobPlan};
@@ -73,33 +73,21 @@ pub fn cell_of(job: &Job) -> (EyeMechanism, f64, Vec<Obstacle>, Option<Point3<f6
     (mechanism, snag, obstacles, home)
 }
 
-/// The mandrel solid of a job: the analytic tube, or the mesh file for a mesh mandrel.
-pub fn solid(job: &Job, text: &str, file: &Path, tube: &Tube) -> Result<Box<dyn Solid>, Error> {
-    match (job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
-        (MandrelKind::Mesh, Some(mesh)) => {
-            let dir = file.parent().unwrap_or(Path::new(""));
-            let weld = job
-                .mandrel
-                .weld_mm
-                .as_ref()
-                .map_or(paths::mesh::DEFAULT_WELD_MM, |w| *w.get_ref());
-            let mesh_file = dir.join(mesh.get_ref());
-            let tracer = crate::mesh::load(
-                &mesh_file,
-                weld,
-                paths::mesh::Closure::Closed,
-                paths::mesh::trace::DEFAULT_CREASE_DEG,
-            )?;
+/// The mandrel solid of a job: the analytic tube, or the mesh the plan was traced on (a mesh
+/// mandrel; errors name the job's mesh file).
+pub fn solid(job: &Job, file: &Path, plan: &JobPlan, tube: &Tube) -> Result<Box<dyn Solid>, Error> {
+    match &plan.mesh {
+        Some(tracer) => {
             let solid = MeshSolid::new(tracer.mesh()).map_err(|source| Error::Mesh {
-                file: mesh_file,
+                file: job.mandrel.mesh.as_ref().map_or_else(
+                    || file.to_path_buf(),
+                    |mesh| file.parent().unwrap_or(Path::new("")).join(mesh.get_ref()),
+                ),
                 source,
             })?;
             Ok(Box::new(solid))
         }
-        _ => {
-            let _ = text;
-            Ok(Box::new(TubeSolid::new(tube)))
-        }
+        None => Ok(Box::new(TubeSolid::new(tube))),
     }
 }
 
@@ -123,7 +111,7 @@ pub fn check(job: &Job, text: &str, file: &Path, plan: JobPlan) -> Result<Checke
     };
     // An eye point inside the mandrel was refused by the plan (paths::plan's guard).
     let tube = tool::mandrel_in(job, text, file)?;
-    let solid = solid(job, text, file, &tube)?;
+    let solid = solid(job, file, &plan, &tube)?;
     let (setup, speeds) = tool::setup(job);
     let (eye, snag_tolerance_mm, obstacles, home_mm) = cell_of(job);
     let arm = tool::arm(job);

@@ -24,10 +24,6 @@ pub const APPROACH_SPEED_PCT: f64 = 10.0;
 pub const GEODESIC_STEP_MM: f64 = 0.25;
 /// Arc-length sample spacing of the exact helix, mm (its interpolation is exact).
 pub const HELIX_STEP_MM: f64 = 1.0;
-/// Facets per circumference of the mesh that imported paths are projected onto (analytic mandrels).
-pub const PROJECTION_FACETS: usize = 256;
-/// Section spacing of that mesh, mm.
-pub const PROJECTION_SPACING_MM: f64 = 1.0;
 
 /// One planned path.
 #[derive(Debug, Clone)]
@@ -53,6 +49,9 @@ pub struct PlannedPath {
 pub struct JobPlan {
     /// In the job's order.
     pub paths: Vec<PlannedPath>,
+    /// The mandrel mesh the paths were traced on, prepared (welded, validated), when the mandrel
+    /// is a mesh: the collision check reads the same triangles without loading the file again.
+    pub mesh: Option<std::sync::Arc<paths::mesh::trace::Tracer>>,
 }
 
 /// A planning error at the job-file place `span` of `text`, read from `file`.
@@ -336,8 +335,9 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
     };
     let (setup, speeds) = setup(job);
     let dir = file.parent().unwrap_or(Path::new(""));
-    // Imported (DXF) paths on an analytic mandrel are projected onto its TRIASYM mesh.
-    let mut projection: Option<paths::mesh::trace::Tracer> = None;
+    // Imported (DXF) paths on an analytic mandrel are projected onto the tube itself (its nearest
+    // surface point and normal).
+    let mut projection: Option<paths::clearance::TubeSolid> = None;
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
         let segments = *spec.segments.get_ref() as usize;
@@ -375,40 +375,9 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 }
             });
             let raw = imported.points;
-            let surface = match &tracer {
+            let surface: &dyn paths::mesh::resegment::Projection = match &tracer {
                 Some(t) => t,
-                None => {
-                    if projection.is_none() {
-                        let mesh = paths::mesh::triasym::tube(
-                            &tube,
-                            PROJECTION_FACETS,
-                            PROJECTION_SPACING_MM,
-                            true,
-                        )
-                        .map_err(|e| located(e, job.mandrel.kind.span()))?;
-                        let adjacency = mesh
-                            .validate(paths::mesh::Closure::Closed)
-                            .map_err(|e| located(e, job.mandrel.kind.span()))?;
-                        projection = Some(
-                            paths::mesh::trace::Tracer::new(
-                                mesh,
-                                &adjacency,
-                                paths::mesh::trace::DEFAULT_CREASE_DEG,
-                            )
-                            .map_err(|e| located(e, job.mandrel.kind.span()))?,
-                        );
-                    }
-                    projection.as_ref().ok_or_else(|| {
-                        located(
-                            paths::Error::TooFewPoints {
-                                what: "mandrel mesh",
-                                count: 0,
-                                needed: 1,
-                            },
-                            job.mandrel.kind.span(),
-                        )
-                    })?
-                }
+                None => projection.get_or_insert_with(|| paths::clearance::TubeSolid::new(&tube)),
             };
             let cut = paths::mesh::resegment::smooth_and_cut(
                 surface,
@@ -494,7 +463,10 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             desired_mm: desired_mm.unwrap_or_else(|| points.iter().map(|p| p.point).collect()),
         });
     }
-    Ok(JobPlan { paths: planned })
+    Ok(JobPlan {
+        paths: planned,
+        mesh: tracer.map(std::sync::Arc::new),
+    })
 }
 
 /// Refuses a path whose stored program (fine and medium movement) would not fit the robot's

@@ -118,8 +118,8 @@ pub struct Finding {
 /// The least clearances found over one segment (or approach move). The least of each field over
 /// all rows is the job's least clearance of that part, to 1 % of itself (see the module
 /// documentation). A row's own value is its move's least clearance to that tolerance wherever
-/// the move could undercut the moves checked before it; elsewhere it is only a bound at or above
-/// their least.
+/// the move could undercut the job's poses and the moves of its path checked before it;
+/// elsewhere it is only a bound at or above their least.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SegmentClearance {
     /// Segment, from 1; 0 is the approach or link move.
@@ -349,7 +349,10 @@ pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<
             }
         }
     }
-    let mut previous: Option<End> = cell.home_mm.map(|home| End {
+    // Where each path's approach or link move starts: home before the first, then the end of the
+    // path before (the plan's poses, not the check's results, so the paths are independent).
+    let mut previous: Vec<Option<End>> = Vec::with_capacity(paths.len());
+    let mut last: Option<End> = cell.home_mm.map(|home| End {
         eye: home,
         q: paths
             .first()
@@ -357,69 +360,135 @@ pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<
         phi: paths.first().map_or(0.0, |p| p.start.mandrel_rad),
         tangent: None,
     });
-    for (n, plan) in paths.iter().enumerate() {
-        let mut rows = Vec::with_capacity(plan.segments.len() + 1);
-        let start = End::of(&plan.start);
-        // Approach or link move: no fibre.
-        match previous {
-            Some(from) => {
-                let mut to = start;
-                to.tangent = None;
-                // The mandrel turns the short way to the next start.
-                let mut from = from;
-                from.tangent = None;
-                let turn = (to.phi - from.phi).rem_euclid(std::f64::consts::TAU);
-                let turn = if turn > std::f64::consts::PI {
-                    turn - std::f64::consts::TAU
-                } else {
-                    turn
-                };
-                from.phi = to.phi - turn;
-                let duration = (to.eye - from.eye).norm() / cell.approach_speed_mm_s;
-                let row = check_move(
-                    &ctx,
-                    &from,
-                    &to,
-                    n + 1,
-                    0,
-                    -duration,
-                    duration,
-                    &mut report,
-                    &mut least,
-                )?;
-                rows.push(row);
-            }
-            None => rows.push(SegmentClearance {
-                segment: 0,
-                start_s: 0.0,
-                duration_s: 0.0,
-                eye_mm: f64::INFINITY,
-                tow_mm: None,
-                arm_mm: None,
-            }),
+    for plan in paths {
+        previous.push(last);
+        last = Some(
+            plan.segments
+                .last()
+                .map_or(End::of(&plan.start), |s| End::of(&s.pose)),
+        );
+    }
+    // The paths are checked on up to as many threads as the machine has cores, each thread a
+    // run of consecutive paths with the poses' least clearances as its first ceilings.
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .clamp(1, paths.len().max(1));
+    let per_worker = paths.len().div_ceil(workers).max(1);
+    let run = |first: usize| -> Vec<Result<Report, Error>> {
+        let mut least = least;
+        (first..(first + per_worker).min(paths.len()))
+            .map(|n| sweep_path(&ctx, n, paths[n], previous[n], &mut least))
+            .collect()
+    };
+    let chunks: Vec<Vec<Result<Report, Error>>> = if workers == 1 {
+        vec![run(0)]
+    } else {
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..paths.len())
+                .step_by(per_worker)
+                .map(|first| scope.spawn(move || run(first)))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join()
+                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+                })
+                .collect()
+        })
+    };
+    // Merged in path order: the first error, every path's rows and findings, and the least pose
+    // (the earliest of equals).
+    for one in chunks.into_iter().flatten() {
+        let one = one?;
+        report.paths.extend(one.paths);
+        report.findings.extend(one.findings);
+        if let Some(w) = one.worst
+            && report
+                .worst
+                .is_none_or(|best| w.clearance_mm < best.clearance_mm)
+        {
+            report.worst = Some(w);
         }
-        let mut from = start;
-        let mut t = 0.0;
-        for (k, segment) in plan.segments.iter().enumerate() {
-            let to = End::of(&segment.pose);
+    }
+    Ok(report)
+}
+
+/// Path `n` (from 0) of a job: its approach or link move from `previous` (none: a row with no
+/// move) and its segments, as a report of that path alone.
+fn sweep_path(
+    ctx: &Context<'_>,
+    n: usize,
+    plan: &PathPlan,
+    previous: Option<End>,
+    least: &mut Least,
+) -> Result<Report, Error> {
+    let cell = ctx.cell;
+    let mut report = Report {
+        paths: Vec::with_capacity(1),
+        findings: Vec::new(),
+        worst: None,
+    };
+    let mut rows = Vec::with_capacity(plan.segments.len() + 1);
+    let start = End::of(&plan.start);
+    // Approach or link move: no fibre.
+    match previous {
+        Some(from) => {
+            let mut to = start;
+            to.tangent = None;
+            // The mandrel turns the short way to the next start.
+            let mut from = from;
+            from.tangent = None;
+            let turn = (to.phi - from.phi).rem_euclid(std::f64::consts::TAU);
+            let turn = if turn > std::f64::consts::PI {
+                turn - std::f64::consts::TAU
+            } else {
+                turn
+            };
+            from.phi = to.phi - turn;
+            let duration = (to.eye - from.eye).norm() / cell.approach_speed_mm_s;
             let row = check_move(
-                &ctx,
+                ctx,
                 &from,
                 &to,
                 n + 1,
-                k + 1,
-                t,
-                segment.duration_s,
+                0,
+                -duration,
+                duration,
                 &mut report,
-                &mut least,
+                least,
             )?;
             rows.push(row);
-            t += segment.duration_s;
-            from = to;
         }
-        previous = Some(from);
-        report.paths.push(rows);
+        None => rows.push(SegmentClearance {
+            segment: 0,
+            start_s: 0.0,
+            duration_s: 0.0,
+            eye_mm: f64::INFINITY,
+            tow_mm: None,
+            arm_mm: None,
+        }),
     }
+    let mut from = start;
+    let mut t = 0.0;
+    for (k, segment) in plan.segments.iter().enumerate() {
+        let to = End::of(&segment.pose);
+        let row = check_move(
+            ctx,
+            &from,
+            &to,
+            n + 1,
+            k + 1,
+            t,
+            segment.duration_s,
+            &mut report,
+            least,
+        )?;
+        rows.push(row);
+        t += segment.duration_s;
+        from = to;
+    }
+    report.paths.push(rows);
     Ok(report)
 }
 
@@ -687,10 +756,14 @@ mod tests {
 
     /// The cylinder of `examples/cylinder.toml` wound at 48.3° in 10 long segments.
     fn cylinder_plan(setup: &Setup) -> (Tube, PathPlan) {
+        cylinder_plan_at(setup, 48.3)
+    }
+
+    fn cylinder_plan_at(setup: &Setup, wind_angle_deg: f64) -> (Tube, PathPlan) {
         let tube = Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap();
         let start = PathStart {
             angle_rad: 0.0,
-            wind_angle_rad: 48.3f64.to_radians(),
+            wind_angle_rad: wind_angle_deg.to_radians(),
             direction: Direction::Up,
         };
         let path = geodesic::helix(&tube, &start, 1.0).unwrap();
@@ -773,6 +846,64 @@ mod tests {
             "{} vs {t4}..{t_mid}",
             f.time_s
         );
+    }
+
+    /// A job of four paths (wind angles 40°, 48.3°, 55° and 40° again) with a thin wire on the
+    /// third path's eye line, checked as the threads check it (runs of consecutive paths): the
+    /// rows come back in path order, every link move starts where the path before ended (its
+    /// duration the eye's travel over the approach speed), the only findings are the third
+    /// path's, and the worst pose is there too. The same paths checked one by one agree on
+    /// every segment row.
+    #[test]
+    fn paths_checked_on_threads_come_back_in_order_with_their_own_findings() {
+        let setup = setup();
+        let plans: Vec<(Tube, PathPlan)> = [40.0, 48.3, 55.0, 40.0]
+            .iter()
+            .map(|&a| cylinder_plan_at(&setup, a))
+            .collect();
+        let solid = TubeSolid::new(&plans[0].0);
+        let p3 = &plans[2].1;
+        let (e0, e1) = (p3.segments[3].pose.eye_mm, p3.segments[4].pose.eye_mm);
+        let mid = e0 + (e1 - e0) * 0.5;
+        let half = Vector3::repeat(0.1);
+        let obstacles = [Obstacle {
+            name: "wire".into(),
+            min_mm: mid - half,
+            max_mm: mid + half,
+        }];
+        let c = cell(&setup, &obstacles);
+        let refs: Vec<&PathPlan> = plans.iter().map(|(_, p)| p).collect();
+        let r = sweep(&c, &solid, &refs).unwrap();
+        assert_eq!(r.paths.len(), 4);
+        for (n, rows) in r.paths.iter().enumerate() {
+            assert_eq!(rows.len(), refs[n].segments.len() + 1, "path {n}");
+            if n > 0 {
+                let before = refs[n - 1].segments.last().unwrap().pose.eye_mm;
+                let travel = (refs[n].start.eye_mm - before).norm();
+                let want = travel / c.approach_speed_mm_s;
+                assert!((rows[0].duration_s - want).abs() < 1e-9, "path {n}");
+                assert!(want > 0.01, "path {n}: the link move has length");
+            }
+        }
+        assert!(!r.findings.is_empty());
+        assert!(r.findings.iter().all(|f| f.path == 3), "{:?}", r.findings);
+        assert_eq!(r.findings[0].segment, 5);
+        let worst = r.worst.expect("a worst pose");
+        assert_eq!(worst.path, 3);
+        assert!(worst.clearance_mm < 0.0);
+        // Each path alone (the first with no move before it, as in the job).
+        for (n, p) in refs.iter().enumerate() {
+            let alone = sweep(&c, &solid, &[p]).unwrap();
+            for (a, b) in alone.paths[0][1..].iter().zip(&r.paths[n][1..]) {
+                assert_eq!(a.segment, b.segment);
+                assert_eq!(a.tow_mm, b.tow_mm);
+                // Eye rows agree where they undercut the ceiling both searches share; a row
+                // above it is only a bound.
+                if a.eye_mm < 5.0 {
+                    assert!((a.eye_mm - b.eye_mm).abs() < 0.01, "path {n}: {a:?} {b:?}");
+                }
+            }
+        }
     }
 
     /// The job's least eye clearance, certified across moves: a small box beside the middle of

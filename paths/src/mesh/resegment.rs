@@ -4,8 +4,8 @@
 //! The raw path (edge crossings, or DXF points) is resampled at equal arc length every
 //! `spacing_mm` or less, a cubic B-spline ([`crate::spline::BSpline::interpolate`], the spline core
 //! shared with the lathe winder) is passed through the samples, cut into `segments` pieces of equal
-//! arc length, and each end point is projected back onto the mesh (nearest surface point, with the
-//! smooth normal there). Each end point's angle around the mandrel axis is the path's own,
+//! arc length, and each end point is projected back onto the surface ([`Projection`]: the mesh's
+//! nearest point with its smooth normal, or the analytic tube's exact nearest point and normal). Each end point's angle around the mandrel axis is the path's own,
 //! followed along the smoothed path between end points (never the nearest to the previous end
 //! point's, which would fold a segment turning more than half a revolution back). The largest distance between the raw and the smoothed path is measured at
 //! every raw point between two samples and at the midpoint of every sample interval.
@@ -13,6 +13,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::trace::{MeshPath, Stop, TraceOptions, Tracer};
+use crate::clearance::TubeSolid;
 use crate::geodesic::{Direction, PathStart};
 use crate::limits;
 use crate::spline::BSpline;
@@ -21,12 +22,37 @@ use crate::{Error, SurfacePoint, Tube};
 /// Default resampling spacing, mm.
 pub const DEFAULT_SPACING_MM: f64 = 2.0;
 
-/// A path cut into equal-length segments on the mesh.
+/// A surface that cut points are projected onto.
+pub trait Projection {
+    /// The surface point nearest to `p` with the outward unit normal there, and the mesh
+    /// triangle holding it (`None` on an analytic surface); `None` for a point with no nearest
+    /// point (not finite).
+    fn project(&self, p: &Point3<f64>) -> Option<(Point3<f64>, Vector3<f64>, Option<u32>)>;
+}
+
+impl Projection for Tracer {
+    fn project(&self, p: &Point3<f64>) -> Option<(Point3<f64>, Vector3<f64>, Option<u32>)> {
+        self.locate(p)
+            .map(|at| (at.point, at.normal, Some(at.face as u32)))
+    }
+}
+
+impl Projection for TubeSolid {
+    fn project(&self, p: &Point3<f64>) -> Option<(Point3<f64>, Vector3<f64>, Option<u32>)> {
+        if !p.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        let (point, normal) = self.nearest_surface(p);
+        Some((point, normal, None))
+    }
+}
+
+/// A path cut into equal-length segments on the surface.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Resegmented {
-    /// `segments + 1` end points on the surface, with their smooth normals.
+    /// `segments + 1` end points on the surface, with their normals.
     pub points: Vec<SurfacePoint>,
-    /// The triangle of each end point.
+    /// The mesh triangle of each end point (empty on an analytic surface).
     pub faces: Vec<u32>,
     /// Largest distance between the raw path and the smoothed one, mm.
     pub max_deviation_mm: f64,
@@ -73,10 +99,10 @@ fn resample(raw: &[Point3<f64>], spacing_mm: f64) -> Result<Resampled, Error> {
     Ok((out, at, cum))
 }
 
-/// Smooths `raw` and cuts it into `segments` equal-length pieces with end points on `tracer`'s
-/// mesh (see the module documentation).
+/// Smooths `raw` and cuts it into `segments` equal-length pieces with end points on `surface`
+/// (see the module documentation).
 pub fn smooth_and_cut(
-    tracer: &Tracer,
+    surface: &dyn Projection,
     raw: &[Point3<f64>],
     segments: usize,
     spacing_mm: f64,
@@ -169,10 +195,10 @@ pub fn smooth_and_cut(
             for i in 1..between {
                 let t = t0 + (t1 - t0) * i as f64 / between as f64;
                 // A look that lands on an end cap (normal nearly vertical) has no angle.
-                if let Some(at) = tracer.locate(&Point3::from(spline.eval(t)))
-                    && at.normal.xy().norm() > 0.5
+                if let Some((_, normal, _)) = surface.project(&Point3::from(spline.eval(t)))
+                    && normal.xy().norm() > 0.5
                 {
-                    around = crate::segment::around_near(&at.normal, around);
+                    around = crate::segment::around_near(&normal, around);
                 }
             }
         }
@@ -183,16 +209,16 @@ pub fn smooth_and_cut(
             i if i == last => (cut[last - 1] - c).try_normalize(0.0).unwrap_or_default() * 1e-3,
             _ => Vector3::zeros(),
         };
-        let at = tracer
-            .locate(&Point3::from(c + inward))
+        let (point, normal, face) = surface
+            .project(&Point3::from(c + inward))
             .ok_or(Error::NonFinitePoint { index })?;
-        around = crate::segment::around_near(&at.normal, around);
+        around = crate::segment::around_near(&normal, around);
         points.push(SurfacePoint {
-            point: at.point,
-            normal: at.normal,
+            point,
+            normal,
             around_rad: around,
         });
-        faces.push(at.face as u32);
+        faces.extend(face);
     }
     Ok(Resegmented {
         points,
@@ -240,6 +266,47 @@ mod tests {
     use super::*;
     use crate::mesh::trace::{DEFAULT_CREASE_DEG, TraceOptions};
     use crate::mesh::{Closure, DEFAULT_WELD_MM, prepare, triasym};
+
+    /// Points drawn 0.3 mm off the S-bend tube (a helix-like curve around the spine, as a DXF
+    /// drawn slightly off the surface) are projected onto the analytic tube itself: every end
+    /// point on the surface by the tube's own distance (an independent search), its normal the
+    /// unit direction from the spine's nearest point, no mesh triangles.
+    #[test]
+    fn imported_points_are_projected_onto_the_analytic_tube() {
+        let tube = crate::clearance::test_support::sbend_tube();
+        let (u0, u1) = (tube.u_min(), tube.u_max());
+        let raw: Vec<Point3<f64>> = (0..=200)
+            .map(|i| {
+                let u = u0 + 5.0 + (u1 - u0 - 10.0) * i as f64 / 200.0;
+                let v = 0.02 * (u - u0);
+                tube.point(u, v) + tube.normal(u, v) * 0.3
+            })
+            .collect();
+        let solid = TubeSolid::new(&tube);
+        let r = smooth_and_cut(&solid, &raw, 40, DEFAULT_SPACING_MM).unwrap();
+        assert_eq!(r.points.len(), 41);
+        assert!(r.faces.is_empty());
+        for p in &r.points {
+            assert!(
+                tube.distance_to_surface_mm(&p.point).abs() < 1e-6,
+                "{}",
+                p.point
+            );
+            assert!((p.normal.norm() - 1.0).abs() < 1e-12);
+            // The normal points from the surface point away from the spine: one radius back
+            // along it is a spine point (the nearest one).
+            let centre = p.point - p.normal * tube.radius_mm();
+            let [x, g, _, _] = tube.spine().eval(centre.z);
+            assert!(
+                (centre.x - x).abs() < 1e-6 && centre.y.abs() < 1e-9,
+                "{centre}"
+            );
+            // ... and the normal is square to the spine there.
+            assert!(p.normal.dot(&Vector3::new(g, 0.0, 1.0)).abs() < 1e-9);
+        }
+        // The projection of a point that is not finite is refused, not made up.
+        assert!(solid.project(&Point3::new(f64::NAN, 0.0, 1.0)).is_none());
+    }
 
     #[test]
     fn helix_on_a_meshed_cylinder_is_cut_into_equal_chords_on_the_surface() {
