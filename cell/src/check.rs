@@ -11,8 +11,8 @@ use std::path::Path;
 
 use nalgebra::Point3;
 use paths::clearance::{
-    self, DEFAULT_EYE_RADIUS_MM, DEFAULT_SNAG_TOLERANCE_MM, EyeMechanism, MeshSolid, Obstacle,
-    Report, Solid, TubeSolid, sweep::Cell,
+    self, DEFAULT_EYE_RADIUS_MM, DEFAULT_SNAG_TOLERANCE_MM, EyeMechanism, Obstacle, Report, Solid,
+    TubeSolid, sweep::Cell,
 };
 use paths::{Arm, ElbowBranch, Tube};
 use sequences::job::Job;
@@ -74,20 +74,11 @@ pub fn cell_of(job: &Job) -> (EyeMechanism, f64, Vec<Obstacle>, Option<Point3<f6
 }
 
 /// The mandrel solid of a job: the analytic tube, or the mesh the plan was traced on (a mesh
-/// mandrel; errors name the job's mesh file).
-pub fn solid(job: &Job, file: &Path, plan: &JobPlan, tube: &Tube) -> Result<Box<dyn Solid>, Error> {
-    match &plan.mesh {
-        Some(tracer) => {
-            let solid = MeshSolid::new(tracer.mesh()).map_err(|source| Error::Mesh {
-                file: job.mandrel.mesh.as_ref().map_or_else(
-                    || file.to_path_buf(),
-                    |mesh| file.parent().unwrap_or(Path::new("")).join(mesh.get_ref()),
-                ),
-                source,
-            })?;
-            Ok(Box::new(solid))
-        }
-        None => Ok(Box::new(TubeSolid::new(tube))),
+/// mandrel, built by [`tool::plan`]).
+pub fn solid(plan: &JobPlan, tube: &Tube) -> std::sync::Arc<dyn Solid> {
+    match &plan.mesh_solid {
+        Some(mesh) => mesh.clone(),
+        None => std::sync::Arc::new(TubeSolid::new(tube)),
     }
 }
 
@@ -111,7 +102,7 @@ pub fn check(job: &Job, text: &str, file: &Path, plan: JobPlan) -> Result<Checke
     };
     // An eye point inside the mandrel was refused by the plan (paths::plan's guard).
     let tube = tool::mandrel_in(job, text, file)?;
-    let solid = solid(job, file, &plan, &tube)?;
+    let solid = solid(&plan, &tube);
     let (setup, speeds) = tool::setup(job);
     let (eye, snag_tolerance_mm, obstacles, home_mm) = cell_of(job);
     let arm = tool::arm(job);

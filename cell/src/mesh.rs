@@ -127,12 +127,23 @@ fn read_located(file: &Path) -> Result<(Mesh, Places), Error> {
 /// Reads, welds at `weld_mm`, validates (closed when `closure` says so) and prepares a mesh for
 /// tracing with edges sharper than `crease_deg` as boundaries.
 pub fn load(file: &Path, weld_mm: f64, closure: Closure, crease_deg: f64) -> Result<Tracer, Error> {
-    let mesh_error = |source| Error::Mesh {
+    let (mesh, adjacency) = load_prepared(file, weld_mm, closure)?;
+    Tracer::new(mesh, &adjacency, crease_deg).map_err(|source| Error::Mesh {
         file: file.to_path_buf(),
         source,
-    };
+    })
+}
+
+/// Reads, welds at `weld_mm` and validates (closed when `closure` says so) a mesh: the mesh and
+/// its adjacency, ready for [`Tracer::new`] and the collision check's solid.
+pub fn load_prepared(
+    file: &Path,
+    weld_mm: f64,
+    closure: Closure,
+) -> Result<(Mesh, paths::mesh::Adjacency), Error> {
     let (mesh, places) = read_located(file)?;
-    let (mesh, adjacency) =
-        prepare(&mesh, weld_mm, closure).map_err(|e| mesh_error(places.locate(e)))?;
-    Tracer::new(mesh, &adjacency, crease_deg).map_err(mesh_error)
+    prepare(&mesh, weld_mm, closure).map_err(|e| Error::Mesh {
+        file: file.to_path_buf(),
+        source: places.locate(e),
+    })
 }

@@ -49,9 +49,10 @@ pub struct PlannedPath {
 pub struct JobPlan {
     /// In the job's order.
     pub paths: Vec<PlannedPath>,
-    /// The mandrel mesh the paths were traced on, prepared (welded, validated), when the mandrel
-    /// is a mesh: the collision check reads the same triangles without loading the file again.
-    pub mesh: Option<std::sync::Arc<paths::mesh::trace::Tracer>>,
+    /// The mandrel mesh the paths were traced on as the collision check's solid, when the
+    /// mandrel is a mesh: built from the same prepared triangles, on a second thread while the
+    /// paths are traced and planned, so the check neither loads the file again nor waits for it.
+    pub mesh_solid: Option<std::sync::Arc<paths::clearance::MeshSolid>>,
 }
 
 /// A planning error at the job-file place `span` of `text`, read from `file`.
@@ -313,7 +314,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         .map_err(|e| located(e, spec.segments.span()))?;
     }
     let tube = mandrel_in(job, text, file)?;
-    let tracer = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
+    let prepared = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
         (MandrelKind::Mesh, Some(mesh)) => {
             let dir = file.parent().unwrap_or(Path::new(""));
             let weld = job
@@ -321,18 +322,60 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .weld_mm
                 .as_ref()
                 .map_or(paths::mesh::DEFAULT_WELD_MM, |w| *w.get_ref());
-            Some(
-                crate::mesh::load(
-                    &dir.join(mesh.get_ref()),
-                    weld,
-                    paths::mesh::Closure::Closed,
-                    paths::mesh::trace::DEFAULT_CREASE_DEG,
-                )
-                .map_err(|e| named(text, file, mesh.span(), e))?,
-            )
+            let mesh_file = dir.join(mesh.get_ref());
+            let (prepared, adjacency) =
+                crate::mesh::load_prepared(&mesh_file, weld, paths::mesh::Closure::Closed)
+                    .map_err(|e| named(text, file, mesh.span(), e))?;
+            Some((prepared, adjacency, mesh_file, mesh.span()))
         }
         _ => None,
     };
+    let Some((prepared, adjacency, mesh_file, span)) = prepared else {
+        return Ok(JobPlan {
+            paths: plan_paths(job, text, file, &tube, None)?,
+            mesh_solid: None,
+        });
+    };
+    let mesh_error = |source| {
+        named(
+            text,
+            file,
+            span.clone(),
+            Error::Mesh {
+                file: mesh_file.clone(),
+                source,
+            },
+        )
+    };
+    std::thread::scope(|scope| {
+        let solid = scope.spawn(|| paths::clearance::MeshSolid::new(&prepared));
+        let tracer = paths::mesh::trace::Tracer::new(
+            prepared.clone(),
+            &adjacency,
+            paths::mesh::trace::DEFAULT_CREASE_DEG,
+        )
+        .map_err(mesh_error)?;
+        let planned = plan_paths(job, text, file, &tube, Some(&tracer))?;
+        let solid = solid
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            .map_err(mesh_error)?;
+        Ok(JobPlan {
+            paths: planned,
+            mesh_solid: Some(std::sync::Arc::new(solid)),
+        })
+    })
+}
+
+/// Plans every path of `job` on `tube`, or on the mesh of `tracer` when the mandrel is a mesh.
+fn plan_paths(
+    job: &Job,
+    text: &str,
+    file: &Path,
+    tube: &Tube,
+    tracer: Option<&paths::mesh::trace::Tracer>,
+) -> Result<Vec<PlannedPath>, Error> {
+    let located = |source, span| located(text, file, source, span);
     let (setup, speeds) = setup(job);
     let dir = file.parent().unwrap_or(Path::new(""));
     // Imported (DXF) paths on an analytic mandrel are projected onto the tube itself (its nearest
@@ -361,7 +404,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .map_or(sequences::job::DEFAULT_SURFACE_TOLERANCE_MM, |t| {
                     *t.get_ref()
                 });
-            surface_distances_mm = Some(match &tracer {
+            surface_distances_mm = Some(match tracer {
                 Some(t) => imported.surface_distances(
                     |p| {
                         t.locate(p).map_or(f64::INFINITY, |at| {
@@ -375,7 +418,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 }
             });
             let raw = imported.points;
-            let surface: &dyn paths::mesh::resegment::Projection = match &tracer {
+            let surface: &dyn paths::mesh::resegment::Projection = match tracer {
                 Some(t) => t,
                 None => projection.get_or_insert_with(|| paths::clearance::TubeSolid::new(&tube)),
             };
@@ -410,7 +453,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                     Direction::Up => paths::Direction::Up,
                 },
             };
-            if let Some(tracer) = &tracer {
+            if let Some(tracer) = tracer {
                 // Mesh mandrel: trace on the mesh, smooth, cut into equal lengths on the surface.
                 let (_, cut) = paths::mesh::resegment::wind(
                     tracer,
@@ -463,10 +506,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             desired_mm: desired_mm.unwrap_or_else(|| points.iter().map(|p| p.point).collect()),
         });
     }
-    Ok(JobPlan {
-        paths: planned,
-        mesh: tracer.map(std::sync::Arc::new),
-    })
+    Ok(planned)
 }
 
 /// Refuses a path whose stored program (fine and medium movement) would not fit the robot's

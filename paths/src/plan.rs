@@ -859,12 +859,35 @@ mod tests {
         let err = plan(&pts, |q| tube.distance_to_surface_mm(q), &setup(), &fast).unwrap_err();
         match err {
             Error::RobotTooSlow {
+                segment,
+                speed_mm_s,
                 robot_time_s,
                 duration_s,
                 mandrel_rps_fit,
-                ..
             } => {
                 assert!(robot_time_s > duration_s);
+                // The speed named is that segment's eye travel over the mandrel's time (the
+                // poses do not depend on the movement: taken from the discrete plan).
+                let d = plan(
+                    &pts,
+                    |q| tube.distance_to_surface_mm(q),
+                    &setup(),
+                    &Speeds {
+                        movement: Movement::Discrete,
+                        ..fast
+                    },
+                )
+                .unwrap();
+                let eye = |k: usize| {
+                    if k == 0 {
+                        d.start.eye_mm
+                    } else {
+                        d.segments[k - 1].pose.eye_mm
+                    }
+                };
+                assert!(segment >= 1);
+                let travel = (eye(segment) - eye(segment - 1)).norm();
+                assert_abs_diff_eq!(speed_mm_s, travel / duration_s, epsilon = 1e-9);
                 assert_abs_diff_eq!(
                     mandrel_rps_fit,
                     4.0 * duration_s / robot_time_s,
@@ -1024,9 +1047,132 @@ mod tests {
         );
     }
 
+    /// The start direction's one-sided differences are exact on polynomials of their order
+    /// (chord: lines; three points: quadratics; four: cubics; five or more: quartics), so on
+    /// such a curve the start tangent is the curve's derivative at the first point, scaled.
+    #[test]
+    fn start_tangent_is_exact_on_polynomials_of_its_order() {
+        let b = Vector3::new(0.3, 1.0, 0.7);
+        let c2 = Vector3::new(0.5, -0.2, 0.1);
+        let c3 = Vector3::new(-0.05, 0.08, 0.02);
+        let c4 = Vector3::new(0.004, -0.003, 0.006);
+        // A normal square to the derivative, so the projection keeps it whole.
+        let normal = b.cross(&Vector3::z()).normalize();
+        for (count, degree) in [(2, 1), (3, 2), (4, 3), (5, 4), (9, 4)] {
+            let h = 0.5;
+            let points: Vec<SurfacePoint> = (0..count)
+                .map(|k| {
+                    let t = h * k as f64;
+                    let mut q = b * t;
+                    if degree >= 2 {
+                        q += c2 * t * t;
+                    }
+                    if degree >= 3 {
+                        q += c3 * t * t * t;
+                    }
+                    if degree >= 4 {
+                        q += c4 * t * t * t * t;
+                    }
+                    SurfacePoint {
+                        point: Point3::from(q),
+                        normal,
+                        around_rad: 0.0,
+                    }
+                })
+                .collect();
+            let t = start_tangent(&points);
+            let cosine = t.dot(&b) / (t.norm() * b.norm());
+            assert!(cosine > 1.0 - 1e-12, "{count} points: {t} against {b}");
+        }
+    }
+
+    /// The flank and the reference angle of the unwrap hold wherever the path starts around
+    /// the mandrel: on the cylinder, starting at 0°, 90°, 180° and 270° in both directions,
+    /// and each path also wound backwards (clockwise, the right flank), the eye stays between
+    /// the robot and the tangent point, and `β = φ + α` (eq 3.7's angle with the path's own
+    /// angle added back) stays within a quarter revolution of +90° on the left flank or −90° on
+    /// the right.
+    #[test]
+    fn flank_and_unwrap_hold_from_any_start_angle() {
+        let tube = &tubes()[0];
+        let mut flanks = [0usize; 2];
+        for deg in [0.0f64, 90.0, 180.0, 270.0] {
+            for (direction, backwards) in [
+                (Direction::Down, false),
+                (Direction::Up, false),
+                (Direction::Down, true),
+                (Direction::Up, true),
+            ] {
+                let start = PathStart {
+                    angle_rad: deg.to_radians(),
+                    ..cylinder_start(direction)
+                };
+                let mut pts = points(tube, &start, 20);
+                if backwards {
+                    pts.reverse();
+                }
+                let p = plan(
+                    &pts,
+                    |q| tube.distance_to_surface_mm(q),
+                    &setup(),
+                    &speeds(Movement::Fine),
+                )
+                .unwrap();
+                // Which side the fibre travels on, from the first chord and normal.
+                let n0 = pts[0].normal;
+                let chord = pts[1].point - pts[0].point;
+                let left = chord.x * -n0.y + chord.y * n0.x >= 0.0;
+                flanks[usize::from(left)] += 1;
+                let mid = if left { PI / 2.0 } else { -PI / 2.0 };
+                for (pose, pt) in poses(&p).zip(&pts) {
+                    assert!(pose.eye_mm.x < tangent_cell(pose).x, "{deg}° {direction:?}");
+                    let beta = pose.ideal_mandrel_rad + pt.around_rad;
+                    assert!(
+                        (beta - mid).abs() <= PI / 2.0 + 1e-9,
+                        "{deg}° {direction:?}: β {beta}"
+                    );
+                }
+            }
+        }
+        assert!(flanks[0] > 0 && flanks[1] > 0, "{flanks:?}");
+    }
+
+    /// One segment is the shortest path; a single point is none.
+    #[test]
+    fn one_segment_plans_and_one_point_does_not() {
+        let tube = &tubes()[0];
+        let pts = &points(tube, &cylinder_start(Direction::Up), 50)[..2];
+        let fit = |q: &Point3<f64>| tube.distance_to_surface_mm(q);
+        let one = plan(pts, fit, &setup(), &speeds(Movement::Discrete)).unwrap();
+        assert_eq!(one.segments.len(), 1);
+        assert!(matches!(
+            plan(&pts[..1], fit, &setup(), &speeds(Movement::Discrete)),
+            Err(Error::OutOfRange {
+                name: "segments",
+                ..
+            })
+        ));
+    }
+
     #[test]
     fn setup_validation_names_the_bad_figure() {
         assert!(setup().validate().is_ok());
+        for bad in [f64::NAN, f64::INFINITY] {
+            let s = Setup {
+                mandrel_height_mm: bad,
+                ..setup()
+            };
+            assert!(
+                matches!(
+                    s.validate(),
+                    Err(Error::OutOfRange {
+                        name: "mandrel_height_mm",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+        }
         let with_entry = |deg: f64| Setup {
             entry_angle_max_rad: deg.to_radians(),
             ..setup()
