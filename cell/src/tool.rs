@@ -420,7 +420,7 @@ fn plan_paths(
             let raw = imported.points;
             let surface: &dyn paths::mesh::resegment::Projection = match tracer {
                 Some(t) => t,
-                None => projection.get_or_insert_with(|| paths::clearance::TubeSolid::new(&tube)),
+                None => projection.get_or_insert_with(|| paths::clearance::TubeSolid::new(tube)),
             };
             let cut = paths::mesh::resegment::smooth_and_cut(
                 surface,
@@ -457,7 +457,7 @@ fn plan_paths(
                 // Mesh mandrel: trace on the mesh, smooth, cut into equal lengths on the surface.
                 let (_, cut) = paths::mesh::resegment::wind(
                     tracer,
-                    &tube,
+                    tube,
                     &start,
                     segments,
                     &paths::mesh::trace::TraceOptions::default(),
@@ -475,12 +475,12 @@ fn plan_paths(
                     _ => geodesic::Ends::Horizontal,
                 };
                 let path = if tube.spine().is_straight() && ends == geodesic::Ends::Square {
-                    geodesic::helix(&tube, &start, HELIX_STEP_MM)
+                    geodesic::helix(tube, &start, HELIX_STEP_MM)
                 } else {
-                    geodesic::trace_to(&tube, &start, GEODESIC_STEP_MM, ends)
+                    geodesic::trace_to(tube, &start, GEODESIC_STEP_MM, ends)
                 }
                 .map_err(|e| located(e, wind.span()))?;
-                let points = paths::segment::equal_length(&tube, &path, segments)
+                let points = paths::segment::equal_length(tube, &path, segments)
                     .map_err(|e| located(e, spec.segments.span()))?;
                 desired_mm = Some(
                     path.samples
