@@ -157,6 +157,25 @@ pub fn rounding_each_segment(ideal_rad: &[f64], gearing: &Gearing) -> StepPlan {
 mod tests {
     use super::*;
 
+    /// The thesis's rounding, by hand: cumulative ideals of 0.6, 1.2 and 1.8 steps give three
+    /// segments of 0.6 steps, each rounded up on its own to 1 (3 steps where 1.8 were meant), a
+    /// drift of 1.2 steps at the end.
+    #[test]
+    fn rounding_each_segment_rounds_each_difference_on_its_own() {
+        let g = Gearing::default();
+        let ideal: Vec<f64> = [0.6, 1.2, 1.8]
+            .iter()
+            .map(|s| s * g.step_angle_rad())
+            .collect();
+        let naive = rounding_each_segment(&ideal, &g);
+        assert_eq!(naive.steps, vec![1, 1, 1]);
+        assert!(
+            (naive.max_drift_steps - 1.2).abs() < 1e-9,
+            "{}",
+            naive.max_drift_steps
+        );
+    }
+
     #[test]
     fn thesis_drive_has_about_0_2_deg_per_step() {
         let g = Gearing::default();

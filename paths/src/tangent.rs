@@ -94,6 +94,16 @@ mod tests {
     use approx::assert_abs_diff_eq;
     use nalgebra::Rotation2;
 
+    /// The edge of eq 3.7's domain: with `b = r + R` and `Ψ = 0` the argument is exactly −1, a
+    /// valid arccos (θ = π: the point faces the robot along the line of centres); just past it
+    /// the argument is refused.
+    #[test]
+    fn eq_3_7_takes_the_edge_of_its_domain() {
+        assert_eq!(eq_3_7_rad(10.0, 30.0, 0.0, 40.0), Ok(std::f64::consts::PI));
+        let past = eq_3_7_rad(10.0, 30.0, 0.0, 39.0);
+        assert!(matches!(past, Err(a) if a < -1.0), "{past:?}");
+    }
+
     /// Direct tangency check: rotate the section by θ about the drive axis, then the line from the
     /// robot pedestal (−b, 0) to the point is perpendicular to the radius at the point.
     fn tangency_residual(big_r: f64, r: f64, psi: f64, b: f64, theta: f64) -> f64 {
