@@ -713,6 +713,62 @@ mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
 
+    /// The names messages and cell files use, and the faults' messages with their figures.
+    #[test]
+    fn joints_and_faults_are_named_in_words() {
+        let names: Vec<String> = Joint::ALL.iter().map(|j| j.to_string()).collect();
+        assert_eq!(names, ["base_yaw", "shoulder", "elbow", "pitch", "roll"]);
+        let j = Joints {
+            base_yaw_rad: std::f64::consts::FRAC_PI_2,
+            shoulder_rad: -std::f64::consts::FRAC_PI_4,
+            elbow_rad: 0.0,
+            pitch_rad: std::f64::consts::PI,
+            roll_rad: -std::f64::consts::PI / 6.0,
+        };
+        let deg = j.to_degrees();
+        for (got, want) in deg.iter().zip([90.0, -45.0, 0.0, 180.0, -30.0]) {
+            assert!((got - want).abs() < 1e-12, "{deg:?}");
+        }
+        let faults = [
+            (
+                ArmFault::OutOfReach {
+                    distance_mm: 1234.56,
+                    min_mm: 100.0,
+                    max_mm: 1100.0,
+                },
+                "the wrist is 1234.6 mm from the shoulder, outside the arm's reach 100.0–1100.0 mm",
+            ),
+            (
+                ArmFault::WristOnPedestalAxis,
+                "the wrist lies on the pedestal axis",
+            ),
+            (
+                ArmFault::OffArmPlane { angle_deg: 1.5 },
+                "the roll axis leaves the arm plane by 1.500° (the wrist has no yaw)",
+            ),
+            (
+                ArmFault::JointLimit {
+                    joint: Joint::Elbow,
+                    value_deg: -61.0,
+                    min_deg: -60.0,
+                    max_deg: 60.0,
+                },
+                "joint elbow at -61.00° is outside its range -60.0°..60.0°",
+            ),
+            (
+                ArmFault::JointJump {
+                    joint: Joint::Roll,
+                    change_deg: 200.0,
+                    limit_deg: 90.0,
+                },
+                "joint roll jumps 200.00° from the previous pose (more than 90°)",
+            ),
+        ];
+        for (fault, text) in faults {
+            assert_eq!(fault.to_string(), text);
+        }
+    }
+
     /// A small seeded generator (xorshift64*), so the random poses are the same on every run.
     struct Seeded(u64);
 

@@ -102,6 +102,21 @@ mod tests {
         assert_eq!(eq_3_7_rad(10.0, 30.0, 0.0, 40.0), Ok(std::f64::consts::PI));
         let past = eq_3_7_rad(10.0, 30.0, 0.0, 39.0);
         assert!(matches!(past, Err(a) if a < -1.0), "{past:?}");
+        // The same edge in `solve`: a point 30 mm out along its own normal, the robot 30 mm
+        // away, on either flank: β = π, so φ = π.
+        for flank in [Flank::Left, Flank::Right] {
+            let at = solve(Vector2::new(30.0, 0.0), Vector2::new(1.0, 0.0), 30.0, flank).unwrap();
+            assert_eq!((at.rad, at.cos, at.sin), (std::f64::consts::PI, -1.0, 0.0));
+        }
+        assert!(
+            solve(
+                Vector2::new(30.0, 0.0),
+                Vector2::new(1.0, 0.0),
+                29.0,
+                Flank::Left
+            )
+            .is_err()
+        );
     }
 
     /// Direct tangency check: rotate the section by θ about the drive axis, then the line from the
