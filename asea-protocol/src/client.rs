@@ -417,6 +417,8 @@ impl<L: Link, C: Clock> Client<L, C> {
     /// [`RetryPolicy::command_attempts`] times in all). A count that moved by more than one, or
     /// the digest of another telegram, is [`Error::Foreign`]; an error the robot raised is
     /// [`Error::Robot`] (acknowledged); a wrong effect is [`Error::Effect`]. Never sent blindly.
+    /// An error latched before the command and not reported yet is reported before it is sent,
+    /// except before STOP, which goes out first; the error is then reported after it.
     pub fn command_confirmed(
         &mut self,
         cmd: &Command,
@@ -429,8 +431,12 @@ impl<L: Link, C: Clock> Client<L, C> {
         let sent = crate::frame::telegram_digest(cmd.code(), data);
         let name = command_name(cmd);
         let mut before = self.status_agreed()?;
-        // Errors from before this command are not its errors: report them first.
-        self.account_errors(&before)?;
+        // Errors from before this command are not its errors: report them first. Not before a
+        // STOP, which must not be held back: they stay latched and are reported once it has
+        // been executed (by the check of the status after it).
+        if !matches!(cmd, Command::Stop) {
+            self.account_errors(&before)?;
+        }
         // Anything executed since the last confirmed command that this client did not send.
         if let Some(last) = self.last_executed.take()
             && last != before.executed

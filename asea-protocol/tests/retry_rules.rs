@@ -445,3 +445,37 @@ fn a_robot_that_falls_silent_is_reported_within_one_session_by_every_verifying_c
         assert!(silent < one_session(), "{name}: {silent:?}");
     }
 }
+
+/// An error the robot latched before the STOP and the client has not reported yet (a
+/// RUN_PROGRAM sent plainly while the program runs: busy, code 7) does not hold the STOP back.
+/// The first STOP is swallowed, so the status does not show it executed; the confirmed STOP
+/// still goes out, the robot ends STOPPED having executed one STOP, and the error is reported
+/// once, after it, and acknowledged (docs/protocol.md §5: latched until acknowledged).
+#[test]
+fn an_error_latched_before_a_stop_does_not_hold_back_the_confirmed_stop() {
+    let (mut c, _) = running(Script {
+        swallow_stops: 1,
+        ..Script::default()
+    });
+    c.send(&asea_protocol::Command::RunProgram { program: 1 })
+        .unwrap();
+    assert_eq!(robot(&c).machine.last_error(), 7);
+    let (before, _) = executed(&c);
+    let e = c.stop_at_once().unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Robot {
+                code: 7,
+                count: 1,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert_eq!(c.link().peer.script.swallow_stops, 0);
+    assert_eq!(robot(&c).machine.status().state, State::Stopped);
+    assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
+    assert_eq!(robot(&c).machine.last_error(), 0, "acknowledged");
+    assert_eq!(c.check_status().unwrap().state, State::Stopped);
+}
