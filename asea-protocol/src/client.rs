@@ -453,6 +453,9 @@ impl<L: Link, C: Clock> Client<L, C> {
             match self.send(cmd) {
                 Err(Error::Cancelled) => return Err(Error::Cancelled),
                 Err(Error::Io(e)) => return Err(Error::Io(e)),
+                // Not one ENQ taken: the telegram never went out, and no status read would be
+                // taken either (docs/protocol.md §6 rule 3).
+                Err(e) if is_unanswered(&e) => return Err(e),
                 // A link failure leaves the command's fate unknown: the status decides.
                 _ => {}
             }
@@ -747,6 +750,8 @@ impl<L: Link, C: Clock> Client<L, C> {
         for (n, i) in (1u16..).zip(instructions) {
             report.restored += match self.store_verified(program, n, i) {
                 Ok(stores) => stores - 1,
+                // A robot that took no ENQ is reported at once (docs/protocol.md §6 rule 3).
+                Err(e) if is_unanswered(&e) => return Err(e),
                 // The store's fate is unknown: settle it by reading back, never by a blind store.
                 Err(_) => self.settle(program, n, i)?,
             };
@@ -871,8 +876,13 @@ impl<L: Link, C: Clock> Client<L, C> {
         instruction: u16,
         i: &Instruction,
     ) -> Result<usize> {
-        // A failed send may still have stored the instruction; the read-back decides.
-        let _ = self.store(program, instruction, i);
+        // A failed send may still have stored the instruction; the read-back decides. A robot
+        // that took no ENQ is reported at once (docs/protocol.md §6 rule 3).
+        if let Err(e) = self.store(program, instruction, i)
+            && is_unanswered(&e)
+        {
+            return Err(e);
+        }
         Ok(1 + self.ensure_stored(program, instruction, i)?)
     }
 
@@ -895,7 +905,11 @@ impl<L: Link, C: Clock> Client<L, C> {
             }
             stores += 1;
             // As in `store_verified`: a failed send is settled by the next read-back.
-            let _ = self.store(program, instruction, want);
+            if let Err(e) = self.store(program, instruction, want)
+                && is_unanswered(&e)
+            {
+                return Err(e);
+            }
         }
         Ok(stores)
     }

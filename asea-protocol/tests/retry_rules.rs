@@ -19,6 +19,7 @@ use asea_protocol::{Client, ClientConfig, Control, Error, Instruction, LinkError
 /// Telegram codes the script looks for (docs/protocol.md §5).
 const STOP: u8 = 0x0C;
 const ENQUIRE: u8 = 0x06;
+const STORE_CONTROL: u8 = 0x09;
 const REPLY_ENQUIRE: u8 = 0x86;
 const REPLY_READ_BACK: u8 = 0x8D;
 const REPLY_PROGRAM_INFO: u8 = 0x8F;
@@ -26,9 +27,9 @@ const REPLY_PROGRAM_INFO: u8 = 0x8F;
 /// What the line does to the traffic, each rule a set number of times.
 #[derive(Debug, Default)]
 struct Script {
-    /// STOP telegrams the line acknowledges to the host itself and never delivers: a STOP the
-    /// robot acknowledges and does not execute.
-    swallow_stops: u32,
+    /// Telegrams with this code the line acknowledges to the host itself and never delivers: a
+    /// telegram the robot acknowledges and does not execute.
+    swallow: Option<(u8, u32)>,
     /// Sessions in which the STOP telegram reaches the robot (which executes it) and every
     /// answer of the robot after it is lost until the host's EOT.
     mute_after_stop: u32,
@@ -78,8 +79,11 @@ impl Line {
     fn telegram(&mut self, mut t: Vec<u8>, now: Duration) {
         let code = t[1];
         let s = &mut self.script;
-        if code == STOP && s.swallow_stops > 0 {
-            s.swallow_stops -= 1;
+        if let Some((c, n)) = &mut s.swallow
+            && *c == code
+            && *n > 0
+        {
+            *n -= 1;
             self.forged.push(ACK);
             return;
         }
@@ -246,14 +250,14 @@ fn stop_at_once_sends_stop_again_only_when_the_status_does_not_show_it_executed(
     );
 
     let (mut c, _) = running(Script {
-        swallow_stops: 1,
+        swallow: Some((STOP, 1)),
         ..Script::default()
     });
     let (before, _) = executed(&c);
     let s = c.stop_at_once().unwrap();
     assert_eq!(
-        c.link().peer.script.swallow_stops,
-        0,
+        c.link().peer.script.swallow,
+        Some((STOP, 0)),
         "the STOP was swallowed"
     );
     assert_eq!(s.state, State::Stopped);
@@ -404,10 +408,13 @@ fn a_verified_upload_is_not_failed_by_noise_on_its_closing_status() {
     assert_eq!(m.instruction(1, 2), Some(&program[1]));
 }
 
-/// A robot that falls silent is reported within one session by the agreeing reads and the
-/// verified upload (rule 3), wherever it falls silent: at the first program information or
-/// read-back, in the closing pass of the upload (after the store's two agreeing read-backs), or
-/// at its closing status (after all four).
+/// A robot that falls silent is reported within one session by the agreeing reads, the verified
+/// store and upload and the confirmed command (rule 3: no new session, no further status read),
+/// wherever it falls silent: at the first program information or read-back, at the store of a
+/// verified store or upload, at the store again after read-backs showed the first one missing
+/// (it was swallowed), at the send of a confirmed command (after the status before it),
+/// in the closing pass of the upload (after the store's two agreeing read-backs), or at its
+/// closing status (after all four).
 #[test]
 fn a_robot_that_falls_silent_is_reported_within_one_session_by_every_verifying_call() {
     let program = [Instruction::Control(Control::SetOutput {
@@ -417,8 +424,24 @@ fn a_robot_that_falls_silent_is_reported_within_one_session_by_every_verifying_c
     type Call = fn(&mut TestClient, &[Instruction]) -> Result<(), Error>;
     /// Silent at once, or after this many more replies with this code.
     type After = Option<(u8, u32)>;
-    let calls: [(&str, After, Call); 4] = [
+    let calls: [(&str, After, Call); 8] = [
         ("program_info", None, |c, _| c.program_info(1).map(|_| ())),
+        ("store_verified", None, |c, p| {
+            c.store_verified(1, 1, &p[0]).map(|_| ())
+        }),
+        ("upload_verified at its first store", None, |c, p| {
+            c.upload_verified(1, p).map(|_| ())
+        }),
+        // The first store swallowed: three agreeing read-backs of nothing, then the re-store.
+        (
+            "store_verified at its re-store",
+            Some((REPLY_READ_BACK, 3)),
+            |c, p| c.store_verified(1, 1, &p[0]).map(|_| ()),
+        ),
+        // The status before the command read (two agreeing replies), then silent at its send.
+        ("operate at its send", Some((REPLY_ENQUIRE, 2)), |c, _| {
+            c.operate().map(|_| ())
+        }),
         ("confirm_stored", None, |c, p| {
             c.confirm_stored(1, 1, &p[0]).map(|_| ())
         }),
@@ -431,6 +454,9 @@ fn a_robot_that_falls_silent_is_reported_within_one_session_by_every_verifying_c
     ];
     for (name, after, call) in calls {
         let (mut c, clock) = client(Script::default());
+        if name == "store_verified at its re-store" {
+            c.link_mut().peer.script.swallow = Some((STORE_CONTROL, 1));
+        }
         c.check_status().unwrap();
         match after {
             None => c.link_mut().peer.fall_silent = true,
@@ -454,7 +480,7 @@ fn a_robot_that_falls_silent_is_reported_within_one_session_by_every_verifying_c
 #[test]
 fn an_error_latched_before_a_stop_does_not_hold_back_the_confirmed_stop() {
     let (mut c, _) = running(Script {
-        swallow_stops: 1,
+        swallow: Some((STOP, 1)),
         ..Script::default()
     });
     c.send(&asea_protocol::Command::RunProgram { program: 1 })
@@ -473,7 +499,7 @@ fn an_error_latched_before_a_stop_does_not_hold_back_the_confirmed_stop() {
         ),
         "{e}"
     );
-    assert_eq!(c.link().peer.script.swallow_stops, 0);
+    assert_eq!(c.link().peer.script.swallow, Some((STOP, 0)));
     assert_eq!(robot(&c).machine.status().state, State::Stopped);
     assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
     assert_eq!(robot(&c).machine.last_error(), 0, "acknowledged");
