@@ -906,3 +906,110 @@ fn event_driven_polling_winds_as_polling_every_tick_does() {
     );
     assert!(worst < 0.05, "worst time difference {worst} s");
 }
+
+/// Manual control (seed 001 §5.3.2): a relative jog adds its offset to the robot's position on
+/// every axis and its steps to the indexer's counter, and its wrist (App. A pitch 30°, in the
+/// arm's vertical plane) is turned by the base yaw to face the target: the roll axis keeps its
+/// elevation and its horizontal part points along the target's (x, y). The jog's target is held to the working
+/// range with every bound inclusive: with the range shrunk to one point (radius and height both
+/// exactly those of the robot's home pose) a jog to that point is taken, and one LSB (0.0625 mm)
+/// beyond any of the four bounds is refused before anything moves.
+#[test]
+fn a_relative_jog_adds_its_offset_on_every_axis_and_the_reach_bounds_are_inclusive() {
+    use asea_protocol::{Flags, Pose, Positioning, Speed, Zone};
+    let cell = SimCell::new(&SimCellConfig::default());
+    let mut dev = cell.devices(Drive::default());
+    let counter0 = dev.mandrel.attach().unwrap();
+    let home = dev.robot.position_mm().unwrap();
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    let speeds = (
+        Speed::from_value("base", 1.0).unwrap(),
+        Speed::from_value("max", 2.0).unwrap(),
+    );
+    let pitched = paths::wrist::from_pitch_roll(30f64.to_radians(), 0.0);
+    let with = |xyz: [f64; 3], q: [f64; 4]| Positioning {
+        flags: Flags {
+            zone: Zone::Fine,
+            ..Flags::default()
+        },
+        pose: Pose::from_mm(xyz, q).unwrap(),
+        speed: Speed::from_value("speed", 0.1).unwrap(),
+    };
+    let at = |xyz: [f64; 3]| with(xyz, [1.0, 0.0, 0.0, 0.0]);
+    let steps = 120;
+    let mandrel = MandrelMove {
+        accel_rps2: 1.0,
+        start_stop_rps: 0.05,
+        max_rps: 0.1,
+        steps,
+    };
+    let offset = [30.0, -40.0, 50.0];
+    let (pos, counter) = c
+        .jog(
+            speeds,
+            with(offset, paths::wrist::components(&pitched)),
+            true,
+            Some(mandrel),
+            Reach::default(),
+        )
+        .unwrap();
+    let want = [home[0] + 30.0, home[1] - 40.0, home[2] + 50.0];
+    assert!(
+        (0..3).all(|i| (pos[i] - want[i]).abs() <= 0.0625),
+        "{pos:?} against {want:?}"
+    );
+    assert_eq!(counter, counter0 + steps);
+    let [w, x, y, z] = cell.with(|p| p.robot.machine.pose().q).unwrap();
+    let roll = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z))
+        * nalgebra::Vector3::x();
+    let wanted = pitched * nalgebra::Vector3::x();
+    assert!(
+        (roll.z - wanted.z).abs() < 2e-3,
+        "{roll:?} against {wanted:?}"
+    );
+    let across = roll.x * want[1] - roll.y * want[0];
+    let along = roll.x * want[0] + roll.y * want[1];
+    assert!(
+        across.abs() < 2e-3 * want[0].hypot(want[1]) && along > 0.0,
+        "{roll:?} at {want:?}"
+    );
+
+    // The range shrunk to the home pose's radius and height (home is on the x axis).
+    assert_eq!(home[1], 0.0);
+    let point = Reach {
+        max_radius_mm: home[0],
+        min_radius_mm: home[0],
+        z_range_mm: (home[2], home[2]),
+    };
+    let (pos, _) = c.jog(speeds, at(home), false, None, point).unwrap();
+    assert!(
+        (0..3).all(|i| (pos[i] - home[i]).abs() <= 0.0625),
+        "{pos:?}"
+    );
+    let lsb = 0.0625;
+    for outside in [
+        [home[0] + lsb, 0.0, home[2]],
+        [home[0] - lsb, 0.0, home[2]],
+        [home[0], 0.0, home[2] + lsb],
+        [home[0], 0.0, home[2] - lsb],
+    ] {
+        let e = c.jog(speeds, at(outside), false, None, point).unwrap_err();
+        assert!(
+            matches!(&e.halt, Halt::Fault { message } if message.contains("out of the arm's reach")),
+            "{outside:?}: {:?}",
+            e.halt
+        );
+    }
+    drop(c);
+    let robot = cell.with(|p| p.robot.machine.pose().xyz_mm).unwrap();
+    assert!(
+        (0..3).all(|i| (robot[i] - home[i]).abs() <= 0.0625),
+        "the refused jogs moved the robot to {robot:?}"
+    );
+}
