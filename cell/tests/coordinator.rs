@@ -1013,3 +1013,32 @@ fn a_relative_jog_adds_its_offset_on_every_axis_and_the_reach_bounds_are_inclusi
         "the refused jogs moved the robot to {robot:?}"
     );
 }
+
+/// A cell without sync lines (`NoSync`: robot and indexer on their serial links only, as over
+/// two pseudo-terminals) winds a discrete batch: each immediate move is awaited by polling the
+/// robot's state until it leaves RUNNING, then confirmed idle at its target. Every target is
+/// reached once, in order, and the indexer's counter ends where the plan's steps add up to.
+#[test]
+fn discrete_batch_on_a_cell_without_sync_lines_winds_every_segment_once() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let cell = SimCell::new(&SimCellConfig::default());
+    let mut dev = cell.devices(Drive::default());
+    dev.sync = Box::new(cell::device::NoSync);
+    let mut events = 0;
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            events += 1;
+        }
+    };
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap();
+    drop(c);
+    check_each_once(&cell, &b);
+    assert_eq!(events, expected_targets(&b).len());
+}
