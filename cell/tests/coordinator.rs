@@ -599,12 +599,18 @@ fn resume(cell: &SimCell, b: &Batch, jp: &Path) {
     wind(cell, b, journal, &from, false, None).unwrap();
 }
 
+/// Also resumed at once, with the devices still at it: a program killed mid-run is let finish
+/// (no robot move cut by a STOP), and one killed one call after its RUN_PROGRAM, still waiting
+/// at its handshake for the start edge that never came, is cancelled (a STOP that cuts no move)
+/// and run again (without that, the resume would wait for a program that cannot end).
 #[test]
 fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
-    for (mode, at, calls) in [
-        (RunMode::Discrete, 20, 3),
-        (RunMode::Fine, 1, 12),
-        (RunMode::Medium, 2, 40),
+    for (mode, at, calls, run_on_s) in [
+        (RunMode::Discrete, 20, 3, 60),
+        (RunMode::Fine, 1, 12, 60),
+        (RunMode::Medium, 2, 40, 60),
+        (RunMode::Fine, 1, 12, 0),
+        (RunMode::Fine, 1, 1, 0),
     ] {
         let b = checked(&sbend(Some(mode)));
         let dir = tempfile::tempdir().unwrap();
@@ -612,13 +618,33 @@ fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
         let cell = SimCell::new(&SimCellConfig::default());
         wind_until_killed(&cell, &b, &jp, at, calls);
         // Nobody stops the devices: a stored program runs to its end, the indexer finishes.
-        cell.timebase_sleep(Duration::from_secs(60));
+        cell.timebase_sleep(Duration::from_secs(run_on_s));
         resume(&cell, &b, &jp);
         check_each_once(&cell, &b);
         let (_, _, partial) = completed(&cell);
         assert!(
             partial.is_empty(),
-            "{mode:?}: a mandrel move was cut: {partial:?}"
+            "{mode:?} {calls} {run_on_s}: a mandrel move was cut: {partial:?}"
+        );
+        // A STOP that ends the wait at the handshake cuts no move: its record has no target.
+        let cut: Vec<[f64; 3]> = cell
+            .with(|p| {
+                p.log
+                    .iter()
+                    .filter_map(|r| match r {
+                        LogRecord::Robot {
+                            completed: false,
+                            target_mm,
+                            ..
+                        } if target_mm.iter().all(|v| v.is_finite()) => Some(*target_mm),
+                        _ => None,
+                    })
+                    .collect()
+            })
+            .unwrap();
+        assert!(
+            cut.is_empty(),
+            "{mode:?} {calls} {run_on_s}: robot moves cut: {cut:?}"
         );
     }
 }
