@@ -469,9 +469,12 @@ impl Life {
     }
 }
 
+/// Also a robot whose position reads `misread_mm` off in x (a robot that ends its moves off
+/// target, as far as the coordinator can tell).
 struct Mortal<T> {
     inner: T,
     life: Life,
+    misread_mm: f64,
 }
 
 impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
@@ -481,7 +484,8 @@ impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
     }
     fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
         self.life.alive()?;
-        self.inner.position_mm()
+        let [x, y, z] = self.inner.position_mm()?;
+        Ok([x + self.misread_mm, y, z])
     }
     fn set_speeds(
         &mut self,
@@ -565,10 +569,12 @@ fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, calls: i64
         robot: Box::new(Mortal {
             inner: d.robot,
             life: life.clone(),
+            misread_mm: 0.0,
         }),
         mandrel: Box::new(Mortal {
             inner: d.mandrel,
             life: life.clone(),
+            misread_mm: 0.0,
         }),
         sync: d.sync,
         time: d.time,
@@ -1067,4 +1073,49 @@ fn discrete_batch_on_a_cell_without_sync_lines_winds_every_segment_once() {
     drop(c);
     check_each_once(&cell, &b);
     assert_eq!(events, expected_targets(&b).len());
+}
+
+/// After each immediate move the coordinator reads the robot's position back: a robot that
+/// reads more than `POSITION_TOLERANCE_MM` (0.125 mm) off its target halts the batch with a
+/// fault naming the distance before anything else is sent; one that reads within it winds on.
+#[test]
+fn a_robot_that_ends_a_move_off_its_target_halts_the_batch() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    for (misread_mm, halts) in [(0.2, true), (0.1, false)] {
+        let cell = SimCell::new(&SimCellConfig::default());
+        let d = cell.devices(Drive::default());
+        let dev = cell::coordinator::Devices {
+            robot: Box::new(Mortal {
+                inner: d.robot,
+                life: Life::new(),
+                misread_mm,
+            }),
+            mandrel: d.mandrel,
+            sync: d.sync,
+            time: d.time,
+        };
+        let mut sink = |_e: Event| {};
+        let mut c = Coordinator::new(
+            dev,
+            Arc::new(AtomicBool::new(false)),
+            Journal::none(),
+            &mut sink,
+        );
+        let r = c.run(&b, &ResumePoint::default(), true, false, false);
+        drop(c);
+        if halts {
+            let stopped = r.unwrap_err();
+            assert!(
+                matches!(&stopped.halt, Halt::Fault { message } if message.contains("0.20 mm from its target")),
+                "{:?}",
+                stopped.halt
+            );
+            assert_eq!(stopped.segments_done, 0);
+            let (robot, _, _) = completed(&cell);
+            assert_eq!(robot.len(), 1, "one move, then the halt: {robot:?}");
+        } else {
+            r.unwrap();
+            check_each_once(&cell, &b);
+        }
+    }
 }
