@@ -1119,3 +1119,43 @@ fn a_robot_that_ends_a_move_off_its_target_halts_the_batch() {
         }
     }
 }
+
+/// Sync mandrel to robot (seed 001 §5.6.4): the mandrel turns to the path's start angle
+/// (`sync_mandrel_deg`) by the shorter way, to the counter nearest its own among those that put
+/// the mandrel at that angle (`angle / 360° · steps per revolution + k · steps per revolution`).
+/// From counter 0: 90° is a quarter turn forward, 300° a sixth of a turn back.
+#[test]
+fn the_sync_turns_the_mandrel_to_the_start_angle_by_the_shorter_way() {
+    let per_rev = Drive::default().steps_per_mandrel_rev();
+    for deg in [90.0, 300.0] {
+        let mut l = sbend(Some(RunMode::Discrete));
+        l.items[0].rob.header.sync_mandrel_deg = deg;
+        let b = checked(&l);
+        let dir = tempfile::tempdir().unwrap();
+        let jp = dir.path().join("J.journal");
+        let cell = SimCell::new(&SimCellConfig::default());
+        wind(
+            &cell,
+            &b,
+            Journal::create(&jp).unwrap(),
+            &ResumePoint::default(),
+            true,
+            Some(1),
+        )
+        .unwrap_err();
+        let (_, records) = Journal::resume(&jp).unwrap();
+        let sync = records
+            .iter()
+            .find(|r| r["rec"] == "sync")
+            .and_then(|r| r["counter"].as_i64())
+            .unwrap();
+        let nearest = (-2..=2)
+            .map(|k| deg / 360.0 * per_rev + f64::from(k) * per_rev)
+            .min_by(|a, c| a.abs().total_cmp(&c.abs()))
+            .unwrap()
+            .round() as i64;
+        assert_eq!(sync, nearest, "{deg}°");
+        let (_, done, _) = completed(&cell);
+        assert_eq!(done.first(), Some(&nearest), "{deg}°: the sync move");
+    }
+}
