@@ -272,7 +272,7 @@ fn stop_at_once_sends_stop_again_only_when_the_status_does_not_show_it_executed(
 /// A STOP the robot executed whose every acknowledgement was lost: the session fails
 /// (`LinkError::Retries` after `N_TX` transmissions, each retransmission re-acknowledged and not
 /// executed again, rule 2), but the robot answers ENQ, so the status decides: it shows STOPPED
-/// and the call succeeds without a second STOP.
+/// and the call succeeds without a second STOP; likewise for the confirmed STOP.
 #[test]
 fn a_stop_whose_acknowledgements_are_lost_is_confirmed_by_the_status() {
     let (mut c, _) = running(Script {
@@ -285,6 +285,15 @@ fn a_stop_whose_acknowledgements_are_lost_is_confirmed_by_the_status() {
     assert_eq!(s.state, State::Stopped);
     assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
     assert!(c.stats().timeouts >= u64::from(N_TX), "{:?}", c.stats());
+
+    // The same through the confirmed STOP (`Client::stop`, `command_confirmed`): a link failure
+    // leaves the fate unknown and the status after it decides (executed once: `Ok`).
+    c.link_mut().peer.script.mute_after_stop = 1;
+    let (before, _) = executed(&c);
+    let s = c.stop().unwrap();
+    assert_eq!(c.link().peer.script.mute_after_stop, 0);
+    assert_eq!(s.state, State::Stopped);
+    assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
 }
 
 /// After the STOP, every status read of the confirmation is lost to noise (each ENQUIRE

@@ -1049,17 +1049,23 @@ fn a_relative_jog_adds_its_offset_on_every_axis_and_the_reach_bounds_are_inclusi
 /// A cell without sync lines (`NoSync`: robot and indexer on their serial links only, as over
 /// two pseudo-terminals) winds a discrete batch: each immediate move is awaited by polling the
 /// robot's state until it leaves RUNNING, then confirmed idle at its target. Every target is
-/// reached once, in order, and the indexer's counter ends where the plan's steps add up to.
+/// reached once, in order, with one segment event each, numbered from 1 within its path.
 #[test]
 fn discrete_batch_on_a_cell_without_sync_lines_winds_every_segment_once() {
     let b = checked(&sbend(Some(RunMode::Discrete)));
     let cell = SimCell::new(&SimCellConfig::default());
     let mut dev = cell.devices(Drive::default());
     dev.sync = Box::new(cell::device::NoSync);
-    let mut events = 0;
+    let mut events = Vec::new();
     let mut sink = |e: Event| {
-        if matches!(e, Event::Segment { .. }) {
-            events += 1;
+        if let Event::Segment {
+            item,
+            segment,
+            segments,
+            ..
+        } = e
+        {
+            events.push((item, segment, segments));
         }
     };
     let mut c = Coordinator::new(
@@ -1072,7 +1078,17 @@ fn discrete_batch_on_a_cell_without_sync_lines_winds_every_segment_once() {
         .unwrap();
     drop(c);
     check_each_once(&cell, &b);
-    assert_eq!(events, expected_targets(&b).len());
+    // One event per segment, numbered from 1 within each path, paths numbered from 1.
+    let want: Vec<(usize, usize, usize)> = b
+        .items
+        .iter()
+        .enumerate()
+        .flat_map(|(i, item)| {
+            let n = item.rob.instructions.len();
+            (1..=n).map(move |s| (i + 1, s, n))
+        })
+        .collect();
+    assert_eq!(events, want);
 }
 
 /// After each immediate move the coordinator reads the robot's position back: a robot that
