@@ -417,6 +417,8 @@ impl<L: Link, C: Clock> Client<L, C> {
     /// [`RetryPolicy::command_attempts`] times in all). A count that moved by more than one, or
     /// the digest of another telegram, is [`Error::Foreign`]; an error the robot raised is
     /// [`Error::Robot`] (acknowledged); a wrong effect is [`Error::Effect`]. Never sent blindly.
+    /// An error latched before the command and not reported yet is reported before it is sent,
+    /// except before STOP, which goes out first; the error is then reported after it.
     pub fn command_confirmed(
         &mut self,
         cmd: &Command,
@@ -429,8 +431,12 @@ impl<L: Link, C: Clock> Client<L, C> {
         let sent = crate::frame::telegram_digest(cmd.code(), data);
         let name = command_name(cmd);
         let mut before = self.status_agreed()?;
-        // Errors from before this command are not its errors: report them first.
-        self.account_errors(&before)?;
+        // Errors from before this command are not its errors: report them first. Not before a
+        // STOP, which must not be held back: they stay latched and are reported once it has
+        // been executed (by the check of the status after it).
+        if !matches!(cmd, Command::Stop) {
+            self.account_errors(&before)?;
+        }
         // Anything executed since the last confirmed command that this client did not send.
         if let Some(last) = self.last_executed.take()
             && last != before.executed
@@ -447,6 +453,9 @@ impl<L: Link, C: Clock> Client<L, C> {
             match self.send(cmd) {
                 Err(Error::Cancelled) => return Err(Error::Cancelled),
                 Err(Error::Io(e)) => return Err(Error::Io(e)),
+                // Not one ENQ taken: the telegram never went out, and no status read would be
+                // taken either (docs/protocol.md §6 rule 3).
+                Err(e) if is_unanswered(&e) => return Err(e),
                 // A link failure leaves the command's fate unknown: the status decides.
                 _ => {}
             }
@@ -741,6 +750,8 @@ impl<L: Link, C: Clock> Client<L, C> {
         for (n, i) in (1u16..).zip(instructions) {
             report.restored += match self.store_verified(program, n, i) {
                 Ok(stores) => stores - 1,
+                // A robot that took no ENQ is reported at once (docs/protocol.md §6 rule 3).
+                Err(e) if is_unanswered(&e) => return Err(e),
                 // The store's fate is unknown: settle it by reading back, never by a blind store.
                 Err(_) => self.settle(program, n, i)?,
             };
@@ -865,8 +876,13 @@ impl<L: Link, C: Clock> Client<L, C> {
         instruction: u16,
         i: &Instruction,
     ) -> Result<usize> {
-        // A failed send may still have stored the instruction; the read-back decides.
-        let _ = self.store(program, instruction, i);
+        // A failed send may still have stored the instruction; the read-back decides. A robot
+        // that took no ENQ is reported at once (docs/protocol.md §6 rule 3).
+        if let Err(e) = self.store(program, instruction, i)
+            && is_unanswered(&e)
+        {
+            return Err(e);
+        }
         Ok(1 + self.ensure_stored(program, instruction, i)?)
     }
 
@@ -889,7 +905,11 @@ impl<L: Link, C: Clock> Client<L, C> {
             }
             stores += 1;
             // As in `store_verified`: a failed send is settled by the next read-back.
-            let _ = self.store(program, instruction, want);
+            if let Err(e) = self.store(program, instruction, want)
+                && is_unanswered(&e)
+            {
+                return Err(e);
+            }
         }
         Ok(stores)
     }

@@ -469,9 +469,12 @@ impl Life {
     }
 }
 
+/// Also a robot whose position reads `misread_mm` off in x (a robot that ends its moves off
+/// target, as far as the coordinator can tell).
 struct Mortal<T> {
     inner: T,
     life: Life,
+    misread_mm: f64,
 }
 
 impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
@@ -481,7 +484,8 @@ impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
     }
     fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
         self.life.alive()?;
-        self.inner.position_mm()
+        let [x, y, z] = self.inner.position_mm()?;
+        Ok([x + self.misread_mm, y, z])
     }
     fn set_speeds(
         &mut self,
@@ -565,10 +569,12 @@ fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, calls: i64
         robot: Box::new(Mortal {
             inner: d.robot,
             life: life.clone(),
+            misread_mm: 0.0,
         }),
         mandrel: Box::new(Mortal {
             inner: d.mandrel,
             life: life.clone(),
+            misread_mm: 0.0,
         }),
         sync: d.sync,
         time: d.time,
@@ -599,12 +605,18 @@ fn resume(cell: &SimCell, b: &Batch, jp: &Path) {
     wind(cell, b, journal, &from, false, None).unwrap();
 }
 
+/// Also resumed at once, with the devices still at it: a program killed mid-run is let finish
+/// (no robot move cut by a STOP), and one killed one call after its RUN_PROGRAM, still waiting
+/// at its handshake for the start edge that never came, is cancelled (a STOP that cuts no move)
+/// and run again (without that, the resume would wait for a program that cannot end).
 #[test]
 fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
-    for (mode, at, calls) in [
-        (RunMode::Discrete, 20, 3),
-        (RunMode::Fine, 1, 12),
-        (RunMode::Medium, 2, 40),
+    for (mode, at, calls, run_on_s) in [
+        (RunMode::Discrete, 20, 3, 60),
+        (RunMode::Fine, 1, 12, 60),
+        (RunMode::Medium, 2, 40, 60),
+        (RunMode::Fine, 1, 12, 0),
+        (RunMode::Fine, 1, 1, 0),
     ] {
         let b = checked(&sbend(Some(mode)));
         let dir = tempfile::tempdir().unwrap();
@@ -612,13 +624,33 @@ fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
         let cell = SimCell::new(&SimCellConfig::default());
         wind_until_killed(&cell, &b, &jp, at, calls);
         // Nobody stops the devices: a stored program runs to its end, the indexer finishes.
-        cell.timebase_sleep(Duration::from_secs(60));
+        cell.timebase_sleep(Duration::from_secs(run_on_s));
         resume(&cell, &b, &jp);
         check_each_once(&cell, &b);
         let (_, _, partial) = completed(&cell);
         assert!(
             partial.is_empty(),
-            "{mode:?}: a mandrel move was cut: {partial:?}"
+            "{mode:?} {calls} {run_on_s}: a mandrel move was cut: {partial:?}"
+        );
+        // A STOP that ends the wait at the handshake cuts no move: its record has no target.
+        let cut: Vec<[f64; 3]> = cell
+            .with(|p| {
+                p.log
+                    .iter()
+                    .filter_map(|r| match r {
+                        LogRecord::Robot {
+                            completed: false,
+                            target_mm,
+                            ..
+                        } if target_mm.iter().all(|v| v.is_finite()) => Some(*target_mm),
+                        _ => None,
+                    })
+                    .collect()
+            })
+            .unwrap();
+        assert!(
+            cut.is_empty(),
+            "{mode:?} {calls} {run_on_s}: robot moves cut: {cut:?}"
         );
     }
 }
@@ -905,4 +937,241 @@ fn event_driven_polling_winds_as_polling_every_tick_does() {
         evented.len()
     );
     assert!(worst < 0.05, "worst time difference {worst} s");
+}
+
+/// Manual control (seed 001 §5.3.2): a relative jog adds its offset to the robot's position on
+/// every axis and its steps to the indexer's counter, and its wrist (App. A pitch 30°, in the
+/// arm's vertical plane) is turned by the base yaw to face the target: the roll axis keeps its
+/// elevation and its horizontal part points along the target's (x, y). The jog's target is held to the working
+/// range with every bound inclusive: with the range shrunk to one point (radius and height both
+/// exactly those of the robot's home pose) a jog to that point is taken, and one LSB (0.0625 mm)
+/// beyond any of the four bounds is refused before anything moves.
+#[test]
+fn a_relative_jog_adds_its_offset_on_every_axis_and_the_reach_bounds_are_inclusive() {
+    use asea_protocol::{Flags, Pose, Positioning, Speed, Zone};
+    let cell = SimCell::new(&SimCellConfig::default());
+    let mut dev = cell.devices(Drive::default());
+    let counter0 = dev.mandrel.attach().unwrap();
+    let home = dev.robot.position_mm().unwrap();
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    let speeds = (
+        Speed::from_value("base", 1.0).unwrap(),
+        Speed::from_value("max", 2.0).unwrap(),
+    );
+    let pitched = paths::wrist::from_pitch_roll(30f64.to_radians(), 0.0);
+    let with = |xyz: [f64; 3], q: [f64; 4]| Positioning {
+        flags: Flags {
+            zone: Zone::Fine,
+            ..Flags::default()
+        },
+        pose: Pose::from_mm(xyz, q).unwrap(),
+        speed: Speed::from_value("speed", 0.1).unwrap(),
+    };
+    let at = |xyz: [f64; 3]| with(xyz, [1.0, 0.0, 0.0, 0.0]);
+    let steps = 120;
+    let mandrel = MandrelMove {
+        accel_rps2: 1.0,
+        start_stop_rps: 0.05,
+        max_rps: 0.1,
+        steps,
+    };
+    let offset = [30.0, -40.0, 50.0];
+    let (pos, counter) = c
+        .jog(
+            speeds,
+            with(offset, paths::wrist::components(&pitched)),
+            true,
+            Some(mandrel),
+            Reach::default(),
+        )
+        .unwrap();
+    let want = [home[0] + 30.0, home[1] - 40.0, home[2] + 50.0];
+    assert!(
+        (0..3).all(|i| (pos[i] - want[i]).abs() <= 0.0625),
+        "{pos:?} against {want:?}"
+    );
+    assert_eq!(counter, counter0 + steps);
+    let [w, x, y, z] = cell.with(|p| p.robot.machine.pose().q).unwrap();
+    let roll = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z))
+        * nalgebra::Vector3::x();
+    let wanted = pitched * nalgebra::Vector3::x();
+    assert!(
+        (roll.z - wanted.z).abs() < 2e-3,
+        "{roll:?} against {wanted:?}"
+    );
+    let across = roll.x * want[1] - roll.y * want[0];
+    let along = roll.x * want[0] + roll.y * want[1];
+    assert!(
+        across.abs() < 2e-3 * want[0].hypot(want[1]) && along > 0.0,
+        "{roll:?} at {want:?}"
+    );
+
+    // The range shrunk to the home pose's radius and height (home is on the x axis).
+    assert_eq!(home[1], 0.0);
+    let point = Reach {
+        max_radius_mm: home[0],
+        min_radius_mm: home[0],
+        z_range_mm: (home[2], home[2]),
+    };
+    let (pos, _) = c.jog(speeds, at(home), false, None, point).unwrap();
+    assert!(
+        (0..3).all(|i| (pos[i] - home[i]).abs() <= 0.0625),
+        "{pos:?}"
+    );
+    let lsb = 0.0625;
+    for outside in [
+        [home[0] + lsb, 0.0, home[2]],
+        [home[0] - lsb, 0.0, home[2]],
+        [home[0], 0.0, home[2] + lsb],
+        [home[0], 0.0, home[2] - lsb],
+    ] {
+        let e = c.jog(speeds, at(outside), false, None, point).unwrap_err();
+        assert!(
+            matches!(&e.halt, Halt::Fault { message } if message.contains("out of the arm's reach")),
+            "{outside:?}: {:?}",
+            e.halt
+        );
+    }
+    drop(c);
+    let robot = cell.with(|p| p.robot.machine.pose().xyz_mm).unwrap();
+    assert!(
+        (0..3).all(|i| (robot[i] - home[i]).abs() <= 0.0625),
+        "the refused jogs moved the robot to {robot:?}"
+    );
+}
+
+/// A cell without sync lines (`NoSync`: robot and indexer on their serial links only, as over
+/// two pseudo-terminals) winds a discrete batch: each immediate move is awaited by polling the
+/// robot's state until it leaves RUNNING, then confirmed idle at its target. Every target is
+/// reached once, in order, with one segment event each, numbered from 1 within its path.
+#[test]
+fn discrete_batch_on_a_cell_without_sync_lines_winds_every_segment_once() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let cell = SimCell::new(&SimCellConfig::default());
+    let mut dev = cell.devices(Drive::default());
+    dev.sync = Box::new(cell::device::NoSync);
+    let mut events = Vec::new();
+    let mut sink = |e: Event| {
+        if let Event::Segment {
+            item,
+            segment,
+            segments,
+            ..
+        } = e
+        {
+            events.push((item, segment, segments));
+        }
+    };
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap();
+    drop(c);
+    check_each_once(&cell, &b);
+    // One event per segment, numbered from 1 within each path, paths numbered from 1.
+    let want: Vec<(usize, usize, usize)> = b
+        .items
+        .iter()
+        .enumerate()
+        .flat_map(|(i, item)| {
+            let n = item.rob.instructions.len();
+            (1..=n).map(move |s| (i + 1, s, n))
+        })
+        .collect();
+    assert_eq!(events, want);
+}
+
+/// After each immediate move the coordinator reads the robot's position back: a robot that
+/// reads more than `POSITION_TOLERANCE_MM` (0.125 mm) off its target halts the batch with a
+/// fault naming the distance before anything else is sent; one that reads within it winds on.
+#[test]
+fn a_robot_that_ends_a_move_off_its_target_halts_the_batch() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    for (misread_mm, halts) in [(0.2, true), (0.1, false)] {
+        let cell = SimCell::new(&SimCellConfig::default());
+        let d = cell.devices(Drive::default());
+        let dev = cell::coordinator::Devices {
+            robot: Box::new(Mortal {
+                inner: d.robot,
+                life: Life::new(),
+                misread_mm,
+            }),
+            mandrel: d.mandrel,
+            sync: d.sync,
+            time: d.time,
+        };
+        let mut sink = |_e: Event| {};
+        let mut c = Coordinator::new(
+            dev,
+            Arc::new(AtomicBool::new(false)),
+            Journal::none(),
+            &mut sink,
+        );
+        let r = c.run(&b, &ResumePoint::default(), true, false, false);
+        drop(c);
+        if halts {
+            let stopped = r.unwrap_err();
+            assert!(
+                matches!(&stopped.halt, Halt::Fault { message } if message.contains("0.20 mm from its target")),
+                "{:?}",
+                stopped.halt
+            );
+            assert_eq!(stopped.segments_done, 0);
+            let (robot, _, _) = completed(&cell);
+            assert_eq!(robot.len(), 1, "one move, then the halt: {robot:?}");
+        } else {
+            r.unwrap();
+            check_each_once(&cell, &b);
+        }
+    }
+}
+
+/// Sync mandrel to robot (seed 001 §5.6.4): the mandrel turns to the path's start angle
+/// (`sync_mandrel_deg`) by the shorter way, to the counter nearest its own among those that put
+/// the mandrel at that angle (`angle / 360° · steps per revolution + k · steps per revolution`).
+/// From counter 0: 90° is a quarter turn forward, 300° a sixth of a turn back.
+#[test]
+fn the_sync_turns_the_mandrel_to_the_start_angle_by_the_shorter_way() {
+    let per_rev = Drive::default().steps_per_mandrel_rev();
+    for deg in [90.0, 300.0] {
+        let mut l = sbend(Some(RunMode::Discrete));
+        l.items[0].rob.header.sync_mandrel_deg = deg;
+        let b = checked(&l);
+        let dir = tempfile::tempdir().unwrap();
+        let jp = dir.path().join("J.journal");
+        let cell = SimCell::new(&SimCellConfig::default());
+        wind(
+            &cell,
+            &b,
+            Journal::create(&jp).unwrap(),
+            &ResumePoint::default(),
+            true,
+            Some(1),
+        )
+        .unwrap_err();
+        let (_, records) = Journal::resume(&jp).unwrap();
+        let sync = records
+            .iter()
+            .find(|r| r["rec"] == "sync")
+            .and_then(|r| r["counter"].as_i64())
+            .unwrap();
+        let nearest = (-2..=2)
+            .map(|k| deg / 360.0 * per_rev + f64::from(k) * per_rev)
+            .min_by(|a, c| a.abs().total_cmp(&c.abs()))
+            .unwrap()
+            .round() as i64;
+        assert_eq!(sync, nearest, "{deg}°");
+        let (_, done, _) = completed(&cell);
+        assert_eq!(done.first(), Some(&nearest), "{deg}°: the sync move");
+    }
 }

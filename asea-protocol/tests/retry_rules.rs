@@ -1,0 +1,516 @@
+//! The client's retry rules (docs/protocol.md §6 rule 3, §7) against the simulated robot behind
+//! a scripted line: which failures each layer reads past (noise: a corrupted telegram, a reply
+//! that passed the check value but does not parse) and which it reports at once (a robot that
+//! takes no ENQ); and `stop_at_once`, whose STOP must be seen executed in the status.
+//!
+//! Every expected count comes from the protocol's constants (`N_TX`, `N_ENQ`, `T_ENQ`,
+//! `RetryPolicy::request_sessions`, `CONFIRMING_READS`), not from a run of the client.
+
+use std::time::Duration;
+
+use asea_protocol::client::CONFIRMING_READS;
+use asea_protocol::clock::{Clock, VirtualClock};
+use asea_protocol::frame::{ACK, ENQ, EOT, STX, telegram_digest};
+use asea_protocol::link::{Paced, Peer};
+use asea_protocol::session::{N_ENQ, N_TX, T_ENQ};
+use asea_protocol::sim::START_INPUT;
+use asea_protocol::{Client, ClientConfig, Control, Error, Instruction, LinkError, Robot, State};
+
+/// Telegram codes the script looks for (docs/protocol.md §5).
+const STOP: u8 = 0x0C;
+const ENQUIRE: u8 = 0x06;
+const STORE_CONTROL: u8 = 0x09;
+const REPLY_ENQUIRE: u8 = 0x86;
+const REPLY_READ_BACK: u8 = 0x8D;
+const REPLY_PROGRAM_INFO: u8 = 0x8F;
+
+/// What the line does to the traffic, each rule a set number of times.
+#[derive(Debug, Default)]
+struct Script {
+    /// Telegrams with this code the line acknowledges to the host itself and never delivers: a
+    /// telegram the robot acknowledges and does not execute.
+    swallow: Option<(u8, u32)>,
+    /// Sessions in which the STOP telegram reaches the robot (which executes it) and every
+    /// answer of the robot after it is lost until the host's EOT.
+    mute_after_stop: u32,
+    /// ENQUIRE telegrams delivered with a wrong check value (the robot refuses them with NAK).
+    corrupt_enquiries: u32,
+    /// Reply telegrams with this code that reach the host with an undefined code and a check
+    /// value that matches: they pass the one-byte sum and do not parse.
+    garble: Option<(u8, u32)>,
+    /// The robot falls silent at the host's first ENQ after the session of a STOP.
+    silent_after_stop: bool,
+    /// The robot falls silent at the host's first ENQ after this many more replies with this
+    /// code.
+    silent_after_replies: Option<(u8, u32)>,
+}
+
+/// The simulated robot behind a scripted line.
+#[derive(Debug)]
+struct Line {
+    robot: Robot,
+    script: Script,
+    /// A host telegram being received, held until it is whole.
+    held: Vec<u8>,
+    /// Bytes the line itself sends to the host.
+    forged: Vec<u8>,
+    /// The robot's answers are lost until the host's EOT.
+    muted: bool,
+    /// The robot falls silent at the host's next ENQ.
+    fall_silent: bool,
+    /// Since when the robot has been silent.
+    silent_since: Option<Duration>,
+}
+
+impl Line {
+    fn new(script: Script) -> Self {
+        Line {
+            robot: Robot::default(),
+            fall_silent: false,
+            script,
+            held: Vec::new(),
+            forged: Vec::new(),
+            muted: false,
+            silent_since: None,
+        }
+    }
+
+    /// A whole telegram from the host.
+    fn telegram(&mut self, mut t: Vec<u8>, now: Duration) {
+        let code = t[1];
+        let s = &mut self.script;
+        if let Some((c, n)) = &mut s.swallow
+            && *c == code
+            && *n > 0
+        {
+            *n -= 1;
+            self.forged.push(ACK);
+            return;
+        }
+        if code == ENQUIRE && s.corrupt_enquiries > 0 {
+            s.corrupt_enquiries -= 1;
+            let cs = t.len() - 1;
+            t[cs] ^= 0xFF;
+        }
+        if code == STOP {
+            if s.mute_after_stop > 0 {
+                s.mute_after_stop -= 1;
+                self.muted = true;
+            }
+            if s.silent_after_stop {
+                self.fall_silent = true;
+            }
+        }
+        self.robot.receive(&t, now);
+    }
+}
+
+impl Peer for Line {
+    fn receive(&mut self, bytes: &[u8], now: Duration) {
+        for &b in bytes {
+            if self.held.is_empty() && b == ENQ && self.fall_silent {
+                self.fall_silent = false;
+                self.silent_since = Some(now);
+            }
+            if self.silent_since.is_some() {
+                continue;
+            }
+            if !self.held.is_empty() || b == STX {
+                // The host frames by length (one-byte sum): STX CMD LEN DATA ETX CS.
+                self.held.push(b);
+                if let Some(&len) = self.held.get(2)
+                    && self.held.len() == 3 + usize::from(len) + 2
+                {
+                    let t = std::mem::take(&mut self.held);
+                    self.telegram(t, now);
+                }
+                continue;
+            }
+            if b == EOT {
+                self.muted = false;
+            }
+            self.robot.receive(&[b], now);
+        }
+    }
+    fn poll(&mut self, now: Duration) {
+        self.robot.poll(now);
+    }
+    fn take_output(&mut self) -> Vec<u8> {
+        let mut out = self.robot.take_output();
+        if self.silent_since.is_some() || self.muted {
+            out.clear();
+        }
+        // A whole reply telegram: STX CMD LEN DATA ETX CS.
+        if let [STX, code, len, ..] = out[..]
+            && out.len() == 3 + usize::from(len) + 2
+        {
+            if let Some((c, n)) = &mut self.script.garble
+                && *c == code
+                && *n > 0
+            {
+                *n -= 1;
+                out[1] = code.wrapping_add(1);
+                let cs = out.len() - 1;
+                out[cs] = out[cs].wrapping_add(1);
+            }
+            if let Some((c, n)) = &mut self.script.silent_after_replies
+                && *c == code
+                && *n > 0
+            {
+                *n -= 1;
+                if *n == 0 {
+                    self.fall_silent = true;
+                }
+            }
+        }
+        let mut bytes = std::mem::take(&mut self.forged);
+        bytes.extend(out);
+        bytes
+    }
+    fn deadline(&self) -> Option<Duration> {
+        self.robot.deadline()
+    }
+}
+
+type TestClient = Client<Paced<Line>, VirtualClock>;
+
+fn client(script: Script) -> (TestClient, VirtualClock) {
+    let clock = VirtualClock::new();
+    let c = Client::with_clock(
+        Paced::new(clock.clone(), 9600, Line::new(script)),
+        clock.clone(),
+        ClientConfig::default(),
+    );
+    (c, clock)
+}
+
+fn robot(c: &TestClient) -> &Robot {
+    &c.link().peer.robot
+}
+
+/// Sessions one request tries (docs/protocol.md §6 rule 3).
+fn request_sessions() -> u32 {
+    ClientConfig::default().retry.request_sessions
+}
+
+/// One session of `N_ENQ` unanswered ENQs, `T_ENQ` apart, plus the bytes on the wire.
+fn one_session() -> Duration {
+    T_ENQ * N_ENQ + Duration::from_millis(50)
+}
+
+/// A robot in OPERATE, homed, running program 1, which waits for the PC's start (never given):
+/// it runs until stopped. Then `script` applies.
+fn running(script: Script) -> (TestClient, VirtualClock) {
+    let (mut c, clock) = client(Script::default());
+    c.operate().unwrap();
+    c.sync_home().unwrap();
+    c.link_mut().run_for(Duration::from_secs(4));
+    let program = [
+        Instruction::Control(Control::WaitInput {
+            line: START_INPUT,
+            on: true,
+        }),
+        Instruction::Control(Control::End),
+    ];
+    c.upload(1, &program).unwrap();
+    c.run_program(1).unwrap();
+    assert_eq!(robot(&c).machine.status().state, State::Running);
+    c.link_mut().peer.script = script;
+    (c, clock)
+}
+
+/// The execution count and digest the robot shows (docs/protocol.md §5: every command with an
+/// effect advances the count and sets the digest of its CMD, LEN and DATA).
+fn executed(c: &TestClient) -> (u16, u16) {
+    let s = robot(c).machine.status();
+    (s.executed, s.last_digest)
+}
+
+/// STOP's digest: code 0x0C, no data.
+fn stop_digest() -> u16 {
+    telegram_digest(STOP, &[])
+}
+
+/// `stop_at_once` sends STOP first and then must see STOPPED in the status (docs/protocol.md
+/// §7: `Ok` means executed with its effect). On a clean line the status shows it and STOP is
+/// sent once. When the robot acknowledged a STOP it did not execute (the ACK was forged on the
+/// line), the status still shows the program running: STOP is sent again, confirmed, and the
+/// robot ends STOPPED having executed exactly one STOP.
+#[test]
+fn stop_at_once_sends_stop_again_only_when_the_status_does_not_show_it_executed() {
+    let (mut c, _) = running(Script::default());
+    let (before, _) = executed(&c);
+    let s = c.stop_at_once().unwrap();
+    assert_eq!(s.state, State::Stopped);
+    assert_eq!(robot(&c).machine.status().state, State::Stopped);
+    assert_eq!(
+        executed(&c),
+        (before.wrapping_add(1), stop_digest()),
+        "one STOP executed on a clean line"
+    );
+
+    let (mut c, _) = running(Script {
+        swallow: Some((STOP, 1)),
+        ..Script::default()
+    });
+    let (before, _) = executed(&c);
+    let s = c.stop_at_once().unwrap();
+    assert_eq!(
+        c.link().peer.script.swallow,
+        Some((STOP, 0)),
+        "the STOP was swallowed"
+    );
+    assert_eq!(s.state, State::Stopped);
+    assert_eq!(robot(&c).machine.status().state, State::Stopped);
+    assert_eq!(
+        executed(&c),
+        (before.wrapping_add(1), stop_digest()),
+        "the second STOP executed, once"
+    );
+}
+
+/// A STOP the robot executed whose every acknowledgement was lost: the session fails
+/// (`LinkError::Retries` after `N_TX` transmissions, each retransmission re-acknowledged and not
+/// executed again, rule 2), but the robot answers ENQ, so the status decides: it shows STOPPED
+/// and the call succeeds without a second STOP; likewise for the confirmed STOP.
+#[test]
+fn a_stop_whose_acknowledgements_are_lost_is_confirmed_by_the_status() {
+    let (mut c, _) = running(Script {
+        mute_after_stop: 1,
+        ..Script::default()
+    });
+    let (before, _) = executed(&c);
+    let s = c.stop_at_once().unwrap();
+    assert_eq!(c.link().peer.script.mute_after_stop, 0);
+    assert_eq!(s.state, State::Stopped);
+    assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
+    assert!(c.stats().timeouts >= u64::from(N_TX), "{:?}", c.stats());
+
+    // The same through the confirmed STOP (`Client::stop`, `command_confirmed`): a link failure
+    // leaves the fate unknown and the status after it decides (executed once: `Ok`).
+    c.link_mut().peer.script.mute_after_stop = 1;
+    let (before, _) = executed(&c);
+    let s = c.stop().unwrap();
+    assert_eq!(c.link().peer.script.mute_after_stop, 0);
+    assert_eq!(s.state, State::Stopped);
+    assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
+}
+
+/// After the STOP, every status read of the confirmation is lost to noise (each ENQUIRE
+/// corrupted on the way, NAKed `N_TX` times, in `request_sessions` sessions, for
+/// `CONFIRMING_READS` reads): noise is not a silent robot, so the confirmed STOP follows, reads
+/// the status clean and returns STOPPED.
+#[test]
+fn a_stop_whose_status_is_lost_to_noise_falls_back_to_the_confirmed_stop() {
+    let lost = CONFIRMING_READS * request_sessions() * N_TX;
+    let (mut c, _) = running(Script {
+        corrupt_enquiries: lost,
+        ..Script::default()
+    });
+    let s = c.stop_at_once().unwrap();
+    assert_eq!(c.link().peer.script.corrupt_enquiries, 0);
+    assert_eq!(s.state, State::Stopped);
+    assert_eq!(robot(&c).machine.status().state, State::Stopped);
+    assert_eq!(executed(&c).1, stop_digest());
+}
+
+/// A robot that acknowledges the STOP and then falls silent: the status read after it takes no
+/// ENQ, and the call reports that within one session (rule 3: no further session, no confirmed
+/// STOP behind it).
+#[test]
+fn a_robot_silent_after_its_stop_is_reported_within_one_session() {
+    let (mut c, clock) = running(Script {
+        silent_after_stop: true,
+        ..Script::default()
+    });
+    let e = c.stop_at_once().unwrap_err();
+    assert!(
+        matches!(e, Error::Link(LinkError::NoResponse { attempts }) if attempts == N_ENQ),
+        "{e}"
+    );
+    assert_eq!(robot(&c).machine.status().state, State::Stopped);
+    let silent = clock.now() - c.link().peer.silent_since.unwrap();
+    assert!(silent < one_session(), "{silent:?}");
+}
+
+/// A request whose first session fails on noise (the ENQUIRE NAKed `N_TX` times: `Retries`)
+/// is asked again in a new session and answers.
+#[test]
+fn a_request_starts_a_new_session_after_a_session_lost_to_noise() {
+    let (mut c, _) = client(Script {
+        corrupt_enquiries: N_TX,
+        ..Script::default()
+    });
+    let s = c.status().unwrap();
+    assert_eq!(c.link().peer.script.corrupt_enquiries, 0);
+    assert_eq!(s, robot(&c).machine.status());
+}
+
+/// The layers above a request read past a request lost to noise (every session of it answered
+/// with a reply that passes the sum and does not parse) and answer from the next reads:
+/// `status_agreed`, `program_info` and `confirm_stored` (docs/protocol.md §7: acted on only when
+/// answers agree, at most `CONFIRMING_READS` reads).
+#[test]
+fn agreeing_reads_read_past_a_request_lost_to_noise() {
+    let lost = request_sessions();
+    let program = [
+        Instruction::Control(Control::SetOutput { line: 2, on: true }),
+        Instruction::Control(Control::End),
+    ];
+    let (mut c, _) = client(Script::default());
+    c.upload(1, &program).unwrap();
+
+    c.link_mut().peer.script.garble = Some((REPLY_ENQUIRE, lost));
+    let s = c.status_agreed().unwrap();
+    assert_eq!(c.link().peer.script.garble, Some((REPLY_ENQUIRE, 0)));
+    assert_eq!(s, robot(&c).machine.status());
+
+    c.link_mut().peer.script.garble = Some((REPLY_PROGRAM_INFO, lost));
+    // Two instructions, the highest numbered 2, two in the whole memory.
+    assert_eq!(c.program_info(1).unwrap(), (2, 2, 2));
+    assert_eq!(c.link().peer.script.garble, Some((REPLY_PROGRAM_INFO, 0)));
+
+    c.link_mut().peer.script.garble = Some((REPLY_READ_BACK, lost));
+    assert!(c.confirm_stored(1, 2, &program[1]).unwrap());
+    assert_eq!(c.link().peer.script.garble, Some((REPLY_READ_BACK, 0)));
+}
+
+/// A verified upload whose store confirmation and first settling each lose all
+/// `CONFIRMING_READS` read-backs to noise (`request_sessions` garbled replies each) settles the
+/// instruction again (up to `request_sessions` times) and succeeds with the program stored.
+#[test]
+fn a_verified_upload_settles_again_after_read_backs_lost_to_noise() {
+    let lost = 2 * CONFIRMING_READS * request_sessions();
+    let program = [Instruction::Control(Control::SetOutput {
+        line: 2,
+        on: true,
+    })];
+    let (mut c, _) = client(Script::default());
+    c.check_status().unwrap();
+    c.link_mut().peer.script.garble = Some((REPLY_READ_BACK, lost));
+    let r = c.upload_verified(1, &program).unwrap();
+    assert_eq!(c.link().peer.script.garble, Some((REPLY_READ_BACK, 0)));
+    assert_eq!((r.checked, r.restored), (1, 0));
+    let m = &robot(&c).machine;
+    assert_eq!(m.program_len(1), 1);
+    assert_eq!(m.instruction(1, 1), Some(&program[0]));
+}
+
+/// The status read that closes a verified upload only acknowledges errors of refused twins;
+/// when noise makes it unreadable (`CONFIRMING_READS` reads, every session garbled) the
+/// upload, proven by its read-backs, still succeeds.
+#[test]
+fn a_verified_upload_is_not_failed_by_noise_on_its_closing_status() {
+    let lost = CONFIRMING_READS * request_sessions();
+    let program = [
+        Instruction::Control(Control::SetOutput { line: 2, on: true }),
+        Instruction::Control(Control::End),
+    ];
+    let (mut c, _) = client(Script::default());
+    c.check_status().unwrap();
+    c.link_mut().peer.script.garble = Some((REPLY_ENQUIRE, lost));
+    let r = c.upload_verified(1, &program).unwrap();
+    assert_eq!(c.link().peer.script.garble, Some((REPLY_ENQUIRE, 0)));
+    assert_eq!((r.checked, r.restored), (2, 0));
+    let m = &robot(&c).machine;
+    assert_eq!(m.program_len(1), 2);
+    assert_eq!(m.instruction(1, 2), Some(&program[1]));
+}
+
+/// A robot that falls silent is reported within one session by the agreeing reads, the verified
+/// store and upload and the confirmed command (rule 3: no new session, no further status read),
+/// wherever it falls silent: at the first program information or read-back, at the store of a
+/// verified store or upload, at the store again after read-backs showed the first one missing
+/// (it was swallowed), at the send of a confirmed command (after the status before it),
+/// in the closing pass of the upload (after the store's two agreeing read-backs), or at its
+/// closing status (after all four).
+#[test]
+fn a_robot_that_falls_silent_is_reported_within_one_session_by_every_verifying_call() {
+    let program = [Instruction::Control(Control::SetOutput {
+        line: 2,
+        on: true,
+    })];
+    type Call = fn(&mut TestClient, &[Instruction]) -> Result<(), Error>;
+    /// Silent at once, or after this many more replies with this code.
+    type After = Option<(u8, u32)>;
+    let calls: [(&str, After, Call); 8] = [
+        ("program_info", None, |c, _| c.program_info(1).map(|_| ())),
+        ("store_verified", None, |c, p| {
+            c.store_verified(1, 1, &p[0]).map(|_| ())
+        }),
+        ("upload_verified at its first store", None, |c, p| {
+            c.upload_verified(1, p).map(|_| ())
+        }),
+        // The first store swallowed: three agreeing read-backs of nothing, then the re-store.
+        (
+            "store_verified at its re-store",
+            Some((REPLY_READ_BACK, 3)),
+            |c, p| c.store_verified(1, 1, &p[0]).map(|_| ()),
+        ),
+        // The status before the command read (two agreeing replies), then silent at its send.
+        ("operate at its send", Some((REPLY_ENQUIRE, 2)), |c, _| {
+            c.operate().map(|_| ())
+        }),
+        ("confirm_stored", None, |c, p| {
+            c.confirm_stored(1, 1, &p[0]).map(|_| ())
+        }),
+        ("closing pass", Some((REPLY_READ_BACK, 2)), |c, p| {
+            c.upload_verified(1, p).map(|_| ())
+        }),
+        ("closing status", Some((REPLY_READ_BACK, 4)), |c, p| {
+            c.upload_verified(1, p).map(|_| ())
+        }),
+    ];
+    for (name, after, call) in calls {
+        let (mut c, clock) = client(Script::default());
+        if name == "store_verified at its re-store" {
+            c.link_mut().peer.script.swallow = Some((STORE_CONTROL, 1));
+        }
+        c.check_status().unwrap();
+        match after {
+            None => c.link_mut().peer.fall_silent = true,
+            Some(after) => c.link_mut().peer.script.silent_after_replies = Some(after),
+        }
+        let e = call(&mut c, &program).unwrap_err();
+        assert!(
+            matches!(e, Error::Link(LinkError::NoResponse { attempts }) if attempts == N_ENQ),
+            "{name}: {e}"
+        );
+        let silent = clock.now() - c.link().peer.silent_since.unwrap();
+        assert!(silent < one_session(), "{name}: {silent:?}");
+    }
+}
+
+/// An error the robot latched before the STOP and the client has not reported yet (a
+/// RUN_PROGRAM sent plainly while the program runs: busy, code 7) does not hold the STOP back.
+/// The first STOP is swallowed, so the status does not show it executed; the confirmed STOP
+/// still goes out, the robot ends STOPPED having executed one STOP, and the error is reported
+/// once, after it, and acknowledged (docs/protocol.md §5: latched until acknowledged).
+#[test]
+fn an_error_latched_before_a_stop_does_not_hold_back_the_confirmed_stop() {
+    let (mut c, _) = running(Script {
+        swallow: Some((STOP, 1)),
+        ..Script::default()
+    });
+    c.send(&asea_protocol::Command::RunProgram { program: 1 })
+        .unwrap();
+    assert_eq!(robot(&c).machine.last_error(), 7);
+    let (before, _) = executed(&c);
+    let e = c.stop_at_once().unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Robot {
+                code: 7,
+                count: 1,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert_eq!(c.link().peer.script.swallow, Some((STOP, 0)));
+    assert_eq!(robot(&c).machine.status().state, State::Stopped);
+    assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
+    assert_eq!(robot(&c).machine.last_error(), 0, "acknowledged");
+    assert_eq!(c.check_status().unwrap().state, State::Stopped);
+}
