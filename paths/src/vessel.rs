@@ -1,6 +1,6 @@
 //! Lathe winding plans: layers of hoop, helical and skip winding on a cylinder with hemispherical
-//! domes (seed 002) or on an open tube, turned into one stream of axis moves
-//! ([`crate::motion`]).
+//! domes (seed 002), on an open tube, or helical and skip layers on a reducing cone (geodesics,
+//! [`cone`]), turned into one stream of axis moves ([`crate::motion`]).
 //!
 //! A [`Job`] is checked whole before anything is emitted ([`Job::check`]): every layer's pattern
 //! must close, the eye must clear the laminate, and the counts must be countable; only then does
@@ -27,6 +27,9 @@ use crate::motion::{Axes, AxisSet, LayerKind, LayerMark, Limits, MotionSink, Mov
 use crate::pattern::{Pattern, PatternRequest};
 use std::f64::consts::{PI, TAU};
 
+pub mod cone;
+use cone::{ConeGeodesic, ConeRefusal};
+
 /// The mandrel's shape.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
@@ -47,6 +50,16 @@ pub enum Mandrel {
         /// The wound length.
         length_mm: f64,
     },
+    /// A reducing cone (frustum) wound between its ends with lock turns, the large end at the
+    /// carriage's start (`.wind` files with `endDiameter`); helical layers follow geodesics.
+    Cone {
+        /// Radius of the large end (at the carriage's start).
+        large_radius_mm: f64,
+        /// Radius of the small end.
+        small_radius_mm: f64,
+        /// The wound length along the axis.
+        length_mm: f64,
+    },
 }
 
 impl Mandrel {
@@ -57,6 +70,9 @@ impl Mandrel {
                 cylinder_radius_mm, ..
             } => cylinder_radius_mm,
             Mandrel::Tube { radius_mm, .. } => radius_mm,
+            Mandrel::Cone {
+                large_radius_mm, ..
+            } => large_radius_mm,
         }
     }
 
@@ -66,7 +82,7 @@ impl Mandrel {
             Mandrel::Vessel {
                 cylinder_length_mm, ..
             } => cylinder_length_mm,
-            Mandrel::Tube { length_mm, .. } => length_mm,
+            Mandrel::Tube { length_mm, .. } | Mandrel::Cone { length_mm, .. } => length_mm,
         }
     }
 }
@@ -177,13 +193,22 @@ enum Detail {
         layer: TubeHelical,
         circuits: u32,
         half_length_mm: f64,
-        deg_per_mm: f64,
+        pass: Pass,
         turnaround_deg: f64,
         cross_feed_mm: f64,
     },
     Skip {
         mandrel_deg: f64,
     },
+}
+
+/// How the mandrel turns with the carriage over a pass of a tube or cone helical layer.
+#[derive(Debug, Clone, PartialEq)]
+enum Pass {
+    /// A helix on a cylinder: a constant turn per mm (seed 002 Eq. 20).
+    Helix { deg_per_mm: f64 },
+    /// A geodesic on a cone: the stations from the large end ([`ConeGeodesic::stations`]).
+    Geodesic(Vec<cone::Station>),
 }
 
 /// A checked layer, ready to emit.
@@ -341,6 +366,17 @@ impl Job {
                     },
                 })
             }
+            (Layer::Helical(_), Mandrel::Cone { .. }) => Err(Error::WindRule {
+                layer: number,
+                reason: "a geodesic dome layer needs a vessel with polar openings, not a cone"
+                    .to_string(),
+            }),
+            (Layer::Hoop { .. }, Mandrel::Cone { .. }) => Err(Error::WindRule {
+                layer: number,
+                reason: "hoop layers on a cone are not planned: a hoop (near 90°) on a taper is \
+                         not a geodesic and would slip toward the small end"
+                    .to_string(),
+            }),
             (Layer::Helical(_), Mandrel::Tube { .. }) => Err(Error::OutOfRange {
                 name: "layer",
                 value: number as f64,
@@ -551,6 +587,38 @@ impl Job {
                 t.lead_in_mm
             )));
         }
+        // On a cone the layer winds on the large end's radius grown by the laminate below; the
+        // small end grows by the same.
+        let geodesic = match self.mandrel {
+            Mandrel::Cone {
+                large_radius_mm,
+                small_radius_mm,
+                ..
+            } => {
+                let small = small_radius_mm + (radius - large_radius_mm);
+                Some(
+                    ConeGeodesic::new(radius, small, length, t.wind_angle_deg).map_err(
+                        |e| match e {
+                            ConeRefusal::NotReducing => reject(format!(
+                                "the cone must be a reducing frustum: the far end's radius \
+                                 {small} mm is not below the near end's {radius} mm (mount the \
+                                 large end at the start)"
+                            )),
+                            ConeRefusal::TooSteep {
+                                clairaut_mm,
+                                steepest_deg,
+                            } => reject(format!(
+                                "wind angle {}° is too steep for the cone: its geodesic \
+                                 (r·sin α = {clairaut_mm:.4} mm) turns back before the small \
+                                 end of radius {small} mm; at most {steepest_deg:.4}° reaches it",
+                                t.wind_angle_deg
+                            )),
+                        },
+                    )?,
+                )
+            }
+            _ => None,
+        };
         let alpha = t.wind_angle_deg.to_radians();
         let circumference = TAU * radius;
         let arc = self.tow.band_mm / alpha.cos();
@@ -595,7 +663,10 @@ impl Job {
             }
         }
         let deg_per_mm = (length * alpha.tan() / circumference * 360.0) / length;
-        let pass_deg = deg_per_mm * length;
+        let pass_deg = match &geodesic {
+            Some(g) => g.turn_deg(length),
+            None => deg_per_mm * length,
+        };
         // Smallest turn at the end of a pass, not less than the lead-out, that brings the pass's
         // advance to the lock (mod 360°): the mandrel never turns back.
         let mut turnaround = (t.lock_deg - pass_deg).rem_euclid(360.0);
@@ -608,14 +679,31 @@ impl Job {
             + passes * (pass_deg + turnaround)
             + f64::from(circuits) * f64::from(t.skip_index) * 360.0 / f64::from(t.pattern_number)
             + patterns * 360.0 / f64::from(circuits);
-        let laid = passes * length.hypot(radius * pass_deg.to_radians())
-            + radius * (total_turn - passes * pass_deg).to_radians();
+        let end_turns_deg = total_turn - passes * pass_deg;
+        let (laid, pass) = match geodesic {
+            None => (
+                passes * length.hypot(radius * pass_deg.to_radians())
+                    + radius * end_turns_deg.to_radians(),
+                Pass::Helix { deg_per_mm },
+            ),
+            // The turnaround after each outward pass wraps the small end; every other end turn
+            // (the locks, the return turnarounds, the skips and steps) the large end.
+            Some(g) => {
+                let small_end_deg = f64::from(circuits) * turnaround;
+                (
+                    passes * g.length_mm()
+                        + g.small_radius_mm() * small_end_deg.to_radians()
+                        + radius * (end_turns_deg - small_end_deg).to_radians(),
+                    Pass::Geodesic(g.stations(&[t.lead_in_mm, length - t.lead_in_mm])),
+                )
+            }
+        };
         Ok((
             Detail::Tube {
                 layer: *t,
                 circuits,
                 half_length_mm: length / 2.0,
-                deg_per_mm,
+                pass,
                 turnaround_deg: turnaround,
                 cross_feed_mm: self.machine.eye_radius_mm,
             },
@@ -784,7 +872,7 @@ impl Plan {
                     layer: t,
                     circuits,
                     half_length_mm,
-                    deg_per_mm,
+                    pass,
                     turnaround_deg,
                     cross_feed_mm,
                 } => emit_tube(
@@ -792,7 +880,7 @@ impl Plan {
                     t,
                     *circuits,
                     *half_length_mm,
-                    *deg_per_mm,
+                    pass,
                     *turnaround_deg,
                     *cross_feed_mm,
                     first,
@@ -856,13 +944,52 @@ fn emit_dome<S: MotionSink>(
     Ok(())
 }
 
+/// One pass along a cone's geodesic: outward (`dir` 1) from the large end at `-half`, or back
+/// (`dir` −1) from the small end. The mandrel turns by the geodesic's turn between stations;
+/// the eye swings from 0 to the local lay angle `90° − α(z)` over the lead-in (as on the tube)
+/// and then follows it.
+fn emit_geodesic_pass<S: MotionSink>(
+    c: &mut Cursor<'_, S>,
+    stations: &[cone::Station],
+    dir: f64,
+    half: f64,
+    lead_in_mm: f64,
+    cross: f64,
+) -> Result<(), S::Error> {
+    let length = 2.0 * half;
+    let base = c.at.mandrel_deg;
+    let total = stations.last().map_or(0.0, |s| s.turn_deg);
+    let lay = |s: &cone::Station, c: &mut Cursor<'_, S>| {
+        let (travelled, turned) = if dir > 0.0 {
+            (s.along_mm, s.turn_deg)
+        } else {
+            (length - s.along_mm, total - s.turn_deg)
+        };
+        let swing = (travelled / lead_in_mm).min(1.0);
+        c.feed(Axes {
+            mandrel_deg: base + turned,
+            carriage_mm: -half + s.along_mm,
+            cross_feed_mm: cross,
+            eye_deg: dir * swing * (90.0 - s.wind_angle_deg),
+        })
+    };
+    if dir > 0.0 {
+        stations[1..].iter().try_for_each(|s| lay(s, c))
+    } else {
+        stations[..stations.len() - 1]
+            .iter()
+            .rev()
+            .try_for_each(|s| lay(s, c))
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn emit_tube<S: MotionSink>(
     c: &mut Cursor<'_, S>,
     t: &TubeHelical,
     circuits: u32,
     half: f64,
-    deg_per_mm: f64,
+    pass: &Pass,
     turnaround: f64,
     cross: f64,
     first: bool,
@@ -902,17 +1029,24 @@ fn emit_tube<S: MotionSink>(
                     })?;
                     pending = 0.0;
                 }
-                c.feed(Axes {
-                    mandrel_deg: c.at.mandrel_deg + deg_per_mm * t.lead_in_mm,
-                    carriage_mm: from + dir * t.lead_in_mm,
-                    cross_feed_mm: cross,
-                    eye_deg: dir * lay_eye,
-                })?;
-                c.feed(Axes {
-                    mandrel_deg: c.at.mandrel_deg + deg_per_mm * (length - t.lead_in_mm),
-                    carriage_mm: to,
-                    ..c.at
-                })?;
+                match pass {
+                    &Pass::Helix { deg_per_mm } => {
+                        c.feed(Axes {
+                            mandrel_deg: c.at.mandrel_deg + deg_per_mm * t.lead_in_mm,
+                            carriage_mm: from + dir * t.lead_in_mm,
+                            cross_feed_mm: cross,
+                            eye_deg: dir * lay_eye,
+                        })?;
+                        c.feed(Axes {
+                            mandrel_deg: c.at.mandrel_deg + deg_per_mm * (length - t.lead_in_mm),
+                            carriage_mm: to,
+                            ..c.at
+                        })?;
+                    }
+                    Pass::Geodesic(stations) => {
+                        emit_geodesic_pass(c, stations, dir, half, t.lead_in_mm, cross)?
+                    }
+                }
                 c.feed(Axes {
                     mandrel_deg: c.at.mandrel_deg + t.lead_out_deg,
                     eye_deg: 0.0,
