@@ -28,7 +28,9 @@ use crate::pattern::{Pattern, PatternRequest};
 use std::f64::consts::{PI, TAU};
 
 pub mod cone;
+pub mod polar;
 use cone::{ConeGeodesic, ConeRefusal};
+use polar::{PolarPlane, PolarStation};
 
 /// The mandrel's shape.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -147,7 +149,18 @@ pub enum Layer {
         /// The turn, degrees.
         mandrel_deg: f64,
     },
+    /// Polar (planar) winding of a vessel, the fibre tangent to both openings ([`polar`]).
+    Polar {
+        /// The largest ratio of geodesic to normal curvature the tow may need (the friction
+        /// coefficient it can rely on, μ).
+        slip_limit: f64,
+    },
 }
+
+/// The default slip limit of a polar layer: λ of seed 002's mandrel (Rc 60, rp 21) at a
+/// length-to-diameter ratio of 2.0, the top of the range the seed gives for in-plane winders
+/// (`docs/seed-readings.md` R002-7).
+pub const POLAR_SLIP_LIMIT: f64 = 0.18;
 
 /// A job: what to wind and on what.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -199,6 +212,11 @@ enum Detail {
     },
     Skip {
         mandrel_deg: f64,
+    },
+    Polar {
+        circuits: u32,
+        advance_deg: f64,
+        stations: Vec<PolarStation>,
     },
 }
 
@@ -306,7 +324,7 @@ impl Job {
             if self.build_up {
                 radius += self.tow.thickness_mm
                     * match planned.detail {
-                        Detail::Dome { .. } | Detail::Tube { .. } => 2.0,
+                        Detail::Dome { .. } | Detail::Tube { .. } | Detail::Polar { .. } => 2.0,
                         Detail::Hoop { passes, .. } => f64::from(passes),
                         Detail::Skip { .. } => 0.0,
                     };
@@ -366,6 +384,16 @@ impl Job {
                     },
                 })
             }
+            (
+                &Layer::Polar { slip_limit },
+                Mandrel::Vessel {
+                    polar_radius_mm, ..
+                },
+            ) => self.check_polar(number, slip_limit, radius, polar_radius_mm),
+            (Layer::Polar { .. }, _) => Err(Error::WindRule {
+                layer: number,
+                reason: "a polar layer needs a vessel with polar openings".to_string(),
+            }),
             (Layer::Helical(_), Mandrel::Cone { .. }) => Err(Error::WindRule {
                 layer: number,
                 reason: "a geodesic dome layer needs a vessel with polar openings, not a cone"
@@ -536,6 +564,85 @@ impl Job {
             });
         }
         Ok((start, points))
+    }
+
+    /// A polar layer: the plane, the slip check, the circuits and one circuit's eye stations.
+    fn check_polar(
+        &self,
+        number: usize,
+        slip_limit: f64,
+        radius: f64,
+        polar_radius_mm: f64,
+    ) -> Result<PlannedLayer, Error> {
+        if !(slip_limit >= 0.0 && slip_limit.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "slip_limit",
+                value: slip_limit,
+                expected: "must be ≥ 0",
+            });
+        }
+        let length = self.mandrel.length_mm();
+        if polar_radius_mm >= radius {
+            return Err(Error::WindRule {
+                layer: number,
+                reason: format!(
+                    "the polar opening {polar_radius_mm} mm must be smaller than the winding \
+                     radius {radius:.3} mm"
+                ),
+            });
+        }
+        let plane = PolarPlane::new(radius, length, polar_radius_mm);
+        let slip = plane.slip_ratio();
+        if slip > slip_limit {
+            return Err(Error::WindRule {
+                layer: number,
+                reason: format!(
+                    "the polar plane at {:.4}° is not a geodesic on the domes: it needs a \
+                     friction ratio of {slip:.4}, above the slip limit {slip_limit} (a shorter \
+                     cylinder or a larger opening lowers it; seed 002 keeps in-plane winding to \
+                     length-to-diameter ratios up to 1.8–2.0)",
+                    plane.wind_angle_deg()
+                ),
+            });
+        }
+        let circuits_f = plane.circuits(self.tow.band_mm);
+        if circuits_f > 1e7 {
+            return Err(Error::WindRule {
+                layer: number,
+                reason: format!("{circuits_f} circuits is too many to wind"),
+            });
+        }
+        let circuits = circuits_f as u32;
+        let axes = self.machine.axes;
+        let (a_u, a_w) = plane.eye_ellipse(
+            self.machine.eye_radius_mm,
+            axes.cross_feed(),
+            polar_radius_mm,
+        );
+        let stations =
+            plane
+                .stations(a_u, a_w, axes.eye_rotation())
+                .ok_or(Error::EyeInsideLaminate {
+                    layer: number,
+                    eye_radius_mm: self.machine.eye_radius_mm,
+                    winding_radius_mm: radius,
+                })?;
+        Ok(PlannedLayer {
+            mark: LayerMark {
+                number,
+                kind: LayerKind::Polar,
+                circuits: u64::from(circuits),
+                tow_length_mm: f64::from(circuits) * plane.circuit_length_mm(),
+                winding_radius_mm: radius,
+                wind_angle_deg: plane.wind_angle_deg(),
+            },
+            pattern: None,
+            detail: Detail::Polar {
+                circuits,
+                advance_deg: 360.0 / f64::from(circuits),
+                stations,
+            },
+        })
     }
 
     fn check_tube(
@@ -885,6 +992,36 @@ impl Plan {
                     *cross_feed_mm,
                     first,
                 )?,
+                Detail::Polar {
+                    circuits,
+                    advance_deg,
+                    stations,
+                } => {
+                    let base = c.at.mandrel_deg;
+                    let at = |k: u32, s: &PolarStation| Axes {
+                        mandrel_deg: base
+                            + f64::from(k) * (360.0 + advance_deg)
+                            + s.mandrel_deg
+                            + s.fraction * advance_deg,
+                        carriage_mm: s.carriage_mm,
+                        cross_feed_mm: s.cross_feed_mm,
+                        eye_deg: s.eye_deg,
+                    };
+                    let start = at(0, &stations[0]);
+                    c.approach(
+                        Axes {
+                            mandrel_deg: c.at.mandrel_deg,
+                            ..start
+                        },
+                        first,
+                        f64::INFINITY,
+                    )?;
+                    for k in 0..*circuits {
+                        for s in &stations[1..] {
+                            c.feed(at(k, s))?;
+                        }
+                    }
+                }
                 &Detail::Skip { mandrel_deg } => {
                     c.feed(Axes {
                         mandrel_deg: c.at.mandrel_deg + mandrel_deg,
