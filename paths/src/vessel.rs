@@ -159,7 +159,7 @@ pub enum Layer {
 
 /// The default slip limit of a polar layer: λ of seed 002's mandrel (Rc 60, rp 21) at a
 /// length-to-diameter ratio of 2.0, the top of the range the seed gives for in-plane winders
-/// (`docs/seed-readings.md` R002-7).
+/// (`docs/seed-readings.md` R002-5).
 pub const POLAR_SLIP_LIMIT: f64 = 0.18;
 
 /// A job: what to wind and on what.

@@ -2,7 +2,7 @@
 //! when `endDiameter` is below `diameter`.
 //!
 //! Seed 002 winds only cylinders with domes; the cone is our reading of the `.wind` format
-//! (`docs/seed-readings.md` R002-6). A cone is developable: cut along a generator it unrolls
+//! (`docs/seed-readings.md` R002-4). A cone is developable: cut along a generator it unrolls
 //! into a plane sector with the apex at the centre, a point at radius `r` lying at distance
 //! `s = r / sin φ` from the apex (φ the half-angle, `tan φ = (r0 − r1) / L`), and a mandrel turn
 //! `θ` opening the sector by `ψ = θ·sin φ`. A geodesic is a straight line of that plane. At

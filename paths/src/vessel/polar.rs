@@ -4,7 +4,7 @@
 //! Seed 002 names polar winding only as the work of racetrack (in-plane) winders, "effective
 //! for winding angles close to zero" on parts of length-to-diameter ratio up to 1.8–2.0 "to
 //! obviate the fiber slippage" (§1); it gives no equations. What follows is our reading
-//! (`docs/seed-readings.md` R002-7).
+//! (`docs/seed-readings.md` R002-5).
 //!
 //! **The plane.** The fibre lies in one plane P that touches the polar opening (radius rp) at
 //! one end on one side and at the other end on the opposite side. With the openings at
@@ -71,7 +71,7 @@ pub struct PolarStation {
     /// The eye's distance from the axis, mm.
     pub cross_feed_mm: f64,
     /// Eye rotation: 90° less the free fibre's angle to the axis, signed by the way the fibre
-    /// runs along the axis (as on helical layers), degrees.
+    /// runs along the axis (as on a tube's helical layers), degrees.
     pub eye_deg: f64,
 }
 
