@@ -520,3 +520,59 @@ fn cone_refusals_give_the_reason() {
     job.layers = vec![Layer::Skip { mandrel_deg: 90.0 }];
     assert!(job.check().is_ok());
 }
+
+#[test]
+fn polar_layer_turns_once_per_circuit_and_keeps_the_eye_off_the_vessel() {
+    for axes in [AxisSet::Four, AxisSet::Two] {
+        let mut job = seed_job(84.1, None);
+        job.machine.axes = axes;
+        job.layers = vec![Layer::Polar {
+            slip_limit: POLAR_SLIP_LIMIT,
+        }];
+        let plan = job.check().unwrap();
+        // By hand: α = atan(21 / (42.05 + √(60² − 21²))) = 12.06429°,
+        // N = ⌈2π·60·cos α / 4⌉ = ⌈92.17⌉ = 93.
+        assert_eq!(plan.layers[0].mark.circuits, 93);
+        assert_abs_diff_eq!(plan.layers[0].mark.wind_angle_deg, 12.06429, epsilon = 1e-5);
+        let r = record(&job);
+        let start = r.moves[0].to;
+        let end = r.moves.last().unwrap().to;
+        // 93 turns and 93 advances of 360°/93: 94 turns in all, back at the middle.
+        assert_abs_diff_eq!(
+            end.mandrel_deg - start.mandrel_deg,
+            94.0 * 360.0,
+            epsilon = 1e-6
+        );
+        assert_abs_diff_eq!(end.carriage_mm, 0.0, epsilon = 1e-9);
+        let tan_a = 12.06429f64.to_radians().tan();
+        let mut prev = start;
+        let (mut far, mut near_axis) = (0.0f64, f64::MAX);
+        for m in &r.moves[1..] {
+            let p = m.to;
+            assert!(
+                p.mandrel_deg > prev.mandrel_deg,
+                "the mandrel turns one way"
+            );
+            // Outside the vessel: farther than Rc from the axis segment |z| ≤ Lc/2.
+            let beyond = (p.carriage_mm.abs() - 42.05).max(0.0);
+            assert!(p.cross_feed_mm.hypot(beyond) > 60.0, "{p:?}");
+            far = far.max(p.carriage_mm.abs());
+            near_axis = near_axis.min(p.cross_feed_mm);
+            if axes == AxisSet::Two {
+                assert_abs_diff_eq!(p.cross_feed_mm, 90.0, epsilon = 1e-9);
+                assert_eq!(p.eye_deg, 0.0);
+            }
+            prev = p;
+        }
+        if axes == AxisSet::Two {
+            // The eye keeps Re: the carriage swings to Re / tan α = 90 / 0.213728 = 421.1 mm.
+            assert_abs_diff_eq!(far, 90.0 / tan_a, epsilon = 1e-3);
+        } else {
+            // With cross-feed the eye passes the pole at rp + (Re − Rc)·sin α, past it by
+            // (Re − Rc)·cos α.
+            let a = 12.06429f64.to_radians();
+            assert_abs_diff_eq!(near_axis, 21.0 + 30.0 * a.sin(), epsilon = 1e-3);
+            assert_abs_diff_eq!(far, 98.25498 + 30.0 * a.cos(), epsilon = 1e-3);
+        }
+    }
+}
