@@ -253,6 +253,10 @@ mod tests {
             }
         }
         assert!(st.len() < 200, "{}", st.len());
+        // Breaks outside the cone are ignored: the stations stay on it.
+        let outside = g.stations(&[-5.0, 130.0]);
+        assert_eq!(outside, g.stations(&[]));
+        assert!(outside.iter().all(|s| (0.0..=120.0).contains(&s.along_mm)));
     }
 
     #[test]
