@@ -350,4 +350,28 @@ mod tests {
         // An eye too close to the vessel is refused.
         assert!(p.stations(61.0, aw, true).is_none());
     }
+
+    #[test]
+    fn the_eye_must_clear_the_domes_too() {
+        let p = seed();
+        let (sa, ca) = (0.2090091f64, 0.9779137f64);
+        // By hand: the point w = 100 of P above the pole is at y = −100·sin α = −20.901,
+        // z = 100·cos α = 97.791, 55.741 beyond the cylinder's end: 59.531 from the dome's
+        // centre, inside the dome (Rc = 60). At w = 102 it is 61.510 away, outside.
+        assert_abs_diff_eq!(
+            p.distance_to_core_mm(0.0, 100.0),
+            (100.0 * sa).hypot(100.0 * ca - 42.05),
+            epsilon = 1e-4
+        );
+        assert_abs_diff_eq!(p.distance_to_core_mm(0.0, 100.0), 59.531, epsilon = 1e-3);
+        assert_abs_diff_eq!(p.distance_to_core_mm(0.0, 102.0), 61.510, epsilon = 1e-3);
+        // Beside the cylinder only the distance from the axis counts.
+        assert_abs_diff_eq!(
+            p.distance_to_core_mm(50.0, 20.0),
+            50.0f64.hypot(20.0 * sa),
+            epsilon = 1e-6
+        );
+        assert!(p.stations(90.0, 100.0, false).is_none());
+        assert!(p.stations(90.0, 102.0, false).is_some());
+    }
 }
