@@ -1,5 +1,6 @@
 //! Lathe winding plans to G-code: a 40-layer helical tube of 1.46 m plans in under 0.1 s,
-//! and G-code streams to a file at 1 million lines/s or more with bounded memory.
+//! and G-code streams to a file at 1 million lines/s or more with bounded memory; a cone and
+//! polar layers for their planning cost.
 //! Run with `cargo bench -p cell --bench gcode`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -95,6 +96,71 @@ fn lathe(c: &mut Criterion) {
         .unwrap();
         ((), s.lines)
     };
+    // FiberPath's cone (98 → 54 mm over 120 mm, 30° at the large end, 45 circuits), 40 layers:
+    // every pass a geodesic of stations 0.01 mm from the curve.
+    let mut cone = job.clone();
+    cone.mandrel = Mandrel::Cone {
+        large_radius_mm: 49.0,
+        small_radius_mm: 27.0,
+        length_mm: 120.0,
+    };
+    cone.tow.band_mm = 6.0;
+    cone.layers = vec![
+        Layer::TubeHelical(TubeHelical {
+            wind_angle_deg: 30.0,
+            pattern_number: 3,
+            skip_index: 1,
+            lock_deg: 180.0,
+            lead_in_mm: 5.0,
+            lead_out_deg: 15.0,
+            initial_lock: true,
+        });
+        40
+    ];
+    group.bench_function("plan_cone_40_layers_120mm", |b| {
+        b.iter(|| {
+            let plan = cone.check().unwrap();
+            let mut e = Estimate::new(plan.limits(), plan.start());
+            plan.emit(&mut e).unwrap();
+            std::hint::black_box(e.time_s())
+        })
+    });
+    // Seed 002's casing, 20 polar layers with build-up (93 circuits each).
+    let mut polar = vessel.clone();
+    polar.mandrel = Mandrel::Vessel {
+        cylinder_radius_mm: 60.0,
+        cylinder_length_mm: 84.1,
+        polar_radius_mm: 21.0,
+    };
+    polar.layers = vec![
+        Layer::Polar {
+            slip_limit: paths::vessel::POLAR_SLIP_LIMIT,
+        };
+        20
+    ];
+    let (polar_summary, _) = cell::gcode::write_program(
+        &polar.check().unwrap(),
+        AxisSet::Four,
+        Dialect::Grbl,
+        "polar",
+        std::io::sink(),
+    )
+    .unwrap();
+    group.throughput(Throughput::Elements(polar_summary.lines));
+    group.bench_function("plan_and_write_grbl_polar_20_layers_to_sink", |b| {
+        b.iter(|| {
+            let plan = polar.check().unwrap();
+            let (s, _) = cell::gcode::write_program(
+                &plan,
+                AxisSet::Four,
+                Dialect::Grbl,
+                "polar",
+                std::io::sink(),
+            )
+            .unwrap();
+            std::hint::black_box(s.lines)
+        })
+    });
     group.throughput(Throughput::Elements(lines));
     group.bench_function("estimate_casing_20_layers", |b| {
         b.iter(|| {

@@ -264,3 +264,113 @@ fn wind_files_plan_and_their_rules_are_located() {
         stderr(&out)
     );
 }
+
+/// Plans `job` with every dialect that carries its axes and checks each file reads back to the
+/// plan's own moves, layer marks and kinds.
+fn reads_back_in_every_dialect(job: &std::path::Path, plan: &paths::vessel::Plan, axes: u8) {
+    let mut planned = paths::motion::Recording::default();
+    plan.emit(&mut planned).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut written = 0;
+    for dialect in Dialect::ALL {
+        let out = windcell(&[
+            "lathe",
+            "plan",
+            job.to_str().unwrap(),
+            "-o",
+            dir.path().to_str().unwrap(),
+            "--dialect",
+            dialect.name(),
+            "--json",
+        ]);
+        if axes == 4 && dialect == Dialect::FwCnc {
+            // FW-CNC has no fourth axis: refused before anything is written.
+            assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+            continue;
+        }
+        assert!(out.status.success(), "{dialect}: {}", stderr(&out));
+        written += 1;
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let text = std::fs::read_to_string(summary["file"].as_str().unwrap()).unwrap();
+        let back = read(&text, dialect).unwrap();
+        assert_eq!(back.moves.len(), planned.moves.len(), "{dialect}");
+        assert_eq!(back.layers.len(), planned.layers.len(), "{dialect}");
+        for (b, p) in back.layers.iter().zip(&planned.layers) {
+            assert_eq!(b.kind, p.kind, "{dialect}");
+            assert_eq!(b.circuits, p.circuits, "{dialect}");
+        }
+        for (i, (b, p)) in back.moves.iter().zip(&planned.moves).enumerate() {
+            let (b, p) = (b.to.to_array(), p.to.to_array());
+            for k in 0..4 {
+                // Three decimals printed; incremental dialects may carry the rounding.
+                assert!(
+                    (b[k] - p[k]).abs() < 0.01,
+                    "{dialect}: move {i} axis {k}: {} vs {}",
+                    b[k],
+                    p[k]
+                );
+            }
+        }
+    }
+    assert!(written >= 5);
+}
+
+#[test]
+fn polar_layers_read_back_in_every_dialect() {
+    let job = example("polar-vessel.toml");
+    let (loaded, text) = sequences::vessel::VesselFile::load(&job).unwrap();
+    let plan = loaded.check(&text).unwrap();
+    assert_eq!(plan.layers[0].mark.kind, paths::motion::LayerKind::Polar);
+    // ⌈2π·60·cos 12.0643° / 4⌉ = ⌈92.17⌉ = 93 circuits (α by hand in `paths::vessel::polar`).
+    assert_eq!(plan.layers[0].mark.circuits, 93);
+    reads_back_in_every_dialect(&job, &plan, 4);
+}
+
+#[test]
+fn cone_layers_read_back_in_every_dialect() {
+    let dir = tempfile::tempdir().unwrap();
+    let wind = dir.path().join("reducer.wind");
+    std::fs::write(
+        &wind,
+        r#"{
+  "schemaVersion": "1.1",
+  "layers": [
+    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
+      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15 },
+    { "windType": "skip", "mandrelRotation": 45 }
+  ],
+  "mandrelParameters": { "diameter": 98.0, "windLength": 120.0, "endDiameter": 54.0 },
+  "towParameters": { "width": 6.0, "thickness": 0.5 },
+  "defaultFeedRate": 9000.0
+}"#,
+    )
+    .unwrap();
+    let job = sequences::wind::WindFile::load(&wind).unwrap().0;
+    let plan = job.check().unwrap();
+    // ⌈π·98·cos 30° / 6⌉ = ⌈44.44⌉ = 45 circuits, counted at the large end.
+    assert_eq!(plan.layers[0].mark.circuits, 45);
+    reads_back_in_every_dialect(&wind, &plan, 4);
+    // Too steep for the taper: refused at the layer, nothing written.
+    let text = std::fs::read_to_string(&wind)
+        .unwrap()
+        .replace("\"windAngle\": 30", "\"windAngle\": 40");
+    std::fs::write(&wind, text).unwrap();
+    let out_dir = dir.path().join("refused");
+    let out = windcell(&[
+        "lathe",
+        "plan",
+        wind.to_str().unwrap(),
+        "-o",
+        out_dir.to_str().unwrap(),
+        "--dialect",
+        "grbl",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(
+        err.contains("reducer.wind:4:5: layer 1: wind angle 40° is too steep for the cone"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(!out_dir.exists());
+}

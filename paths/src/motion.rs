@@ -101,6 +101,8 @@ pub enum LayerKind {
     Helical,
     /// A mandrel turn with no tow laid.
     Skip,
+    /// Polar (planar) winding over both openings of a vessel.
+    Polar,
 }
 
 /// The start of a layer: a boundary where a stream may pause.

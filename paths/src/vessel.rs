@@ -1,6 +1,6 @@
 //! Lathe winding plans: layers of hoop, helical and skip winding on a cylinder with hemispherical
-//! domes (seed 002) or on an open tube, turned into one stream of axis moves
-//! ([`crate::motion`]).
+//! domes (seed 002), on an open tube, or helical and skip layers on a reducing cone (geodesics,
+//! [`cone`]), turned into one stream of axis moves ([`crate::motion`]).
 //!
 //! A [`Job`] is checked whole before anything is emitted ([`Job::check`]): every layer's pattern
 //! must close, the eye must clear the laminate, and the counts must be countable; only then does
@@ -27,6 +27,11 @@ use crate::motion::{Axes, AxisSet, LayerKind, LayerMark, Limits, MotionSink, Mov
 use crate::pattern::{Pattern, PatternRequest};
 use std::f64::consts::{PI, TAU};
 
+pub mod cone;
+pub mod polar;
+use cone::{ConeGeodesic, ConeRefusal};
+use polar::{PolarPlane, PolarStation};
+
 /// The mandrel's shape.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
@@ -47,6 +52,16 @@ pub enum Mandrel {
         /// The wound length.
         length_mm: f64,
     },
+    /// A reducing cone (frustum) wound between its ends with lock turns, the large end at the
+    /// carriage's start (`.wind` files with `endDiameter`); helical layers follow geodesics.
+    Cone {
+        /// Radius of the large end (at the carriage's start).
+        large_radius_mm: f64,
+        /// Radius of the small end.
+        small_radius_mm: f64,
+        /// The wound length along the axis.
+        length_mm: f64,
+    },
 }
 
 impl Mandrel {
@@ -57,6 +72,9 @@ impl Mandrel {
                 cylinder_radius_mm, ..
             } => cylinder_radius_mm,
             Mandrel::Tube { radius_mm, .. } => radius_mm,
+            Mandrel::Cone {
+                large_radius_mm, ..
+            } => large_radius_mm,
         }
     }
 
@@ -66,7 +84,7 @@ impl Mandrel {
             Mandrel::Vessel {
                 cylinder_length_mm, ..
             } => cylinder_length_mm,
-            Mandrel::Tube { length_mm, .. } => length_mm,
+            Mandrel::Tube { length_mm, .. } | Mandrel::Cone { length_mm, .. } => length_mm,
         }
     }
 }
@@ -131,7 +149,18 @@ pub enum Layer {
         /// The turn, degrees.
         mandrel_deg: f64,
     },
+    /// Polar (planar) winding of a vessel, the fibre tangent to both openings ([`polar`]).
+    Polar {
+        /// The largest ratio of geodesic to normal curvature the tow may need (the friction
+        /// coefficient it can rely on, μ).
+        slip_limit: f64,
+    },
 }
+
+/// The default slip limit of a polar layer: λ of seed 002's mandrel (Rc 60, rp 21) at a
+/// length-to-diameter ratio of 2.0, the top of the range the seed gives for in-plane winders
+/// (`docs/seed-readings.md` R002-5).
+pub const POLAR_SLIP_LIMIT: f64 = 0.18;
 
 /// A job: what to wind and on what.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -177,13 +206,27 @@ enum Detail {
         layer: TubeHelical,
         circuits: u32,
         half_length_mm: f64,
-        deg_per_mm: f64,
+        pass: Pass,
         turnaround_deg: f64,
         cross_feed_mm: f64,
     },
     Skip {
         mandrel_deg: f64,
     },
+    Polar {
+        circuits: u32,
+        advance_deg: f64,
+        stations: Vec<PolarStation>,
+    },
+}
+
+/// How the mandrel turns with the carriage over a pass of a tube or cone helical layer.
+#[derive(Debug, Clone, PartialEq)]
+enum Pass {
+    /// A helix on a cylinder: a constant turn per mm (seed 002 Eq. 20).
+    Helix { deg_per_mm: f64 },
+    /// A geodesic on a cone: the stations from the large end ([`ConeGeodesic::stations`]).
+    Geodesic(Vec<cone::Station>),
 }
 
 /// A checked layer, ready to emit.
@@ -281,7 +324,7 @@ impl Job {
             if self.build_up {
                 radius += self.tow.thickness_mm
                     * match planned.detail {
-                        Detail::Dome { .. } | Detail::Tube { .. } => 2.0,
+                        Detail::Dome { .. } | Detail::Tube { .. } | Detail::Polar { .. } => 2.0,
                         Detail::Hoop { passes, .. } => f64::from(passes),
                         Detail::Skip { .. } => 0.0,
                     };
@@ -341,6 +384,27 @@ impl Job {
                     },
                 })
             }
+            (
+                &Layer::Polar { slip_limit },
+                Mandrel::Vessel {
+                    polar_radius_mm, ..
+                },
+            ) => self.check_polar(number, slip_limit, radius, polar_radius_mm),
+            (Layer::Polar { .. }, _) => Err(Error::WindRule {
+                layer: number,
+                reason: "a polar layer needs a vessel with polar openings".to_string(),
+            }),
+            (Layer::Helical(_), Mandrel::Cone { .. }) => Err(Error::WindRule {
+                layer: number,
+                reason: "a geodesic dome layer needs a vessel with polar openings, not a cone"
+                    .to_string(),
+            }),
+            (Layer::Hoop { .. }, Mandrel::Cone { .. }) => Err(Error::WindRule {
+                layer: number,
+                reason: "hoop layers on a cone are not planned: a hoop (near 90°) on a taper is \
+                         not a geodesic and would slip toward the small end"
+                    .to_string(),
+            }),
             (Layer::Helical(_), Mandrel::Tube { .. }) => Err(Error::OutOfRange {
                 name: "layer",
                 value: number as f64,
@@ -502,6 +566,85 @@ impl Job {
         Ok((start, points))
     }
 
+    /// A polar layer: the plane, the slip check, the circuits and one circuit's eye stations.
+    fn check_polar(
+        &self,
+        number: usize,
+        slip_limit: f64,
+        radius: f64,
+        polar_radius_mm: f64,
+    ) -> Result<PlannedLayer, Error> {
+        if !(slip_limit >= 0.0 && slip_limit.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "slip_limit",
+                value: slip_limit,
+                expected: "must be ≥ 0",
+            });
+        }
+        let length = self.mandrel.length_mm();
+        if polar_radius_mm >= radius {
+            return Err(Error::WindRule {
+                layer: number,
+                reason: format!(
+                    "the polar opening {polar_radius_mm} mm must be smaller than the winding \
+                     radius {radius:.3} mm"
+                ),
+            });
+        }
+        let plane = PolarPlane::new(radius, length, polar_radius_mm);
+        let slip = plane.slip_ratio();
+        if slip > slip_limit {
+            return Err(Error::WindRule {
+                layer: number,
+                reason: format!(
+                    "the polar plane at {:.4}° is not a geodesic on the domes: it needs a \
+                     friction ratio of {slip:.4}, above the slip limit {slip_limit} (a shorter \
+                     cylinder or a larger opening lowers it; seed 002 keeps in-plane winding to \
+                     length-to-diameter ratios up to 1.8–2.0)",
+                    plane.wind_angle_deg()
+                ),
+            });
+        }
+        let circuits_f = plane.circuits(self.tow.band_mm);
+        if circuits_f > 1e7 {
+            return Err(Error::WindRule {
+                layer: number,
+                reason: format!("{circuits_f} circuits is too many to wind"),
+            });
+        }
+        let circuits = circuits_f as u32;
+        let axes = self.machine.axes;
+        let (a_u, a_w) = plane.eye_ellipse(
+            self.machine.eye_radius_mm,
+            axes.cross_feed(),
+            polar_radius_mm,
+        );
+        let stations =
+            plane
+                .stations(a_u, a_w, axes.eye_rotation())
+                .ok_or(Error::EyeInsideLaminate {
+                    layer: number,
+                    eye_radius_mm: self.machine.eye_radius_mm,
+                    winding_radius_mm: radius,
+                })?;
+        Ok(PlannedLayer {
+            mark: LayerMark {
+                number,
+                kind: LayerKind::Polar,
+                circuits: u64::from(circuits),
+                tow_length_mm: f64::from(circuits) * plane.circuit_length_mm(),
+                winding_radius_mm: radius,
+                wind_angle_deg: plane.wind_angle_deg(),
+            },
+            pattern: None,
+            detail: Detail::Polar {
+                circuits,
+                advance_deg: 360.0 / f64::from(circuits),
+                stations,
+            },
+        })
+    }
+
     fn check_tube(
         &self,
         number: usize,
@@ -551,6 +694,38 @@ impl Job {
                 t.lead_in_mm
             )));
         }
+        // On a cone the layer winds on the large end's radius grown by the laminate below; the
+        // small end grows by the same.
+        let geodesic = match self.mandrel {
+            Mandrel::Cone {
+                large_radius_mm,
+                small_radius_mm,
+                ..
+            } => {
+                let small = small_radius_mm + (radius - large_radius_mm);
+                Some(
+                    ConeGeodesic::new(radius, small, length, t.wind_angle_deg).map_err(
+                        |e| match e {
+                            ConeRefusal::NotReducing => reject(format!(
+                                "the cone must be a reducing frustum: the far end's radius \
+                                 {small} mm is not below the near end's {radius} mm (mount the \
+                                 large end at the start)"
+                            )),
+                            ConeRefusal::TooSteep {
+                                clairaut_mm,
+                                steepest_deg,
+                            } => reject(format!(
+                                "wind angle {}° is too steep for the cone: its geodesic \
+                                 (r·sin α = {clairaut_mm:.4} mm) turns back before the small \
+                                 end of radius {small} mm; at most {steepest_deg:.4}° reaches it",
+                                t.wind_angle_deg
+                            )),
+                        },
+                    )?,
+                )
+            }
+            _ => None,
+        };
         let alpha = t.wind_angle_deg.to_radians();
         let circumference = TAU * radius;
         let arc = self.tow.band_mm / alpha.cos();
@@ -595,7 +770,10 @@ impl Job {
             }
         }
         let deg_per_mm = (length * alpha.tan() / circumference * 360.0) / length;
-        let pass_deg = deg_per_mm * length;
+        let pass_deg = match &geodesic {
+            Some(g) => g.turn_deg(length),
+            None => deg_per_mm * length,
+        };
         // Smallest turn at the end of a pass, not less than the lead-out, that brings the pass's
         // advance to the lock (mod 360°): the mandrel never turns back.
         let mut turnaround = (t.lock_deg - pass_deg).rem_euclid(360.0);
@@ -608,14 +786,31 @@ impl Job {
             + passes * (pass_deg + turnaround)
             + f64::from(circuits) * f64::from(t.skip_index) * 360.0 / f64::from(t.pattern_number)
             + patterns * 360.0 / f64::from(circuits);
-        let laid = passes * length.hypot(radius * pass_deg.to_radians())
-            + radius * (total_turn - passes * pass_deg).to_radians();
+        let end_turns_deg = total_turn - passes * pass_deg;
+        let (laid, pass) = match geodesic {
+            None => (
+                passes * length.hypot(radius * pass_deg.to_radians())
+                    + radius * end_turns_deg.to_radians(),
+                Pass::Helix { deg_per_mm },
+            ),
+            // The turnaround after each outward pass wraps the small end; every other end turn
+            // (the locks, the return turnarounds, the skips and steps) the large end.
+            Some(g) => {
+                let small_end_deg = f64::from(circuits) * turnaround;
+                (
+                    passes * g.length_mm()
+                        + g.small_radius_mm() * small_end_deg.to_radians()
+                        + radius * (end_turns_deg - small_end_deg).to_radians(),
+                    Pass::Geodesic(g.stations(&[t.lead_in_mm, length - t.lead_in_mm])),
+                )
+            }
+        };
         Ok((
             Detail::Tube {
                 layer: *t,
                 circuits,
                 half_length_mm: length / 2.0,
-                deg_per_mm,
+                pass,
                 turnaround_deg: turnaround,
                 cross_feed_mm: self.machine.eye_radius_mm,
             },
@@ -784,7 +979,7 @@ impl Plan {
                     layer: t,
                     circuits,
                     half_length_mm,
-                    deg_per_mm,
+                    pass,
                     turnaround_deg,
                     cross_feed_mm,
                 } => emit_tube(
@@ -792,11 +987,41 @@ impl Plan {
                     t,
                     *circuits,
                     *half_length_mm,
-                    *deg_per_mm,
+                    pass,
                     *turnaround_deg,
                     *cross_feed_mm,
                     first,
                 )?,
+                Detail::Polar {
+                    circuits,
+                    advance_deg,
+                    stations,
+                } => {
+                    let base = c.at.mandrel_deg;
+                    let at = |k: u32, s: &PolarStation| Axes {
+                        mandrel_deg: base
+                            + f64::from(k) * (360.0 + advance_deg)
+                            + s.mandrel_deg
+                            + s.fraction * advance_deg,
+                        carriage_mm: s.carriage_mm,
+                        cross_feed_mm: s.cross_feed_mm,
+                        eye_deg: s.eye_deg,
+                    };
+                    let start = at(0, &stations[0]);
+                    c.approach(
+                        Axes {
+                            mandrel_deg: c.at.mandrel_deg,
+                            ..start
+                        },
+                        first,
+                        f64::INFINITY,
+                    )?;
+                    for k in 0..*circuits {
+                        for s in &stations[1..] {
+                            c.feed(at(k, s))?;
+                        }
+                    }
+                }
                 &Detail::Skip { mandrel_deg } => {
                     c.feed(Axes {
                         mandrel_deg: c.at.mandrel_deg + mandrel_deg,
@@ -856,13 +1081,52 @@ fn emit_dome<S: MotionSink>(
     Ok(())
 }
 
+/// One pass along a cone's geodesic: outward (`dir` 1) from the large end at `-half`, or back
+/// (`dir` −1) from the small end. The mandrel turns by the geodesic's turn between stations;
+/// the eye swings from 0 to the local lay angle `90° − α(z)` over the lead-in (as on the tube)
+/// and then follows it.
+fn emit_geodesic_pass<S: MotionSink>(
+    c: &mut Cursor<'_, S>,
+    stations: &[cone::Station],
+    dir: f64,
+    half: f64,
+    lead_in_mm: f64,
+    cross: f64,
+) -> Result<(), S::Error> {
+    let length = 2.0 * half;
+    let base = c.at.mandrel_deg;
+    let total = stations.last().map_or(0.0, |s| s.turn_deg);
+    let lay = |s: &cone::Station, c: &mut Cursor<'_, S>| {
+        let (travelled, turned) = if dir > 0.0 {
+            (s.along_mm, s.turn_deg)
+        } else {
+            (length - s.along_mm, total - s.turn_deg)
+        };
+        let swing = (travelled / lead_in_mm).min(1.0);
+        c.feed(Axes {
+            mandrel_deg: base + turned,
+            carriage_mm: -half + s.along_mm,
+            cross_feed_mm: cross,
+            eye_deg: dir * swing * (90.0 - s.wind_angle_deg),
+        })
+    };
+    if dir > 0.0 {
+        stations[1..].iter().try_for_each(|s| lay(s, c))
+    } else {
+        stations[..stations.len() - 1]
+            .iter()
+            .rev()
+            .try_for_each(|s| lay(s, c))
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn emit_tube<S: MotionSink>(
     c: &mut Cursor<'_, S>,
     t: &TubeHelical,
     circuits: u32,
     half: f64,
-    deg_per_mm: f64,
+    pass: &Pass,
     turnaround: f64,
     cross: f64,
     first: bool,
@@ -902,17 +1166,24 @@ fn emit_tube<S: MotionSink>(
                     })?;
                     pending = 0.0;
                 }
-                c.feed(Axes {
-                    mandrel_deg: c.at.mandrel_deg + deg_per_mm * t.lead_in_mm,
-                    carriage_mm: from + dir * t.lead_in_mm,
-                    cross_feed_mm: cross,
-                    eye_deg: dir * lay_eye,
-                })?;
-                c.feed(Axes {
-                    mandrel_deg: c.at.mandrel_deg + deg_per_mm * (length - t.lead_in_mm),
-                    carriage_mm: to,
-                    ..c.at
-                })?;
+                match pass {
+                    &Pass::Helix { deg_per_mm } => {
+                        c.feed(Axes {
+                            mandrel_deg: c.at.mandrel_deg + deg_per_mm * t.lead_in_mm,
+                            carriage_mm: from + dir * t.lead_in_mm,
+                            cross_feed_mm: cross,
+                            eye_deg: dir * lay_eye,
+                        })?;
+                        c.feed(Axes {
+                            mandrel_deg: c.at.mandrel_deg + deg_per_mm * (length - t.lead_in_mm),
+                            carriage_mm: to,
+                            ..c.at
+                        })?;
+                    }
+                    Pass::Geodesic(stations) => {
+                        emit_geodesic_pass(c, stations, dir, half, t.lead_in_mm, cross)?
+                    }
+                }
                 c.feed(Axes {
                     mandrel_deg: c.at.mandrel_deg + t.lead_out_deg,
                     eye_deg: 0.0,

@@ -360,6 +360,7 @@ impl<W: Write> MotionSink for Writer<W> {
             LayerKind::Hoop => "hoop",
             LayerKind::Helical => "helical",
             LayerKind::Skip => "skip",
+            LayerKind::Polar => "polar",
         };
         self.comment(&format!(
             "layer {} {kind}: {} circuits, radius {:.3} mm, angle {:.3} deg, tow {:.1} mm",
@@ -635,6 +636,7 @@ fn note_layer(comment: &str, rec: &mut Recording) {
         Some("hoop:") => LayerKind::Hoop,
         Some("helical:") => LayerKind::Helical,
         Some("skip:") => LayerKind::Skip,
+        Some("polar:") => LayerKind::Polar,
         _ => return,
     };
     let circuits = it.next().and_then(|c| c.parse().ok()).unwrap_or(0);

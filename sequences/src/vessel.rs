@@ -99,7 +99,7 @@ pub struct MachineSpec {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LayerSpec {
-    /// `hoop`, `helical`, `tube-helical` or `skip`.
+    /// `hoop`, `helical`, `tube-helical`, `polar` or `skip`.
     pub kind: Spanned<String>,
     /// How many such layers (default 1).
     pub count: Option<Spanned<u32>>,
@@ -125,6 +125,9 @@ pub struct LayerSpec {
     pub lead_out_deg: Option<Spanned<f64>>,
     /// Skip: mandrel turn, degrees.
     pub mandrel_deg: Option<Spanned<f64>>,
+    /// Polar: the largest ratio of geodesic to normal curvature the tow may need (default
+    /// [`paths::vessel::POLAR_SLIP_LIMIT`]).
+    pub slip_limit: Option<Spanned<f64>>,
 }
 
 /// The most layers a file may expand to (bounded time and memory).
@@ -370,7 +373,7 @@ type PositiveCheck<'a> = dyn Fn(&Spanned<f64>, &str) -> Result<f64, Error> + 'a;
 fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Layer, Error> {
     let kind = &l.kind;
     // Fields that do not belong to the kind are refused, not ignored.
-    let fields: [(&str, bool); 12] = [
+    let fields: [(&str, bool); 13] = [
         ("passes", l.passes.is_some()),
         ("cycles_per_pattern", l.cycles_per_pattern.is_some()),
         ("dwell_deg", l.dwell_deg.is_some()),
@@ -382,6 +385,7 @@ fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Laye
         ("lead_in_mm", l.lead_in_mm.is_some()),
         ("lead_out_deg", l.lead_out_deg.is_some()),
         ("mandrel_deg", l.mandrel_deg.is_some()),
+        ("slip_limit", l.slip_limit.is_some()),
         ("count", false),
     ];
     let allowed: &[&str] = match kind.get_ref().as_str() {
@@ -396,11 +400,14 @@ fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Laye
             "lead_out_deg",
         ],
         "skip" => &["mandrel_deg"],
+        "polar" => &["slip_limit"],
         other => {
             return Err(at(
                 text,
                 kind.span(),
-                format!("unknown layer kind `{other}` (hoop, helical, tube-helical or skip)"),
+                format!(
+                    "unknown layer kind `{other}` (hoop, helical, tube-helical, polar or skip)"
+                ),
             ));
         }
     };
@@ -448,6 +455,18 @@ fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Laye
             )?,
             initial_lock: true,
         }),
+        "polar" => Layer::Polar {
+            slip_limit: match &l.slip_limit {
+                None => paths::vessel::POLAR_SLIP_LIMIT,
+                Some(v) => {
+                    let x = finite(text, v, "slip_limit")?;
+                    if x < 0.0 {
+                        return Err(at(text, v.span(), format!("slip_limit = {x} must be ≥ 0")));
+                    }
+                    x
+                }
+            },
+        },
         _ => Layer::Skip {
             mandrel_deg: finite(
                 text,
@@ -515,8 +534,18 @@ count = 2
             ("axes = 4", "axes = 5", "15:8: axes = 5"),
             (
                 "kind = \"helical\"",
-                "kind = \"polar\"",
+                "kind = \"polar-ish\"",
                 "23:8: unknown layer kind",
+            ),
+            (
+                "count = 2",
+                "slip_limit = 0.2",
+                "23:8: a `helical` layer has no `slip_limit`",
+            ),
+            (
+                "kind = \"helical\"\ncount = 2",
+                "kind = \"polar\"\nslip_limit = -0.1",
+                "24:14: slip_limit = -0.1 must be ≥ 0",
             ),
             (
                 "count = 2",
@@ -539,6 +568,38 @@ count = 2
             let err = VesselFile::parse(&text).unwrap_err().to_string();
             assert!(err.starts_with(expect), "{err}");
         }
+    }
+
+    #[test]
+    fn a_polar_layer_that_would_slip_is_reported_at_its_entry() {
+        // Seed 002's mandrel with Lc 84.1 needs λ = 0.1481 (computed by hand in
+        // `paths::vessel::polar`): within the default 0.18, beyond a limit of 0.1.
+        let text = SEED.replace("kind = \"helical\"\ncount = 2", "kind = \"polar\"");
+        let loaded = VesselFile::parse(&text).unwrap();
+        let plan = loaded.check(&text).unwrap();
+        assert_eq!(plan.layers[0].mark.kind, paths::motion::LayerKind::Polar);
+        let text = SEED.replace(
+            "kind = \"helical\"\ncount = 2",
+            "kind = \"polar\"\nslip_limit = 0.1",
+        );
+        let loaded = VesselFile::parse(&text).unwrap();
+        let err = loaded.check(&text).unwrap_err().to_string();
+        assert!(
+            err.starts_with("23:8: layer 1: the polar plane at 12.0643° is not a geodesic"),
+            "{err}"
+        );
+        assert!(err.contains("friction ratio of 0.1481"), "{err}");
+        // A tube has no openings.
+        let text = SEED
+            .replace("kind = \"helical\"\ncount = 2", "kind = \"polar\"")
+            .replace(
+                "kind = \"vessel\"\ncylinder_radius_mm = 60.0\ncylinder_length_mm = 84.1\n\
+                 polar_opening_radius_mm = 21.0",
+                "kind = \"tube\"\nradius_mm = 60.0\nlength_mm = 84.1",
+            );
+        let loaded = VesselFile::parse(&text).unwrap();
+        let err = loaded.check(&text).unwrap_err().to_string();
+        assert!(err.contains("a polar layer needs a vessel"), "{err}");
     }
 
     #[test]

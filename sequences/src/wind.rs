@@ -16,8 +16,14 @@
 //! nearest locks that do). The mandrel keeps its diameter for every layer (no build-up), as the
 //! format assumes.
 //!
-//! Not planned: reducing cones (`endDiameter`) and nose profiles (`profile`); such files are
-//! refused with that reason.
+//! Reducing cones (`endDiameter` below `diameter`, 1.1+): the large end (`diameter`) is at the
+//! carriage's start; helical layers follow the cone's geodesic with `windAngle` the angle at the
+//! large end, where the circuits are counted ([`paths::vessel::cone`]). An `endDiameter` equal
+//! to `diameter` is a cylinder. Refused, each with its reason: an expanding cone, a hoop layer
+//! on a cone, and a wind angle whose geodesic turns back before the small end (the cases
+//! FiberPath refuses).
+//!
+//! Not planned: nose profiles (`profile`, 1.2+); such files are refused with that reason.
 
 use std::path::Path;
 
@@ -163,11 +169,31 @@ impl WindFile {
                 return Err(at_key(key, format!("{key} = {v} must be > 0")));
             }
         }
-        if m.end_diameter.is_some() {
+        if m.profile.is_some() && m.end_diameter.is_some() {
             return Err(at_key(
-                "endDiameter",
-                "reducing cones (endDiameter) are not planned by windcell yet".into(),
+                "profile",
+                "profile and endDiameter are mutually exclusive (a profile defines the whole \
+                 surface)"
+                    .into(),
             ));
+        }
+        if let Some(end) = m.end_diameter {
+            if !(end > 0.0 && end.is_finite()) {
+                return Err(at_key(
+                    "endDiameter",
+                    format!("endDiameter = {end} must be > 0"),
+                ));
+            }
+            if end > m.diameter {
+                return Err(at_key(
+                    "endDiameter",
+                    format!(
+                        "endDiameter {end} mm is larger than diameter {} mm: only a reducing \
+                         frustum is planned (mount the large end at the start, as diameter)",
+                        m.diameter
+                    ),
+                ));
+            }
         }
         if m.profile.is_some() {
             return Err(at_key(
@@ -258,9 +284,16 @@ impl WindFile {
             acceleration: SURFACE_ACCELERATION_MM_S2,
         };
         let job = Job {
-            mandrel: Mandrel::Tube {
-                radius_mm: radius,
-                length_mm: m.wind_length,
+            mandrel: match m.end_diameter {
+                Some(end) if end < m.diameter => Mandrel::Cone {
+                    large_radius_mm: radius,
+                    small_radius_mm: end / 2.0,
+                    length_mm: m.wind_length,
+                },
+                _ => Mandrel::Tube {
+                    radius_mm: radius,
+                    length_mm: m.wind_length,
+                },
             },
             tow: Tow {
                 band_mm: def.tow_parameters.width,
@@ -403,8 +436,23 @@ mod tests {
             ("\"1.3\"", "\"2.0\"", "2:3: schema version `2.0` is not 1.x"),
             (
                 "\"windLength\": 500",
-                "\"windLength\": 500, \"endDiameter\": 50",
-                "3:61: reducing cones",
+                "\"windLength\": 500, \"endDiameter\": 80",
+                "3:61: endDiameter 80 mm is larger than diameter 70 mm",
+            ),
+            (
+                "\"windLength\": 500",
+                "\"windLength\": 500, \"endDiameter\": 0",
+                "3:61: endDiameter = 0 must be > 0",
+            ),
+            (
+                "\"windLength\": 500",
+                "\"windLength\": 500, \"endDiameter\": 50, \"profile\": {}",
+                "3:80: profile and endDiameter are mutually exclusive",
+            ),
+            (
+                "\"windLength\": 500",
+                "\"windLength\": 500, \"profile\": { \"type\": \"vonKarman\" }",
+                "3:61: nose profiles are not planned",
             ),
             (
                 "\"width\": 6.5",
@@ -426,6 +474,69 @@ mod tests {
             let text = TUBE.replace(from, to);
             assert_ne!(text, TUBE, "{from}");
             let err = WindFile::parse(&text, "t").unwrap_err().to_string();
+            assert!(err.starts_with(expect), "{expect}: {err}");
+        }
+    }
+
+    /// FiberPath's cone cases: 98 → 54 mm over 120 mm.
+    const CONE: &str = r#"{
+  "schemaVersion": "1.1",
+  "layers": [
+    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
+      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15 },
+    { "windType": "skip", "mandrelRotation": 45 }
+  ],
+  "mandrelParameters": { "diameter": 98.0, "windLength": 120.0, "endDiameter": 54.0 },
+  "towParameters": { "width": 6.0, "thickness": 0.5 },
+  "defaultFeedRate": 9000.0
+}"#;
+
+    #[test]
+    fn a_reducing_cone_is_planned_with_the_large_end_first() {
+        let job = WindFile::parse(CONE, "c").unwrap();
+        assert_eq!(
+            job.mandrel,
+            Mandrel::Cone {
+                large_radius_mm: 49.0,
+                small_radius_mm: 27.0,
+                length_mm: 120.0
+            }
+        );
+        // An end diameter equal to the diameter is a cylinder.
+        let same = CONE.replace("\"endDiameter\": 54.0", "\"endDiameter\": 98.0");
+        let job = WindFile::parse(&same, "c").unwrap();
+        assert_eq!(
+            job.mandrel,
+            Mandrel::Tube {
+                radius_mm: 49.0,
+                length_mm: 120.0
+            }
+        );
+    }
+
+    #[test]
+    fn cone_refusals_are_reported_at_the_layer() {
+        let cases = [
+            (
+                "\"windAngle\": 30",
+                "\"windAngle\": 40",
+                "4:5: layer 1: wind angle 40° is too steep for the cone",
+            ),
+            (
+                "{ \"windType\": \"skip\", \"mandrelRotation\": 45 }",
+                "{ \"windType\": \"hoop\" }",
+                "6:5: layer 2: hoop layers on a cone are not planned",
+            ),
+            (
+                "\"endDiameter\": 54.0",
+                "\"endDiameter\": 154.0",
+                "8:65: endDiameter 154 mm is larger than diameter 98 mm",
+            ),
+        ];
+        for (from, to, expect) in cases {
+            let text = CONE.replace(from, to);
+            assert_ne!(text, CONE, "{from}");
+            let err = WindFile::parse(&text, "c").unwrap_err().to_string();
             assert!(err.starts_with(expect), "{expect}: {err}");
         }
     }

@@ -384,3 +384,195 @@ fn estimate_counts_layers_circuits_and_time() {
     assert!(e.time_s() >= nominal, "{} < {nominal}", e.time_s());
     assert!(e.time_s() < 3.0 * nominal);
 }
+
+/// FiberPath's cone example (98 → 54 mm over 120 mm, 6 mm tow, 30° at the large end).
+fn cone_job() -> Job {
+    let mut job = tube_job(1);
+    job.mandrel = Mandrel::Cone {
+        large_radius_mm: 49.0,
+        small_radius_mm: 27.0,
+        length_mm: 120.0,
+    };
+    job.tow.band_mm = 6.0;
+    job.machine.eye_radius_mm = 74.0;
+    job.layers = vec![Layer::TubeHelical(TubeHelical {
+        wind_angle_deg: 30.0,
+        pattern_number: 3,
+        skip_index: 1,
+        lock_deg: 180.0,
+        lead_in_mm: 5.0,
+        lead_out_deg: 15.0,
+        initial_lock: true,
+    })];
+    job
+}
+
+#[test]
+fn cone_helical_follows_the_geodesic_and_counts_at_the_large_end() {
+    let job = cone_job();
+    let plan = job.check().unwrap();
+    // Circuits tile the large end's parallel: ceil(2π·49·cos 30° / 6) = ceil(44.44) = 45.
+    assert_eq!(plan.layers[0].mark.circuits, 45);
+    assert_eq!(plan.layers[0].mark.wind_angle_deg, 30.0);
+    // The pass's turn, integrated independently from the local geometry: along the generator
+    // ds = dz / cos φ and r·dθ = tan α·ds with sin α = r0·sin α0 / r (Clairaut), by Simpson's
+    // rule on a fine grid (the integrand is smooth: C = 24.5 < r1 = 27).
+    let (r0, r1, l) = (49.0f64, 27.0f64, 120.0f64);
+    let cos_phi = l / (r0 - r1).hypot(l);
+    let c = r0 * 30f64.to_radians().sin();
+    let f = |z: f64| {
+        let r = r0 - (r0 - r1) * z / l;
+        let a = (c / r).asin();
+        a.tan() / (r * cos_phi)
+    };
+    let n = 20_000;
+    let h = l / n as f64;
+    let simpson: f64 = (0..=n)
+        .map(|i| {
+            let w = if i == 0 || i == n {
+                1.0
+            } else if i % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            w * f(i as f64 * h)
+        })
+        .sum::<f64>()
+        * h
+        / 3.0;
+    let pass_deg = simpson.to_degrees();
+    let r = record(&job);
+    let mut prev = r.moves[0].to;
+    let mut pass_start: Option<Axes> = None;
+    let mut passes = 0;
+    let mut laid = 0.0;
+    let radius = |x: f64| r0 - (r0 - r1) * (x + 60.0) / l;
+    for m in &r.moves[1..] {
+        assert!(
+            m.to.mandrel_deg >= prev.mandrel_deg,
+            "the mandrel never turns back"
+        );
+        assert!(m.to.carriage_mm >= -60.0 - 1e-9 && m.to.carriage_mm <= 60.0 + 1e-9);
+        let dz = m.to.carriage_mm - prev.carriage_mm;
+        let mid_r = radius(0.5 * (m.to.carriage_mm + prev.carriage_mm));
+        let arc = if dz == 0.0 {
+            radius(m.to.carriage_mm)
+        } else {
+            mid_r
+        } * (m.to.mandrel_deg - prev.mandrel_deg).to_radians();
+        laid += (dz / cos_phi).hypot(arc);
+        if dz != 0.0 {
+            pass_start.get_or_insert(prev);
+        } else if let Some(s) = pass_start.take() {
+            // A whole pass, end to end, turns the mandrel by the geodesic's turn.
+            assert_abs_diff_eq!(
+                (prev.carriage_mm - s.carriage_mm).abs(),
+                120.0,
+                epsilon = 1e-9
+            );
+            assert_abs_diff_eq!(prev.mandrel_deg - s.mandrel_deg, pass_deg, epsilon = 1e-6);
+            // The eye lies at the local angle: 90° − 30° at the large end, 90° − asin(24.5/27)
+            // at the small end.
+            let small_end_eye = 90.0 - (24.5f64 / 27.0).asin().to_degrees();
+            let end_eye = if prev.carriage_mm > 0.0 {
+                small_end_eye
+            } else {
+                60.0
+            };
+            assert_abs_diff_eq!(prev.eye_deg.abs(), end_eye, epsilon = 1e-9);
+            passes += 1;
+        }
+        prev = m.to;
+    }
+    assert_eq!(passes, 2 * 45);
+    // The mark's tow: the surface length of every move (chords of the geodesic within
+    // 0.01 mm, turns at the end's radius).
+    assert_abs_diff_eq!(
+        plan.layers[0].mark.tow_length_mm,
+        laid,
+        epsilon = 1e-4 * laid
+    );
+}
+
+#[test]
+fn cone_refusals_give_the_reason() {
+    let mut job = cone_job();
+    job.layers = vec![Layer::Hoop { passes: 2 }];
+    let err = job.check().unwrap_err().to_string();
+    assert!(err.contains("layer 1: hoop layers on a cone"), "{err}");
+    let mut job = cone_job();
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.wind_angle_deg = 40.0;
+    }
+    let err = job.check().unwrap_err().to_string();
+    assert!(err.contains("too steep") && err.contains("33.437"), "{err}");
+    let mut job = cone_job();
+    job.mandrel = Mandrel::Cone {
+        large_radius_mm: 27.0,
+        small_radius_mm: 49.0,
+        length_mm: 120.0,
+    };
+    let err = job.check().unwrap_err().to_string();
+    assert!(err.contains("reducing frustum"), "{err}");
+    // A skip layer needs no geodesic.
+    let mut job = cone_job();
+    job.layers = vec![Layer::Skip { mandrel_deg: 90.0 }];
+    assert!(job.check().is_ok());
+}
+
+#[test]
+fn polar_layer_turns_once_per_circuit_and_keeps_the_eye_off_the_vessel() {
+    for axes in [AxisSet::Four, AxisSet::Two] {
+        let mut job = seed_job(84.1, None);
+        job.machine.axes = axes;
+        job.layers = vec![Layer::Polar {
+            slip_limit: POLAR_SLIP_LIMIT,
+        }];
+        let plan = job.check().unwrap();
+        // By hand: α = atan(21 / (42.05 + √(60² − 21²))) = 12.06429°,
+        // N = ⌈2π·60·cos α / 4⌉ = ⌈92.17⌉ = 93.
+        assert_eq!(plan.layers[0].mark.circuits, 93);
+        assert_abs_diff_eq!(plan.layers[0].mark.wind_angle_deg, 12.06429, epsilon = 1e-5);
+        let r = record(&job);
+        let start = r.moves[0].to;
+        let end = r.moves.last().unwrap().to;
+        // 93 turns and 93 advances of 360°/93: 94 turns in all, back at the middle.
+        assert_abs_diff_eq!(
+            end.mandrel_deg - start.mandrel_deg,
+            94.0 * 360.0,
+            epsilon = 1e-6
+        );
+        assert_abs_diff_eq!(end.carriage_mm, 0.0, epsilon = 1e-9);
+        let tan_a = 12.06429f64.to_radians().tan();
+        let mut prev = start;
+        let (mut far, mut near_axis) = (0.0f64, f64::MAX);
+        for m in &r.moves[1..] {
+            let p = m.to;
+            assert!(
+                p.mandrel_deg > prev.mandrel_deg,
+                "the mandrel turns one way"
+            );
+            // Outside the vessel: farther than Rc from the axis segment |z| ≤ Lc/2.
+            let beyond = (p.carriage_mm.abs() - 42.05).max(0.0);
+            assert!(p.cross_feed_mm.hypot(beyond) > 60.0, "{p:?}");
+            far = far.max(p.carriage_mm.abs());
+            near_axis = near_axis.min(p.cross_feed_mm);
+            if axes == AxisSet::Two {
+                assert_abs_diff_eq!(p.cross_feed_mm, 90.0, epsilon = 1e-9);
+                assert_eq!(p.eye_deg, 0.0);
+            }
+            prev = p;
+        }
+        if axes == AxisSet::Two {
+            // The eye keeps Re: the carriage swings to Re / tan α = 90 / 0.213728 = 421.1 mm.
+            assert_abs_diff_eq!(far, 90.0 / tan_a, epsilon = 1e-3);
+        } else {
+            // With cross-feed the eye passes the pole at rp + (Re − Rc)·sin α, past it by
+            // (Re − Rc)·cos α.
+            let a = 12.06429f64.to_radians();
+            assert_abs_diff_eq!(near_axis, 21.0 + 30.0 * a.sin(), epsilon = 1e-3);
+            assert_abs_diff_eq!(far, 98.25498 + 30.0 * a.cos(), epsilon = 1e-3);
+        }
+    }
+}
