@@ -1063,7 +1063,8 @@ mod tests {
             let points: Vec<SurfacePoint> = (0..count)
                 .map(|k| {
                     let t = h * k as f64;
-                    let mut q = b * t;
+                    // Away from the origin, so that no term vanishes at the first point.
+                    let mut q = Vector3::new(100.0, -50.0, 20.0) + b * t;
                     if degree >= 2 {
                         q += c2 * t * t;
                     }
