@@ -713,6 +713,135 @@ mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
 
+    /// Every figure of the arm is checked, and the one that is wrong is named: each length and
+    /// the jump limit at 0, below 0, infinite and NaN; the eye mechanism below 0, above the
+    /// longest the arm carries (and exactly that longest, which is taken); each joint's range
+    /// empty, reversed or infinite at either end and its speed at 0 or infinite; a link radius
+    /// below 0 or infinite (0 is taken).
+    #[test]
+    fn every_figure_of_the_arm_is_checked_by_name() {
+        let ok = Arm::default();
+        assert!(ok.validate().is_ok());
+        let named = |arm: Arm| match arm.validate() {
+            Err(Error::OutOfRange { name, .. }) => name,
+            other => panic!("{other:?}"),
+        };
+        for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
+            let cases: [(Arm, &str); 5] = [
+                (
+                    Arm {
+                        shoulder_height_mm: bad,
+                        ..ok
+                    },
+                    "shoulder_height_mm",
+                ),
+                (
+                    Arm {
+                        upper_arm_mm: bad,
+                        ..ok
+                    },
+                    "upper_arm_mm",
+                ),
+                (
+                    Arm {
+                        forearm_mm: bad,
+                        ..ok
+                    },
+                    "forearm_mm",
+                ),
+                (
+                    Arm {
+                        eye_mechanism_max_mm: bad,
+                        eye_mechanism_mm: 0.0,
+                        ..ok
+                    },
+                    "eye_mechanism_max_mm",
+                ),
+                (
+                    Arm {
+                        joint_jump_max_rad: bad,
+                        ..ok
+                    },
+                    "joint_jump_max_deg",
+                ),
+            ];
+            for (arm, name) in cases {
+                assert_eq!(named(arm), name, "{bad}");
+            }
+        }
+        let longest = ok.eye_mechanism_max_mm;
+        assert!(
+            Arm {
+                eye_mechanism_mm: longest,
+                ..ok
+            }
+            .validate()
+            .is_ok()
+        );
+        assert!(
+            Arm {
+                eye_mechanism_mm: 0.0,
+                ..ok
+            }
+            .validate()
+            .is_ok()
+        );
+        for bad in [-0.1, longest + 0.1, f64::NAN] {
+            assert_eq!(
+                named(Arm {
+                    eye_mechanism_mm: bad,
+                    ..ok
+                }),
+                "eye_mechanism_length_mm"
+            );
+        }
+        let names = [
+            "base_yaw_deg",
+            "shoulder_deg",
+            "elbow_deg",
+            "pitch_deg",
+            "roll_deg",
+        ];
+        for (k, want) in names.iter().enumerate() {
+            let with = |limit: JointLimit| {
+                let mut arm = ok;
+                arm.joints[k] = limit;
+                arm
+            };
+            let j = ok.joints[k];
+            for (min, max) in [
+                (j.min_rad, j.min_rad),
+                (j.max_rad, j.min_rad),
+                (f64::NEG_INFINITY, j.max_rad),
+                (j.min_rad, f64::INFINITY),
+                (f64::NAN, j.max_rad),
+            ] {
+                let limit = JointLimit {
+                    min_rad: min,
+                    max_rad: max,
+                    ..j
+                };
+                assert_eq!(named(with(limit)), *want, "{min} {max}");
+            }
+            for speed in [0.0, -1.0, f64::INFINITY] {
+                let limit = JointLimit {
+                    max_speed_rad_s: speed,
+                    ..j
+                };
+                assert_eq!(named(with(limit)), "joint_speed_deg_s");
+            }
+        }
+        for k in 0..5 {
+            let mut arm = ok;
+            arm.link_radii_mm[k] = 0.0;
+            assert!(arm.validate().is_ok());
+            for bad in [-0.5, f64::INFINITY] {
+                arm.link_radii_mm[k] = bad;
+                assert_eq!(named(arm), "link_radii_mm");
+            }
+        }
+    }
+
     /// The names messages and cell files use, and the faults' messages with their figures.
     #[test]
     fn joints_and_faults_are_named_in_words() {
