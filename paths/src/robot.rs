@@ -1075,6 +1075,10 @@ mod tests {
         assert_eq!(wrap(-PI), PI);
         assert_eq!(wrap(3.0 * PI), PI);
         assert_eq!(wrap(0.5), 0.5);
+        // −9π (as rounded) is beyond one turn, so it takes the general branch, whose remainder
+        // is then exactly π: it must stay π, not become −π.
+        assert_eq!((-9.0 * PI).rem_euclid(TAU), PI);
+        assert_eq!(wrap(-9.0 * PI), PI);
     }
 
     #[test]
