@@ -1102,9 +1102,9 @@ mod tests {
         assert!(matches!(
             err,
             Error::Arm {
-                fault: ArmFault::OutOfReach { .. },
+                fault: ArmFault::OutOfReach { min_mm, max_mm, .. },
                 ..
-            }
+            } if min_mm == 220.0 && max_mm == 1120.0
         ));
         // A roll axis 1° out of the arm plane: the wrist has no yaw.
         let off = Unit::new_normalize(Vector3::new(
