@@ -1219,6 +1219,43 @@ mod tests {
     }
 
     #[test]
+    fn joint_rates_call_the_arm_singular_within_a_billionth_of_stretched() {
+        // With the shoulder upright (q2 = 0) the forearm's angle from the horizontal is π/2 − δ;
+        // the in-plane determinant is l1·l2·sin δ, and the arm is called singular (infinite
+        // rates) when sin δ < 1e-9, a scale-free threshold on cos(q2 + q3).
+        let arm = Arm::default();
+        // Straight up, along the nearly stretched arm.
+        let along = Vector3::new(0.0, 0.0, 1.0);
+        let at = |delta: f64| JointTrig {
+            yaw: (0.0, 1.0),
+            shoulder: (0.0, 1.0),
+            elbow: (delta.cos(), delta.sin()),
+            cos_pitch: 1.0,
+        };
+        for delta in [1e-10, 5e-10] {
+            let rates = arm.joint_rates_at(&at(delta), &along);
+            assert!(
+                rates[1].is_infinite() && rates[2].is_infinite(),
+                "δ = {delta}: {rates:?}"
+            );
+        }
+        for delta in [2e-9, 1e-8, 1e-6] {
+            let rates = arm.joint_rates_at(&at(delta), &along);
+            // Cramer's rule on [[l1, −l2 cos δ], [0, l2 sin δ]]·(q̇2, q̇3) = (0, 1): the elbow
+            // turns at 1 / (l2 sin δ), finite however large.
+            assert!(
+                rates[1].is_finite() && rates[2].is_finite(),
+                "δ = {delta}: {rates:?}"
+            );
+            let expect = 1.0 / (arm.forearm_mm * delta.sin());
+            assert!(
+                (rates[2].abs() / expect - 1.0).abs() < 1e-6,
+                "δ = {delta}: {rates:?}"
+            );
+        }
+    }
+
+    #[test]
     fn joint_rates_move_the_eye_with_the_wrist_fixed_in_the_arm_frame() {
         // Independent check of the Jacobian: step the joints by the rates and difference the
         // forward kinematics.
