@@ -18,6 +18,7 @@ use std::time::Duration;
 use asea_protocol::sim::{CONTROL_UNITS, IN_POSITION_OUTPUT, MEMORY_UNITS, POSITION_UNITS};
 use asea_protocol::{Control, Instruction, Positioning, State};
 use mandrel_drive::Drive;
+use paths::MandrelProfile;
 use sequences::rob::{Movement, Reference};
 use sequences::{MandrelFile, MandrelMove, RobotFile};
 use serde_json::json;
@@ -41,6 +42,13 @@ pub const HANDSHAKE_LEAD: u16 = 2;
 pub const MOVE_TIMEOUT_S: f64 = 600.0;
 /// Longest wait for home synchronisation, s.
 pub const HOME_TIMEOUT_S: f64 = 60.0;
+/// A stored program runs unwatched (no robot telegram) for this many times the mandrel move's
+/// time, plus [`PROGRAM_QUIET_MARGIN_S`]; only a program that overruns that is polled for errors.
+pub const PROGRAM_QUIET_FACTOR: f64 = 1.5;
+/// See [`PROGRAM_QUIET_FACTOR`], s.
+pub const PROGRAM_QUIET_MARGIN_S: f64 = 1.0;
+/// Control ticks between two status reads of a program that overran its quiet time.
+pub const PROGRAM_POLL_TICKS: u32 = 50;
 
 /// How the batch is wound (seed 001 §5.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1238,11 +1246,32 @@ impl<'a> Coordinator<'a> {
         })?;
         // The mandrel's move, armed on the start line.
         let armed = self.mandrel_start(ind, counter, end, true)?;
+        // While the program flies nothing is said to the robot: the robot computer holds the
+        // arm while it serves the link (seed 001 §4.1.2), so every status read would stall the
+        // eye against the turning mandrel (a read every half second put the eye 0.06 s per
+        // second behind, timing drift of 7–14 mm on the S-bend). The start and in-position lines
+        // pace the program, as in the thesis's program control (§5.6.4); the stop request and
+        // the e-stop input are still looked at every control tick. A program that overruns its
+        // mandrel move by half again plus a second is then read for errors.
+        let mandrel_s = MandrelProfile {
+            accel_rps2: ind.accel_rps2,
+            start_stop_rps: ind.start_stop_rps,
+            max_rps: ind.max_rps,
+        }
+        .duration_s(
+            (end - counter).unsigned_abs(),
+            batch.drive.steps_per_mandrel_rev(),
+        );
         self.dev.sync.set_start(true)?;
+        let quiet_until_s =
+            self.dev.time.now_s() + PROGRAM_QUIET_FACTOR * mandrel_s + PROGRAM_QUIET_MARGIN_S;
         let mut polls = 0u32;
         self.wait("the robot's program", MOVE_TIMEOUT_S, |d| {
+            if d.time.now_s() < quiet_until_s {
+                return d.sync.in_position();
+            }
             polls += 1;
-            if polls.is_multiple_of(50) {
+            if polls.is_multiple_of(PROGRAM_POLL_TICKS) {
                 let s = d.robot.state()?;
                 if s.state == State::Error || s.last_error != 0 {
                     return Err(DeviceError::RobotState {

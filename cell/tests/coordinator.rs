@@ -447,25 +447,81 @@ impl Sleep for SimCell {
     }
 }
 
-/// A device seen through a PC that can die (`kill -9`): after `left` more calls every call fails
-/// without reaching the device, stop commands included, so the devices run on by themselves.
+/// A device seen through a PC that can die (`kill -9`): after a number of robot or indexer calls,
+/// or at a time of the cell's clock (a stored program runs unwatched, so a death mid-program
+/// is a time), every call fails without reaching the device, stop commands included, so the
+/// devices run on by themselves.
 #[derive(Debug, Clone)]
-struct Life(Arc<std::sync::atomic::AtomicI64>);
+struct Life {
+    calls: Arc<std::sync::atomic::AtomicI64>,
+    deadline_s: Arc<std::sync::Mutex<f64>>,
+    clock: asea_protocol::clock::VirtualClock,
+}
+
+/// When the coordinator process dies.
+#[derive(Debug, Clone, Copy)]
+enum Death {
+    /// After this many robot or indexer calls.
+    Calls(i64),
+    /// This long (cell time) after the event.
+    After(f64),
+}
 
 impl Life {
-    fn new() -> Self {
-        Life(Arc::new(std::sync::atomic::AtomicI64::new(i64::MAX)))
+    fn new(clock: asea_protocol::clock::VirtualClock) -> Self {
+        Life {
+            calls: Arc::new(std::sync::atomic::AtomicI64::new(i64::MAX)),
+            deadline_s: Arc::new(std::sync::Mutex::new(f64::INFINITY)),
+            clock,
+        }
     }
-    fn die_after(&self, calls: i64) {
-        self.0.store(calls, Ordering::Relaxed);
+    fn die(&self, death: Death) {
+        match death {
+            Death::Calls(n) => self.calls.store(n, Ordering::Relaxed),
+            Death::After(s) => *self.deadline_s.lock().unwrap() = self.clock.now_s() + s,
+        }
     }
+    fn gone() -> cell::device::DeviceError {
+        cell::device::DeviceError::RobotState {
+            what: "the coordinator process is gone".into(),
+        }
+    }
+    /// A robot or indexer call: counts.
     fn alive(&self) -> Result<(), cell::device::DeviceError> {
-        if self.0.fetch_sub(1, Ordering::Relaxed) <= 0 {
-            return Err(cell::device::DeviceError::RobotState {
-                what: "the coordinator process is gone".into(),
-            });
+        if self.calls.fetch_sub(1, Ordering::Relaxed) <= 0 {
+            return Err(Self::gone());
+        }
+        self.still()
+    }
+    /// A sync-line call: does not count, but a dead process makes none.
+    fn still(&self) -> Result<(), cell::device::DeviceError> {
+        if self.calls.load(Ordering::Relaxed) <= 0
+            || self.clock.now_s() >= *self.deadline_s.lock().unwrap()
+        {
+            return Err(Self::gone());
         }
         Ok(())
+    }
+}
+
+impl SyncLines for Mortal<Box<dyn SyncLines>> {
+    fn set_start(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        self.life.still()?;
+        self.inner.set_start(on)
+    }
+    fn in_position(&mut self) -> cell::device::DeviceResult<bool> {
+        self.life.still()?;
+        self.inner.in_position()
+    }
+    fn estop(&mut self) -> cell::device::DeviceResult<bool> {
+        self.life.still()?;
+        self.inner.estop()
+    }
+}
+
+impl std::fmt::Debug for Mortal<Box<dyn SyncLines>> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Mortal(sync)")
     }
 }
 
@@ -560,10 +616,10 @@ impl MandrelDevice for Mortal<Box<dyn MandrelDevice>> {
     }
 }
 
-/// Winds until the PC "dies" `calls` device calls after the `at`-th segment or program event;
-/// nothing stops the devices.
-fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, calls: i64) {
-    let life = Life::new();
+/// Winds until the PC "dies" (`death`) after the `at`-th segment or program event; nothing
+/// stops the devices.
+fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, death: Death) {
+    let life = Life::new(cell.clock().clone());
     let d = cell.devices(Drive::default());
     let dev = cell::coordinator::Devices {
         robot: Box::new(Mortal {
@@ -576,7 +632,11 @@ fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, calls: i64
             life: life.clone(),
             misread_mm: 0.0,
         }),
-        sync: d.sync,
+        sync: Box::new(Mortal {
+            inner: d.sync,
+            life: life.clone(),
+            misread_mm: 0.0,
+        }),
         time: d.time,
     };
     let mut n = 0;
@@ -588,7 +648,7 @@ fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, calls: i64
         ) {
             n += 1;
             if n == at {
-                l2.die_after(calls);
+                l2.die(death);
             }
         }
     };
@@ -605,24 +665,35 @@ fn resume(cell: &SimCell, b: &Batch, jp: &Path) {
     wind(cell, b, journal, &from, false, None).unwrap();
 }
 
-/// Also resumed at once, with the devices still at it: a program killed mid-run is let finish
-/// (no robot move cut by a STOP), and one killed one call after its RUN_PROGRAM, still waiting
-/// at its handshake for the start edge that never came, is cancelled (a STOP that cuts no move)
-/// and run again (without that, the resume would wait for a program that cannot end).
+/// Also resumed at once, with the devices still at it: a program killed mid-run (5 s or 12 s
+/// into it; it is checked still running) is let finish (no robot move cut by a STOP), and one
+/// killed one call after its RUN_PROGRAM, still waiting at its handshake for the start edge that
+/// never came, is cancelled (a STOP that cuts no move) and run again (without that, the resume
+/// would wait for a program that cannot end).
 #[test]
 fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
-    for (mode, at, calls, run_on_s) in [
-        (RunMode::Discrete, 20, 3, 60),
-        (RunMode::Fine, 1, 12, 60),
-        (RunMode::Medium, 2, 40, 60),
-        (RunMode::Fine, 1, 12, 0),
-        (RunMode::Fine, 1, 1, 0),
+    for (mode, at, death, run_on_s) in [
+        (RunMode::Discrete, 20, Death::Calls(3), 60),
+        (RunMode::Fine, 1, Death::After(5.0), 60),
+        (RunMode::Medium, 2, Death::After(12.0), 60),
+        (RunMode::Fine, 1, Death::After(5.0), 0),
+        (RunMode::Fine, 1, Death::Calls(1), 0),
     ] {
+        let calls = format!("{death:?}");
         let b = checked(&sbend(Some(mode)));
         let dir = tempfile::tempdir().unwrap();
         let jp = dir.path().join("J.journal");
         let cell = SimCell::new(&SimCellConfig::default());
-        wind_until_killed(&cell, &b, &jp, at, calls);
+        wind_until_killed(&cell, &b, &jp, at, death);
+        if let Death::After(_) = death {
+            let s = cell.with(|p| p.robot.machine.status()).unwrap();
+            assert_eq!(
+                s.state,
+                State::Running,
+                "{mode:?} {calls}: killed mid-program"
+            );
+            assert!(s.instruction > 3, "{mode:?} {calls}: {s:?}");
+        }
         // Nobody stops the devices: a stored program runs to its end, the indexer finishes.
         cell.timebase_sleep(Duration::from_secs(run_on_s));
         resume(&cell, &b, &jp);
@@ -1103,7 +1174,7 @@ fn a_robot_that_ends_a_move_off_its_target_halts_the_batch() {
         let dev = cell::coordinator::Devices {
             robot: Box::new(Mortal {
                 inner: d.robot,
-                life: Life::new(),
+                life: Life::new(cell.clock().clone()),
                 misread_mm,
             }),
             mandrel: d.mandrel,
@@ -1173,5 +1244,68 @@ fn the_sync_turns_the_mandrel_to_the_start_angle_by_the_shorter_way() {
         assert_eq!(sync, nearest, "{deg}°");
         let (_, done, _) = completed(&cell);
         assert_eq!(done.first(), Some(&nearest), "{deg}°: the sync move");
+    }
+}
+
+/// A stored program runs unwatched: the robot computer holds the arm while it serves the link
+/// (seed 001 §4.1.2), so a status read during the program would put the eye behind the mandrel.
+/// Each program of the S-bend batch, from its start event to its end event, takes the mandrel
+/// move's trapezoid time (computed here in closed form from the `.IND` move) plus the robot's
+/// first, zero-length instruction (its interpretation time), the settling of its last, stopping
+/// move (the zone's overhead) and the link's exchanges around the program (under 0.5 s), and no
+/// more: a status read every half second during the program made each take 1.1 s longer.
+#[test]
+fn a_stored_program_runs_in_the_mandrels_time_without_status_reads() {
+    use asea_protocol::sim::motion::{INTERPRETATION_S, MotionParams};
+    let settle_s = MotionParams::default().overhead_s;
+    for (mode, zone) in [(RunMode::Fine, 0), (RunMode::Medium, 1)] {
+        let l = sbend(Some(mode));
+        let b = checked(&l);
+        let cell = SimCell::new(&SimCellConfig::default());
+        let events = wind(
+            &cell,
+            &b,
+            Journal::none(),
+            &ResumePoint::default(),
+            true,
+            None,
+        )
+        .unwrap();
+        let mut starts = Vec::new();
+        let mut ends = Vec::new();
+        for e in &events {
+            if let Event::Program { done, time_s, .. } = e {
+                if *done {
+                    ends.push(*time_s)
+                } else {
+                    starts.push(*time_s)
+                }
+            }
+        }
+        assert_eq!((starts.len(), ends.len()), (2, 2), "{mode:?}");
+        for (k, item) in l.items.iter().enumerate() {
+            let m = item.ind.as_ref().unwrap().path_move;
+            let spr = Drive::default().steps_per_mandrel_rev();
+            let n = m.steps.unsigned_abs() as f64;
+            // The indexer's trapezoid in closed form: jump to v0, ramp at a to vmax, cruise,
+            // ramp down (continuous approximation of the step rule: within a step's time).
+            let (a, v0, vm) = (m.accel_rps2 * spr, m.start_stop_rps * spr, m.max_rps * spr);
+            let ramp_steps = (vm * vm - v0 * v0) / (2.0 * a);
+            let mandrel_s = if 2.0 * ramp_steps <= n {
+                2.0 * (vm - v0) / a + (n - 2.0 * ramp_steps) / vm
+            } else {
+                2.0 * ((v0 * v0 + a * n).sqrt() - v0) / a
+            };
+            let took = ends[k] - starts[k];
+            let over = took - mandrel_s - INTERPRETATION_S[zone] - settle_s[zone];
+            eprintln!(
+                "{mode:?} program {k}: {took:.3} s, mandrel {mandrel_s:.3} s, over {over:.3}"
+            );
+            assert!(
+                (0.0..0.5).contains(&over),
+                "{mode:?} program {}: {took:.3} s for a {mandrel_s:.3} s mandrel move",
+                k + 1
+            );
+        }
     }
 }
