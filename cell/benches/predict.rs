@@ -1,5 +1,6 @@
-//! Criterion: `windcell predict` of the S-bend job (both paths), the three thesis modes and 200
-//! Monte Carlo samples of the setup error per path, as the command runs it.
+//! Criterion: `windcell predict` of the S-bend job (both paths), its default four modes
+//! (discrete, fine, medium, continuous) and 200 Monte Carlo samples of the setup error per path,
+//! as the command runs it.
 //! `cargo bench -p cell --bench predict` (docs/benchmarks.md, "Prediction").
 
 use std::hint::black_box;
@@ -15,10 +16,10 @@ fn bench(c: &mut Criterion) {
     let (job, text) = Job::load(&path).unwrap();
     let cell = Cell::of_job(&job, &path).unwrap();
     let opt = Options::default();
-    assert_eq!(opt.samples, 200);
+    assert_eq!((opt.samples, opt.modes.len()), (200, 4));
     let mut g = c.benchmark_group("predict");
     g.sample_size(10);
-    g.bench_function("sbend_three_modes_200_samples", |b| {
+    g.bench_function("sbend_four_modes_200_samples", |b| {
         b.iter(|| black_box(predict::predict(&job, &text, &path, &cell, &opt).unwrap()))
     });
     g.finish();

@@ -59,15 +59,20 @@ pub enum RunMode {
     Fine,
     /// Program control, 10 mm zone.
     Medium,
+    /// Program control, 10 mm zone, kept in step with the mandrel (ours; docs/continuous.md):
+    /// the stored program starts at the path's second point, the eye being at the first from
+    /// the approach, so the robot's first flying move starts on the start edge with the mandrel.
+    Continuous,
 }
 
 impl RunMode {
-    /// The keyword (`discrete`, `fine`, `medium`).
+    /// The keyword (`discrete`, `fine`, `medium`, `continuous`).
     pub fn keyword(self) -> &'static str {
         match self {
             RunMode::Discrete => "discrete",
             RunMode::Fine => "fine",
             RunMode::Medium => "medium",
+            RunMode::Continuous => "continuous",
         }
     }
     /// From a keyword.
@@ -76,6 +81,7 @@ impl RunMode {
             "discrete" => Some(RunMode::Discrete),
             "fine" => Some(RunMode::Fine),
             "medium" => Some(RunMode::Medium),
+            "continuous" => Some(RunMode::Continuous),
             _ => None,
         }
     }
@@ -85,14 +91,22 @@ impl RunMode {
             Movement::Discrete => RunMode::Discrete,
             Movement::Fine => RunMode::Fine,
             Movement::Medium => RunMode::Medium,
+            Movement::Continuous => RunMode::Continuous,
         }
     }
-    fn movement(self) -> Movement {
+    /// The control files' movement type of this mode.
+    pub fn movement(self) -> Movement {
         match self {
             RunMode::Discrete => Movement::Discrete,
             RunMode::Fine => Movement::Fine,
             RunMode::Medium => Movement::Medium,
+            RunMode::Continuous => Movement::Continuous,
         }
+    }
+    /// Path points before a stored program's first position: 1 in continuous mode (the
+    /// approach puts the eye at the first point), else 0.
+    pub fn points_before_program(self) -> usize {
+        usize::from(self == RunMode::Continuous)
     }
 }
 
@@ -216,6 +230,18 @@ impl Batch {
         let mut seen: Vec<u8> = Vec::new();
         let mut units = 0u32;
         for item in &items {
+            // Continuous mode's timing is a property of the plan (every segment at least the
+            // robot's time per instruction): files planned for another movement are refused.
+            if mode == RunMode::Continuous && item.rob.header.movement != Movement::Continuous {
+                return Err(Error::Run {
+                    message: format!(
+                        "{}: planned for {} movement; continuous mode needs files planned for it (movement = \"continuous\" in the job)",
+                        item.name,
+                        item.rob.header.movement.keyword()
+                    ),
+                    input: true,
+                });
+            }
             let mut rob = item.rob.clone();
             rob.header.movement = mode.movement();
             let program = rob.header.program;
@@ -292,7 +318,15 @@ impl Batch {
                         input: true,
                     });
                 }
-                let prog = handshake_program(&transfer::robot_program(&rob)?.instructions);
+                let positions = transfer::robot_program(&rob)?.instructions;
+                let prog = handshake_program(
+                    &positions
+                        .iter()
+                        .filter(|i| matches!(i, Instruction::Position(_)))
+                        .skip(mode.points_before_program())
+                        .copied()
+                        .collect::<Vec<_>>(),
+                );
                 if !seen.contains(&program) {
                     seen.push(program);
                     units += program_units(&prog);
@@ -1314,9 +1348,18 @@ mod tests {
     fn distance_is_euclidean_and_mode_keywords_round_trip() {
         // The 3-4-12 right triangle: 13.
         assert_eq!(distance_mm([1.0, 2.0, 3.0], [4.0, 6.0, 15.0]), 13.0);
-        for m in [RunMode::Discrete, RunMode::Fine, RunMode::Medium] {
+        for m in [
+            RunMode::Discrete,
+            RunMode::Fine,
+            RunMode::Medium,
+            RunMode::Continuous,
+        ] {
             assert_eq!(RunMode::from_keyword(m.keyword()), Some(m));
+            assert_eq!(RunMode::from_movement(m.movement()), m);
         }
-        assert_eq!(RunMode::from_keyword("continuous"), None);
+        assert_eq!(RunMode::from_keyword("coarse"), None);
+        // Only continuous mode starts its program at the path's second point.
+        assert_eq!(RunMode::Continuous.points_before_program(), 1);
+        assert_eq!(RunMode::Medium.points_before_program(), 0);
     }
 }

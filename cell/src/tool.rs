@@ -197,6 +197,24 @@ pub fn arm(job: &Job) -> Arm {
     arm
 }
 
+/// The profile the indexer runs for `p`: the X-language gives acceleration, velocity and start
+/// velocity in motor rev/s (rev/s²) to two decimals (`A`, `V`, `VS`; the OEM guide's 0.01
+/// resolution), so a mandrel speed of 0.1 rev/s through 60:13 is sent as `V0.46` and turns the
+/// mandrel at 0.09967 rev/s, 0.33 % slow. Continuous movement plans the robot against that
+/// motion (docs/continuous.md); the thesis's modes keep the job's figures, as the thesis did.
+/// `motor_per_mandrel` is motor revolutions per mandrel revolution.
+pub fn as_the_indexer_runs(p: MandrelProfile, motor_per_mandrel: f64) -> MandrelProfile {
+    let sent = |mandrel: f64| -> f64 {
+        let motor = format!("{:.2}", mandrel * motor_per_mandrel);
+        motor.parse::<f64>().unwrap_or(f64::NAN) / motor_per_mandrel
+    };
+    MandrelProfile {
+        accel_rps2: sent(p.accel_rps2),
+        start_stop_rps: sent(p.start_stop_rps),
+        max_rps: sent(p.max_rps),
+    }
+}
+
 /// The cell setup and speeds a job describes.
 pub fn setup(job: &Job) -> (Setup, Speeds) {
     let c = &job.cell;
@@ -237,10 +255,17 @@ pub fn setup(job: &Job) -> (Setup, Speeds) {
             },
         },
         Speeds {
-            mandrel: MandrelProfile {
-                accel_rps2: *c.drive.accel_rps2.get_ref(),
-                start_stop_rps: *c.drive.start_stop_rps.get_ref(),
-                max_rps: *c.mandrel_speed_rps.get_ref(),
+            mandrel: {
+                let nominal = MandrelProfile {
+                    accel_rps2: *c.drive.accel_rps2.get_ref(),
+                    start_stop_rps: *c.drive.start_stop_rps.get_ref(),
+                    max_rps: *c.mandrel_speed_rps.get_ref(),
+                };
+                if *c.movement.get_ref() == Movement::Continuous {
+                    as_the_indexer_runs(nominal, f64::from(mandrel_teeth) / f64::from(motor_teeth))
+                } else {
+                    nominal
+                }
             },
             base_speed_mm_s: *c.base_speed_mm_s.get_ref(),
             max_speed_mm_s: *c.max_speed_mm_s.get_ref(),
@@ -248,10 +273,19 @@ pub fn setup(job: &Job) -> (Setup, Speeds) {
                 Movement::Discrete => paths::Movement::Discrete,
                 Movement::Fine => paths::Movement::Fine,
                 Movement::Medium => paths::Movement::Medium,
+                Movement::Continuous => paths::Movement::Continuous {
+                    instruction_s: CONTINUOUS_INSTRUCTION_S,
+                },
             },
         },
     )
 }
+
+/// The least time of a segment in continuous movement, s: the robot computer's time per flying
+/// instruction in the medium zone (`asea_protocol::sim::motion::INTERPRETATION_S`, from App. B's
+/// fastest medium windings) with a 10 % margin, so the robot is never paced by its own
+/// interpretation and stays in step with the mandrel (docs/continuous.md).
+pub const CONTINUOUS_INSTRUCTION_S: f64 = 1.1 * asea_protocol::sim::motion::INTERPRETATION_S[1];
 
 /// Where in the job file a planning error belongs: the field whose value the error is about
 /// (the path's `program` for a pose the arm cannot take).
@@ -276,6 +310,7 @@ fn error_span(job: &Job, spec: &PathSpec, error: &paths::Error) -> Range<usize> 
         paths::Error::EntryAngle { .. } => entry_limit.unwrap_or(spec.program.span()),
         paths::Error::SegmentTurnsTooFar { .. } => spec.segments.span(),
         paths::Error::RobotTooSlow { .. } => c.mandrel_speed_rps.span(),
+        paths::Error::SegmentTooShort { .. } => spec.segments.span(),
         paths::Error::EyeInsideMandrel { .. } => c.offset_mm.span(),
         paths::Error::OutOfRange { name, .. } => match *name {
             "eye_mechanism_length_mm" => c.eye_mechanism_length_mm.span(),
@@ -715,4 +750,34 @@ pub fn control_files(job: &Job, plan: &JobPlan) -> Result<Vec<(PathBuf, String)>
         run.write()?,
     ));
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The thesis drive (60:13): 0.1 rev/s is 0.4615 motor rev/s, sent as `V0.46` (0.46 · 13/60
+    /// = 0.099667 rev/s); 1 rev/s² is `A4.62` (1.001 rev/s²); 0.05 rev/s is `VS0.23`
+    /// (0.049833 rev/s). Each by hand from the X-language's two decimals.
+    #[test]
+    fn the_indexer_runs_the_profile_its_two_decimals_can_say() {
+        let p = as_the_indexer_runs(
+            MandrelProfile {
+                accel_rps2: 1.0,
+                start_stop_rps: 0.05,
+                max_rps: 0.1,
+            },
+            60.0 / 13.0,
+        );
+        assert!((p.max_rps - 0.46 * 13.0 / 60.0).abs() < 1e-15, "{p:?}");
+        assert!((p.accel_rps2 - 4.62 * 13.0 / 60.0).abs() < 1e-15, "{p:?}");
+        assert!(
+            (p.start_stop_rps - 0.23 * 13.0 / 60.0).abs() < 1e-15,
+            "{p:?}"
+        );
+        // Sent again, the figures say the same.
+        let q = as_the_indexer_runs(p, 60.0 / 13.0);
+        assert!((q.max_rps - p.max_rps).abs() < 1e-15);
+        assert!((q.accel_rps2 - p.accel_rps2).abs() < 1e-15);
+    }
 }

@@ -58,7 +58,7 @@ pub fn zone(movement: Movement) -> Option<Zone> {
     match movement {
         Movement::Discrete => None,
         Movement::Fine => Some(Zone::Fine),
-        Movement::Medium => Some(Zone::Medium),
+        Movement::Medium | Movement::Continuous => Some(Zone::Medium),
     }
 }
 

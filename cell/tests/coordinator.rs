@@ -23,9 +23,15 @@ use mandrel_drive::sync::OPTO_DELAY_S;
 use mandrel_drive::{Drive, IndexerConfig, XClient};
 use sequences::{Job, MandrelMove};
 
+/// The S-bend job's control files (planned for continuous movement when that is the mode: its
+/// timing is the plan's), loaded in `mode`.
 fn sbend(mode: Option<RunMode>) -> Loaded {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml");
-    let (job, text) = Job::load(&path).unwrap();
+    let (mut job, text) = Job::load(&path).unwrap();
+    if mode == Some(RunMode::Continuous) {
+        let span = job.cell.movement.span();
+        job.cell.movement = toml::Spanned::new(span, RunMode::Continuous.movement());
+    }
     let plan = tool::plan(&job, &text, &path).unwrap();
     let files = batch::files_of_job(&tool::control_files(&job, &plan).unwrap());
     batch::from_files(&files, mode, Path::new("."), Path::new("SBEND.RUN")).unwrap()
@@ -384,7 +390,7 @@ impl SyncLines for StopMidProgram {
 
 #[test]
 fn fine_and_medium_batches_run_with_the_handshake_and_resume_after_a_stop_mid_program() {
-    for mode in [RunMode::Fine, RunMode::Medium] {
+    for mode in [RunMode::Fine, RunMode::Medium, RunMode::Continuous] {
         let l = sbend(Some(mode));
         let b = checked(&l);
         let dir = tempfile::tempdir().unwrap();
@@ -678,6 +684,8 @@ fn after_kill_9_the_devices_finish_and_resume_completes_without_doubling() {
         (RunMode::Medium, 2, Death::After(12.0), 60),
         (RunMode::Fine, 1, Death::After(5.0), 0),
         (RunMode::Fine, 1, Death::Calls(1), 0),
+        (RunMode::Continuous, 2, Death::After(9.0), 60),
+        (RunMode::Continuous, 1, Death::After(4.0), 0),
     ] {
         let calls = format!("{death:?}");
         let b = checked(&sbend(Some(mode)));

@@ -336,3 +336,39 @@ fn an_imported_segment_turning_four_tenths_of_a_revolution_plans_the_right_way()
     let steps: Vec<i64> = segments.iter().map(|s| s.steps).collect();
     assert_eq!(steps, expected);
 }
+
+/// Continuous movement needs every segment to last the robot's time per flying instruction
+/// (0.13 s in the medium zone, with a 10 % margin: 0.143 s). The cylinder at 0.1 rev/s runs at
+/// `V0.46` motor rev/s, 184 steps/s at 400 steps per motor turn: 26.3 steps per 0.143 s, so a
+/// segment needs 27 whole steps and its 1849 steps make at most ⌊1849 / 27⌋ = 68 segments; 80
+/// are refused at `segments`, 68 plan.
+#[test]
+fn continuous_movement_refuses_more_segments_than_the_robot_can_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(example("cylinder.toml"))
+        .unwrap()
+        .replacen("movement = \"fine\"", "movement = \"continuous\"", 1);
+    assert!(text.contains("movement = \"continuous\""));
+    let job = dir.path().join("cont.toml");
+    std::fs::write(&job, text.replacen("segments = 50", "segments = 80", 1)).unwrap();
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("segments = "))
+        .unwrap();
+    refused(
+        &job,
+        &place(dir.path(), "cont.toml", &format!("{}:12", line + 1)),
+        "the robot needs 0.1430 s per instruction in continuous movement (at most 68 segments",
+    );
+    std::fs::write(&job, text.replacen("segments = 50", "segments = 68", 1)).unwrap();
+    let out = dir.path().join("out");
+    let r = windcell(&["plan", job.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(
+        r.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    let rob = std::fs::read_to_string(out.join("CYL_1.ROB")).unwrap();
+    assert!(rob.contains("movement continuous"), "{rob}");
+}

@@ -147,15 +147,15 @@ fn a_recorded_prediction_holds_every_mode_and_path() {
             _ => {}
         }
     }
-    // Three modes, two paths each.
-    assert_eq!(logs, 6, "{logs} log lines");
-    assert_eq!(ids.len(), 12, "{ids:?}");
-    for mode in ["discrete", "fine", "medium"] {
+    // Four modes, two paths each.
+    assert_eq!(logs, 8, "{logs} log lines");
+    assert_eq!(ids.len(), 16, "{ids:?}");
+    for mode in ["discrete", "fine", "medium", "continuous"] {
         assert!(
             ids.iter()
                 .any(|i| i.starts_with(&format!("{mode}/")) && i.ends_with("/laid"))
         );
     }
     // Growing: several updates per path.
-    assert!(fibre > 6 * 3, "{fibre} fibre updates");
+    assert!(fibre > 8 * 3, "{fibre} fibre updates");
 }

@@ -128,6 +128,26 @@ pub enum Error {
         /// The mandrel speed that scales this segment's time up to the robot's.
         mandrel_rps_fit: f64,
     },
+    /// In continuous movement a segment is shorter than the robot's time per instruction, so
+    /// the eye would fall behind the mandrel (docs/continuous.md).
+    #[error(
+        "segment {segment}: the mandrel takes {duration_s:.4} s but the robot needs \
+         {instruction_s:.4} s per instruction in continuous movement (at most \
+         {max_segments} segments, or a mandrel speed of at most {mandrel_rps_fit:.4} rev/s)"
+    )]
+    SegmentTooShort {
+        /// The segment index (1-based).
+        segment: usize,
+        /// The mandrel's time for the segment.
+        duration_s: f64,
+        /// The robot's least time per instruction.
+        instruction_s: f64,
+        /// The most segments of equal whole steps that each last the instruction time at full
+        /// speed.
+        max_segments: usize,
+        /// The mandrel speed that scales this segment's time up to the robot's.
+        mandrel_rps_fit: f64,
+    },
     /// The arm cannot take a pose: out of reach, off the arm plane, a joint out of range or a
     /// joint jump between consecutive poses.
     #[error("{}{fault}", segment.map(|s| format!("segment {s}: ")).unwrap_or_default())]

@@ -78,7 +78,7 @@ pub struct Setup {
 }
 
 /// How robot and mandrel move together (seed 001 §5.4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Movement {
     /// Robot and mandrel start and stop together at every point (§5.4.1, §6.4.1).
     Discrete,
@@ -86,6 +86,12 @@ pub enum Movement {
     Fine,
     /// As fine, with a wider zone.
     Medium,
+    /// As medium, kept in step with the mandrel (ours; docs/continuous.md): every segment lasts
+    /// at least the robot computer's time per instruction, so the robot never falls behind.
+    Continuous {
+        /// The robot's least time per flying instruction, s (its interpretation time).
+        instruction_s: f64,
+    },
 }
 
 /// Winding speeds.
@@ -475,7 +481,7 @@ pub fn plan(
         let n = steps.unsigned_abs();
         let mut duration_s = match speeds.movement {
             Movement::Discrete => speeds.mandrel.duration_s(n, steps_per_rev),
-            Movement::Fine | Movement::Medium => {
+            Movement::Fine | Movement::Medium | Movement::Continuous { .. } => {
                 let before = speeds
                     .mandrel
                     .time_at_step_s(covered, total_steps, steps_per_rev);
@@ -508,7 +514,7 @@ pub fn plan(
                     duration_s = robot_time_s;
                     robot_paced = true;
                 }
-                Movement::Fine | Movement::Medium => {
+                Movement::Fine | Movement::Medium | Movement::Continuous { .. } => {
                     return Err(Error::RobotTooSlow {
                         segment: k,
                         speed_mm_s: if duration_s > 0.0 {
@@ -522,6 +528,21 @@ pub fn plan(
                     });
                 }
             }
+        }
+        if let Movement::Continuous { instruction_s } = speeds.movement
+            && duration_s < instruction_s
+        {
+            // Segments of equal steps each last at least the instruction time at full speed
+            // (the ramps only lengthen the first and last) when each has at least the whole
+            // steps the mandrel turns in that time.
+            let cruise_steps = (speeds.mandrel.max_rps * steps_per_rev * instruction_s).ceil();
+            return Err(Error::SegmentTooShort {
+                segment: k,
+                duration_s,
+                instruction_s,
+                max_segments: (total_steps as f64 / cruise_steps).floor() as usize,
+                mandrel_rps_fit: speeds.mandrel.max_rps * duration_s / instruction_s,
+            });
         }
         let speed_mm_s = if travel < 1e-9 || duration_s <= 0.0 {
             // Nothing to travel: any speed arrives at once; ask for the base speed.
@@ -793,6 +814,71 @@ mod tests {
             matches!(err, Error::SegmentTurnsTooFar { segment: 1, .. }),
             "{err}"
         );
+    }
+
+    /// Continuous movement times its segments as fine and medium do and refuses a segment
+    /// shorter than the robot's time per instruction, naming the segment and the most segments
+    /// of equal steps that fit: on the cylinder (1.0016 rev, 50 segments of 37 steps at
+    /// 0.1 rev/s of 1846.15 steps/rev: 0.2004 s at full speed) an instruction time of 0.19 s
+    /// plans and 0.21 s is refused at the first full-speed segment, with at most
+    /// ⌊1849 / ⌈184.615 · 0.21⌉⌋ = ⌊1849 / 39⌋ = 47 segments.
+    #[test]
+    fn continuous_movement_refuses_segments_shorter_than_an_instruction() {
+        let tube = &tubes()[0];
+        let start = cylinder_start(Direction::Down);
+        let fine = plan_with(tube, start, &setup(), &speeds(Movement::Fine));
+        let ok = plan_with(
+            tube,
+            start,
+            &setup(),
+            &speeds(Movement::Continuous {
+                instruction_s: 0.19,
+            }),
+        );
+        for (a, b) in fine.segments.iter().zip(&ok.segments) {
+            assert_eq!(a.duration_s, b.duration_s);
+            assert_eq!(a.speed_mm_s, b.speed_mm_s);
+        }
+        let total: i64 = fine.segments.iter().map(|s| s.steps).sum();
+        assert_eq!(total.abs(), 1849);
+        let points = points(tube, &start, 50);
+        let err = plan(
+            &points,
+            |p| tube.distance_to_surface_mm(p),
+            &setup(),
+            &speeds(Movement::Continuous {
+                instruction_s: 0.21,
+            }),
+        )
+        .unwrap_err();
+        // The first segment holds the ramp from 0.05 rev/s (longer than 0.21 s); the first
+        // shorter one is where the mandrel runs at full speed.
+        let first_short = fine
+            .segments
+            .iter()
+            .position(|s| s.duration_s < 0.21)
+            .unwrap()
+            + 1;
+        assert!(first_short >= 2);
+        match err {
+            Error::SegmentTooShort {
+                segment,
+                duration_s,
+                instruction_s,
+                max_segments,
+                mandrel_rps_fit,
+            } => {
+                assert_eq!(segment, first_short);
+                assert!(
+                    (duration_s - 37.0 / 184.615_384_6).abs() < 0.002,
+                    "{duration_s}"
+                );
+                assert_eq!(instruction_s, 0.21);
+                assert_eq!(max_segments, 47);
+                assert!((mandrel_rps_fit - 0.1 * duration_s / 0.21).abs() < 1e-12);
+            }
+            other => panic!("{other}"),
+        }
     }
 
     #[test]

@@ -34,6 +34,11 @@ pub enum Movement {
     Fine,
     /// Stored program; 10 mm zone.
     Medium,
+    /// Stored program in the medium zone, kept in step with the mandrel (ours, beyond the
+    /// thesis; docs/continuous.md): the program starts at the path's second point (the eye is
+    /// at the first from the approach), and every segment lasts at least the robot's time per
+    /// instruction.
+    Continuous,
 }
 
 impl Movement {
@@ -43,6 +48,7 @@ impl Movement {
             Movement::Discrete => "discrete",
             Movement::Fine => "fine",
             Movement::Medium => "medium",
+            Movement::Continuous => "continuous",
         }
     }
 
@@ -52,6 +58,7 @@ impl Movement {
             "discrete" => Some(Movement::Discrete),
             "fine" => Some(Movement::Fine),
             "medium" => Some(Movement::Medium),
+            "continuous" => Some(Movement::Continuous),
             _ => None,
         }
     }

@@ -39,7 +39,12 @@ fn robot_file() -> impl Strategy<Value = RobotFile> {
         1u8..=255,
         1.0..5000.0f64,
         1.0..4.0f64,
-        prop::sample::select(vec![Movement::Discrete, Movement::Fine, Movement::Medium]),
+        prop::sample::select(vec![
+            Movement::Discrete,
+            Movement::Fine,
+            Movement::Medium,
+            Movement::Continuous,
+        ]),
         -1e4..1e4f64,
     );
     let instruction = (
@@ -165,7 +170,12 @@ fn job() -> impl Strategy<Value = Job> {
             0.0..400.0f64,
         ),
         (1.0..300.0f64, 1.0..2000.0f64, 1.0..3.0f64),
-        prop::sample::select(vec![Movement::Discrete, Movement::Fine, Movement::Medium]),
+        prop::sample::select(vec![
+            Movement::Discrete,
+            Movement::Fine,
+            Movement::Medium,
+            Movement::Continuous,
+        ]),
         (
             1u32..100_000,
             1u32..200,

@@ -21,6 +21,8 @@ pub enum PredictMode {
     Fine,
     /// Program control, 10 mm zone.
     Medium,
+    /// Program control kept in step with the mandrel (docs/continuous.md).
+    Continuous,
 }
 
 /// Predict each mode's time and placement error on the simulated cell.
@@ -28,7 +30,7 @@ pub enum PredictMode {
 pub struct PredictArgs {
     /// The job file (TOML).
     pub job: PathBuf,
-    /// Modes to predict (repeatable; default: discrete, fine and medium).
+    /// Modes to predict (repeatable; default: discrete, fine, medium and continuous).
     #[arg(long = "mode", value_enum)]
     pub modes: Vec<PredictMode>,
     /// Mandrel speed for every mode, rev/s (default: the job's).
@@ -75,10 +77,11 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
         .modes
         .iter()
         .map(|m| {
-            Mode::Thesis(match m {
+            Mode::Run(match m {
                 PredictMode::Discrete => RunMode::Discrete,
                 PredictMode::Fine => RunMode::Fine,
                 PredictMode::Medium => RunMode::Medium,
+                PredictMode::Continuous => RunMode::Continuous,
             })
         })
         .collect();

@@ -34,6 +34,8 @@ pub enum ModeArg {
     Fine,
     /// Program control, 10 mm zone.
     Medium,
+    /// Program control kept in step with the mandrel (docs/continuous.md).
+    Continuous,
 }
 
 /// Wind a batch: a job (planned first) or control files already written.
@@ -160,6 +162,7 @@ fn mode_of(m: ModeArg) -> RunMode {
         ModeArg::Discrete => RunMode::Discrete,
         ModeArg::Fine => RunMode::Fine,
         ModeArg::Medium => RunMode::Medium,
+        ModeArg::Continuous => RunMode::Continuous,
     }
 }
 
@@ -311,7 +314,13 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let (loaded, job_cell, reach, name, clearance) = if is_job {
-        let (job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
+        let (mut job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
+        // A mode given on the command line is planned for (its speeds and guards), not only
+        // applied to files planned for another.
+        if let Some(m) = mode {
+            let span = job.cell.movement.span();
+            job.cell.movement = toml::Spanned::new(span, m.movement());
+        }
         let plan = cell::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
         let files = batch::files_of_job(
             &cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
