@@ -125,7 +125,7 @@ fn predict_rows(rows: &[&Row], reading: Reading, tol: Tolerances) -> Vec<Predict
             let paths = cache.entry(key).or_insert_with(|| {
                 let mode = RunMode::from_keyword(&r.mode).unwrap();
                 let opt = Options {
-                    modes: vec![Mode::Thesis(mode)],
+                    modes: vec![Mode::Run(mode)],
                     mandrel_rps: Some(r.mandrel_rps),
                     samples: SAMPLES,
                     tolerances: tol,
