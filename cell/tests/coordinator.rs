@@ -1317,3 +1317,156 @@ fn a_stored_program_runs_in_the_mandrels_time_without_status_reads() {
         }
     }
 }
+
+/// A robot whose status reads are timed on the cell's clock and, once `faulty` is set, report
+/// an error code; and sync lines that note the start edge and, after it, never show "in
+/// position" (a program that hangs).
+struct Watched {
+    inner: Box<dyn cell::device::RobotDevice>,
+    clock: asea_protocol::clock::VirtualClock,
+    reads_s: Arc<std::sync::Mutex<Vec<f64>>>,
+    faulty: Arc<AtomicBool>,
+}
+
+impl cell::device::RobotDevice for Watched {
+    fn state(&mut self) -> cell::device::DeviceResult<cell::device::RobotState> {
+        self.reads_s.lock().unwrap().push(self.clock.now_s());
+        let mut s = self.inner.state()?;
+        if self.faulty.load(Ordering::Relaxed) {
+            s.last_error = 7;
+        }
+        Ok(s)
+    }
+    fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
+        self.inner.position_mm()
+    }
+    fn set_speeds(
+        &mut self,
+        b: asea_protocol::Speed,
+        m: asea_protocol::Speed,
+    ) -> cell::device::DeviceResult<()> {
+        self.inner.set_speeds(b, m)
+    }
+    fn set_operate(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        self.inner.set_operate(on)
+    }
+    fn start_home(&mut self) -> cell::device::DeviceResult<()> {
+        self.inner.start_home()
+    }
+    fn move_immediate(&mut self, p: asea_protocol::Positioning) -> cell::device::DeviceResult<()> {
+        self.inner.move_immediate(p)
+    }
+    fn delete_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.inner.delete_program(p)
+    }
+    fn upload(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.inner.upload(p, i)
+    }
+    fn read_back(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.inner.read_back(p, i)
+    }
+    fn run_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.inner.run_program(p)
+    }
+    fn stop(&mut self) -> cell::device::DeviceResult<()> {
+        self.inner.stop()
+    }
+}
+
+#[derive(Debug)]
+struct Hanging {
+    inner: Box<dyn SyncLines>,
+    clock: asea_protocol::clock::VirtualClock,
+    edge_s: Arc<std::sync::Mutex<Option<f64>>>,
+    faulty: Arc<AtomicBool>,
+}
+
+impl SyncLines for Hanging {
+    fn set_start(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        if on {
+            *self.edge_s.lock().unwrap() = Some(self.clock.now_s());
+            self.faulty.store(true, Ordering::Relaxed);
+        }
+        self.inner.set_start(on)
+    }
+    fn in_position(&mut self) -> cell::device::DeviceResult<bool> {
+        let started = self.edge_s.lock().unwrap().is_some();
+        Ok(self.inner.in_position()? && !started)
+    }
+    fn estop(&mut self) -> cell::device::DeviceResult<bool> {
+        self.inner.estop()
+    }
+}
+
+/// A program is read for errors only once it has overrun its mandrel move by half again plus a
+/// second, then every `PROGRAM_POLL_TICKS` control ticks: with a program that never raises "in
+/// position" and a robot that reports an error code, the first status read after the start edge
+/// comes at 1.5 × the move's closed-form time + 1 s (within one poll period and one exchange),
+/// none before, and the error halts the batch.
+#[test]
+fn a_hung_program_is_read_for_errors_after_its_quiet_time_and_halts() {
+    use cell::coordinator::{
+        CONTROL_TICK, PROGRAM_POLL_TICKS, PROGRAM_QUIET_FACTOR, PROGRAM_QUIET_MARGIN_S,
+    };
+    let l = sbend(Some(RunMode::Medium));
+    let b = checked(&l);
+    let cell = SimCell::new(&SimCellConfig::default());
+    let d = cell.devices(Drive::default());
+    let reads_s = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let edge_s = Arc::new(std::sync::Mutex::new(None));
+    let faulty = Arc::new(AtomicBool::new(false));
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Watched {
+            inner: d.robot,
+            clock: cell.clock().clone(),
+            reads_s: reads_s.clone(),
+            faulty: faulty.clone(),
+        }),
+        mandrel: d.mandrel,
+        sync: Box::new(Hanging {
+            inner: d.sync,
+            clock: cell.clock().clone(),
+            edge_s: edge_s.clone(),
+            faulty,
+        }),
+        time: d.time,
+    };
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    let stopped = c
+        .run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    match &stopped.halt {
+        Halt::Fault { message } => assert!(message.contains("error 7"), "{message}"),
+        other => panic!("{other:?}"),
+    }
+    let edge = edge_s.lock().unwrap().unwrap();
+    let first = reads_s
+        .lock()
+        .unwrap()
+        .iter()
+        .copied()
+        .find(|&t| t > edge)
+        .unwrap();
+    // The path move in closed form (as in the test above).
+    let m = l.items[0].ind.as_ref().unwrap().path_move;
+    let spr = Drive::default().steps_per_mandrel_rev();
+    let n = m.steps.unsigned_abs() as f64;
+    let (a, v0, vm) = (m.accel_rps2 * spr, m.start_stop_rps * spr, m.max_rps * spr);
+    let ramp_steps = (vm * vm - v0 * v0) / (2.0 * a);
+    assert!(2.0 * ramp_steps <= n);
+    let mandrel_s = 2.0 * (vm - v0) / a + (n - 2.0 * ramp_steps) / vm;
+    let quiet_s = PROGRAM_QUIET_FACTOR * mandrel_s + PROGRAM_QUIET_MARGIN_S;
+    let period_s = f64::from(PROGRAM_POLL_TICKS) * CONTROL_TICK.as_secs_f64();
+    let waited = first - edge;
+    assert!(
+        waited >= quiet_s - 0.01 && waited <= quiet_s + period_s + 0.1,
+        "first read {waited:.3} s after the edge; quiet time {quiet_s:.3} s"
+    );
+}
