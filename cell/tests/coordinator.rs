@@ -1319,13 +1319,14 @@ fn a_stored_program_runs_in_the_mandrels_time_without_status_reads() {
 }
 
 /// A robot whose status reads are timed on the cell's clock and, once `faulty` is set, report
-/// an error code; and sync lines that note the start edge and, after it, never show "in
+/// an error code (`as_state`: the error state instead, with no code); and sync lines that note the start edge and, after it, never show "in
 /// position" (a program that hangs).
 struct Watched {
     inner: Box<dyn cell::device::RobotDevice>,
     clock: asea_protocol::clock::VirtualClock,
     reads_s: Arc<std::sync::Mutex<Vec<f64>>>,
     faulty: Arc<AtomicBool>,
+    as_state: bool,
 }
 
 impl cell::device::RobotDevice for Watched {
@@ -1333,7 +1334,11 @@ impl cell::device::RobotDevice for Watched {
         self.reads_s.lock().unwrap().push(self.clock.now_s());
         let mut s = self.inner.state()?;
         if self.faulty.load(Ordering::Relaxed) {
-            s.last_error = 7;
+            if self.as_state {
+                s.state = State::Error;
+            } else {
+                s.last_error = 7;
+            }
         }
         Ok(s)
     }
@@ -1400,11 +1405,17 @@ impl SyncLines for Hanging {
 
 /// A program is read for errors only once it has overrun its mandrel move by half again plus a
 /// second, then every `PROGRAM_POLL_TICKS` control ticks: with a program that never raises "in
-/// position" and a robot that reports an error code, the first status read after the start edge
-/// comes at 1.5 × the move's closed-form time + 1 s (within one poll period and one exchange),
-/// none before, and the error halts the batch.
+/// position" and a robot that reports an error code (or the error state), the first status
+/// read after the start edge comes one poll period after 1.5 × the move's closed-form time +
+/// 1 s (within a tick and one exchange), none before, and the error halts the batch.
 #[test]
 fn a_hung_program_is_read_for_errors_after_its_quiet_time_and_halts() {
+    for as_state in [false, true] {
+        hung_program(as_state);
+    }
+}
+
+fn hung_program(as_state: bool) {
     use cell::coordinator::{
         CONTROL_TICK, PROGRAM_POLL_TICKS, PROGRAM_QUIET_FACTOR, PROGRAM_QUIET_MARGIN_S,
     };
@@ -1421,6 +1432,7 @@ fn a_hung_program_is_read_for_errors_after_its_quiet_time_and_halts() {
             clock: cell.clock().clone(),
             reads_s: reads_s.clone(),
             faulty: faulty.clone(),
+            as_state,
         }),
         mandrel: d.mandrel,
         sync: Box::new(Hanging {
@@ -1443,7 +1455,10 @@ fn a_hung_program_is_read_for_errors_after_its_quiet_time_and_halts() {
         .unwrap_err();
     drop(c);
     match &stopped.halt {
-        Halt::Fault { message } => assert!(message.contains("error 7"), "{message}"),
+        Halt::Fault { message } => {
+            let want = if as_state { "error 0" } else { "error 7" };
+            assert!(message.contains(want), "{message}")
+        }
         other => panic!("{other:?}"),
     }
     let edge = edge_s.lock().unwrap().unwrap();
@@ -1466,7 +1481,10 @@ fn a_hung_program_is_read_for_errors_after_its_quiet_time_and_halts() {
     let period_s = f64::from(PROGRAM_POLL_TICKS) * CONTROL_TICK.as_secs_f64();
     let waited = first - edge;
     assert!(
-        waited >= quiet_s - 0.01 && waited <= quiet_s + period_s + 0.1,
+        // The count starts at the first tick past the quiet time: the read comes at the
+        // period's last tick, 49 to 50 ticks after the quiet time ends.
+        waited >= quiet_s + period_s - CONTROL_TICK.as_secs_f64() - 0.01
+            && waited <= quiet_s + period_s + 0.1,
         "first read {waited:.3} s after the edge; quiet time {quiet_s:.3} s"
     );
 }
