@@ -1465,3 +1465,40 @@ fn an_armed_mandrel_move_that_never_started_is_cancelled_on_resume() {
     resume(&cell, &b, &jp);
     check_each_once(&cell, &b);
 }
+
+/// The run's first event says whether it resumes a journal: not for a fresh batch, and so for
+/// the run that resumes it.
+#[test]
+fn the_started_event_says_whether_the_run_resumes() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let resumed = |events: &[Event]| match events.first() {
+        Some(Event::Started { resumed, .. }) => *resumed,
+        e => panic!("the first event: {e:?}"),
+    };
+    let mut events = Vec::new();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            flag.store(true, Ordering::Relaxed);
+        }
+        events.push(e);
+    };
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        stop,
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    assert!(!resumed(&events));
+    let (journal, records) = Journal::resume(&jp).unwrap();
+    let from = resume_point(&b, &records).unwrap();
+    let events = wind(&cell, &b, journal, &from, false, None).unwrap();
+    assert!(resumed(&events));
+}
