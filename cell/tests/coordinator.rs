@@ -1502,3 +1502,65 @@ fn the_started_event_says_whether_the_run_resumes() {
     let events = wind(&cell, &b, journal, &from, false, None).unwrap();
     assert!(resumed(&events));
 }
+
+/// Killed just after the first program's start edge; the indexer is then stopped at its own
+/// controls (its move cut short) while the robot runs its program to the end. On resume the
+/// robot is at the path's last point but the mandrel is short of the path's end: the path is
+/// not done, and the rest of the mandrel's turn goes out with a resume program (a path is done
+/// only when both the robot and the mandrel are at its end).
+#[test]
+fn a_program_the_robot_finished_but_the_mandrel_did_not_is_resumed() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let life = Life::new();
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Mortal::new(d.robot, life.clone())),
+        mandrel: Box::new(Mortal::new(d.mandrel, life.clone())),
+        sync: Box::new(MortalStart {
+            inner: d.sync,
+            life: life.clone(),
+        }),
+        time: d.time,
+    };
+    let l2 = life.clone();
+    let mut once = false;
+    // After the first program's event: RUN_PROGRAM, the armed move and the start edge go out,
+    // then the PC is gone.
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Program { done: false, .. }) && !once {
+            once = true;
+            l2.die_after(3);
+        }
+    };
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    cell.with(|p| p.card.machine.stop()).unwrap();
+    cell.timebase_sleep(Duration::from_secs(60));
+    let (robot, _, _) = completed(&cell);
+    let last = b.items[0].rob.instructions.last().unwrap().position_mm;
+    assert!(
+        near(*robot.last().unwrap(), last),
+        "the robot finished its program"
+    );
+    resume(&cell, &b, &jp);
+    let recs = journal::read(&jp).unwrap();
+    let resumed = recs.iter().rposition(|r| r["rec"] == "resume").unwrap();
+    assert!(
+        recs[resumed..]
+            .iter()
+            .any(|r| r["rec"] == "resume_program" && r["item"] == 0),
+        "{:?}",
+        &recs[resumed..]
+    );
+    assert_eq!(recs.last().unwrap()["rec"], "done");
+}
