@@ -58,8 +58,10 @@ impl Default for RetryPolicy {
     }
 }
 
-/// Longest wait of one read: a cancelled exchange ends within this (plus one byte write).
-pub const POLL_PERIOD: Duration = Duration::from_millis(50);
+/// Longest wait of one read: a cancelled exchange ends within this (plus one byte write). It
+/// bounds how late a stop request is seen while the host waits out a gap or a silent robot, so
+/// it is small beside the urgent gap ([`crate::session::Timers::urgent_gap`]).
+pub const POLL_PERIOD: Duration = Duration::from_millis(1);
 
 /// Status replies in a row that must agree (on every field but state and instruction, which
 /// move while the arm runs) before the client acts on them: one corrupted reply that a one-byte
@@ -132,6 +134,10 @@ pub struct Client<L, C = RealClock> {
     uncancellable: bool,
     /// While true a session starts after the urgent gap (STOP, [`Host::start_urgent`]).
     urgent: bool,
+    /// A cancelled session of which the robot has seen no telegram was left open: STOP takes it
+    /// over
+    /// ([`Host::take_over`]), any other session ends it with EOT first.
+    held: bool,
     /// The robot's error sequence number as last accounted for: errors up to it are reported.
     seen_error_seq: Option<u8>,
     /// Errors the robot raised that this client has seen (reported or acknowledged), counted by
@@ -174,6 +180,7 @@ impl<L: Link, C: Clock> Client<L, C> {
             cancel: Cancel::new(),
             uncancellable: false,
             urgent: false,
+            held: false,
             seen_error_seq: None,
             errors_seen: 0,
             last_executed: None,
@@ -213,15 +220,44 @@ impl<L: Link, C: Clock> Client<L, C> {
 
     fn session(&mut self, cmd: &Command) -> Result<Option<Frame>> {
         let bytes = cmd.encode(&self.cfg.frame)?;
-        self.link.discard_input()?;
-        if self.urgent {
-            self.host
-                .start_urgent(bytes, cmd.expects_reply(), self.clock.now());
+        let held = std::mem::take(&mut self.held);
+        if held
+            && self.urgent
+            && self
+                .host
+                .take_over(bytes.clone(), cmd.expects_reply(), self.clock.now())
+        {
+            // The cancelled session's robot has seen no telegram of it: STOP goes in that
+            // session (the ACK to its ENQ may be waiting in the input: nothing is discarded).
         } else {
-            self.host
-                .start(bytes, cmd.expects_reply(), self.clock.now());
+            if held {
+                // A session left open for STOP and not taken over: its EOT ends it.
+                self.host.abort(self.clock.now());
+                self.write_out()?;
+            }
+            self.link.discard_input()?;
+            if self.urgent {
+                self.host
+                    .start_urgent(bytes, cmd.expects_reply(), self.clock.now());
+            } else {
+                self.host
+                    .start(bytes, cmd.expects_reply(), self.clock.now());
+            }
         }
         loop {
+            // Before anything more goes out: a cancelled session is held for STOP while the
+            // robot has seen no telegram of it, else abandoned.
+            if !self.uncancellable && self.cancel.is_cancelled() {
+                if self.host.can_take_over() {
+                    // Left open: a STOP that follows takes this session over
+                    // ([`Client::stop_at_once`]); any other session ends it first.
+                    self.held = true;
+                } else {
+                    self.host.abort(self.clock.now());
+                    self.write_out()?;
+                }
+                return Err(Error::Cancelled);
+            }
             let out = self.host.take_output();
             if !out.is_empty() {
                 self.link.write_all(&out)?;
@@ -237,13 +273,7 @@ impl<L: Link, C: Clock> Client<L, C> {
                 return outcome.map_err(Error::from);
             }
             if !self.uncancellable && self.cancel.is_cancelled() {
-                self.host.abort(self.clock.now());
-                let out = self.host.take_output();
-                if !out.is_empty() {
-                    self.link.write_all(&out)?;
-                    self.host.on_sent(self.clock.now());
-                }
-                return Err(Error::Cancelled);
+                continue;
             }
             let now = self.clock.now();
             let wait = match self.host.deadline() {
@@ -264,6 +294,16 @@ impl<L: Link, C: Clock> Client<L, C> {
             }
             self.host.on_time(now);
         }
+    }
+
+    /// Writes what the host has to send after an abort.
+    fn write_out(&mut self) -> Result<()> {
+        let out = self.host.take_output();
+        if !out.is_empty() {
+            self.link.write_all(&out)?;
+            self.host.on_sent(self.clock.now());
+        }
+        Ok(())
     }
 
     /// Sends `cmd` in one session, once. `Ok` means the robot acknowledged a telegram: on a CRC-16

@@ -41,9 +41,14 @@ pub const T_REPLY: Duration = Duration::from_millis(3000);
 pub const T_IDLE: Duration = Duration::from_millis(10_000);
 /// Minimum gap between the end of one session and the next ENQ.
 pub const T_GAP: Duration = Duration::from_millis(20);
-/// The share of `T_GAP` an urgent session (STOP, [`Host::start_urgent`]) keeps after the host's
-/// last byte: above the robot's `T_GAP`/2 with a margin.
-pub const URGENT_GAP_PER_GAP: f64 = 0.75;
+/// How much more silence than the robot's `T_GAP`/2 (docs/protocol.md §6 rule 7) an urgent
+/// session (STOP, [`Host::start_urgent`]) keeps after the host's last byte: it covers the time
+/// between a byte's end on the line, when the host counts its silence from, and the moment the
+/// robot notes the byte (its receive latency: a receive interrupt per character takes well under
+/// a millisecond; a FIFO UART that reports a lone byte after a receive timeout of 4 character
+/// times needs 4.2 ms at 9600 baud, and a larger margin). A robot that noted the byte later and
+/// took the ENQ for data answers the urgent ENQ's repeat one urgent gap later.
+pub const URGENT_MARGIN: Duration = Duration::from_millis(2);
 /// After a bad frame the receiver waits for this much line silence before its NAK, so that the
 /// rest of the bad frame is not mistaken for the retransmission.
 pub const T_FLUSH: Duration = Duration::from_millis(20);
@@ -77,6 +82,8 @@ pub struct Timers {
     pub t_gap: Duration,
     /// [`T_FLUSH`].
     pub t_flush: Duration,
+    /// [`URGENT_MARGIN`].
+    pub urgent_margin: Duration,
     /// If set, the host takes an ACK to its telegram only within this time after the telegram
     /// has left the line; a later "ACK" is treated as NAK (retransmit, which the robot
     /// re-acknowledges without executing again). A robot answers a good telegram at once and a
@@ -99,8 +106,18 @@ impl Default for Timers {
             t_idle: T_IDLE,
             t_gap: T_GAP,
             t_flush: T_FLUSH,
+            urgent_margin: URGENT_MARGIN,
             t_ack_window: None,
         }
+    }
+}
+
+impl Timers {
+    /// The silence an urgent session (STOP) keeps after the host's last byte before its ENQ:
+    /// the `T_GAP`/2 the robot needs (docs/protocol.md §6 rule 7) and
+    /// [`Timers::urgent_margin`].
+    pub fn urgent_gap(&self) -> Duration {
+        self.t_gap / 2 + self.urgent_margin
     }
 }
 
@@ -227,6 +244,8 @@ pub struct Host {
     outcome: Option<Outcome>,
     ready_at: Duration,
     line_free: Duration,
+    /// The session was started by [`Host::start_urgent`].
+    urgent: bool,
     stats: Stats,
 }
 
@@ -249,6 +268,7 @@ impl Host {
             outcome: None,
             ready_at: Duration::ZERO,
             line_free: Duration::ZERO,
+            urgent: false,
             stats: Stats::default(),
         }
     }
@@ -266,6 +286,11 @@ impl Host {
     /// Starts a session for the framed telegram `frame`; `expects_reply` waits for a reverse
     /// session after EOT. The ENQ goes out at once, or when `T_GAP` after the last session ends.
     pub fn start(&mut self, frame: Vec<u8>, expects_reply: bool, now: Duration) {
+        self.urgent = false;
+        self.begin(frame, expects_reply, now);
+    }
+
+    fn begin(&mut self, frame: Vec<u8>, expects_reply: bool, now: Duration) {
         self.frame = frame;
         self.expects_reply = expects_reply;
         self.enq_attempts = 0;
@@ -284,13 +309,17 @@ impl Host {
     }
 
     /// Starts a session like [`Host::start`] for a command that cannot wait (STOP): its ENQ
-    /// keeps [`URGENT_GAP_PER_GAP`] of `T_GAP` of silence after the host's last byte, which is
+    /// keeps the urgent gap ([`Timers::urgent_gap`]) of silence after the host's last byte, which is
     /// more than the `T_GAP`/2 the robot needs before it takes an ENQ (docs/protocol.md §6,
-    /// rule 7), instead of the whole `T_GAP`.
+    /// rule 7), instead of the whole `T_GAP`. If that ENQ is not answered within another
+    /// urgent gap (a robot that noted the host's last byte late and took the ENQ for data),
+    /// the ENQ is repeated then, once, rather than after `T_ENQ`; the repeat counts toward
+    /// `N_ENQ`, and later ones wait `T_ENQ` as usual.
     pub fn start_urgent(&mut self, frame: Vec<u8>, expects_reply: bool, now: Duration) {
-        let urgent = self.line_free + self.timers.t_gap.mul_f64(URGENT_GAP_PER_GAP);
+        let urgent = self.line_free + self.timers.urgent_gap();
         self.ready_at = self.ready_at.min(urgent);
-        self.start(frame, expects_reply, now);
+        self.urgent = true;
+        self.begin(frame, expects_reply, now);
     }
 
     /// Bytes to send now.
@@ -298,20 +327,79 @@ impl Host {
         std::mem::take(&mut self.out)
     }
 
-    /// Abandons the session under way at `now` (a cancelled exchange): an EOT ends it on the line
-    /// (ISO 1745 interruption), so that the robot returns to neutral and the next session (STOP)
-    /// finds the link free after `T_GAP`.
+    /// Abandons the session under way at `now` (a cancelled exchange); what is still to be sent
+    /// is dropped, but for the EOT that ends the host's session. While the host's own session is
+    /// open on the line (its ENQ out, its EOT not), an EOT ends it (ISO 1745: the master's EOT at
+    /// any time but the end of a message is an abort), so that the robot returns to neutral; the
+    /// gap then runs from that EOT. Otherwise nothing more is sent: a session still in its gap,
+    /// or whose first ENQ has not left, has sent nothing; one that has sent its EOT (watching
+    /// for a late NAK, or in the robot's reply session) is over on the host's side, the robot's
+    /// reply session yields to the host's next ENQ (docs/protocol.md §6 rule 8), and the gap
+    /// runs from the host's last byte.
     pub fn abort(&mut self, now: Duration) {
+        let end_pending = self.out == [EOT];
+        let nothing_on_line = self.enq_unsent();
         self.out.clear();
-        // A session still waiting out the gap before its ENQ has sent nothing: the line is as
-        // the last session left it, and its gap runs on.
-        if !matches!(self.state, HostState::Idle | HostState::Gap) {
-            self.out.push(EOT);
-            self.ready_at = now + self.timers.t_gap;
+        match self.state {
+            HostState::WaitEnqAck if nothing_on_line => {}
+            HostState::WaitEnqAck | HostState::Backoff | HostState::WaitFrameAck => {
+                self.out.push(EOT);
+                self.ready_at = now + self.timers.t_gap;
+            }
+            HostState::Idle
+            | HostState::Gap
+            | HostState::Confirm
+            | HostState::WaitReplyEnq
+            | HostState::ReceiveReply
+            | HostState::WaitReplyEot => {
+                if end_pending {
+                    self.out.push(EOT);
+                }
+                self.ready_at = self.ready_at.max(self.line_free + self.timers.t_gap);
+            }
         }
         self.state = HostState::Idle;
         self.deadline = None;
         self.outcome = None;
+    }
+
+    /// The session's first ENQ is queued and has not been taken for the line.
+    fn enq_unsent(&self) -> bool {
+        self.state == HostState::WaitEnqAck && self.enq_attempts == 1 && self.out == [ENQ]
+    }
+
+    /// The first transmission of the telegram is queued and has not been taken for the line.
+    fn frame_unsent(&self) -> bool {
+        self.state == HostState::WaitFrameAck && self.tx == 1 && self.out == self.frame
+    }
+
+    /// True while the robot has seen no telegram of this session: its ENQ awaits an answer, or
+    /// the robot has acknowledged it and the telegram has not been taken for the line. Another
+    /// telegram can then take the session's place ([`Host::take_over`]).
+    pub fn can_take_over(&self) -> bool {
+        self.state == HostState::WaitEnqAck || self.frame_unsent()
+    }
+
+    /// Puts `frame` in place of the telegram of a session the robot has seen no telegram of
+    /// ([`Host::can_take_over`]): it goes out once the robot acknowledges the ENQ (at once if it
+    /// has), and it is the session's one telegram (the exactly-once rule, spec §5.5, holds).
+    /// Returns false, changing nothing, in any other state.
+    pub fn take_over(&mut self, frame: Vec<u8>, expects_reply: bool, now: Duration) -> bool {
+        if !self.can_take_over() {
+            return false;
+        }
+        let acknowledged = self.frame_unsent();
+        self.frame = frame;
+        self.expects_reply = expects_reply;
+        self.tx = 0;
+        self.reply = None;
+        self.outcome = None;
+        if acknowledged {
+            self.out.clear();
+            self.stats.frames_sent = self.stats.frames_sent.saturating_sub(1);
+            self.send_frame(now);
+        }
+        true
     }
 
     /// Tells the host that what [`Host::take_output`] returned has left the line at `now`, so
@@ -347,7 +435,12 @@ impl Host {
         self.stats.enq_sent += 1;
         self.out.push(ENQ);
         self.state = HostState::WaitEnqAck;
-        self.deadline = Some(now + self.timers.t_enq);
+        let wait = if self.urgent && self.enq_attempts == 1 {
+            self.timers.urgent_gap()
+        } else {
+            self.timers.t_enq
+        };
+        self.deadline = Some(now + wait);
     }
 
     fn send_frame(&mut self, now: Duration) {
@@ -1163,7 +1256,7 @@ mod tests {
     }
 
     #[test]
-    fn an_urgent_session_keeps_three_quarters_of_the_gap_and_an_abort_in_the_gap_sends_nothing() {
+    fn an_urgent_session_keeps_half_the_gap_and_its_margin_and_an_abort_in_the_gap_sends_nothing() {
         let mut h = Host::new(FrameConfig::default(), Timers::default());
         // The host's last byte left the line at 100 ms: the next ENQ waits until 120 ms.
         h.on_sent(ms(100));
@@ -1173,15 +1266,145 @@ mod tests {
         // Abandoned in its gap: nothing was on the line, so no EOT, and the gap is not restarted.
         h.abort(ms(106));
         assert!(h.take_output().is_empty());
-        // STOP: its ENQ after 15 ms of silence (the robot needs 10 ms), not 20 ms.
+        // STOP: its ENQ after 12 ms of silence (the robot needs 10 ms, the margin is 2 ms), not
+        // 20 ms.
         h.start_urgent(RUN3.to_vec(), false, ms(106));
-        assert_eq!(h.deadline(), Some(ms(115)));
-        h.on_time(ms(115));
+        assert_eq!(h.deadline(), Some(ms(112)));
+        h.on_time(ms(112));
         assert_eq!(h.take_output(), vec![ENQ]);
         // A session abandoned on the line ends with EOT and a whole gap.
         h.abort(ms(116));
         assert_eq!(h.take_output(), vec![EOT]);
         h.start(RUN3.to_vec(), false, ms(117));
         assert_eq!(h.deadline(), Some(ms(136)));
+    }
+
+    /// ENQUIRE status (spec §5.3: 02 06 01 00 03 0A).
+    const ENQUIRE: [u8; 6] = [0x02, 0x06, 0x01, 0x00, 0x03, 0x0A];
+    /// STOP (docs/protocol.md §3: 02 0C 00 03 0F).
+    const STOP: [u8; 5] = [0x02, 0x0C, 0x00, 0x03, 0x0F];
+
+    #[test]
+    fn an_abort_sends_eot_only_while_the_hosts_own_session_is_open() {
+        // The ENQ out, unanswered: EOT, and the gap from it.
+        let mut h = host();
+        h.start(ENQUIRE.to_vec(), true, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        h.on_sent(ms(1));
+        h.abort(ms(2));
+        assert_eq!(h.take_output(), [EOT]);
+        h.on_sent(ms(3));
+        h.start(ENQUIRE.to_vec(), true, ms(3));
+        assert_eq!(h.deadline(), Some(ms(3) + T_GAP));
+        // The telegram out, unacknowledged: EOT.
+        let mut h = host();
+        h.start(ENQUIRE.to_vec(), true, ms(0));
+        h.take_output();
+        h.on_bytes(&[ACK], ms(2));
+        assert_eq!(h.take_output(), ENQUIRE);
+        h.on_sent(ms(8));
+        h.abort(ms(9));
+        assert_eq!(h.take_output(), [EOT]);
+        // The first ENQ queued and not yet taken: nothing reached the line, nothing is sent.
+        let mut h = host();
+        h.start(ENQUIRE.to_vec(), true, ms(0));
+        h.abort(ms(0));
+        assert!(h.take_output().is_empty());
+        // In the robot's reply session (the host's EOT out): nothing more is sent, and the gap
+        // runs from the host's last byte, its ACK to the robot's ENQ.
+        let mut h = host();
+        h.start(ENQUIRE.to_vec(), true, ms(0));
+        h.take_output();
+        h.on_bytes(&[ACK], ms(2));
+        h.take_output();
+        h.on_bytes(&[ACK], ms(9));
+        assert_eq!(h.take_output(), [EOT]);
+        h.on_sent(ms(10));
+        h.on_bytes(&[ENQ], ms(12));
+        assert_eq!(h.take_output(), [ACK]);
+        h.on_sent(ms(13));
+        h.abort(ms(20));
+        assert!(h.take_output().is_empty());
+        h.start(ENQUIRE.to_vec(), true, ms(20));
+        assert_eq!(h.deadline(), Some(ms(13) + T_GAP));
+        // The session's EOT queued when the request came: it still goes out.
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.take_output();
+        h.on_bytes(&[ACK], ms(2));
+        h.take_output();
+        h.on_bytes(&[ACK], ms(9));
+        h.abort(ms(9));
+        assert_eq!(h.take_output(), [EOT]);
+    }
+
+    #[test]
+    fn stop_takes_over_a_session_whose_robot_has_seen_no_telegram() {
+        // The ENQ awaits its answer: STOP goes out when the ACK comes, in that session.
+        let mut h = host();
+        h.start(ENQUIRE.to_vec(), true, ms(0));
+        h.take_output();
+        assert!(h.can_take_over());
+        assert!(h.take_over(STOP.to_vec(), false, ms(1)));
+        assert!(h.take_output().is_empty());
+        h.on_bytes(&[ACK], ms(2));
+        assert_eq!(h.take_output(), STOP);
+        h.on_bytes(&[ACK], ms(8));
+        assert_eq!(h.take_output(), [EOT]);
+        h.on_time(ms(8) + T_GAP);
+        assert_eq!(h.take_outcome(), Some(Ok(None)));
+        assert_eq!(h.stats().frames_sent, 1);
+        // The ACK is in and the ENQUIRE queued, not yet taken: STOP goes in its place.
+        let mut h = host();
+        h.start(ENQUIRE.to_vec(), true, ms(0));
+        h.take_output();
+        h.on_bytes(&[ACK], ms(2));
+        assert!(h.can_take_over());
+        assert!(h.take_over(STOP.to_vec(), false, ms(2)));
+        assert_eq!(h.take_output(), STOP);
+        assert_eq!(h.stats().frames_sent, 1);
+        // The ENQUIRE has left: the robot may have it, the session is not taken over.
+        assert!(!h.can_take_over());
+        assert!(!h.take_over(ENQUIRE.to_vec(), true, ms(3)));
+        assert!(h.take_output().is_empty());
+        // Nor in the gap, where nothing is on the line.
+        let mut h = host();
+        h.on_sent(ms(0));
+        h.start(ENQUIRE.to_vec(), true, ms(1));
+        assert!(!h.can_take_over());
+        assert!(!h.take_over(STOP.to_vec(), false, ms(1)));
+    }
+
+    #[test]
+    fn an_urgent_enq_unanswered_is_repeated_after_one_urgent_gap_once() {
+        let g = Timers::default().urgent_gap();
+        let mut h = host();
+        h.on_sent(ms(100));
+        h.start_urgent(STOP.to_vec(), false, ms(100));
+        h.on_time(ms(100) + g);
+        assert_eq!(h.take_output(), [ENQ]);
+        // No answer: the ENQ again one urgent gap later, then T_ENQ apart as usual.
+        assert_eq!(h.deadline(), Some(ms(100) + g * 2));
+        h.on_time(ms(100) + g * 2);
+        assert_eq!(h.take_output(), [ENQ]);
+        assert_eq!(h.deadline(), Some(ms(100) + g * 2 + T_ENQ));
+        // A session not urgent waits T_ENQ for its first answer.
+        let mut h = host();
+        h.start(STOP.to_vec(), false, ms(0));
+        assert_eq!(h.deadline(), Some(T_ENQ));
+        // An urgent session's repeat counts toward N_ENQ: silence fails after N_ENQ ENQs.
+        let mut h = host();
+        h.start_urgent(STOP.to_vec(), false, ms(0));
+        let mut enqs = 0;
+        loop {
+            enqs += h.take_output().iter().filter(|b| **b == ENQ).count();
+            if let Some(o) = h.take_outcome() {
+                assert_eq!(o, Err(LinkError::NoResponse { attempts: N_ENQ }));
+                break;
+            }
+            let t = h.deadline().expect("a deadline");
+            h.on_time(t);
+        }
+        assert_eq!(enqs, N_ENQ as usize);
     }
 }

@@ -1226,7 +1226,12 @@ fn an_upload_is_cancelled_from_another_thread_and_stop_still_goes_through() {
     let (mut c, r) = upload.join().unwrap();
     let took = t.elapsed();
     assert!(matches!(r, Err(Error::Cancelled)), "{r:?}");
-    assert!(took <= 2 * POLL_PERIOD, "cancel took {took:?}");
+    // No read waits longer than the poll period; the rest is the threads' scheduling (the
+    // join included), allowed 20 ms on a loaded machine.
+    assert!(
+        took <= POLL_PERIOD + Duration::from_millis(20),
+        "cancel took {took:?}"
+    );
     let stored = robot.lock().unwrap().machine.program_len(1);
     assert!(stored > 0 && stored < 470, "{stored} stored");
     let s = c.stop().unwrap();

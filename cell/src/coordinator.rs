@@ -836,6 +836,7 @@ impl<'a> Coordinator<'a> {
         self.check()?;
         // Attach: the indexer without zeroing, then zero it once for a fresh batch.
         self.dev.sync.set_start(false)?;
+        self.cancel_armed_move()?;
         let counter = self.dev.mandrel.attach()?;
         if fresh {
             self.dev.mandrel.zero()?;
@@ -959,6 +960,22 @@ impl<'a> Coordinator<'a> {
             segments_done: 0,
             stop_errors: self.stop_devices(),
         })
+    }
+
+    /// Cancels a mandrel move armed on the start line that never saw its start edge (the PC
+    /// stopped between arming the indexer and the edge, and nobody cancelled it since): it holds
+    /// the indexer's command buffer, so that nothing buffered after it (the attach's position
+    /// request) is answered. A move still turning (its step count moves within 100 ms) is left
+    /// to finish.
+    fn cancel_armed_move(&mut self) -> Result<(), Step> {
+        if self.dev.mandrel.busy()?.0 {
+            let before = self.dev.mandrel.move_steps()?;
+            self.dev.time.sleep(Duration::from_millis(100));
+            if self.dev.mandrel.move_steps()? == before {
+                self.dev.mandrel.stop()?;
+            }
+        }
+        Ok(())
     }
 
     /// Operate mode and homed (homing again if the robot lost it).
@@ -1217,16 +1234,9 @@ impl<'a> Coordinator<'a> {
             let end = sync + prep.cumulative_steps[n];
             let s = self.dev.robot.state()?;
             let here = self.dev.robot.position_mm()?;
-            // A move still turning (the devices ran on after `kill -9`) finishes; an armed
-            // move that never saw its start edge is cancelled.
-            if self.dev.mandrel.busy()?.0 {
-                let before = self.dev.mandrel.move_steps()?;
-                self.dev.time.sleep(Duration::from_millis(100));
-                if self.dev.mandrel.move_steps()? == before {
-                    self.dev.mandrel.stop()?;
-                }
-                self.wait("mandrel move", MOVE_TIMEOUT_S, |d| Ok(!d.mandrel.busy()?.0))?;
-            }
+            // A move still turning (the devices ran on after `kill -9`) finishes (an armed
+            // move that never saw its start edge was cancelled before the attach).
+            self.wait("mandrel move", MOVE_TIMEOUT_S, |d| Ok(!d.mandrel.busy()?.0))?;
             let counter = self.dev.mandrel.counter_steps()?;
             if distance_mm(here, last) <= POSITION_TOLERANCE_MM && counter == end {
                 return Ok(());
@@ -1315,6 +1325,17 @@ impl<'a> Coordinator<'a> {
             }
             d.sync.in_position()
         })?;
+        // The program's end: one status read (the arm is at rest now) for an error shown
+        // while it ran.
+        let s = self.dev.robot.state()?;
+        if s.state == State::Error || s.last_error != 0 {
+            return Err(Step::Halt(Halt::Fault {
+                message: format!(
+                    "robot: error {} at instruction {} of program {program}",
+                    s.last_error, s.instruction
+                ),
+            }));
+        }
         self.dev.sync.set_start(false)?;
         if armed {
             self.mandrel_finish(end)?;

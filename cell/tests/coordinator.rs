@@ -397,7 +397,7 @@ fn fine_and_medium_batches_run_with_the_handshake_and_resume_after_a_stop_mid_pr
         let jp = dir.path().join("SBEND.journal");
         // Whole batch.
         let cell = SimCell::new(&SimCellConfig::default());
-        wind(
+        let events = wind(
             &cell,
             &b,
             Journal::create(&jp).unwrap(),
@@ -407,6 +407,19 @@ fn fine_and_medium_batches_run_with_the_handshake_and_resume_after_a_stop_mid_pr
         )
         .unwrap();
         check_each_once(&cell, &b);
+        // One program event as each path starts and one as it ends, the paths numbered from 1.
+        let items = |done: bool| -> Vec<usize> {
+            events
+                .iter()
+                .filter_map(|e| match e {
+                    Event::Program { item, done: d, .. } if *d == done => Some(*item),
+                    _ => None,
+                })
+                .collect()
+        };
+        let paths: Vec<usize> = (1..=b.items.len()).collect();
+        assert_eq!(items(false), paths, "{mode:?}: started");
+        assert_eq!(items(true), paths, "{mode:?}: done");
         let t = cell.clock().now_s();
         assert!(t < 120.0, "{mode:?}: {t} s of cell time");
         // Stopped 8 s into the first program, then resumed with the remaining instructions.
@@ -461,7 +474,7 @@ impl Sleep for SimCell {
 struct Life {
     calls: Arc<std::sync::atomic::AtomicI64>,
     deadline_s: Arc<std::sync::Mutex<f64>>,
-    clock: asea_protocol::clock::VirtualClock,
+    clock: Option<asea_protocol::clock::VirtualClock>,
 }
 
 /// When the coordinator process dies.
@@ -474,17 +487,31 @@ enum Death {
 }
 
 impl Life {
-    fn new(clock: asea_protocol::clock::VirtualClock) -> Self {
+    /// A life counted in calls only.
+    fn new() -> Self {
         Life {
             calls: Arc::new(std::sync::atomic::AtomicI64::new(i64::MAX)),
             deadline_s: Arc::new(std::sync::Mutex::new(f64::INFINITY)),
-            clock,
+            clock: None,
         }
+    }
+    /// A life that can also end at a time of `clock`.
+    fn with_clock(clock: asea_protocol::clock::VirtualClock) -> Self {
+        Life {
+            clock: Some(clock),
+            ..Life::new()
+        }
+    }
+    fn die_after(&self, calls: i64) {
+        self.die(Death::Calls(calls));
     }
     fn die(&self, death: Death) {
         match death {
             Death::Calls(n) => self.calls.store(n, Ordering::Relaxed),
-            Death::After(s) => *self.deadline_s.lock().unwrap() = self.clock.now_s() + s,
+            Death::After(s) => {
+                let now = self.clock.as_ref().expect("a life with a clock").now_s();
+                *self.deadline_s.lock().unwrap() = now + s;
+            }
         }
     }
     fn gone() -> cell::device::DeviceError {
@@ -492,18 +519,21 @@ impl Life {
             what: "the coordinator process is gone".into(),
         }
     }
-    /// A robot or indexer call: counts.
+    fn past_deadline(&self) -> bool {
+        self.clock
+            .as_ref()
+            .is_some_and(|c| c.now_s() >= *self.deadline_s.lock().unwrap())
+    }
+    /// A robot or indexer call: counts (the last call allowed brings the count to 0).
     fn alive(&self) -> Result<(), cell::device::DeviceError> {
-        if self.calls.fetch_sub(1, Ordering::Relaxed) <= 0 {
+        if self.calls.fetch_sub(1, Ordering::Relaxed) <= 0 || self.past_deadline() {
             return Err(Self::gone());
         }
-        self.still()
+        Ok(())
     }
-    /// A sync-line call: does not count, but a dead process makes none.
+    /// A sync-line call: does not count, but a dead process (no call left) makes none.
     fn still(&self) -> Result<(), cell::device::DeviceError> {
-        if self.calls.load(Ordering::Relaxed) <= 0
-            || self.clock.now_s() >= *self.deadline_s.lock().unwrap()
-        {
+        if self.calls.load(Ordering::Relaxed) <= 0 || self.past_deadline() {
             return Err(Self::gone());
         }
         Ok(())
@@ -532,22 +562,63 @@ impl std::fmt::Debug for Mortal<Box<dyn SyncLines>> {
 }
 
 /// Also a robot whose position reads `misread_mm` off in x (a robot that ends its moves off
-/// target, as far as the coordinator can tell).
+/// target, as far as the coordinator can tell), and whose status shows error `latch` (0: none),
+/// each from the moment `onset` says.
 struct Mortal<T> {
     inner: T,
     life: Life,
     misread_mm: f64,
+    latch: u8,
+    onset: Onset,
+}
+
+/// When a [`Mortal`] robot starts to misread its position or show its error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Onset {
+    /// From the start.
+    Start,
+    /// From its first immediate move.
+    Move,
+    /// From its first program run.
+    Program,
+    /// Not yet (set when the event comes).
+    Now,
+}
+
+impl<T> Mortal<T> {
+    fn new(inner: T, life: Life) -> Self {
+        Mortal {
+            inner,
+            life,
+            misread_mm: 0.0,
+            latch: 0,
+            onset: Onset::Start,
+        }
+    }
+    fn on(&self) -> bool {
+        matches!(self.onset, Onset::Start | Onset::Now)
+    }
+    fn event(&mut self, what: Onset) {
+        if self.onset == what {
+            self.onset = Onset::Now;
+        }
+    }
 }
 
 impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
     fn state(&mut self) -> cell::device::DeviceResult<cell::device::RobotState> {
         self.life.alive()?;
-        self.inner.state()
+        let mut s = self.inner.state()?;
+        if self.on() && self.latch != 0 {
+            s.last_error = self.latch;
+        }
+        Ok(s)
     }
     fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
         self.life.alive()?;
         let [x, y, z] = self.inner.position_mm()?;
-        Ok([x + self.misread_mm, y, z])
+        let off = if self.on() { self.misread_mm } else { 0.0 };
+        Ok([x + off, y, z])
     }
     fn set_speeds(
         &mut self,
@@ -567,6 +638,7 @@ impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
     }
     fn move_immediate(&mut self, p: asea_protocol::Positioning) -> cell::device::DeviceResult<()> {
         self.life.alive()?;
+        self.event(Onset::Move);
         self.inner.move_immediate(p)
     }
     fn delete_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
@@ -583,6 +655,7 @@ impl cell::device::RobotDevice for Mortal<Box<dyn cell::device::RobotDevice>> {
     }
     fn run_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
         self.life.alive()?;
+        self.event(Onset::Program);
         self.inner.run_program(p)
     }
     fn stop(&mut self) -> cell::device::DeviceResult<()> {
@@ -625,24 +698,12 @@ impl MandrelDevice for Mortal<Box<dyn MandrelDevice>> {
 /// Winds until the PC "dies" (`death`) after the `at`-th segment or program event; nothing
 /// stops the devices.
 fn wind_until_killed(cell: &SimCell, b: &Batch, jp: &Path, at: usize, death: Death) {
-    let life = Life::new(cell.clock().clone());
+    let life = Life::with_clock(cell.clock().clone());
     let d = cell.devices(Drive::default());
     let dev = cell::coordinator::Devices {
-        robot: Box::new(Mortal {
-            inner: d.robot,
-            life: life.clone(),
-            misread_mm: 0.0,
-        }),
-        mandrel: Box::new(Mortal {
-            inner: d.mandrel,
-            life: life.clone(),
-            misread_mm: 0.0,
-        }),
-        sync: Box::new(Mortal {
-            inner: d.sync,
-            life: life.clone(),
-            misread_mm: 0.0,
-        }),
+        robot: Box::new(Mortal::new(d.robot, life.clone())),
+        mandrel: Box::new(Mortal::new(d.mandrel, life.clone())),
+        sync: Box::new(Mortal::new(d.sync, life.clone())),
         time: d.time,
     };
     let mut n = 0;
@@ -1181,9 +1242,8 @@ fn a_robot_that_ends_a_move_off_its_target_halts_the_batch() {
         let d = cell.devices(Drive::default());
         let dev = cell::coordinator::Devices {
             robot: Box::new(Mortal {
-                inner: d.robot,
-                life: Life::new(cell.clock().clone()),
                 misread_mm,
+                ..Mortal::new(d.robot, Life::new())
             }),
             mandrel: d.mandrel,
             sync: d.sync,
@@ -1253,6 +1313,354 @@ fn the_sync_turns_the_mandrel_to_the_start_angle_by_the_shorter_way() {
         let (_, done, _) = completed(&cell);
         assert_eq!(done.first(), Some(&nearest), "{deg}°: the sync move");
     }
+}
+
+/// Runs `b` fresh on `cell` through `robot` (a [`Mortal`] around the cell's robot); the result.
+fn wind_with(
+    cell: &SimCell,
+    b: &Batch,
+    robot: impl FnOnce(Box<dyn cell::device::RobotDevice>) -> Mortal<Box<dyn cell::device::RobotDevice>>,
+) -> Result<(), cell::coordinator::Stopped> {
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(robot(d.robot)),
+        mandrel: d.mandrel,
+        sync: d.sync,
+        time: d.time,
+    };
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    c.run(b, &ResumePoint::default(), true, false, false)
+}
+
+/// After an immediate move the robot must be idle with no error: one at rest, idle but showing
+/// error 3 (a telegram refused during the move), halts the batch after that move, naming the
+/// error.
+#[test]
+fn a_robot_idle_with_an_error_after_a_move_halts_the_batch() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let cell = SimCell::new(&SimCellConfig::default());
+    let stopped = wind_with(&cell, &b, |r| Mortal {
+        latch: 3,
+        onset: Onset::Move,
+        ..Mortal::new(r, Life::new())
+    })
+    .unwrap_err();
+    assert!(
+        matches!(&stopped.halt, Halt::Fault { message } if message.contains("state Idle, error 3 after a move")),
+        "{:?}",
+        stopped.halt
+    );
+    assert_eq!(stopped.segments_done, 0);
+    let (robot, _, _) = completed(&cell);
+    assert_eq!(robot.len(), 1, "one move, then the halt: {robot:?}");
+}
+
+/// In program mode the coordinator reads the robot's status when the program ends (and, once
+/// it overruns its quiet time, every 50 polls of "in position"): an error code shown during
+/// the program (a telegram refused while it ran) halts the batch there, naming the error and
+/// the instruction, before the next path's approach.
+#[test]
+fn an_error_shown_while_a_program_runs_halts_the_batch() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let cell = SimCell::new(&SimCellConfig::default());
+    let stopped = wind_with(&cell, &b, |r| Mortal {
+        latch: 3,
+        onset: Onset::Program,
+        ..Mortal::new(r, Life::new())
+    })
+    .unwrap_err();
+    assert!(
+        matches!(&stopped.halt, Halt::Fault { message } if message.contains("error 3 at instruction")),
+        "{:?}",
+        stopped.halt
+    );
+}
+
+/// A program must end on its path's last point: a robot whose position reads 0.2 mm off (more
+/// than `POSITION_TOLERANCE_MM`, 0.125 mm) once its program has run halts the batch at the
+/// program's end, naming the distance.
+#[test]
+fn a_program_that_ends_off_its_last_point_halts_the_batch() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let cell = SimCell::new(&SimCellConfig::default());
+    let stopped = wind_with(&cell, &b, |r| Mortal {
+        misread_mm: 0.2,
+        onset: Onset::Program,
+        ..Mortal::new(r, Life::new())
+    })
+    .unwrap_err();
+    assert!(
+        matches!(&stopped.halt, Halt::Fault { message } if message.contains("program 1 ended 0.20 mm from its last point")),
+        "{:?}",
+        stopped.halt
+    );
+}
+
+/// The second path's sync starts where the first path left the mandrel: it turns to the
+/// counter nearest that one among those at the path's start angle (`angle / 360° · steps per
+/// revolution + k · steps per revolution`), worked out here from the journal's last segment.
+#[test]
+fn the_second_paths_sync_starts_from_where_the_first_left_the_mandrel() {
+    let per_rev = Drive::default().steps_per_mandrel_rev();
+    let mut l = sbend(Some(RunMode::Discrete));
+    assert!(
+        l.items.len() >= 2,
+        "the example has {} paths",
+        l.items.len()
+    );
+    let deg = 90.0;
+    l.items[1].rob.header.sync_mandrel_deg = deg;
+    let b = checked(&l);
+    let first = b.items[0].rob.instructions.len();
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    wind(
+        &cell,
+        &b,
+        Journal::create(&jp).unwrap(),
+        &ResumePoint::default(),
+        true,
+        Some(first + 1),
+    )
+    .unwrap_err();
+    let (_, records) = Journal::resume(&jp).unwrap();
+    let at = records
+        .iter()
+        .position(|r| r["rec"] == "sync" && r["item"] == 1)
+        .expect("the second path's sync");
+    let before = records[..at]
+        .iter()
+        .rev()
+        .find(|r| r["rec"] == "segment")
+        .and_then(|r| r["counter"].as_i64())
+        .unwrap();
+    assert_ne!(before, 0, "the first path turned the mandrel");
+    let nearest = (-20..=20)
+        .map(|k| deg / 360.0 * per_rev + f64::from(k) * per_rev)
+        .min_by(|a, c| {
+            (a - before as f64)
+                .abs()
+                .total_cmp(&(c - before as f64).abs())
+        })
+        .unwrap()
+        .round() as i64;
+    assert_eq!(
+        records[at]["counter"].as_i64(),
+        Some(nearest),
+        "from {before}"
+    );
+}
+
+/// Killed while a program ran (5 s into it), the devices left to finish it: on resume the robot is at the
+/// path's last point and the mandrel's counter at the path's end, so that path is done and
+/// nothing of it is sent again (no sync, no program, no resume program for it).
+#[test]
+fn a_program_that_finished_after_a_kill_is_not_run_again_on_resume() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    wind_until_killed(&cell, &b, &jp, 1, Death::After(5.0));
+    cell.timebase_sleep(Duration::from_secs(60));
+    resume(&cell, &b, &jp);
+    check_each_once(&cell, &b);
+    let recs = journal::read(&jp).unwrap();
+    let resumed = recs.iter().rposition(|r| r["rec"] == "resume").unwrap();
+    let again: Vec<_> = recs[resumed..]
+        .iter()
+        .filter(|r| {
+            ["sync", "program", "resume_program"].contains(&r["rec"].as_str().unwrap_or(""))
+                && r["item"] == 0
+        })
+        .collect();
+    assert!(again.is_empty(), "{again:?}");
+    assert!(
+        recs[resumed..]
+            .iter()
+            .any(|r| r["rec"] == "item_done" && r["item"] == 1)
+    );
+}
+
+/// Sync lines that stop working with the PC (`kill -9`): the start output is a call like any.
+#[derive(Debug)]
+struct MortalStart {
+    inner: Box<dyn SyncLines>,
+    life: Life,
+}
+
+impl SyncLines for MortalStart {
+    fn set_start(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        self.life.alive()?;
+        self.inner.set_start(on)
+    }
+    fn in_position(&mut self) -> cell::device::DeviceResult<bool> {
+        // A dead PC reads no input either (the count is not used up by reading).
+        self.life.still()?;
+        self.inner.in_position()
+    }
+    fn estop(&mut self) -> cell::device::DeviceResult<bool> {
+        self.inner.estop()
+    }
+}
+
+/// Killed after the program started and the mandrel's move was armed on the start line, before
+/// the start edge; then the robot is stopped at its own controls. On resume the robot is not
+/// waiting at the handshake (whose cancel would stop the indexer too), but the indexer still
+/// holds the armed move, which never turned and holds its command buffer: it is cancelled
+/// before the attach asks for the counter, and the path is wound again, every target once.
+#[test]
+fn an_armed_mandrel_move_that_never_started_is_cancelled_on_resume() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let life = Life::new();
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Mortal::new(d.robot, life.clone())),
+        mandrel: Box::new(Mortal::new(d.mandrel, life.clone())),
+        sync: Box::new(MortalStart {
+            inner: d.sync,
+            life: life.clone(),
+        }),
+        time: d.time,
+    };
+    let l2 = life.clone();
+    // After the first program's event: RUN_PROGRAM and the armed move go out, the start edge
+    // does not.
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Program { done: false, .. }) {
+            l2.die_after(2);
+        }
+    };
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    cell.timebase_sleep(Duration::from_secs(5));
+    // The operator stops the robot at its controls (a STOP telegram's effect).
+    let stop = asea_protocol::Frame {
+        code: 0x0C,
+        data: Vec::new(),
+    };
+    let now = cell.clock().now_s();
+    cell.with(|p| p.robot.machine.execute(&stop, now)).unwrap();
+    resume(&cell, &b, &jp);
+    check_each_once(&cell, &b);
+}
+
+/// The run's first event says whether it resumes a journal: not for a fresh batch, and so for
+/// the run that resumes it.
+#[test]
+fn the_started_event_says_whether_the_run_resumes() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let resumed = |events: &[Event]| match events.first() {
+        Some(Event::Started { resumed, .. }) => *resumed,
+        e => panic!("the first event: {e:?}"),
+    };
+    let mut events = Vec::new();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Segment { .. }) {
+            flag.store(true, Ordering::Relaxed);
+        }
+        events.push(e);
+    };
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        stop,
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    assert!(!resumed(&events));
+    let (journal, records) = Journal::resume(&jp).unwrap();
+    let from = resume_point(&b, &records).unwrap();
+    let events = wind(&cell, &b, journal, &from, false, None).unwrap();
+    assert!(resumed(&events));
+}
+
+/// Killed just after the first program's start edge; the indexer is then stopped at its own
+/// controls (its move cut short) while the robot runs its program to the end. On resume the
+/// robot is at the path's last point but the mandrel is short of the path's end: the path is
+/// not done, and the rest of the mandrel's turn goes out with a resume program (a path is done
+/// only when both the robot and the mandrel are at its end).
+#[test]
+fn a_program_the_robot_finished_but_the_mandrel_did_not_is_resumed() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let life = Life::new();
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Mortal::new(d.robot, life.clone())),
+        mandrel: Box::new(Mortal::new(d.mandrel, life.clone())),
+        sync: Box::new(MortalStart {
+            inner: d.sync,
+            life: life.clone(),
+        }),
+        time: d.time,
+    };
+    let l2 = life.clone();
+    let mut once = false;
+    // After the first program's event: RUN_PROGRAM, the armed move and the start edge go out,
+    // then the PC is gone.
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Program { done: false, .. }) && !once {
+            once = true;
+            l2.die_after(3);
+        }
+    };
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    // Half a second later, with both devices under way, the operator stops the indexer.
+    cell.timebase_sleep(Duration::from_millis(500));
+    assert!(cell.with(|p| p.card.machine().is_moving()).unwrap());
+    cell.with(|p| p.card.machine.stop()).unwrap();
+    cell.timebase_sleep(Duration::from_secs(60));
+    let (robot, _, _) = completed(&cell);
+    let last = b.items[0].rob.instructions.last().unwrap().position_mm;
+    assert!(
+        near(*robot.last().unwrap(), last),
+        "the robot finished its program"
+    );
+    resume(&cell, &b, &jp);
+    let recs = journal::read(&jp).unwrap();
+    let resumed = recs.iter().rposition(|r| r["rec"] == "resume").unwrap();
+    assert!(
+        recs[resumed..]
+            .iter()
+            .any(|r| r["rec"] == "resume_program" && r["item"] == 0),
+        "{:?}",
+        &recs[resumed..]
+    );
+    assert_eq!(recs.last().unwrap()["rec"], "done");
 }
 
 /// A stored program runs unwatched: the robot computer holds the arm while it serves the link

@@ -820,7 +820,10 @@ pub const POLL_PERIOD: Duration = Duration::from_millis(2);
 /// prompts the answer, as a UART robot computer would (spec §5.4: under 50 ms).
 pub const TURNAROUND: Duration = Duration::from_millis(3);
 
-/// Serves `robot` over `link` in real time until `stop` is set.
+/// Serves `robot` over `link` in real time until `stop` is set. An answer to received bytes
+/// goes out [`TURNAROUND`] after them; the simulator keeps reading meanwhile, so that every byte
+/// is taken at the time it arrives (the robot's rule on the silence before an ENQ, docs/protocol.md
+/// §6 rule 7, measures the line, not the simulator's own delay).
 pub fn serve<L: Link>(
     mut link: L,
     robot: &std::sync::Mutex<Robot>,
@@ -828,9 +831,20 @@ pub fn serve<L: Link>(
     stop: &AtomicBool,
 ) -> Result<()> {
     let mut buf = [0u8; 256];
+    let mut out = Vec::new();
+    let mut send_at = Duration::ZERO;
     while !stop.load(Ordering::Relaxed) {
-        let n = link.read_timeout(&mut buf, POLL_PERIOD)?;
-        let out = {
+        let wait = if out.is_empty() {
+            POLL_PERIOD
+        } else {
+            send_at.saturating_sub(clock.now()).min(POLL_PERIOD)
+        };
+        let n = if wait.is_zero() {
+            0
+        } else {
+            link.read_timeout(&mut buf, wait)?
+        };
+        let now = {
             let mut r = robot
                 .lock()
                 .map_err(|_| std::io::Error::other("simulator lock poisoned"))?;
@@ -841,13 +855,20 @@ pub fn serve<L: Link>(
                 r.receive(bytes, now);
             }
             r.poll(now);
-            r.take_output()
-        };
-        if !out.is_empty() {
-            if n > 0 {
-                std::thread::sleep(TURNAROUND);
+            let more = r.take_output();
+            if !more.is_empty() {
+                if out.is_empty() {
+                    // An answer to bytes just received waits out the turnaround; one a timer
+                    // prompts goes at once.
+                    send_at = if n > 0 { now + TURNAROUND } else { now };
+                }
+                out.extend_from_slice(&more);
             }
+            now
+        };
+        if !out.is_empty() && now >= send_at {
             link.write_all(&out)?;
+            out.clear();
         }
     }
     Ok(())
