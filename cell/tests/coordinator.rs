@@ -1689,7 +1689,11 @@ fn a_stored_program_runs_in_the_mandrels_time_without_status_reads() {
         .unwrap();
         let mut starts = Vec::new();
         let mut ends = Vec::new();
+        let mut path_s = Vec::new();
         for e in &events {
+            if let Event::PathDone { time_s, .. } = e {
+                path_s.push(*time_s);
+            }
             if let Event::Program { done, time_s, .. } = e {
                 if *done {
                     ends.push(*time_s)
@@ -1713,6 +1717,14 @@ fn a_stored_program_runs_in_the_mandrels_time_without_status_reads() {
                 2.0 * ((v0 * v0 + a * n).sqrt() - v0) / a
             };
             let took = ends[k] - starts[k];
+            // The path's time holds its program and the sync and approach before it (a few
+            // seconds of mandrel and robot moves), no more.
+            assert!(
+                path_s[k] >= took && path_s[k] < took + 10.0,
+                "{mode:?} path {}: {} s for a {took} s program",
+                k + 1,
+                path_s[k]
+            );
             let over = took - mandrel_s - INTERPRETATION_S[zone] - settle_s[zone];
             eprintln!(
                 "{mode:?} program {k}: {took:.3} s, mandrel {mandrel_s:.3} s, over {over:.3}"
