@@ -285,6 +285,7 @@ pub(crate) fn tube_job(layers: usize) -> Job {
                 lead_in_mm: 10.0,
                 lead_out_deg: 10.0,
                 initial_lock: true,
+                friction_lambda: 0.0,
             });
             layers
         ],
@@ -351,6 +352,7 @@ fn tube_rules_are_enforced_with_reasons() {
             lead_in_mm,
             lead_out_deg: 10.0,
             initial_lock: true,
+            friction_lambda: 0.0,
         })];
         let err = job.check().unwrap_err().to_string();
         assert!(err.contains(expect), "{err}");
@@ -364,6 +366,7 @@ fn tube_rules_are_enforced_with_reasons() {
         lead_in_mm: 2000.0,
         lead_out_deg: 10.0,
         initial_lock: true,
+        friction_lambda: 0.0,
     })];
     assert!(job.check().unwrap_err().to_string().contains("lead-in"));
 }
@@ -403,6 +406,7 @@ fn cone_job() -> Job {
         lead_in_mm: 5.0,
         lead_out_deg: 15.0,
         initial_lock: true,
+        friction_lambda: 0.0,
     })];
     job
 }
