@@ -936,13 +936,15 @@ impl Job {
         };
         let pass = NosePass::trace(&ogive, t.wind_angle_deg, t.friction_lambda, &[t.lead_in_mm])
             .map_err(|e| match e {
-                NoseRefusal::ReachesTip { radius_mm } => reject(format!(
-                    "wind angle {}° with frictionLambda {}: {e}; the base radius times sin α \
-                     ({:.4} mm) must stay above {:.4} mm",
+                NoseRefusal::ReachesTip { .. } => reject(format!(
+                    "wind angle {}° with frictionLambda {}: {e}; a pass must turn around on a \
+                     radius above {:.4} mm ({}% of the base radius; the geodesic turns at the \
+                     base radius times sin α, {:.4} mm): raise the wind angle",
                     t.wind_angle_deg,
                     t.friction_lambda,
+                    nose::TIP_FRACTION * base_radius_mm,
+                    nose::TIP_FRACTION * 100.0,
                     base_radius_mm * t.wind_angle_deg.to_radians().sin(),
-                    radius_mm
                 )),
                 e => reject(format!(
                     "wind angle {}° with frictionLambda {}: {e}",

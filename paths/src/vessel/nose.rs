@@ -457,7 +457,7 @@ impl NosePass {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
 
@@ -529,7 +529,7 @@ mod tests {
     /// `dθ/dz = C·√(1 + r'²) / (r·√(r² − C²))`, with `z = z_t − v²` to remove the square-root
     /// singularity at the turnaround, by Simpson's rule in v; and the length likewise from
     /// `ds/dz = r·√(1 + r'²) / √(r² − C²)`.
-    fn clairaut_quadrature(n: &VonKarman, alpha_deg: f64) -> (f64, f64, f64) {
+    pub(crate) fn clairaut_quadrature(n: &VonKarman, alpha_deg: f64) -> (f64, f64, f64) {
         let c = n.base_radius_mm * alpha_deg.to_radians().sin();
         let (mut lo, mut hi) = (0.0, n.length_mm);
         for _ in 0..200 {
