@@ -693,7 +693,7 @@ pub(crate) mod tests {
         // Also next to the base, where the meridian's curvature grows as z^(-1/2).
         for i in [3, 10, 30, len / 10, len / 3, len / 2, 2 * len / 3, 9 * len / 10] {
             let ratio = curvature_ratio(&n, &pass, i);
-            assert_abs_diff_eq!(ratio.abs(), 0.15, epsilon = 2e-3);
+            assert_abs_diff_eq!(ratio.abs(), 0.15, epsilon = 2e-4);
         }
         // And the geodesic has none.
         let g = NosePass::trace(&n, 30.0, 0.0, &[]).unwrap();
