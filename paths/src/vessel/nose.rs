@@ -691,7 +691,16 @@ pub(crate) mod tests {
         let pass = NosePass::trace(&n, 30.0, 0.15, &[]).unwrap();
         let len = pass.nodes().len();
         // Also next to the base, where the meridian's curvature grows as z^(-1/2).
-        for i in [3, 10, 30, len / 10, len / 3, len / 2, 2 * len / 3, 9 * len / 10] {
+        for i in [
+            3,
+            10,
+            30,
+            len / 10,
+            len / 3,
+            len / 2,
+            2 * len / 3,
+            9 * len / 10,
+        ] {
             let ratio = curvature_ratio(&n, &pass, i);
             assert_abs_diff_eq!(ratio.abs(), 0.15, epsilon = 2e-4);
         }
@@ -829,6 +838,21 @@ pub(crate) mod tests {
             NosePass::trace(&Cylinder, 89.0, 0.0, &[]),
             Err(NoseRefusal::TooManySteps)
         );
+    }
+
+    #[test]
+    fn landing_stops_where_the_component_does_not_move() {
+        // On a cylinder's geodesic α does not change: Newton has no slope to follow, and the
+        // landing keeps the step it was given rather than dividing by zero.
+        let y: State = [0.0, 30f64.to_radians(), 0.0, 0.0];
+        let end = land(&Cylinder, 0.0, &y, 1.0, 1, FRAC_PI_2);
+        assert!(end.iter().all(|v| v.is_finite()), "{end:?}");
+        assert_abs_diff_eq!(end[0], 30f64.to_radians().cos(), epsilon = 1e-12);
+        assert_eq!(end[1], FRAC_PI_2);
+        // Where it moves, it lands: u = 2 on the cylinder after a step of 2 / cos 30°.
+        let end = land(&Cylinder, 0.0, &y, 1.0, 0, 2.0);
+        assert_eq!(end[0], 2.0);
+        assert_abs_diff_eq!(end[3], 2.0 / 30f64.to_radians().cos(), epsilon = 1e-12);
     }
 
     /// A cylinder of radius 50 mm, endless.
