@@ -750,7 +750,7 @@ pub(crate) mod tests {
     #[test]
     fn breaks_are_nodes_and_stations_and_stations_keep_the_chord() {
         let n = nose();
-        let pass = NosePass::trace(&n, 30.0, 0.15, &[5.0, -1.0, 1e6]).unwrap();
+        let pass = NosePass::trace(&n, 30.0, 0.15, &[5.0, -1.0, 0.0, 1e6]).unwrap();
         assert!(pass.nodes().iter().any(|x| (x.along_mm - 5.0).abs() < 1e-9));
         let st = pass.stations(&n);
         assert_eq!(st[0].along_mm, 0.0);
@@ -838,6 +838,26 @@ pub(crate) mod tests {
             NosePass::trace(&Cylinder, 89.0, 0.0, &[]),
             Err(NoseRefusal::TooManySteps)
         );
+    }
+
+    #[test]
+    fn each_step_is_the_stated_one() {
+        // Every step but the landings is r/200 of fibre (r at its start) or 0.002 of the
+        // parameter, whichever is shorter: the larger of the two ratios is 1.
+        let n = nose();
+        for lambda in [0.0, 0.15] {
+            let pass = NosePass::trace(&n, 30.0, lambda, &[]).unwrap();
+            let nodes = pass.nodes();
+            let (mut by_s, mut by_u) = (0, 0);
+            for w in nodes[..nodes.len() - 1].windows(2) {
+                let rs = (w[1].length_mm - w[0].length_mm) / (w[0].radius_mm / 200.0);
+                let ru = (w[1].u - w[0].u) / 2e-3;
+                assert!((0.997..=1.003).contains(&rs.max(ru)), "{w:?}: {rs} {ru}");
+                if rs > ru { by_s += 1 } else { by_u += 1 }
+            }
+            // Near the base the parameter limits the step, farther on the fibre length.
+            assert!(by_s > 1000 && by_u > 300, "{by_s} {by_u}");
+        }
     }
 
     #[test]
