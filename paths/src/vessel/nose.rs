@@ -219,8 +219,9 @@ impl std::fmt::Display for NoseRefusal {
             ),
             NoseRefusal::TooManySteps => write!(
                 f,
-                "the pass needs more than {MAX_STEPS} integration steps (it circles near the \
-                 turnaround); lower frictionLambda"
+                "the pass needs more than {MAX_STEPS} integration steps of 1/200 of the local \
+                 radius (a nose too slender for its length, or a path circling near its \
+                 turnaround)"
             ),
         }
     }

@@ -781,6 +781,18 @@ fn nose_refusals_give_the_reason() {
             );
         }
     }
+    // A nose 1 mm across and a kilometre long: steps of r/200 would be ~10⁸; refused at the cap
+    // (bounded time and memory).
+    let mut job = nose_job(0.0);
+    job.mandrel = Mandrel::VonKarman {
+        base_radius_mm: 0.5,
+        length_mm: 1e6,
+    };
+    let err = job.check().unwrap_err().to_string();
+    assert!(
+        err.contains("wind angle 30° with frictionLambda 0: the pass needs more than 400000"),
+        "{err}"
+    );
     // No usable pass: 89° turns around inside the lead-in.
     let mut job = nose_job(0.0);
     if let Layer::TubeHelical(t) = &mut job.layers[0] {
