@@ -403,6 +403,48 @@ mod tests {
         // Absent version is 1.0.
         let old = TUBE.replace("\"schemaVersion\": \"1.3\",", "");
         assert!(WindFile::parse(&old, "t").is_ok());
+        // The machine: the eye 25 mm off the 35 mm radius; the carriage at the feed (6000 mm/min
+        // = 100 mm/s, 1000 mm/s²) and the mandrel at the same surface speed, in degrees.
+        assert_eq!(job.machine.eye_radius_mm, 60.0);
+        let deg_per_mm = 360.0 / (std::f64::consts::TAU * 35.0);
+        let mandrel = job.machine.limits.axes[0];
+        assert!((mandrel.velocity - 100.0 * deg_per_mm).abs() < 1e-9);
+        assert!((mandrel.acceleration - 1000.0 * deg_per_mm).abs() < 1e-9);
+        assert_eq!(job.machine.limits.axes[1].acceleration, 1000.0);
+    }
+
+    #[test]
+    fn the_parsers_own_checks_come_first() {
+        let cases = [
+            ("\"1.3\"", "\"1.x\"", "2:3: schema version `1.x` is not 1.x"),
+            ("\"1.3\"", "\"1.\"", "2:3: schema version `1.` is not 1.x"),
+            (
+                "\"diameter\": 70",
+                "\"diameter\": 0",
+                "3:26: diameter = 0 must be > 0",
+            ),
+            (
+                "\"lockDegrees\": 720",
+                "\"lockDegrees\": 0",
+                "8:5: layer 2: lockDegrees = 0 must be > 0",
+            ),
+            (
+                "\"lockDegrees\": 720",
+                "\"lockDegrees\": -1",
+                "8:5: layer 2: lockDegrees = -1 must be > 0",
+            ),
+            (
+                "\"patternNumber\": 3",
+                "\"patternNumber\": 0",
+                "8:5: layer 2: patternNumber and skipIndex must be ≥ 1",
+            ),
+        ];
+        for (from, to, expect) in cases {
+            let text = TUBE.replace(from, to);
+            assert_ne!(text, TUBE, "{from}");
+            let err = WindFile::parse(&text, "t").unwrap_err().to_string();
+            assert!(err.starts_with(expect), "{expect}: {err}");
+        }
     }
 
     #[test]
@@ -643,5 +685,10 @@ mod tests {
         assert_eq!(layer_offset(text, 0), Some(text.find("{\"x\"").unwrap()));
         assert_eq!(layer_offset(text, 1), Some(text.find("{\"z\"").unwrap()));
         assert_eq!(layer_offset(text, 2), None);
+        // An escaped quote does not end a string; an escaped backslash does not escape the quote
+        // after it.
+        let text = r#"{"layers": [ {"x": "a\"{"}, {"y": "b\\"}, {"z": 1} ]}"#;
+        assert_eq!(layer_offset(text, 1), Some(text.find("{\"y\"").unwrap()));
+        assert_eq!(layer_offset(text, 2), Some(text.find("{\"z\"").unwrap()));
     }
 }
