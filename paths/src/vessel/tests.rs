@@ -804,3 +804,47 @@ fn nose_refusals_give_the_reason() {
         "{err}"
     );
 }
+
+#[test]
+fn nose_base_turn_is_at_least_the_lead_out() {
+    // Lock 120° and skip 2 of 3 slots: the circuit advances by 2·lock = 240° (mod 360°) with the
+    // two passes' turn 2·θt; (240° − 2·θt) mod 360° = 151.77° is below the 160° lead-out, so the
+    // base turn is a whole turn more.
+    let mut job = nose_job(0.0);
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.lock_deg = 120.0;
+        t.lead_out_deg = 160.0;
+        t.skip_index = 2;
+    }
+    let ogive = nose::VonKarman {
+        base_radius_mm: 49.0,
+        length_mm: 300.0,
+    };
+    let theta = nose::tests::clairaut_quadrature(&ogive, 30.0)
+        .1
+        .to_degrees();
+    let base_turn = (240.0 - 2.0 * theta).rem_euclid(360.0) + 360.0;
+    assert!(base_turn > 160.0 && base_turn < 160.0 + 360.0);
+    let (circuits, laid) = nose_circuits(&job);
+    assert_eq!(circuits.len(), 39);
+    for (k, w) in circuits.windows(2).enumerate() {
+        let gap = w[1].0 - (w[0].0 + w[0].1 + w[0].2);
+        // The skip (2 slots of 120°) after each circuit, a step of 360°/39 after each pattern.
+        let step = if k % 3 == 2 { 360.0 / 39.0 } else { 0.0 };
+        assert_abs_diff_eq!(gap, base_turn + 240.0 + step, epsilon = 1e-5);
+    }
+    let mut slots: Vec<f64> = circuits
+        .iter()
+        .map(|c| (c.0 - circuits[0].0).rem_euclid(360.0))
+        .collect();
+    slots.sort_by(f64::total_cmp);
+    for (k, s) in slots.iter().enumerate() {
+        assert_abs_diff_eq!(*s, k as f64 * 360.0 / 39.0, epsilon = 1e-6);
+    }
+    let plan = job.check().unwrap();
+    assert_abs_diff_eq!(
+        plan.layers[0].mark.tow_length_mm,
+        laid,
+        epsilon = 1e-4 * laid
+    );
+}
