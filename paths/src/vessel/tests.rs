@@ -848,3 +848,39 @@ fn nose_base_turn_is_at_least_the_lead_out() {
         epsilon = 1e-4 * laid
     );
 }
+
+#[test]
+fn nose_eye_swings_over_the_lead_in_and_lies_at_the_local_angle() {
+    // The eye at 90° − α(z), α from Clairaut (sin α = 24.5 / r(z)); over the lead-in it
+    // swings up in proportion to the carriage's travel; on the way back it lies on the other side.
+    // A 100 mm lead-in, so that stations fall inside it.
+    let mut job = nose_job(0.0);
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.lead_in_mm = 100.0;
+    }
+    let r = record(&job);
+    let mut prev = r.moves[0].to;
+    let (mut inside, mut outward, mut back) = (0, 0, 0);
+    for m in &r.moves[1..] {
+        let to = m.to;
+        let z = to.carriage_mm + 150.0;
+        let lay = 90.0 - (24.5 / haack(z)).min(1.0).asin().to_degrees();
+        if to.carriage_mm > prev.carriage_mm {
+            let swing = (z / 100.0).min(1.0);
+            assert_abs_diff_eq!(to.eye_deg, swing * lay, epsilon = 1e-5);
+            if z < 100.0 - 1e-9 {
+                inside += 1;
+            } else {
+                outward += 1;
+            }
+        } else if to.carriage_mm < prev.carriage_mm {
+            assert_abs_diff_eq!(to.eye_deg, -lay, epsilon = 1e-5);
+            back += 1;
+        }
+        prev = to;
+    }
+    assert!(
+        inside > 39 * 10 && outward > 39 * 10 && back > 39 * 50,
+        "{inside} {outward} {back}"
+    );
+}
