@@ -876,6 +876,10 @@ fn nose_eye_swings_over_the_lead_in_and_lies_at_the_local_angle() {
         } else if to.carriage_mm < prev.carriage_mm {
             assert_abs_diff_eq!(to.eye_deg, -lay, epsilon = 1e-5);
             back += 1;
+        } else {
+            // Every turn with the carriage still is at the base, the eye back at 0.
+            assert_eq!(to.carriage_mm, -150.0);
+            assert_eq!(to.eye_deg, 0.0);
         }
         prev = to;
     }
