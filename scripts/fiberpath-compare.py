@@ -15,7 +15,10 @@ Compared, from the two G-code files (the same reading for both, independent of e
   * circuits per layer (FiberPath: its `Circuit:` comments; windcell: the summary),
   * the wind angle of every pass, from the pass's mandrel turn and carriage travel: on a cylinder
     tan α = r·Δθ/L; on a cone the large-end angle whose geodesic turns by Δθ, found by bisection
-    on r·dθ = tan α·ds integrated numerically (Clairaut, sin α = r0·sin α0 / r),
+    on r·dθ = tan α·ds integrated numerically (Clairaut, sin α = r0·sin α0 / r); on a von Kármán
+    nose the angle at the base whose path (the geodesic, or with the layer's frictionLambda λ the
+    path with k_g = −λ·k_n) turns by Δθ over the pass's travel, by bisection on the path
+    integrated with RK4 (see `Mandrel.nose_turn_deg`),
   * tow length: each planner's own total, and both programs measured the same way on the real
     surface, split into the passes (carriage moving) and the end turns (carriage still),
   * planning time: `fiberpath plan` and `windcell lathe plan` wall time (best of --repeat runs),
@@ -76,9 +79,73 @@ class Mandrel:
         self.length = m["windLength"]
         self.cos_phi = self.length / math.hypot(self.r0 - self.r1, self.length)
         self.profile = m.get("profile")
+        self._cache = {}
+
+    # The von Kármán nose (Haack series, C = 0), parametrised by u = π − φ from the base:
+    # z = L(1 − cos u)/2, r = R·√(F/π) with F = π − u + sin 2u / 2.
+    def _vk(self, u: float):
+        f = max(math.pi - u + math.sin(2 * u) / 2, 0.0)
+        k = 2 * self.r0 / (self.length * math.sqrt(math.pi))
+        s, c = math.sin(u), math.cos(u)
+        return (self.length * (1 - c) / 2, self.length * s / 2, self.r0 * math.sqrt(f / math.pi),
+                -k * s / math.sqrt(f), -k * (c / math.sqrt(f) + s ** 3 / f ** 1.5))
+
+    def _u_at(self, z: float) -> float:
+        return math.acos(max(-1.0, min(1.0, 1 - 2 * z / self.length)))
 
     def radius(self, z: float) -> float:
+        if self.profile:
+            return self._vk(self._u_at(z))[2]
         return self.r0 - (self.r0 - self.r1) * z / self.length
+
+    def meridian(self, z0: float, z1: float) -> float:
+        """Meridian length between two axial positions (short: the slope at the middle)."""
+        if self.profile:
+            slope = self._vk(self._u_at(0.5 * (z0 + z1)))[3]
+            return abs(z1 - z0) * math.sqrt(1 + slope * slope)
+        return abs(z1 - z0) / self.cos_phi
+
+    def nose_turn_deg(self, alpha0_deg: float, travel: float, lam: float):
+        """Mandrel turn of the nose path leaving the base at α0, up to `travel` from the base, or
+        None if it turns around (α = 90°) before. The path: dα/ds = −sin α·(dr/dm)/r − λ·k_n,
+        k_n = k_m·cos²α + k_p·sin²α, integrated in τ (ds = dm/du·dτ) by RK4."""
+        def rate(y):
+            u, a = y[0], y[1]
+            _, zu, r, sl, slu = self._vk(u)
+            w2 = 1 + sl * sl
+            mu = zu * math.sqrt(w2)
+            sa, ca = math.sin(a), math.cos(a)
+            return (ca, -sa * sl * zu / r - lam * (-slu * ca * ca / w2 + zu * sa * sa / r),
+                    mu * sa / r)
+
+        def step(y, h):
+            k1 = rate(y)
+            k2 = rate([y[i] + h / 2 * k1[i] for i in range(3)])
+            k3 = rate([y[i] + h / 2 * k2[i] for i in range(3)])
+            k4 = rate([y[i] + h * k3[i] for i in range(3)])
+            return [y[i] + h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]) for i in range(3)]
+
+        target = self._u_at(travel)
+        y = [0.0, math.radians(alpha0_deg), 0.0]
+        while True:
+            _, zu, r, sl, _ = self._vk(y[0])
+            mu = zu * math.sqrt(1 + sl * sl)
+            h = min(r / 100 / mu if mu > 0 else math.inf, 4e-3 / max(abs(math.cos(y[1])), 1e-9))
+            nxt = step(y, h)
+            if nxt[1] >= math.pi / 2 and nxt[0] < target:
+                return None
+            if nxt[0] >= target:
+                # Land on the target by Newton on the step (du/dτ = cos α).
+                for _ in range(30):
+                    miss = nxt[0] - target
+                    if abs(miss) < 1e-13:
+                        break
+                    h -= miss / math.cos(nxt[1])
+                    nxt = step(y, h)
+                if nxt[1] > math.pi / 2:
+                    return None
+                return math.degrees(nxt[2])
+            y = nxt
 
     def pass_turn_deg(self, alpha0_deg: float) -> float:
         """Mandrel turn over a whole pass (Simpson, 2000 intervals) at α0 at the large end."""
@@ -94,6 +161,20 @@ class Mandrel:
             f = s / math.sqrt(1.0 - s * s) / (r * self.cos_phi)
             total += f * (1 if i in (0, n) else 4 if i % 2 else 2)
         return math.degrees(total * h / 3.0)
+
+    def nose_angle_deg(self, travel: float, turn_deg: float, lam: float) -> float:
+        key = (round(travel, 9), round(turn_deg, 9), lam)
+        if key not in self._cache:
+            lo, hi = 1e-3, 89.999
+            for _ in range(40):
+                mid = 0.5 * (lo + hi)
+                t = self.nose_turn_deg(mid, travel, lam)
+                if t is None or t > turn_deg:
+                    hi = mid
+                else:
+                    lo = mid
+            self._cache[key] = 0.5 * (lo + hi)
+        return self._cache[key]
 
     def pass_angle_deg(self, turn_deg: float) -> float:
         if self.r0 == self.r1:
@@ -157,7 +238,7 @@ def measure(layer_moves, mandrel: Mandrel):
     for z0, a0, z1, a1 in layer_moves:
         if z1 != z0:
             zm = 0.5 * (z0 + z1)
-            pass_tow += math.hypot((z1 - z0) / mandrel.cos_phi,
+            pass_tow += math.hypot(mandrel.meridian(z0, z1),
                                    mandrel.radius(zm) * math.radians(a1 - a0))
             way = math.copysign(1.0, z1 - z0)
             if run and run[2] != way:
@@ -261,9 +342,18 @@ def main() -> int:
             fp_pass, fp_ptow, fp_ttow = measure(fl["moves"], mandrel)
             our_pass, our_ptow, our_ttow = measure(ol["moves"], mandrel)
             circuits = f"{fl['circuits']} / {ours_mark['circuits']}" if kind == "helical" else "–"
-            full = lambda ps: [p for p in ps if abs(p[0] - mandrel.length) < 1e-6]
-            fa = [mandrel.pass_angle_deg(t) for _, t in full(fp_pass)] if kind != "skip" else []
-            oa = [mandrel.pass_angle_deg(t) for _, t in full(our_pass)] if kind != "skip" else []
+            if mandrel.profile:
+                # A nose pass runs from the base to its turnaround: every pass longer than the
+                # lead-in, its angle at the base from its travel and turn.
+                lam = wind["layers"][i].get("frictionLambda", 0.0)
+                lead = wind["layers"][i].get("leadInMM", 0.0)
+                full = lambda ps: [p for p in ps if p[0] > lead]
+                angle_of = lambda p: mandrel.nose_angle_deg(p[0], p[1], lam)
+            else:
+                full = lambda ps: [p for p in ps if abs(p[0] - mandrel.length) < 1e-6]
+                angle_of = lambda p: mandrel.pass_angle_deg(p[1])
+            fa = [angle_of(p) for p in full(fp_pass)] if kind != "skip" else []
+            oa = [angle_of(p) for p in full(our_pass)] if kind != "skip" else []
             if fa and oa and len(fa) == len(oa):
                 worst = max(abs(a - b) for a, b in zip(fa, oa))
                 angle = f"{min(fa):.3f}–{max(fa):.3f} / {min(oa):.3f}–{max(oa):.3f} (Δ ≤ {worst:.4f})"

@@ -53,6 +53,7 @@ fn tube_40_layers() -> Job {
                 lead_in_mm: 10.0,
                 lead_out_deg: 10.0,
                 initial_lock: true,
+                friction_lambda: 0.0,
             });
             40
         ],
@@ -114,6 +115,7 @@ fn lathe(c: &mut Criterion) {
             lead_in_mm: 5.0,
             lead_out_deg: 15.0,
             initial_lock: true,
+            friction_lambda: 0.0,
         });
         40
     ];

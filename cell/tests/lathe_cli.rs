@@ -374,3 +374,84 @@ fn cone_layers_read_back_in_every_dialect() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(!out_dir.exists());
 }
+
+#[test]
+fn nose_layers_read_back_in_every_dialect() {
+    let dir = tempfile::tempdir().unwrap();
+    let wind = dir.path().join("ogive.wind");
+    let text = r#"{
+  "schemaVersion": "1.3",
+  "layers": [
+    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
+      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15 },
+    { "windType": "skip", "mandrelRotation": 45 },
+    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
+      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15, "frictionLambda": 0.15 }
+  ],
+  "mandrelParameters": { "diameter": 98.0, "windLength": 300.0, "profile": { "type": "vonKarman" } },
+  "towParameters": { "width": 7.0, "thickness": 0.5 },
+  "defaultFeedRate": 9000.0
+}"#;
+    std::fs::write(&wind, text).unwrap();
+    let job = sequences::wind::WindFile::load(&wind).unwrap().0;
+    let plan = job.check().unwrap();
+    // ⌈π·98·cos 30° / 7⌉ = ⌈38.09⌉ = 39 circuits, counted on the base.
+    assert_eq!(plan.layers[0].mark.circuits, 39);
+    assert_eq!(plan.layers[2].mark.circuits, 39);
+    reads_back_in_every_dialect(&wind, &plan, 4);
+    // The geodesic's passes reach the turnaround where the Haack radius is 49·sin 30° = 24.5 mm
+    // (210.596 mm from the base), the friction passes deeper; never the tip.
+    let out = windcell(&[
+        "lathe",
+        "plan",
+        wind.to_str().unwrap(),
+        "-o",
+        dir.path().to_str().unwrap(),
+        "--dialect",
+        "linuxcnc",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["circuits"].as_u64(), Some(78));
+    let gcode = std::fs::read_to_string(summary["file"].as_str().unwrap()).unwrap();
+    let mut far = [f64::MIN; 3];
+    let mut layer = 0;
+    for line in gcode.lines() {
+        if line.contains("layer ") && (line.starts_with(';') || line.starts_with('(')) {
+            layer += 1;
+        }
+        if let Some(x) = line
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix('X').and_then(|v| v.parse::<f64>().ok()))
+        {
+            far[layer.min(3) - 1] = far[layer.min(3) - 1].max(x + 150.0);
+        }
+    }
+    assert!((far[0] - 210.596).abs() < 2e-3, "{far:?}");
+    assert!(far[2] > 260.0 && far[2] < 300.0, "{far:?}");
+    // Friction above the slip limit: refused at the layer, one line, nothing written.
+    std::fs::write(
+        &wind,
+        text.replace("\"frictionLambda\": 0.15", "\"frictionLambda\": 0.5"),
+    )
+    .unwrap();
+    let out_dir = dir.path().join("refused");
+    let out = windcell(&[
+        "lathe",
+        "plan",
+        wind.to_str().unwrap(),
+        "-o",
+        out_dir.to_str().unwrap(),
+        "--dialect",
+        "grbl",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(
+        err.contains("ogive.wind:7:5: layer 3: frictionLambda 0.5 exceeds the machine slip limit"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(!out_dir.exists());
+}

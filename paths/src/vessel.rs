@@ -1,6 +1,7 @@
 //! Lathe winding plans: layers of hoop, helical and skip winding on a cylinder with hemispherical
 //! domes (seed 002), on an open tube, or helical and skip layers on a reducing cone (geodesics,
-//! [`cone`]), turned into one stream of axis moves ([`crate::motion`]).
+//! [`cone`]) or a von Kármán nose (geodesic or friction paths to a turnaround, [`nose`]), turned
+//! into one stream of axis moves ([`crate::motion`]).
 //!
 //! A [`Job`] is checked whole before anything is emitted ([`Job::check`]): every layer's pattern
 //! must close, the eye must clear the laminate, and the counts must be countable; only then does
@@ -28,8 +29,10 @@ use crate::pattern::{Pattern, PatternRequest};
 use std::f64::consts::{PI, TAU};
 
 pub mod cone;
+pub mod nose;
 pub mod polar;
 use cone::{ConeGeodesic, ConeRefusal};
+use nose::{NosePass, NoseRefusal, VonKarman};
 use polar::{PolarPlane, PolarStation};
 
 /// The mandrel's shape.
@@ -62,6 +65,14 @@ pub enum Mandrel {
         /// The wound length along the axis.
         length_mm: f64,
     },
+    /// A von Kármán ogive (nose) from its base, at the carriage's start, to its tip
+    /// (`.wind` files with `profile`); helical layers run from the base to a turnaround.
+    VonKarman {
+        /// Radius of the base.
+        base_radius_mm: f64,
+        /// Axial length from the base to the tip.
+        length_mm: f64,
+    },
 }
 
 impl Mandrel {
@@ -75,6 +86,7 @@ impl Mandrel {
             Mandrel::Cone {
                 large_radius_mm, ..
             } => large_radius_mm,
+            Mandrel::VonKarman { base_radius_mm, .. } => base_radius_mm,
         }
     }
 
@@ -84,7 +96,9 @@ impl Mandrel {
             Mandrel::Vessel {
                 cylinder_length_mm, ..
             } => cylinder_length_mm,
-            Mandrel::Tube { length_mm, .. } | Mandrel::Cone { length_mm, .. } => length_mm,
+            Mandrel::Tube { length_mm, .. }
+            | Mandrel::Cone { length_mm, .. }
+            | Mandrel::VonKarman { length_mm, .. } => length_mm,
         }
     }
 }
@@ -129,6 +143,9 @@ pub struct TubeHelical {
     pub lead_out_deg: f64,
     /// Whether the layer begins with a lock turn at the near end.
     pub initial_lock: bool,
+    /// The friction ratio λ = |k_g| / k_n the path may use: 0 winds the geodesic; above 0 only
+    /// on a nose ([`nose`]), at most [`NOSE_SLIP_LIMIT`].
+    pub friction_lambda: f64,
 }
 
 /// One layer of a job.
@@ -161,6 +178,10 @@ pub enum Layer {
 /// length-to-diameter ratio of 2.0, the top of the range the seed gives for in-plane winders
 /// (`docs/seed-readings.md` R002-5).
 pub const POLAR_SLIP_LIMIT: f64 = 0.18;
+
+/// The slip limit μ a nose layer's friction ratio may not exceed: the default machine slip
+/// limit of the `.wind` format's machine profile (FiberPath's `slipLimit`, 0.2).
+pub const NOSE_SLIP_LIMIT: f64 = 0.2;
 
 /// A job: what to wind and on what.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -208,6 +229,14 @@ enum Detail {
         half_length_mm: f64,
         pass: Pass,
         turnaround_deg: f64,
+        cross_feed_mm: f64,
+    },
+    Nose {
+        layer: TubeHelical,
+        circuits: u32,
+        half_length_mm: f64,
+        stations: Vec<cone::Station>,
+        base_turn_deg: f64,
         cross_feed_mm: f64,
     },
     Skip {
@@ -324,7 +353,10 @@ impl Job {
             if self.build_up {
                 radius += self.tow.thickness_mm
                     * match planned.detail {
-                        Detail::Dome { .. } | Detail::Tube { .. } | Detail::Polar { .. } => 2.0,
+                        Detail::Dome { .. }
+                        | Detail::Tube { .. }
+                        | Detail::Nose { .. }
+                        | Detail::Polar { .. } => 2.0,
                         Detail::Hoop { passes, .. } => f64::from(passes),
                         Detail::Skip { .. } => 0.0,
                     };
@@ -397,6 +429,17 @@ impl Job {
             (Layer::Helical(_), Mandrel::Cone { .. }) => Err(Error::WindRule {
                 layer: number,
                 reason: "a geodesic dome layer needs a vessel with polar openings, not a cone"
+                    .to_string(),
+            }),
+            (Layer::Helical(_), Mandrel::VonKarman { .. }) => Err(Error::WindRule {
+                layer: number,
+                reason: "a geodesic dome layer needs a vessel with polar openings, not a nose"
+                    .to_string(),
+            }),
+            (Layer::Hoop { .. }, Mandrel::VonKarman { .. }) => Err(Error::WindRule {
+                layer: number,
+                reason: "hoop layers on a nose profile are not planned: a hoop on a tapering \
+                         surface is not a geodesic and would slip toward the tip"
                     .to_string(),
             }),
             (Layer::Hoop { .. }, Mandrel::Cone { .. }) => Err(Error::WindRule {
@@ -670,6 +713,27 @@ impl Job {
         ] {
             positive(name, v)?;
         }
+        if !(t.friction_lambda >= 0.0 && t.friction_lambda.is_finite()) {
+            return Err(reject(format!(
+                "frictionLambda = {} must be ≥ 0 (0 winds the geodesic)",
+                t.friction_lambda
+            )));
+        }
+        let nose = matches!(self.mandrel, Mandrel::VonKarman { .. });
+        if t.friction_lambda != 0.0 && !nose {
+            return Err(reject(format!(
+                "frictionLambda = {}: a cylinder or cone is wound on its geodesic, set it to 0 \
+                 (friction paths are planned on a nose profile only)",
+                t.friction_lambda
+            )));
+        }
+        if t.friction_lambda > NOSE_SLIP_LIMIT {
+            return Err(reject(format!(
+                "frictionLambda {} exceeds the machine slip limit {NOSE_SLIP_LIMIT}: the tow \
+                 would slip",
+                t.friction_lambda
+            )));
+        }
         if t.pattern_number == 0 || t.skip_index == 0 {
             return Err(reject(
                 "pattern number and skip index must be ≥ 1".to_string(),
@@ -726,6 +790,13 @@ impl Job {
             }
             _ => None,
         };
+        let nose_pass = match self.mandrel {
+            Mandrel::VonKarman {
+                base_radius_mm,
+                length_mm,
+            } => Some(self.nose_pass(number, t, radius, base_radius_mm, length_mm)?),
+            _ => None,
+        };
         let alpha = t.wind_angle_deg.to_radians();
         let circumference = TAU * radius;
         let arc = self.tow.band_mm / alpha.cos();
@@ -768,6 +839,18 @@ impl Job {
                     valid.join(", ")
                 )));
             }
+        }
+        if let Some((pass, stations)) = nose_pass {
+            return Ok(nose_layer(
+                number,
+                t,
+                circuits,
+                radius,
+                length,
+                &pass,
+                stations,
+                self.machine.eye_radius_mm,
+            ));
         }
         let deg_per_mm = (length * alpha.tan() / circumference * 360.0) / length;
         let pass_deg = match &geodesic {
@@ -824,6 +907,112 @@ impl Job {
             },
         ))
     }
+}
+
+impl Job {
+    /// A nose layer's pass, traced and checked: from the base past the lead-in to a turnaround.
+    fn nose_pass(
+        &self,
+        number: usize,
+        t: &TubeHelical,
+        radius: f64,
+        base_radius_mm: f64,
+        length_mm: f64,
+    ) -> Result<(NosePass, Vec<cone::Station>), Error> {
+        let reject = |reason: String| Error::WindRule {
+            layer: number,
+            reason,
+        };
+        if radius != base_radius_mm {
+            return Err(reject(
+                "layer build-up on a nose profile is not planned (the surface would be an \
+                 offset of the ogive)"
+                    .to_string(),
+            ));
+        }
+        let ogive = VonKarman {
+            base_radius_mm,
+            length_mm,
+        };
+        let pass = NosePass::trace(&ogive, t.wind_angle_deg, t.friction_lambda, &[t.lead_in_mm])
+            .map_err(|e| match e {
+                NoseRefusal::ReachesTip { .. } => reject(format!(
+                    "wind angle {}° with frictionLambda {}: {e}; a pass must turn around on a \
+                     radius above {:.4} mm ({}% of the base radius; the geodesic turns at the \
+                     base radius times sin α, {:.4} mm): raise the wind angle",
+                    t.wind_angle_deg,
+                    t.friction_lambda,
+                    nose::TIP_FRACTION * base_radius_mm,
+                    nose::TIP_FRACTION * 100.0,
+                    base_radius_mm * t.wind_angle_deg.to_radians().sin(),
+                )),
+                e => reject(format!(
+                    "wind angle {}° with frictionLambda {}: {e}",
+                    t.wind_angle_deg, t.friction_lambda
+                )),
+            })?;
+        let end = pass.turnaround();
+        if end.along_mm <= t.lead_in_mm {
+            // The geodesic turns at r = R·sin α: past the lead-in only while R·sin α < r(lead-in).
+            let steepest = (ogive.radius_at(t.lead_in_mm) / base_radius_mm)
+                .asin()
+                .to_degrees();
+            return Err(reject(format!(
+                "wind angle {}° has no usable pass: its path turns around {:.3} mm from the base \
+                 (radius {:.3} mm), within the {} mm lead-in; the geodesic turns around past the \
+                 lead-in only below {steepest:.4}°",
+                t.wind_angle_deg, end.along_mm, end.radius_mm, t.lead_in_mm
+            )));
+        }
+        let stations = pass.stations(&ogive);
+        Ok((pass, stations))
+    }
+}
+
+/// A nose layer from its traced pass: circuits counted on the base's parallel; all end turns
+/// at the base (the pass turns back by itself at its turnaround, [`nose`]).
+#[allow(clippy::too_many_arguments)]
+fn nose_layer(
+    number: usize,
+    t: &TubeHelical,
+    circuits: u32,
+    radius: f64,
+    length: f64,
+    pass: &NosePass,
+    stations: Vec<cone::Station>,
+    cross: f64,
+) -> (Detail, LayerMark) {
+    let pass_deg = pass.turn_deg();
+    // Smallest turn at the base after a circuit (out and back), not less than the lead-out,
+    // that brings the circuit's advance to twice the lock (mod 360°), as on a tube or cone.
+    let mut base_turn = (2.0 * t.lock_deg - 2.0 * pass_deg).rem_euclid(360.0);
+    while base_turn < t.lead_out_deg - 1e-9 {
+        base_turn += 360.0;
+    }
+    let patterns = f64::from(circuits / t.pattern_number);
+    let end_turns_deg = if t.initial_lock { 2.0 } else { 1.0 } * t.lock_deg
+        + f64::from(circuits) * base_turn
+        + f64::from(circuits) * f64::from(t.skip_index) * 360.0 / f64::from(t.pattern_number)
+        + patterns * 360.0 / f64::from(circuits);
+    let laid = 2.0 * f64::from(circuits) * pass.length_mm() + radius * end_turns_deg.to_radians();
+    (
+        Detail::Nose {
+            layer: *t,
+            circuits,
+            half_length_mm: length / 2.0,
+            stations,
+            base_turn_deg: base_turn,
+            cross_feed_mm: cross,
+        },
+        LayerMark {
+            number,
+            kind: LayerKind::Helical,
+            circuits: u64::from(circuits),
+            tow_length_mm: laid,
+            winding_radius_mm: radius,
+            wind_angle_deg: t.wind_angle_deg,
+        },
+    )
 }
 
 fn gcd(a: u32, b: u32) -> u32 {
@@ -989,6 +1178,23 @@ impl Plan {
                     *half_length_mm,
                     pass,
                     *turnaround_deg,
+                    *cross_feed_mm,
+                    first,
+                )?,
+                Detail::Nose {
+                    layer: t,
+                    circuits,
+                    half_length_mm,
+                    stations,
+                    base_turn_deg,
+                    cross_feed_mm,
+                } => emit_nose(
+                    &mut c,
+                    t,
+                    *circuits,
+                    *half_length_mm,
+                    stations,
+                    *base_turn_deg,
                     *cross_feed_mm,
                     first,
                 )?,
@@ -1192,6 +1398,85 @@ fn emit_tube<S: MotionSink>(
                 pending += turnaround - t.lead_out_deg;
             }
             pending += f64::from(t.skip_index) * slot;
+        }
+        pending += step;
+    }
+    c.feed(Axes {
+        mandrel_deg: c.at.mandrel_deg + pending + t.lock_deg,
+        ..c.at
+    })?;
+    Ok(())
+}
+
+/// A nose layer: each circuit runs out from the base along the stations to the turnaround
+/// and back along their mirror image (the same turn again, the eye through 0 at the
+/// turnaround, where the fibre lies along the parallel), then turns at the base: the lead-out
+/// (the eye back to 0), the rest of the base turn, the pattern's skip and, after each pattern,
+/// the step. The eye swings to the lay angle `90° − α(z)` over the lead-in, as on a cone.
+#[allow(clippy::too_many_arguments)]
+fn emit_nose<S: MotionSink>(
+    c: &mut Cursor<'_, S>,
+    t: &TubeHelical,
+    circuits: u32,
+    half: f64,
+    stations: &[cone::Station],
+    base_turn: f64,
+    cross: f64,
+    first: bool,
+) -> Result<(), S::Error> {
+    c.approach(
+        Axes {
+            mandrel_deg: c.at.mandrel_deg,
+            carriage_mm: -half,
+            cross_feed_mm: cross,
+            eye_deg: 0.0,
+        },
+        first,
+        f64::INFINITY,
+    )?;
+    if t.initial_lock {
+        c.feed(Axes {
+            mandrel_deg: c.at.mandrel_deg + t.lock_deg,
+            ..c.at
+        })?;
+    }
+    let pass = stations.last().map_or(0.0, |s| s.turn_deg);
+    let slot = 360.0 / f64::from(t.pattern_number);
+    let step = 360.0 / f64::from(circuits);
+    let mut pending = 0.0;
+    for _ in 0..circuits / t.pattern_number {
+        for _ in 0..t.pattern_number {
+            if pending != 0.0 {
+                c.feed(Axes {
+                    mandrel_deg: c.at.mandrel_deg + pending,
+                    ..c.at
+                })?;
+                pending = 0.0;
+            }
+            let base = c.at.mandrel_deg;
+            for s in &stations[1..] {
+                let swing = (s.along_mm / t.lead_in_mm).min(1.0);
+                c.feed(Axes {
+                    mandrel_deg: base + s.turn_deg,
+                    carriage_mm: -half + s.along_mm,
+                    cross_feed_mm: cross,
+                    eye_deg: swing * (90.0 - s.wind_angle_deg),
+                })?;
+            }
+            for s in stations[..stations.len() - 1].iter().rev() {
+                c.feed(Axes {
+                    mandrel_deg: base + 2.0 * pass - s.turn_deg,
+                    carriage_mm: -half + s.along_mm,
+                    cross_feed_mm: cross,
+                    eye_deg: -(90.0 - s.wind_angle_deg),
+                })?;
+            }
+            c.feed(Axes {
+                mandrel_deg: c.at.mandrel_deg + t.lead_out_deg,
+                eye_deg: 0.0,
+                ..c.at
+            })?;
+            pending += base_turn - t.lead_out_deg + f64::from(t.skip_index) * slot;
         }
         pending += step;
     }

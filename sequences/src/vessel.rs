@@ -454,6 +454,7 @@ fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Laye
                 "lead_out_deg",
             )?,
             initial_lock: true,
+            friction_lambda: 0.0,
         }),
         "polar" => Layer::Polar {
             slip_limit: match &l.slip_limit {

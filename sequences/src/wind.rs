@@ -23,7 +23,15 @@
 //! on a cone, and a wind angle whose geodesic turns back before the small end (the cases
 //! FiberPath refuses).
 //!
-//! Not planned: nose profiles (`profile`, 1.2+); such files are refused with that reason.
+//! Nose profiles (`profile`, 1.2+; `{ "type": "vonKarman" }`, the only type the format
+//! defines): a von Kármán ogive from `diameter` at the carriage's start to its tip at
+//! `windLength` ([`paths::vessel::nose`]). Helical layers leave the base at `windAngle` and run
+//! on the geodesic (or, with `frictionLambda` λ > 0, 1.3+, on the path whose geodesic
+//! curvature is λ times its normal curvature) to the turnaround where the fibre lies along a
+//! parallel, then back; circuits are counted on the base. Refused, each with its reason: a
+//! negative λ, λ above the machine slip limit ([`paths::vessel::NOSE_SLIP_LIMIT`], 0.2), a
+//! non-zero λ on a cylinder or cone, a hoop layer on a nose, and a wind angle whose path turns
+//! around within the lead-in (no usable pass).
 
 use std::path::Path;
 
@@ -56,7 +64,16 @@ struct MandrelParameters {
     diameter: f64,
     wind_length: f64,
     end_diameter: Option<f64>,
-    profile: Option<serde_json::Value>,
+    profile: Option<Profile>,
+}
+
+/// A nose profile (1.2+).
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", deny_unknown_fields)]
+enum Profile {
+    /// The von Kármán ogive (Haack series, C = 0).
+    #[serde(rename = "vonKarman")]
+    VonKarman {},
 }
 
 #[derive(Debug, Deserialize)]
@@ -195,12 +212,6 @@ impl WindFile {
                 ));
             }
         }
-        if m.profile.is_some() {
-            return Err(at_key(
-                "profile",
-                "nose profiles are not planned by windcell yet".into(),
-            ));
-        }
         if def.layers.is_empty() {
             return Err(at_key(
                 "layers",
@@ -246,12 +257,6 @@ impl WindFile {
                             return Err(here(format!("{k} = {v} must be > 0")));
                         }
                     }
-                    if friction_lambda != 0.0 {
-                        return Err(here(format!(
-                            "frictionLambda = {friction_lambda}: a cylinder is wound on its \
-                             geodesic, set it to 0"
-                        )));
-                    }
                     if pattern_number == 0 || skip_index == 0 {
                         return Err(here("patternNumber and skipIndex must be ≥ 1".into()));
                     }
@@ -263,6 +268,7 @@ impl WindFile {
                         lead_in_mm,
                         lead_out_deg: lead_out_degrees,
                         initial_lock: !skip_initial_near_lock,
+                        friction_lambda,
                     })
                 }
                 WindLayer::Skip { mandrel_rotation } => {
@@ -285,6 +291,10 @@ impl WindFile {
         };
         let job = Job {
             mandrel: match m.end_diameter {
+                _ if m.profile.is_some() => Mandrel::VonKarman {
+                    base_radius_mm: radius,
+                    length_mm: m.wind_length,
+                },
                 Some(end) if end < m.diameter => Mandrel::Cone {
                     large_radius_mm: radius,
                     small_radius_mm: end / 2.0,
@@ -393,6 +403,48 @@ mod tests {
         // Absent version is 1.0.
         let old = TUBE.replace("\"schemaVersion\": \"1.3\",", "");
         assert!(WindFile::parse(&old, "t").is_ok());
+        // The machine: the eye 25 mm off the 35 mm radius; the carriage at the feed (6000 mm/min
+        // = 100 mm/s, 1000 mm/s²) and the mandrel at the same surface speed, in degrees.
+        assert_eq!(job.machine.eye_radius_mm, 60.0);
+        let deg_per_mm = 360.0 / (std::f64::consts::TAU * 35.0);
+        let mandrel = job.machine.limits.axes[0];
+        assert!((mandrel.velocity - 100.0 * deg_per_mm).abs() < 1e-9);
+        assert!((mandrel.acceleration - 1000.0 * deg_per_mm).abs() < 1e-9);
+        assert_eq!(job.machine.limits.axes[1].acceleration, 1000.0);
+    }
+
+    #[test]
+    fn the_parsers_own_checks_come_first() {
+        let cases = [
+            ("\"1.3\"", "\"1.x\"", "2:3: schema version `1.x` is not 1.x"),
+            ("\"1.3\"", "\"1.\"", "2:3: schema version `1.` is not 1.x"),
+            (
+                "\"diameter\": 70",
+                "\"diameter\": 0",
+                "3:26: diameter = 0 must be > 0",
+            ),
+            (
+                "\"lockDegrees\": 720",
+                "\"lockDegrees\": 0",
+                "8:5: layer 2: lockDegrees = 0 must be > 0",
+            ),
+            (
+                "\"lockDegrees\": 720",
+                "\"lockDegrees\": -1",
+                "8:5: layer 2: lockDegrees = -1 must be > 0",
+            ),
+            (
+                "\"patternNumber\": 3",
+                "\"patternNumber\": 0",
+                "8:5: layer 2: patternNumber and skipIndex must be ≥ 1",
+            ),
+        ];
+        for (from, to, expect) in cases {
+            let text = TUBE.replace(from, to);
+            assert_ne!(text, TUBE, "{from}");
+            let err = WindFile::parse(&text, "t").unwrap_err().to_string();
+            assert!(err.starts_with(expect), "{expect}: {err}");
+        }
     }
 
     #[test]
@@ -446,13 +498,13 @@ mod tests {
             ),
             (
                 "\"windLength\": 500",
-                "\"windLength\": 500, \"endDiameter\": 50, \"profile\": {}",
+                "\"windLength\": 500, \"endDiameter\": 50, \"profile\": { \"type\": \"vonKarman\" }",
                 "3:80: profile and endDiameter are mutually exclusive",
             ),
             (
                 "\"windLength\": 500",
-                "\"windLength\": 500, \"profile\": { \"type\": \"vonKarman\" }",
-                "3:61: nose profiles are not planned",
+                "\"windLength\": 500, \"profile\": { \"type\": \"tangentOgive\" }",
+                "3:95: unknown variant `tangentOgive`, expected `vonKarman`",
             ),
             (
                 "\"width\": 6.5",
@@ -541,11 +593,102 @@ mod tests {
         }
     }
 
+    /// A von Kármán nose: 98 mm base, 300 mm long (the dimensions of FiberPath's example).
+    const NOSE: &str = r#"{
+  "schemaVersion": "1.3",
+  "mandrelParameters": { "diameter": 98, "windLength": 300, "profile": { "type": "vonKarman" } },
+  "towParameters": { "width": 7, "thickness": 0.5 },
+  "defaultFeedRate": 9000,
+  "layers": [
+    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
+      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15, "frictionLambda": 0.15 },
+    { "windType": "skip", "mandrelRotation": 45 }
+  ]
+}"#;
+
+    #[test]
+    fn a_nose_profile_is_planned_from_its_base() {
+        let job = WindFile::parse(NOSE, "n").unwrap();
+        assert_eq!(
+            job.mandrel,
+            Mandrel::VonKarman {
+                base_radius_mm: 49.0,
+                length_mm: 300.0
+            }
+        );
+        assert!(matches!(job.layers[0], Layer::TubeHelical(t) if t.friction_lambda == 0.15));
+        // Absent, λ is 0 (the geodesic).
+        let geodesic = NOSE.replace(", \"frictionLambda\": 0.15", "");
+        let job = WindFile::parse(&geodesic, "n").unwrap();
+        assert!(matches!(job.layers[0], Layer::TubeHelical(t) if t.friction_lambda == 0.0));
+        // ceil(2π·49·cos 30° / 7) = ceil(38.09) = 39 circuits, counted on the base.
+        assert_eq!(job.check().unwrap().layers[0].mark.circuits, 39);
+    }
+
+    #[test]
+    fn nose_refusals_are_reported_at_the_layer() {
+        let cases = [
+            (
+                "\"frictionLambda\": 0.15",
+                "\"frictionLambda\": -0.1",
+                "7:5: layer 1: frictionLambda = -0.1 must be ≥ 0",
+            ),
+            (
+                "\"frictionLambda\": 0.15",
+                "\"frictionLambda\": 0.5",
+                "7:5: layer 1: frictionLambda 0.5 exceeds the machine slip limit 0.2",
+            ),
+            (
+                "\"frictionLambda\": 0.15",
+                "\"frictionLambda\": 0.2000001",
+                "7:5: layer 1: frictionLambda 0.2000001 exceeds the machine slip limit 0.2",
+            ),
+            (
+                "{ \"windType\": \"skip\", \"mandrelRotation\": 45 }",
+                "{ \"windType\": \"hoop\" }",
+                "9:5: layer 2: hoop layers on a nose profile are not planned",
+            ),
+            (
+                "{ \"type\": \"vonKarman\" }",
+                "{ \"type\": \"vonKarman\", \"c\": 0.33 }",
+                "3:107: unknown field `c`",
+            ),
+        ];
+        for (from, to, expect) in cases {
+            let text = NOSE.replace(from, to);
+            assert_ne!(text, NOSE, "{from}");
+            let err = WindFile::parse(&text, "n").unwrap_err().to_string();
+            assert!(err.starts_with(expect), "{expect}: {err}");
+        }
+        // FiberPath's unreachable case: 89° on the geodesic turns around 0.955 mm from the base,
+        // inside the lead-in (r(5 mm) = 48.9109 mm is R·sin 86.5437°).
+        let steep = NOSE
+            .replace(", \"frictionLambda\": 0.15", "")
+            .replace("\"windAngle\": 30", "\"windAngle\": 89");
+        let err = WindFile::parse(&steep, "n").unwrap_err().to_string();
+        assert!(
+            err.starts_with(
+                "7:5: layer 1: wind angle 89° has no usable pass: its path turns around 0.955 mm \
+                 from the base (radius 48.993 mm), within the 5 mm lead-in; the geodesic turns \
+                 around past the lead-in only below 86.54"
+            ),
+            "{err}"
+        );
+        // The slip limit itself is allowed.
+        let edge = NOSE.replace("\"frictionLambda\": 0.15", "\"frictionLambda\": 0.2");
+        assert!(WindFile::parse(&edge, "n").is_ok());
+    }
+
     #[test]
     fn finds_layer_objects_past_strings_and_nesting() {
         let text = r#"{"a": "[{", "layers": [ {"x": [1, {"y": 2}]}, "s}", {"z": "{"} ]}"#;
         assert_eq!(layer_offset(text, 0), Some(text.find("{\"x\"").unwrap()));
         assert_eq!(layer_offset(text, 1), Some(text.find("{\"z\"").unwrap()));
         assert_eq!(layer_offset(text, 2), None);
+        // An escaped quote does not end a string; an escaped backslash does not escape the quote
+        // after it.
+        let text = r#"{"layers": [ {"x": "a\"{"}, {"y": "b\\"}, {"z": 1} ]}"#;
+        assert_eq!(layer_offset(text, 1), Some(text.find("{\"y\"").unwrap()));
+        assert_eq!(layer_offset(text, 2), Some(text.find("{\"z\"").unwrap()));
     }
 }

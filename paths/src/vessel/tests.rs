@@ -285,6 +285,7 @@ pub(crate) fn tube_job(layers: usize) -> Job {
                 lead_in_mm: 10.0,
                 lead_out_deg: 10.0,
                 initial_lock: true,
+                friction_lambda: 0.0,
             });
             layers
         ],
@@ -351,6 +352,7 @@ fn tube_rules_are_enforced_with_reasons() {
             lead_in_mm,
             lead_out_deg: 10.0,
             initial_lock: true,
+            friction_lambda: 0.0,
         })];
         let err = job.check().unwrap_err().to_string();
         assert!(err.contains(expect), "{err}");
@@ -364,6 +366,7 @@ fn tube_rules_are_enforced_with_reasons() {
         lead_in_mm: 2000.0,
         lead_out_deg: 10.0,
         initial_lock: true,
+        friction_lambda: 0.0,
     })];
     assert!(job.check().unwrap_err().to_string().contains("lead-in"));
 }
@@ -403,6 +406,7 @@ fn cone_job() -> Job {
         lead_in_mm: 5.0,
         lead_out_deg: 15.0,
         initial_lock: true,
+        friction_lambda: 0.0,
     })];
     job
 }
@@ -575,4 +579,312 @@ fn polar_layer_turns_once_per_circuit_and_keeps_the_eye_off_the_vessel() {
             assert_abs_diff_eq!(far, 98.25498 + 30.0 * a.cos(), epsilon = 1e-3);
         }
     }
+}
+
+/// FiberPath's nose example: a von Kármán ogive of base 98 mm over 300 mm, 7 mm tow, 30° at the
+/// base, with friction ratio `lambda`.
+fn nose_job(lambda: f64) -> Job {
+    let mut job = cone_job();
+    job.mandrel = Mandrel::VonKarman {
+        base_radius_mm: 49.0,
+        length_mm: 300.0,
+    };
+    job.tow.band_mm = 7.0;
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.friction_lambda = lambda;
+    }
+    job
+}
+
+/// The Haack radius written out (x from the tip, φ = acos(1 − 2x/L)).
+fn haack(z: f64) -> f64 {
+    let phi = (1.0 - 2.0 * (300.0 - z) / 300.0).acos();
+    49.0 / PI.sqrt() * (phi - (2.0 * phi).sin() / 2.0).sqrt()
+}
+
+/// Walks a one-layer nose plan's moves: returns each circuit's (mandrel angle at its start,
+/// outward turn, return turn, farthest carriage) and the surface length of every move.
+fn nose_circuits(job: &Job) -> (Vec<(f64, f64, f64, f64)>, f64) {
+    let r = record(job);
+    let mut prev = r.moves[0].to;
+    let mut out = Vec::new();
+    let mut laid = 0.0;
+    // (start angle, angle at the far end, far carriage) of the circuit under way.
+    let mut open: Option<(f64, f64, f64)> = None;
+    for m in &r.moves[1..] {
+        let to = m.to;
+        assert!(
+            to.mandrel_deg >= prev.mandrel_deg,
+            "the mandrel never turns back"
+        );
+        let (z0, z1) = (prev.carriage_mm + 150.0, to.carriage_mm + 150.0);
+        assert!((-1e-9..=300.0).contains(&z1));
+        let zm = 0.5 * (z0 + z1);
+        let h = 1e-6;
+        let slope = (haack((zm + h).min(300.0)) - haack((zm - h).max(0.0))) / (2.0 * h);
+        laid += ((z1 - z0) * (1.0 + slope * slope).sqrt())
+            .hypot(haack(zm) * (to.mandrel_deg - prev.mandrel_deg).to_radians());
+        if z1 > z0 {
+            let o = open.get_or_insert((prev.mandrel_deg, 0.0, 0.0));
+            o.1 = to.mandrel_deg;
+            o.2 = z1;
+        } else if z1 < z0 && z1 == 0.0 {
+            let (start, far, z) = open.take().unwrap();
+            out.push((start, far - start, to.mandrel_deg - far, z));
+        }
+        prev = to;
+    }
+    (out, laid)
+}
+
+#[test]
+fn nose_helical_runs_from_the_base_to_the_geodesic_turnaround_and_back() {
+    let job = nose_job(0.0);
+    let plan = job.check().unwrap();
+    // Circuits tile the base's parallel: ⌈2π·49·cos 30° / 7⌉ = ⌈38.09⌉ = 39.
+    assert_eq!(plan.layers[0].mark.circuits, 39);
+    assert_eq!(plan.layers[0].mark.wind_angle_deg, 30.0);
+    let ogive = nose::VonKarman {
+        base_radius_mm: 49.0,
+        length_mm: 300.0,
+    };
+    let (zt, theta, length) = nose::tests::clairaut_quadrature(&ogive, 30.0);
+    // The turnaround is where the Haack radius is C = 49·sin 30° = 24.5 mm.
+    assert_abs_diff_eq!(haack(zt), 24.5, epsilon = 1e-9);
+    let (circuits, laid) = nose_circuits(&job);
+    assert_eq!(circuits.len(), 39);
+    let mut slots: Vec<f64> = Vec::new();
+    for &(start, out, back, far) in &circuits {
+        assert_abs_diff_eq!(far, zt, epsilon = 1e-6);
+        assert_abs_diff_eq!(out, theta.to_degrees(), epsilon = 1e-5);
+        assert_abs_diff_eq!(back, theta.to_degrees(), epsilon = 1e-5);
+        slots.push((start - circuits[0].0).rem_euclid(360.0));
+    }
+    // Every circuit starts on its own slot of 360°/39.
+    slots.sort_by(f64::total_cmp);
+    for (k, s) in slots.iter().enumerate() {
+        assert_abs_diff_eq!(*s, k as f64 * 360.0 / 39.0, epsilon = 1e-6);
+    }
+    // The mark's tow: the passes' geodesic length and the turns at the base, against the
+    // surface length of the moves (chords within 0.01 mm).
+    let mark = plan.layers[0].mark.tow_length_mm;
+    assert!(mark > 2.0 * 39.0 * length);
+    assert_abs_diff_eq!(mark, laid, epsilon = 1e-4 * laid);
+}
+
+#[test]
+fn nose_friction_lays_deeper_and_keeps_the_pattern() {
+    let geodesic = nose_circuits(&nose_job(0.0)).0;
+    let (circuits, laid) = nose_circuits(&nose_job(0.15));
+    assert_eq!(circuits.len(), 39);
+    let far = circuits[0].3;
+    // Deeper than the geodesic's turnaround, on a radius where the meridian is steeper than λ.
+    assert!(far > geodesic[0].3 + 50.0, "{far}");
+    let h = 1e-6;
+    assert!((haack(far + h) - haack(far - h)).abs() / (2.0 * h) > 0.15);
+    let mut slots: Vec<f64> = circuits
+        .iter()
+        .map(|c| {
+            assert_abs_diff_eq!(c.1, c.2, epsilon = 1e-9);
+            assert_abs_diff_eq!(c.3, far, epsilon = 1e-9);
+            (c.0 - circuits[0].0).rem_euclid(360.0)
+        })
+        .collect();
+    slots.sort_by(f64::total_cmp);
+    for (k, s) in slots.iter().enumerate() {
+        assert_abs_diff_eq!(*s, k as f64 * 360.0 / 39.0, epsilon = 1e-6);
+    }
+    let plan = nose_job(0.15).check().unwrap();
+    assert_abs_diff_eq!(
+        plan.layers[0].mark.tow_length_mm,
+        laid,
+        epsilon = 1e-4 * laid
+    );
+}
+
+#[test]
+fn nose_refusals_give_the_reason() {
+    let mut job = nose_job(0.0);
+    job.layers = vec![Layer::Hoop { passes: 2 }];
+    let err = job.check().unwrap_err().to_string();
+    assert!(
+        err.contains("layer 1: hoop layers on a nose profile"),
+        "{err}"
+    );
+    let mut job = nose_job(0.0);
+    job.layers.push(Layer::Helical(PatternRequest::default()));
+    let err = job.check().unwrap_err().to_string();
+    assert!(
+        err.contains("layer 2: a geodesic dome layer needs a vessel"),
+        "{err}"
+    );
+    for (lambda, expect) in [
+        (-0.1, "frictionLambda = -0.1 must be ≥ 0"),
+        (f64::NAN, "frictionLambda = NaN must be ≥ 0"),
+        (
+            0.21,
+            "frictionLambda 0.21 exceeds the machine slip limit 0.2",
+        ),
+    ] {
+        let err = nose_job(lambda).check().unwrap_err().to_string();
+        assert!(err.contains(expect), "{err}");
+    }
+    assert!(nose_job(NOSE_SLIP_LIMIT).check().is_ok());
+    // Friction on a cone or a tube is refused: they are wound on their geodesics.
+    let mut cone = cone_job();
+    if let Layer::TubeHelical(t) = &mut cone.layers[0] {
+        t.friction_lambda = 0.1;
+    }
+    let err = cone.check().unwrap_err().to_string();
+    assert!(
+        err.contains("frictionLambda = 0.1: a cylinder or cone"),
+        "{err}"
+    );
+    // Build-up would wind on an offset of the ogive: refused on the second layer.
+    let mut job = nose_job(0.0);
+    job.build_up = true;
+    job.layers.push(job.layers[0]);
+    let err = job.check().unwrap_err().to_string();
+    assert!(
+        err.contains("layer 2: layer build-up on a nose profile"),
+        "{err}"
+    );
+    // A path that reaches the tip: a shallow geodesic, C = 49·sin 0.4° < 1 % of 49 mm.
+    let mut job = nose_job(0.0);
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.wind_angle_deg = 1.0;
+        t.lead_in_mm = 1.0;
+    }
+    // Friction near the tip: at 1° with λ = 0.05 the path passes C = 49·sin 1° = 0.855 mm and
+    // reaches 1 % of the base radius without turning; with λ = 0.2 friction first turns the
+    // fibre onto the meridian (the meridian's curvature is large near the base).
+    let cases = [
+        (
+            0.05,
+            "wind angle 1° with frictionLambda 0.05: the path reaches the tip (radius 0.49",
+        ),
+        (
+            0.2,
+            "wind angle 1° with frictionLambda 0.2: friction turns the fibre onto the meridian",
+        ),
+    ];
+    for (lambda, expect) in cases {
+        if let Layer::TubeHelical(t) = &mut job.layers[0] {
+            t.friction_lambda = lambda;
+        }
+        let err = job.check().unwrap_err().to_string();
+        assert!(err.contains(expect), "{err}");
+        if lambda == 0.05 {
+            assert!(
+                err.contains("above 0.4900 mm (1% of") && err.contains("sin α, 0.8552 mm"),
+                "{err}"
+            );
+        }
+    }
+    // A nose 1 mm across and a kilometre long: steps of r/200 would be ~10⁸; refused at the cap
+    // (bounded time and memory).
+    let mut job = nose_job(0.0);
+    job.mandrel = Mandrel::VonKarman {
+        base_radius_mm: 0.5,
+        length_mm: 1e6,
+    };
+    let err = job.check().unwrap_err().to_string();
+    assert!(
+        err.contains("wind angle 30° with frictionLambda 0: the pass needs more than 400000"),
+        "{err}"
+    );
+    // No usable pass: 89° turns around inside the lead-in.
+    let mut job = nose_job(0.0);
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.wind_angle_deg = 89.0;
+    }
+    let err = job.check().unwrap_err().to_string();
+    assert!(
+        err.contains("wind angle 89° has no usable pass") && err.contains("86.5437°"),
+        "{err}"
+    );
+}
+
+#[test]
+fn nose_base_turn_is_at_least_the_lead_out() {
+    // Lock 120° and skip 2 of 3 slots: the circuit advances by 2·lock = 240° (mod 360°) with the
+    // two passes' turn 2·θt; (240° − 2·θt) mod 360° = 151.77° is below the 160° lead-out, so the
+    // base turn is a whole turn more.
+    let mut job = nose_job(0.0);
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.lock_deg = 120.0;
+        t.lead_out_deg = 160.0;
+        t.skip_index = 2;
+    }
+    let ogive = nose::VonKarman {
+        base_radius_mm: 49.0,
+        length_mm: 300.0,
+    };
+    let theta = nose::tests::clairaut_quadrature(&ogive, 30.0)
+        .1
+        .to_degrees();
+    let base_turn = (240.0 - 2.0 * theta).rem_euclid(360.0) + 360.0;
+    assert!(base_turn > 160.0 && base_turn < 160.0 + 360.0);
+    let (circuits, laid) = nose_circuits(&job);
+    assert_eq!(circuits.len(), 39);
+    for (k, w) in circuits.windows(2).enumerate() {
+        let gap = w[1].0 - (w[0].0 + w[0].1 + w[0].2);
+        // The skip (2 slots of 120°) after each circuit, a step of 360°/39 after each pattern.
+        let step = if k % 3 == 2 { 360.0 / 39.0 } else { 0.0 };
+        assert_abs_diff_eq!(gap, base_turn + 240.0 + step, epsilon = 1e-5);
+    }
+    let mut slots: Vec<f64> = circuits
+        .iter()
+        .map(|c| (c.0 - circuits[0].0).rem_euclid(360.0))
+        .collect();
+    slots.sort_by(f64::total_cmp);
+    for (k, s) in slots.iter().enumerate() {
+        assert_abs_diff_eq!(*s, k as f64 * 360.0 / 39.0, epsilon = 1e-6);
+    }
+    let plan = job.check().unwrap();
+    assert_abs_diff_eq!(
+        plan.layers[0].mark.tow_length_mm,
+        laid,
+        epsilon = 1e-4 * laid
+    );
+}
+
+#[test]
+fn nose_eye_swings_over_the_lead_in_and_lies_at_the_local_angle() {
+    // The eye at 90° − α(z), α from Clairaut (sin α = 24.5 / r(z)); over the lead-in it
+    // swings up in proportion to the carriage's travel; on the way back it lies on the other side.
+    // A 100 mm lead-in, so that stations fall inside it.
+    let mut job = nose_job(0.0);
+    if let Layer::TubeHelical(t) = &mut job.layers[0] {
+        t.lead_in_mm = 100.0;
+    }
+    let r = record(&job);
+    let mut prev = r.moves[0].to;
+    let (mut inside, mut outward, mut back) = (0, 0, 0);
+    for m in &r.moves[1..] {
+        let to = m.to;
+        let z = to.carriage_mm + 150.0;
+        let lay = 90.0 - (24.5 / haack(z)).min(1.0).asin().to_degrees();
+        if to.carriage_mm > prev.carriage_mm {
+            let swing = (z / 100.0).min(1.0);
+            assert_abs_diff_eq!(to.eye_deg, swing * lay, epsilon = 1e-5);
+            if z < 100.0 - 1e-9 {
+                inside += 1;
+            } else {
+                outward += 1;
+            }
+        } else if to.carriage_mm < prev.carriage_mm {
+            assert_abs_diff_eq!(to.eye_deg, -lay, epsilon = 1e-5);
+            back += 1;
+        } else {
+            // Every turn with the carriage still is at the base, the eye back at 0.
+            assert_eq!(to.carriage_mm, -150.0);
+            assert_eq!(to.eye_deg, 0.0);
+        }
+        prev = to;
+    }
+    assert!(
+        inside > 39 * 10 && outward > 39 * 10 && back > 39 * 50,
+        "{inside} {outward} {back}"
+    );
 }

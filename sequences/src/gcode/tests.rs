@@ -78,6 +78,7 @@ fn tube() -> Job {
                 lead_in_mm: 10.0,
                 lead_out_deg: 10.0,
                 initial_lock: true,
+                friction_lambda: 0.0,
             }),
         ],
         build_up: false,
