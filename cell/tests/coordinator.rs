@@ -1908,3 +1908,236 @@ fn hung_program(as_state: bool) {
         "first read {waited:.3} s after the edge; quiet time {quiet_s:.3} s"
     );
 }
+
+/// A mandrel that presses "stop" as its first move (the first path's sync) goes out: the run
+/// stops after the sync is journaled and before the first segment.
+struct StopAtFirstMove {
+    inner: Box<dyn MandrelDevice>,
+    flag: Arc<AtomicBool>,
+    pressed: bool,
+}
+
+impl MandrelDevice for StopAtFirstMove {
+    fn attach(&mut self) -> cell::device::DeviceResult<i64> {
+        self.inner.attach()
+    }
+    fn zero(&mut self) -> cell::device::DeviceResult<()> {
+        self.inner.zero()
+    }
+    fn start_move(&mut self, mv: &MandrelMove, armed: bool) -> cell::device::DeviceResult<()> {
+        if !self.pressed {
+            self.pressed = true;
+            self.flag.store(true, Ordering::Relaxed);
+        }
+        self.inner.start_move(mv, armed)
+    }
+    fn busy(&mut self) -> cell::device::DeviceResult<(bool, bool)> {
+        self.inner.busy()
+    }
+    fn counter_steps(&mut self) -> cell::device::DeviceResult<i64> {
+        self.inner.counter_steps()
+    }
+    fn move_steps(&mut self) -> cell::device::DeviceResult<i64> {
+        self.inner.move_steps()
+    }
+    fn stop(&mut self) -> cell::device::DeviceResult<()> {
+        self.inner.stop()
+    }
+}
+
+/// Stop → resume → stop → resume (docs/testing.md, `run_inner`'s `item` record): stopped
+/// between the first path's sync and its first segment, resumed and stopped again after five
+/// segments, resumed to the end. A resumed item that is already synced must not be journaled as
+/// a new item (its `item` record would clear the journaled sync, and the second resume would
+/// sync the mandrel again from mid-path). Every robot target once, one sync per path, and the
+/// mandrel where the first sync plus the path's steps put it.
+#[test]
+fn stop_resume_stop_resume_syncs_each_path_once() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    // 1: stopped at the first path's sync.
+    let flag = Arc::new(AtomicBool::new(false));
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: d.robot,
+        mandrel: Box::new(StopAtFirstMove {
+            inner: d.mandrel,
+            flag: flag.clone(),
+            pressed: false,
+        }),
+        sync: d.sync,
+        time: d.time,
+    };
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(dev, flag, Journal::create(&jp).unwrap(), &mut sink);
+    let stopped = c
+        .run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    assert!(
+        matches!(stopped.halt, Halt::Interrupted { .. }),
+        "{stopped:?}"
+    );
+    assert_eq!((stopped.item, stopped.segments_done), (1, 0));
+    let recs = journal::read(&jp).unwrap();
+    let last: Vec<&str> = recs[recs.len() - 2..]
+        .iter()
+        .map(|r| r["rec"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        last,
+        ["sync", "stopped"],
+        "the first stop must come after the sync record: {recs:?}"
+    );
+    cell.timebase_sleep(Duration::from_secs(2));
+    // 2: resumed, stopped after five segments.
+    let (journal, records) = Journal::resume(&jp).unwrap();
+    let from = resume_point(&b, &records).unwrap();
+    assert!(
+        from.sync_counter.is_some() && from.segments_done == 0,
+        "{from:?}"
+    );
+    let stopped = wind(&cell, &b, journal, &from, false, Some(5)).unwrap_err();
+    assert_eq!((stopped.item, stopped.segments_done), (1, 5));
+    cell.timebase_sleep(Duration::from_secs(2));
+    let (journal, records) = Journal::resume(&jp).unwrap();
+    let from = resume_point(&b, &records).unwrap();
+    assert_eq!(from.segments_done, 5);
+    assert!(
+        from.sync_counter.is_some(),
+        "the journaled sync was lost: {from:?}"
+    );
+    // 3: resumed to the end.
+    wind(&cell, &b, journal, &from, false, None).unwrap();
+    check_each_once(&cell, &b);
+    let recs = journal::read(&jp).unwrap();
+    let count = |rec: &str, item: i64| {
+        recs.iter()
+            .filter(|r| r["rec"] == rec && r["item"] == item)
+            .count()
+    };
+    assert_eq!(
+        (count("item", 0), count("sync", 0), count("sync", 1)),
+        (1, 1, 1),
+        "one item record and one sync per path"
+    );
+    // The first path's last segment ends where its one sync plus its steps put the mandrel.
+    let sync0 = recs
+        .iter()
+        .find(|r| r["rec"] == "sync" && r["item"] == 0)
+        .unwrap()["counter"]
+        .as_i64()
+        .unwrap();
+    let path0: i64 = b.items[0]
+        .rob
+        .instructions
+        .iter()
+        .map(|n| n.mandrel.steps)
+        .sum();
+    let done0 = recs
+        .iter()
+        .rfind(|r| r["rec"] == "segment" && r["item"] == 0)
+        .unwrap()["counter"]
+        .as_i64()
+        .unwrap();
+    assert_eq!(done0, sync0 + path0);
+    let counter = cell.with(|p| p.card.machine().counter_steps()).unwrap();
+    let sync1 = recs
+        .iter()
+        .find(|r| r["rec"] == "sync" && r["item"] == 1)
+        .unwrap()["counter"]
+        .as_i64()
+        .unwrap();
+    let path1: i64 = b.items[1]
+        .rob
+        .instructions
+        .iter()
+        .map(|n| n.mandrel.steps)
+        .sum();
+    assert_eq!(counter, sync1 + path1);
+}
+
+/// Killed just after the start edge went out, and the robot stopped at its controls before the
+/// edge reached it (still at the handshake, before its first position), while the indexer,
+/// armed on the same line, saw the edge and turned the whole path. On resume the robot has
+/// reached no position and the mandrel has turned: the path is started again (the mandrel
+/// synced back, the whole program run), not resumed from a robot instruction that was never
+/// reached, and every robot target is reached once.
+#[test]
+fn a_robot_stopped_at_its_handshake_while_the_mandrel_turned_starts_the_path_again() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let life = Life::new();
+    let d = cell.devices(Drive::default());
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Mortal::new(d.robot, life.clone())),
+        mandrel: Box::new(Mortal::new(d.mandrel, life.clone())),
+        sync: Box::new(MortalStart {
+            inner: d.sync,
+            life: life.clone(),
+        }),
+        time: d.time,
+    };
+    let l2 = life.clone();
+    // RUN_PROGRAM, the armed move and the start edge go out; nothing after.
+    let mut sink = |e: Event| {
+        if matches!(e, Event::Program { done: false, .. }) {
+            l2.die_after(3);
+        }
+    };
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::create(&jp).unwrap(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap_err();
+    drop(c);
+    // The operator's STOP reaches the robot within the opto-coupler's delay of the edge.
+    let stop = asea_protocol::Frame {
+        code: 0x0C,
+        data: Vec::new(),
+    };
+    let now = cell.clock().now_s();
+    let s = cell
+        .with(|p| {
+            p.robot.machine.execute(&stop, now);
+            p.robot.machine.status()
+        })
+        .unwrap();
+    assert!(
+        s.instruction <= cell::coordinator::HANDSHAKE_LEAD,
+        "the robot must be stopped before its first position: {s:?}"
+    );
+    cell.timebase_sleep(Duration::from_secs(60));
+    let (_, turned, _) = completed(&cell);
+    let path0: i64 = b.items[0]
+        .rob
+        .instructions
+        .iter()
+        .map(|n| n.mandrel.steps)
+        .sum();
+    assert!(
+        turned.iter().any(|&s| s == path0),
+        "the armed move turned the whole path: {turned:?}"
+    );
+    resume(&cell, &b, &jp);
+    check_each_once(&cell, &b);
+    let recs = journal::read(&jp).unwrap();
+    assert!(
+        !recs.iter().any(|r| r["rec"] == "resume_program"),
+        "no resume program from a position never reached"
+    );
+    // The first path wound again: its program recorded twice, the second after the resume.
+    let resumed = recs.iter().position(|r| r["rec"] == "resume").unwrap();
+    assert!(
+        recs[resumed..]
+            .iter()
+            .any(|r| r["rec"] == "program" && r["item"] == 0)
+    );
+}

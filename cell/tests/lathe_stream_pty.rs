@@ -197,13 +197,15 @@ fn ctrl_c_sends_feed_hold_and_reset_and_exits_130() {
 fn pause_waits_at_the_layer_boundary_and_resume_completes() {
     let d = tempfile::tempdir().unwrap();
     let prog = d.path().join("two.nc");
-    // Layer 1: 20 lines of 0.1 s each, more bytes than the receive buffer holds, so the pause
-    // request arrives while layer 1 is still being sent.
+    // Layer 1: 60 lines of 0.05 s each. The controller takes about 25 short lines at once (15
+    // planner blocks and a full 128-byte receive buffer), then one per block finished, so layer
+    // 1 is still being sent for about 1.7 s after the pause request (20 lines, as this test had,
+    // all fit at once: the pause then raced the first milliseconds of the stream).
     let mut text = String::from("(layer 1)\nG21 G90 G94\n");
-    for i in 1..=20 {
-        text.push_str(&format!("G1 X{i} F600\n"));
+    for i in 1..=60 {
+        text.push_str(&format!("G1 X{i} F1200\n"));
     }
-    text.push_str("(layer 2)\nG1 X21\nG1 X22\nM30\n");
+    text.push_str("(layer 2)\nG1 X61\nG1 X62\nM30\n");
     std::fs::write(&prog, text).unwrap();
     let (server, pty, log) = sim(d.path(), "1");
     let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
@@ -216,9 +218,9 @@ fn pause_waits_at_the_layer_boundary_and_resume_completes() {
     let mut stdin = child.stdin.take().unwrap();
     stdin.write_all(b"p\n").unwrap();
     // Nothing of layer 2 may follow while paused, though layer 1's motion has finished.
-    wait_for_lines(&log, 21);
+    wait_for_lines(&log, 61);
     std::thread::sleep(Duration::from_millis(2500));
-    assert_eq!(received(&log_records(&log)).len(), 21);
+    assert_eq!(received(&log_records(&log)).len(), 61);
     stdin.write_all(b"r\n").unwrap();
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
@@ -227,7 +229,7 @@ fn pause_waits_at_the_layer_boundary_and_resume_completes() {
         "{}",
         stderr(&out)
     );
-    assert_eq!(received(&log_records(&log)).len(), 24);
+    assert_eq!(received(&log_records(&log)).len(), 64);
     stop_cleanly(server);
 }
 
