@@ -37,6 +37,36 @@ pub fn unix_now_s() -> f64 {
 /// The times (Unix seconds) at which a tap saw its stop command.
 pub type StopTimes = Arc<Mutex<Vec<f64>>>;
 
+/// One passage of bytes through a tap: when (Unix seconds), which way, what.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WireEvent {
+    /// Unix seconds when the read returned or the write finished.
+    pub unix_s: f64,
+    /// True for bytes from the peer (the coordinator), false for the simulator's own.
+    pub inbound: bool,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+impl WireEvent {
+    /// As a JSON value: `[unix_s, "in"|"out", "hex bytes"]`.
+    pub fn json(&self) -> serde_json::Value {
+        let hex: Vec<String> = self.bytes.iter().map(|b| format!("{b:02x}")).collect();
+        serde_json::json!([
+            self.unix_s,
+            if self.inbound { "in" } else { "out" },
+            hex.join(" ")
+        ])
+    }
+}
+
+/// The wire's last events before each stop command, one list per stop seen
+/// ([`StopTap::with_trace`]).
+pub type StopTraces = Arc<Mutex<Vec<Vec<WireEvent>>>>;
+
+/// How many passages of bytes the trace keeps before a stop command.
+pub const TRACE_EVENTS: usize = 48;
+
 /// A link that notes when a stop command passes through it (in the reading direction).
 #[derive(Debug)]
 pub struct StopTap<L> {
@@ -45,6 +75,9 @@ pub struct StopTap<L> {
     /// Bytes read and not yet ruled out (the tail of a telegram, the current line).
     window: Vec<u8>,
     seen: StopTimes,
+    /// The last [`TRACE_EVENTS`] passages both ways, when tracing.
+    recent: Option<std::collections::VecDeque<WireEvent>>,
+    traces: StopTraces,
 }
 
 /// Longest tail kept while looking for a pattern.
@@ -60,13 +93,38 @@ impl<L> StopTap<L> {
                 pattern,
                 window: Vec::new(),
                 seen: seen.clone(),
+                recent: None,
+                traces: StopTraces::default(),
             },
             seen,
         )
     }
 
+    /// Also keeps the bytes passing both ways, and at each stop command seen hands the last
+    /// [`TRACE_EVENTS`] of them (the stop's own bytes last) to the returned list: what was on
+    /// the line when the stop came (`sim-robot --log-wire`, docs/benchmarks.md "Stop latency").
+    pub fn with_trace(mut self) -> (Self, StopTraces) {
+        self.recent = Some(std::collections::VecDeque::with_capacity(TRACE_EVENTS));
+        let traces = self.traces.clone();
+        (self, traces)
+    }
+
+    fn note(&mut self, inbound: bool, bytes: &[u8]) {
+        if let Some(r) = self.recent.as_mut() {
+            if r.len() == TRACE_EVENTS {
+                r.pop_front();
+            }
+            r.push_back(WireEvent {
+                unix_s: unix_now_s(),
+                inbound,
+                bytes: bytes.to_vec(),
+            });
+        }
+    }
+
     fn saw(&mut self, bytes: &[u8]) {
         let t = unix_now_s();
+        self.note(true, bytes);
         let mut hits = 0;
         match &self.pattern {
             StopPattern::Telegram(p) => {
@@ -104,12 +162,26 @@ impl<L> StopTap<L> {
         {
             s.extend(std::iter::repeat_n(t, hits));
         }
+        if hits > 0
+            && let Some(r) = self.recent.as_ref()
+            && let Ok(mut traces) = self.traces.lock()
+        {
+            traces.push(r.iter().cloned().collect());
+        }
+    }
+
+    fn sent(&mut self, bytes: &[u8]) {
+        if !bytes.is_empty() {
+            self.note(false, bytes);
+        }
     }
 }
 
 impl<L: asea_protocol::Link> asea_protocol::Link for StopTap<L> {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.inner.write_all(bytes)
+        self.inner.write_all(bytes)?;
+        self.sent(bytes);
+        Ok(())
     }
     fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let n = self.inner.read_timeout(buf, timeout)?;
@@ -130,7 +202,9 @@ pub struct IndexerTap<L>(pub StopTap<L>);
 
 impl<L: mandrel_drive::Link> mandrel_drive::Link for IndexerTap<L> {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.0.inner.write_all(bytes)
+        self.0.inner.write_all(bytes)?;
+        self.0.sent(bytes);
+        Ok(())
     }
     fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let n = self.0.inner.read_timeout(buf, timeout)?;

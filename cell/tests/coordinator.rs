@@ -2123,7 +2123,7 @@ fn a_robot_stopped_at_its_handshake_while_the_mandrel_turned_starts_the_path_aga
         .map(|n| n.mandrel.steps)
         .sum();
     assert!(
-        turned.iter().any(|&s| s == path0),
+        turned.contains(&path0),
         "the armed move turned the whole path: {turned:?}"
     );
     resume(&cell, &b, &jp);

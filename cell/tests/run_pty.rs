@@ -67,6 +67,7 @@ fn discrete_batch_over_ptys_to_separate_simulators() {
         "0.2",
         "--log",
         robot_log.to_str().unwrap(),
+        "--log-wire",
     ]);
     let (indexer, indexer_pty) = serve_on_pty(&[
         "sim-indexer",
@@ -312,6 +313,7 @@ fn pty_cell(d: &Path, n: usize) -> PtyCell {
         "0.2",
         "--log",
         robot_log.to_str().unwrap(),
+        "--log-wire",
     ]);
     let (indexer, indexer_pty) = serve_on_pty(&[
         "sim-indexer",
@@ -651,6 +653,23 @@ fn stop_latency_from_sigint_to_both_stop_commands_over_ptys() {
             (r - t0) * 1e3,
             (i - t0) * 1e3
         );
+        if latency >= 15.0 {
+            // What was on the robot's line: the last passages before the STOP, ms after the
+            // signal (in: from the coordinator).
+            let robot_log = d.join("robot.log");
+            if let Some(w) = log_records(&robot_log)
+                .iter()
+                .filter_map(|r| r["wire_before_stop"].as_array().cloned())
+                .next_back()
+            {
+                for e in w {
+                    let t = (e[0].as_f64().unwrap_or(f64::NAN) - t0) * 1e3;
+                    if t > -60.0 {
+                        println!("    {t:8.2} ms {} {}", e[1].as_str().unwrap_or("?"), e[2]);
+                    }
+                }
+            }
+        }
         ms.push(latency);
     }
     ms.sort_by(f64::total_cmp);

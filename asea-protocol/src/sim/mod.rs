@@ -844,11 +844,16 @@ pub fn serve<L: Link>(
         } else {
             link.read_timeout(&mut buf, wait)?
         };
+        // The bytes' arrival time is taken as the read returns, before the lock (which the log
+        // watcher may hold): a robot's UART notes a byte when it comes, and the host's urgent
+        // ENQ counts on the robot measuring the silence before it to within its margin
+        // (`session::URGENT_MARGIN`).
+        let arrived = clock.now();
         let now = {
             let mut r = robot
                 .lock()
                 .map_err(|_| std::io::Error::other("simulator lock poisoned"))?;
-            let now = clock.now();
+            let now = arrived;
             if let Some(bytes) = buf.get(..n)
                 && n > 0
             {

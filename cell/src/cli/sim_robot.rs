@@ -47,6 +47,10 @@ pub struct SimRobotArgs {
     /// Log every move the robot finishes as a JSON line (docs/file-formats.md, "Simulator logs").
     #[arg(long, value_name = "FILE")]
     pub log: Option<std::path::PathBuf>,
+    /// With `--log`: at each STOP telegram, also log the last bytes that crossed the line both
+    /// ways before it, with their times (a `wire_before_stop` record; for studying stop latency).
+    #[arg(long, requires = "log")]
+    pub log_wire: bool,
     /// Duration of a home synchronisation, seconds.
     #[arg(long, default_value_t = MotionParams::default().home_s)]
     pub home_s: f64,
@@ -112,6 +116,12 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
     // The log notes when each STOP telegram arrives (wall clock), for the stop latency.
     let (master, stops) =
         cell::wiretap::StopTap::new(master, cell::wiretap::StopPattern::robot(&frame));
+    let (master, traces) = if args.log_wire {
+        let (m, t) = master.with_trace();
+        (m, Some(t))
+    } else {
+        (master, None)
+    };
     let master = NakStorm {
         inner: master,
         on: storm_on,
@@ -120,7 +130,7 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
     };
     let served = std::thread::scope(|scope| {
         if let Some(mut file) = log {
-            let (robot, stop, clock, stops) = (&robot, &stop, &clock, &stops);
+            let (robot, stop, clock, stops, traces) = (&robot, &stop, &clock, &stops, &traces);
             scope.spawn(move || {
                 use asea_protocol::clock::Clock as _;
                 use std::io::Write as _;
@@ -143,6 +153,19 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
                             "{}",
                             serde_json::json!({"device": "robot", "stop_received": true,
                                 "t_s": clock.now_s(), "unix_s": unix_s})
+                        );
+                    }
+                    let wire: Vec<Vec<cell::wiretap::WireEvent>> = traces
+                        .as_ref()
+                        .and_then(|t| t.lock().ok().map(|mut t| t.drain(..).collect()))
+                        .unwrap_or_default();
+                    for w in wire {
+                        let events: Vec<serde_json::Value> =
+                            w.iter().map(cell::wiretap::WireEvent::json).collect();
+                        let _ = writeln!(
+                            file,
+                            "{}",
+                            serde_json::json!({"device": "robot", "wire_before_stop": events})
                         );
                     }
                     std::thread::sleep(std::time::Duration::from_millis(1));
