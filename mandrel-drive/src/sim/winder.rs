@@ -391,8 +391,10 @@ impl Winder {
     /// being executed, when the planner is full and a whole line waits in the receive buffer for
     /// its slot. `None` when only bytes from the host can change what it answers (and when held).
     pub fn next_event_s(&self) -> Option<f64> {
+        // Every receive and poll moves whole lines into the planner while it has room, so a whole
+        // line waits only behind a full planner.
         let waiting = self.rx.iter().any(|&b| b == b'\n' || b == b'\r');
-        if self.hold || !waiting || self.blocks() < PLANNER_BLOCKS || self.time_scale <= 0.0 {
+        if self.hold || !waiting || self.time_scale <= 0.0 {
             return None;
         }
         let left = match &self.running {
