@@ -4,8 +4,10 @@
 //! pause at the next layer boundary, resume, stop.
 //!
 //! Sans-IO: [`Streamer::poll_send`] hands out the next line when flow control allows,
-//! [`Streamer::on_reply`] takes the controller's replies. A driver moves the bytes over a serial
-//! port; [`simulate_link`] moves them over a simulated serial link on a virtual clock.
+//! [`Streamer::on_reply`] takes the controller's replies ([`ReplyLines`] cuts them out of the
+//! bytes). A driver moves the bytes over a serial port (`windcell lathe stream`);
+//! [`crate::sim::serial::stream`] moves them over a simulated serial line on virtual time to the
+//! GRBL simulator ([`crate::sim::winder::Winder`]).
 
 use std::collections::VecDeque;
 
@@ -212,89 +214,32 @@ impl Streamer {
     }
 }
 
-/// A serial link and controller on a virtual clock, for measuring flow control.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LinkModel {
-    /// Baud rate (10 bits per byte: start, 8 data, stop).
-    pub baud: f64,
-    /// One-way latency added to every transfer (USB serial adapters: about 1 ms).
-    pub latency_s: f64,
-    /// Time the controller takes to parse a line and queue its block before answering `ok`.
-    pub parse_s: f64,
+/// Splits the controller's bytes into reply lines: `\r` or `\n` ends one (GRBL ends its replies
+/// with `\r\n`, so a reply is known at its `\r`); empty lines are skipped.
+#[derive(Debug, Clone, Default)]
+pub struct ReplyLines {
+    line: Vec<u8>,
 }
 
-/// What [`simulate_link`] measured.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LinkReport {
-    /// Virtual time to the last `ok`.
-    pub elapsed_s: f64,
-    /// Lines per second achieved.
-    pub lines_per_s: f64,
-    /// Lines per second the wire carries back to back (bytes per second / mean line length).
-    pub wire_lines_per_s: f64,
-    /// The largest number of bytes waiting in the controller's receive buffer.
-    pub max_rx_bytes: usize,
-}
-
-impl LinkReport {
-    /// Achieved over wire rate.
-    pub fn efficiency(&self) -> f64 {
-        self.lines_per_s / self.wire_lines_per_s
+impl ReplyLines {
+    /// A splitter with nothing pending.
+    pub fn new() -> ReplyLines {
+        ReplyLines::default()
     }
-}
 
-/// Streams `program` through `streamer`'s flow control over a simulated link and controller on a
-/// virtual clock: bytes leave the host one after the other at the baud rate, the controller takes
-/// a line out of its receive buffer `parse_s` after its last byte arrived and answers `ok`
-/// (4 bytes back over the wire); both directions add `latency_s`. The controller's planner is
-/// never full (short lines of short moves), so the wire and the flow control set the pace.
-pub fn simulate_link(mut streamer: Streamer, link: LinkModel) -> Result<LinkReport, StreamError> {
-    let byte_s = 10.0 / link.baud;
-    let mut now = 0.0f64;
-    let mut wire_free = 0.0f64;
-    let mut controller_free = 0.0f64;
-    let mut back_wire_free = 0.0f64;
-    // (time the ok reaches the host, line length) in order.
-    let mut oks: VecDeque<f64> = VecDeque::new();
-    // Controller receive buffer: (arrival of last byte, processed at, length) of lines in it.
-    let mut rx: VecDeque<(f64, f64, usize)> = VecDeque::new();
-    let mut max_rx = 0usize;
-    let mut total_bytes = 0usize;
-    let mut lines = 0usize;
-    loop {
-        while let Some(line) = streamer.poll_send() {
-            let len = line.len();
-            total_bytes += len;
-            lines += 1;
-            let start = (now + link.latency_s).max(wire_free);
-            let arrived = start + len as f64 * byte_s;
-            wire_free = arrived;
-            let processed = arrived.max(controller_free) + link.parse_s;
-            controller_free = processed;
-            // Bytes in the receive buffer when this line has fully arrived.
-            while rx.front().is_some_and(|&(_, done, _)| done <= start) {
-                rx.pop_front();
+    /// Takes one byte; returns the reply it completes, if any.
+    pub fn push(&mut self, byte: u8) -> Option<String> {
+        if byte == b'\n' || byte == b'\r' {
+            if self.line.is_empty() {
+                return None;
             }
-            rx.push_back((arrived, processed, len));
-            max_rx = max_rx.max(rx.iter().map(|&(_, _, l)| l).sum());
-            let ok_start = processed.max(back_wire_free);
-            back_wire_free = ok_start + 4.0 * byte_s;
-            oks.push_back(back_wire_free + link.latency_s);
+            let text = String::from_utf8_lossy(&self.line).into_owned();
+            self.line.clear();
+            return Some(text);
         }
-        if streamer.is_done() {
-            break;
-        }
-        let Some(t) = oks.pop_front() else { break };
-        now = now.max(t);
-        streamer.on_reply("ok")?;
+        self.line.push(byte);
+        None
     }
-    let elapsed_s = now;
-    Ok(LinkReport {
-        elapsed_s,
-        lines_per_s: lines as f64 / elapsed_s,
-        wire_lines_per_s: 1.0 / (total_bytes as f64 / lines as f64 * byte_s),
-        max_rx_bytes: max_rx,
-    })
 }
 
 #[cfg(test)]
@@ -312,37 +257,15 @@ mod tests {
         }
     }
 
-    const LINK: LinkModel = LinkModel {
-        baud: 115_200.0,
-        latency_s: 0.001,
-        parse_s: 0.000_05,
-    };
-
     #[test]
-    fn character_counting_keeps_the_wire_busy_and_one_per_ok_does_not() {
-        let counting = simulate_link(
-            Streamer::new(
-                short_lines(5000),
-                Flow::CharacterCounting {
-                    rx_buffer: GRBL_RX_BUFFER,
-                },
-            ),
-            LINK,
-        )
-        .unwrap();
-        let one = simulate_link(Streamer::new(short_lines(5000), Flow::OkPerLine), LINK).unwrap();
-        println!("character counting: {counting:?}\none line per ok: {one:?}");
-        assert!(counting.efficiency() >= 0.95, "{counting:?}");
-        assert!(counting.max_rx_bytes <= GRBL_RX_BUFFER, "{counting:?}");
-        assert!(one.efficiency() < 0.5, "{one:?}");
-        // Without adapter latency the ping-pong still loses the ok's return and the parse.
-        let direct = LinkModel {
-            latency_s: 0.0,
-            ..LINK
-        };
-        let one = simulate_link(Streamer::new(short_lines(5000), Flow::OkPerLine), direct).unwrap();
-        println!("one line per ok, no latency: {one:?}");
-        assert!(one.efficiency() < 0.8, "{one:?}");
+    fn replies_end_at_a_carriage_return_or_a_newline() {
+        let mut r = ReplyLines::new();
+        let got: Vec<String> = b"ok\r\n\r\nerror:20\n<Idle|MPos:0>\rok"
+            .iter()
+            .filter_map(|&b| r.push(b))
+            .collect();
+        assert_eq!(got, vec!["ok", "error:20", "<Idle|MPos:0>"]);
+        assert_eq!(r.push(b'\r').as_deref(), Some("ok"));
     }
 
     #[test]

@@ -6,6 +6,7 @@ pub mod grbl;
 pub mod machine;
 pub mod motion;
 pub mod motor;
+pub mod serial;
 pub mod winder;
 pub mod xlang;
 

@@ -29,6 +29,10 @@ pub const BANNER: &str = "Grbl 1.1h ['$' for help]";
 /// Axis letters in report order.
 pub const AXES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 
+/// A block whose remaining time is within this of the time that passed counts as finished, so
+/// that a poll at [`Winder::next_event_s`] ends the block despite rounding, s of motion.
+pub const BLOCK_END_TOLERANCE_S: f64 = 1e-9;
+
 /// GRBL `error:1`: a word without a letter.
 pub const ERROR_LETTER: u16 = 1;
 /// GRBL `error:2`: a value that is not a number.
@@ -170,7 +174,7 @@ impl Winder {
                 return;
             };
             let left = block.duration_s - *elapsed;
-            if dt_s < left {
+            if dt_s + BLOCK_END_TOLERANCE_S < left {
                 *elapsed += dt_s;
                 let f = *elapsed / block.duration_s;
                 for i in 0..6 {
@@ -383,6 +387,24 @@ impl Winder {
             .extend_from_slice(format!("\r\n{BANNER}\r\n").as_bytes());
     }
 
+    /// When the controller next needs [`Winder::poll`] (clock time, s): the end of the block
+    /// being executed, when the planner is full and a whole line waits in the receive buffer for
+    /// its slot. `None` when only bytes from the host can change what it answers (and when held).
+    pub fn next_event_s(&self) -> Option<f64> {
+        // Every receive and poll moves whole lines into the planner while it has room, so a whole
+        // line waits only behind a full planner.
+        let waiting = self.rx.iter().any(|&b| b == b'\n' || b == b'\r');
+        if self.hold || !waiting || self.time_scale <= 0.0 {
+            return None;
+        }
+        let left = match &self.running {
+            Some((block, elapsed)) => block.duration_s - elapsed,
+            // Queued blocks start at the last poll.
+            None => self.planner.front()?.duration_s,
+        };
+        Some(self.last_s? + left.max(0.0) / self.time_scale)
+    }
+
     /// Bytes to send to the host.
     pub fn take_output(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.out)
@@ -461,6 +483,54 @@ mod tests {
         want[0].1 = 22;
         assert_eq!(lines, want);
         assert_eq!(w.max_rx_bytes(), 5 * 11);
+    }
+
+    #[test]
+    fn a_waiting_line_is_due_when_the_running_block_ends() {
+        let mut w = Winder::new(2.0);
+        // 15 relative moves of 1 min (30 s at time scale 2) fill the planner; the 16th line waits.
+        for _ in 0..PLANNER_BLOCKS {
+            w.receive(b"G91 G94 G1 X10 F10\n", 0.0);
+            assert_eq!(w.next_event_s(), None, "nothing waits");
+        }
+        w.receive(b"G1 X0\n", 1.0);
+        assert_eq!(replies(&mut w).matches("ok").count(), PLANNER_BLOCKS);
+        // The first block started at 0: it ends at 30 s.
+        assert_eq!(w.next_event_s(), Some(30.0));
+        w.poll(10.0);
+        assert_eq!(w.next_event_s(), Some(30.0));
+        w.receive(b"!", 12.0);
+        assert_eq!(w.next_event_s(), None, "held");
+        w.receive(b"~", 14.0);
+        // Held 2 s: the block ends 2 s later.
+        assert_eq!(w.next_event_s(), Some(32.0));
+        w.poll(32.0);
+        assert_eq!(replies(&mut w), "ok\r\n");
+        assert_eq!(w.next_event_s(), None);
+        // A partial line does not wait for a slot; a line ended by `\r` does.
+        w.receive(b"G1 X5", 32.0);
+        assert_eq!(w.next_event_s(), None);
+        w.receive(b"\r", 32.0);
+        assert_eq!(w.next_event_s(), Some(62.0));
+    }
+
+    #[test]
+    fn blocks_queued_at_the_last_poll_run_from_it() {
+        let mut w = Winder::new(1.0);
+        // Sixteen 1 s moves in one read (128 bytes): fifteen are queued (none running yet), one
+        // waits.
+        w.receive(b"G91 G94\n", 5.0);
+        w.receive("G1X1F60\n".repeat(16).as_bytes(), 5.0);
+        assert_eq!(replies(&mut w).matches("ok").count(), PLANNER_BLOCKS + 1);
+        assert_eq!(w.overflow_bytes(), 0);
+        assert_eq!(w.next_event_s(), Some(6.0));
+        w.poll(6.0);
+        assert_eq!(replies(&mut w), "ok\r\n");
+        // Stopped motion never frees a slot.
+        let mut w = Winder::new(0.0);
+        w.receive(b"G91 G94\n", 0.0);
+        w.receive("G1X1F60\n".repeat(16).as_bytes(), 0.0);
+        assert_eq!(w.next_event_s(), None);
     }
 
     #[test]

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use clap::{Args, ValueEnum};
 use mandrel_drive::Link as _;
 use mandrel_drive::grbl::STATUS;
-use mandrel_drive::stream::{Flow, GRBL_RX_BUFFER, Program, Streamer};
+use mandrel_drive::stream::{Flow, GRBL_RX_BUFFER, Program, ReplyLines, Streamer};
 
 use super::super::Failure;
 use super::super::run::EXIT_INTERRUPTED;
@@ -141,7 +141,7 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
         }
     });
 
-    let mut reply = Vec::<u8>::new();
+    let mut replies = ReplyLines::new();
     let mut buf = [0u8; 512];
     let mut last_heard = Instant::now();
     let mut last_status = Instant::now();
@@ -202,16 +202,10 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
             )));
         }
         for &b in buf.get(..n).unwrap_or_default() {
-            if b == b'\n' || b == b'\r' {
-                if !reply.is_empty() {
-                    let text = String::from_utf8_lossy(&reply).into_owned();
-                    reply.clear();
-                    streamer
-                        .on_reply(&text)
-                        .map_err(|e| Failure::runtime(format!("{}: {e}", args.file.display())))?;
-                }
-            } else {
-                reply.push(b);
+            if let Some(text) = replies.push(b) {
+                streamer
+                    .on_reply(&text)
+                    .map_err(|e| Failure::runtime(format!("{}: {e}", args.file.display())))?;
             }
         }
     }
