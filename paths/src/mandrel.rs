@@ -77,20 +77,28 @@ pub struct SurfaceDerivatives {
 pub struct Tube {
     spine: Spine,
     radius_mm: f64,
+    /// The spine's tightest bend: its curvature (1/mm) and height (mm), as [`Tube::new`]
+    /// found it (kept for [`Tube::with_radius`]).
+    tightest: (f64, f64),
 }
 
 impl Tube {
     /// A tube of `radius_mm` around `spine`. Rejects a radius that is not positive and a spine that
     /// bends more tightly than the radius (the surface would fold onto itself).
     pub fn new(spine: Spine, radius_mm: f64) -> Result<Self, Error> {
-        if !(radius_mm > 0.0 && radius_mm.is_finite()) {
-            return Err(Error::OutOfRange {
-                name: "radius_mm",
-                value: radius_mm,
-                expected: "must be > 0",
-            });
-        }
-        // The spline's curvature peaks at knots (f'' is piecewise linear); sample them and between.
+        let tightest = Self::tightest_bend(&spine);
+        Self::checked(spine, radius_mm, tightest)
+    }
+
+    /// The same spine with another radius, checked as [`Tube::new`] checks it (the spine's
+    /// tightest bend is not searched again).
+    pub fn with_radius(&self, radius_mm: f64) -> Result<Self, Error> {
+        Self::checked(self.spine.clone(), radius_mm, self.tightest)
+    }
+
+    /// The spine's largest curvature and its height. The spline's curvature peaks at knots
+    /// (f'' is piecewise linear); sample them and between.
+    fn tightest_bend(spine: &Spine) -> (f64, f64) {
         let (mut worst, mut worst_z) = (0.0f64, 0.0);
         let knots = spine.knot_heights_mm();
         for pair in knots.windows(2) {
@@ -107,6 +115,18 @@ impl Tube {
         if dg.abs() / (1.0 + g * g).powf(1.5) > worst {
             (worst, worst_z) = (dg.abs() / (1.0 + g * g).powf(1.5), spine.z_max_mm());
         }
+        (worst, worst_z)
+    }
+
+    /// The tube, unless its radius is not positive or the spine bends more tightly than it.
+    fn checked(spine: Spine, radius_mm: f64, (worst, worst_z): (f64, f64)) -> Result<Self, Error> {
+        if !(radius_mm > 0.0 && radius_mm.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "radius_mm",
+                value: radius_mm,
+                expected: "must be > 0",
+            });
+        }
         if worst * radius_mm >= 1.0 {
             return Err(Error::SpineTooTight {
                 height_mm: worst_z,
@@ -114,7 +134,11 @@ impl Tube {
                 radius_mm,
             });
         }
-        Ok(Tube { spine, radius_mm })
+        Ok(Tube {
+            spine,
+            radius_mm,
+            tightest: (worst, worst_z),
+        })
     }
 
     /// A straight cylinder of `diameter_mm` whose axis runs `length_mm` from an offset of
@@ -216,7 +240,21 @@ impl Tube {
     /// evaluation of the spine and one sine and cosine (the contact model asks for all three at
     /// every step).
     pub fn surface(&self, u: f64, v: f64) -> (Point3<f64>, Vector3<f64>, SurfaceDerivatives) {
-        let f = self.frame(u);
+        self.surface_of(self.frame(u), v)
+    }
+
+    /// [`Tube::surface`] with the spine's interval tried first at `piece` ([`Spine::eval_near`]):
+    /// the same values.
+    pub fn surface_near(
+        &self,
+        piece: &std::cell::Cell<usize>,
+        u: f64,
+        v: f64,
+    ) -> (Point3<f64>, Vector3<f64>, SurfaceDerivatives) {
+        self.surface_of(Self::frame_of(u, self.spine.eval_near(piece, u)), v)
+    }
+
+    fn surface_of(&self, f: SpineFrame, v: f64) -> (Point3<f64>, Vector3<f64>, SurfaceDerivatives) {
         let (s, c) = v.sin_cos();
         let r = self.radius_mm;
         let b = Vector3::y();

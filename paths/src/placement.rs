@@ -89,6 +89,9 @@ pub struct TubeContact<'a> {
     /// The surface where the last step ended (the bits of `(u, v)` beside it): the contact
     /// point asked for after a step, and where the next step starts.
     start: Option<([u64; 2], Surface)>,
+    /// The spine interval of the last surface evaluated, tried first for the next
+    /// ([`crate::Spine::eval_near`]).
+    piece: std::cell::Cell<usize>,
 }
 
 /// [`Tube::surface`]: point, unit normal and derivatives.
@@ -125,6 +128,7 @@ impl<'a> TubeContact<'a> {
             t_s,
             state: ContactState::Wrapping,
             start: None,
+            piece: std::cell::Cell::new(0),
         }
     }
 
@@ -180,7 +184,12 @@ impl<'a> TubeContact<'a> {
     }
 
     fn local(&self, u: f64, v: f64, e: &Point3<f64>, e_dot: &Vector3<f64>) -> Result<Local, Error> {
-        Self::local_on(&self.tube.surface(u, v), u, e, e_dot)
+        Self::local_on(&self.surface(u, v), u, e, e_dot)
+    }
+
+    /// [`Tube::surface`] at `(u, v)`, from the spine interval of the last one.
+    fn surface(&self, u: f64, v: f64) -> Surface {
+        self.tube.surface_near(&self.piece, u, v)
     }
 
     /// [`TubeContact::local`] on the surface `(x, n, dv)` evaluated at height `u`.
@@ -319,7 +328,7 @@ impl<'a> TubeContact<'a> {
         let surface = self
             .start_surface()
             .copied()
-            .unwrap_or_else(|| self.tube.surface(self.u, self.v));
+            .unwrap_or_else(|| self.surface(self.u, self.v));
         let l = Self::local_on(&surface, self.u, &e, &e_dot)?;
         let corrected = self.state == ContactState::Wrapping || l.residual_mm < 0.0;
         if corrected {
@@ -331,7 +340,7 @@ impl<'a> TubeContact<'a> {
         self.start = Some(if moved == key {
             (key, surface)
         } else {
-            (moved, self.tube.surface(self.u, self.v))
+            (moved, self.surface(self.u, self.v))
         });
         if !(self.tube.u_min() - END_MARGIN_MM..=self.tube.u_max() + END_MARGIN_MM)
             .contains(&self.u)
@@ -497,6 +506,8 @@ pub struct SampledEye<'a> {
     pub mandrel_rad: &'a [(f64, f64)],
     /// Drive frame to cell frame.
     pub transform: &'a CellTransform,
+    /// Added to every mandrel sample (a drive whose zero lies elsewhere), rad.
+    mandrel_offset_rad: Option<f64>,
     /// Where the last query of each series fell (eye, mandrel): a hint, never a result.
     hints: [std::cell::Cell<usize>; 2],
 }
@@ -512,7 +523,17 @@ impl<'a> SampledEye<'a> {
             eye_mm,
             mandrel_rad,
             transform,
+            mandrel_offset_rad: None,
             hints: Default::default(),
+        }
+    }
+
+    /// The same track with `offset_rad` added to every mandrel sample: what the track of the
+    /// samples `(t, φ + offset_rad)` gives, without copying them.
+    pub fn with_mandrel_offset(self, offset_rad: f64) -> Self {
+        SampledEye {
+            mandrel_offset_rad: Some(offset_rad),
+            ..self
         }
     }
 }
@@ -599,14 +620,18 @@ impl SampledEye<'_> {
         if n == 0 {
             return (0.0, 0.0);
         }
+        let shifted = |k: usize| {
+            let (t, phi) = self.mandrel_rad[k];
+            (t, self.mandrel_offset_rad.map_or(phi, |o| phi + o))
+        };
         let i = samples_near(self.mandrel_rad, t_s, &self.hints[1]);
         if i == 0 {
-            return (self.mandrel_rad[0].1, 0.0);
+            return (shifted(0).1, 0.0);
         }
         if i >= n {
-            return (self.mandrel_rad[n - 1].1, 0.0);
+            return (shifted(n - 1).1, 0.0);
         }
-        let (a, b) = (self.mandrel_rad[i - 1], self.mandrel_rad[i]);
+        let (a, b) = (shifted(i - 1), shifted(i));
         let h = b.0 - a.0;
         if h <= 0.0 {
             return (b.1, 0.0);

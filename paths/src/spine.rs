@@ -159,6 +159,24 @@ impl Spine {
         self.eval_piece(self.piece_of(z_mm), z_mm)
     }
 
+    /// [`Spine::eval`], trying first the interval `piece` holds (where the last evaluation of a
+    /// caller moving along the spine fell), and leaving there the interval used: the same
+    /// interval, so the same value, as [`Spine::eval`] gives.
+    pub fn eval_near(&self, piece: &std::cell::Cell<usize>, z_mm: f64) -> [f64; 4] {
+        let k = &self.z_mm;
+        let i = piece.get();
+        let i = if i + 1 < k.len()
+            && k[i].total_cmp(&z_mm).is_le()
+            && z_mm.total_cmp(&k[i + 1]).is_lt()
+        {
+            i
+        } else {
+            self.piece_of(z_mm)
+        };
+        piece.set(i);
+        self.eval_piece(i, z_mm)
+    }
+
     /// The interval holding `z_mm`: the last knot at or below it (in `total_cmp` order),
     /// clamped to the first and last interval. Tried first where evenly spaced knots would put
     /// it (the mandrel tables are), then by bisection.
