@@ -72,6 +72,25 @@ pub struct SurfaceDerivatives {
     pub xvv: Vector3<f64>,
 }
 
+/// The surface at one `(u, v)` as the fibre's contact model uses it ([`Tube::contact_frame`]):
+/// the parameters are orthogonal there, so a tangent vector `t` is `a X_u + b X_v` with
+/// `a = t·du` and `b = t·dv`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactFrame {
+    /// `X(u, v)`.
+    pub point: Point3<f64>,
+    /// The outward unit normal.
+    pub normal: Vector3<f64>,
+    /// `E = X_u·X_u` and `G = X_v·X_v` (`F = X_u·X_v` is zero).
+    pub first: [f64; 2],
+    /// `X_u / E`.
+    pub du: Vector3<f64>,
+    /// `X_v / G`.
+    pub dv: Vector3<f64>,
+    /// `X_uu·n` and `X_vv·n` (`X_uv·n` is zero).
+    pub second: [f64; 2],
+}
+
 /// A mandrel of constant radius swept along a planar spine.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tube {
@@ -240,21 +259,7 @@ impl Tube {
     /// evaluation of the spine and one sine and cosine (the contact model asks for all three at
     /// every step).
     pub fn surface(&self, u: f64, v: f64) -> (Point3<f64>, Vector3<f64>, SurfaceDerivatives) {
-        self.surface_of(self.frame(u), v)
-    }
-
-    /// [`Tube::surface`] with the spine's interval tried first at `piece` ([`Spine::eval_near`]):
-    /// the same values.
-    pub fn surface_near(
-        &self,
-        piece: &std::cell::Cell<usize>,
-        u: f64,
-        v: f64,
-    ) -> (Point3<f64>, Vector3<f64>, SurfaceDerivatives) {
-        self.surface_of(Self::frame_of(u, self.spine.eval_near(piece, u)), v)
-    }
-
-    fn surface_of(&self, f: SpineFrame, v: f64) -> (Point3<f64>, Vector3<f64>, SurfaceDerivatives) {
+        let f = self.frame(u);
         let (s, c) = v.sin_cos();
         let r = self.radius_mm;
         let b = Vector3::y();
@@ -268,6 +273,35 @@ impl Tube {
         };
         (Point3::from(f.c + n * r), n, d)
     }
+
+    /// What the fibre's contact model needs at `(u, v)` ([`ContactFrame`]), in closed form,
+    /// with the spine's interval tried first at `piece` ([`Spine::eval_near`]).
+    ///
+    /// With `w = √(1 + x′²)`, the spine's curvature term `k = x″ / w³` and `m = 1 − r k cos v`:
+    /// `X_u = m c′(u)` and `X_v = r (cos v B − sin v N)` are orthogonal (`F = 0`), with
+    /// `E = m² w²` and `G = r²`; `X_uv·n = 0`, `X_vv·n = −r` and `X_uu·n = m x″ cos v / w`.
+    /// These are [`Tube::surface`]'s vectors and the products the contact model takes of them,
+    /// without the terms that cancel (the same values, to rounding).
+    pub fn contact_frame(&self, piece: &std::cell::Cell<usize>, u: f64, v: f64) -> ContactFrame {
+        let [x, g, dg, _] = self.spine.eval_near(piece, u);
+        let (s, c) = v.sin_cos();
+        let r = self.radius_mm;
+        let w2 = 1.0 + g * g;
+        let w = w2.sqrt();
+        let (cw, sw) = (c / w, s / w);
+        let normal = Vector3::new(cw, s, -g * cw);
+        let m = 1.0 - r * dg * cw / w2;
+        let e = m * m * w2;
+        ContactFrame {
+            point: Point3::new(x + r * cw, r * s, u - r * g * cw),
+            normal,
+            first: [e, r * r],
+            du: Vector3::new(g, 0.0, 1.0) * (m / e),
+            dv: Vector3::new(-sw, c, g * sw) / r,
+            second: [m * dg * cw, -r],
+        }
+    }
+
 
     /// [`Tube::derivatives`] on the spine polynomial of interval `piece` (see
     /// [`Spine::eval_piece`]): `X_uu` holds the spine's third derivative, which jumps at knots.

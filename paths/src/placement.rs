@@ -32,10 +32,13 @@
 //! cell-frame eye position and velocity and the mandrel angle and rate into mandrel-frame ones,
 //! with the cell frame of [`crate::plan`]: `p_cell = origin + R_z(φ) p_mandrel`.
 
-use nalgebra::{Matrix2, Point3, Vector2, Vector3};
+#[cfg(test)]
+use nalgebra::Matrix2;
+use nalgebra::{Point3, Vector2, Vector3};
 
 use crate::calibration::CellTransform;
 use crate::mesh::trace::Tracer;
+use crate::mandrel::ContactFrame;
 use crate::{Error, Tube};
 
 /// The eye's position and velocity in the mandrel frame at time `t_s`.
@@ -88,18 +91,15 @@ pub struct TubeContact<'a> {
     state: ContactState,
     /// The surface where the last step ended (the bits of `(u, v)` beside it): the contact
     /// point asked for after a step, and where the next step starts.
-    start: Option<([u64; 2], Surface)>,
+    start: Option<([u64; 2], ContactFrame)>,
     /// The spine interval of the last surface evaluated, tried first for the next
     /// ([`crate::Spine::eval_near`]).
     piece: std::cell::Cell<usize>,
+    /// Tests: the contact geometry from [`Tube::surface`]'s vectors and the general
+    /// first and second fundamental forms (the method before [`Tube::contact_frame`]).
+    #[cfg(test)]
+    general: bool,
 }
-
-/// [`Tube::surface`]: point, unit normal and derivatives.
-type Surface = (
-    Point3<f64>,
-    Vector3<f64>,
-    crate::mandrel::SurfaceDerivatives,
-);
 
 /// The eye's position and velocity at a time, carried from the end of one step to the start
 /// of the next (the same instant).
@@ -129,13 +129,15 @@ impl<'a> TubeContact<'a> {
             state: ContactState::Wrapping,
             start: None,
             piece: std::cell::Cell::new(0),
+            #[cfg(test)]
+            general: false,
         }
     }
 
     /// The contact point, mandrel frame.
     pub fn point(&self) -> Point3<f64> {
         match self.start_surface() {
-            Some(s) => s.0,
+            Some(s) => s.point,
             None => self.tube.point(self.u, self.v),
         }
     }
@@ -152,7 +154,7 @@ impl<'a> TubeContact<'a> {
     }
 
     /// The surface at the contact, when the last step left it there.
-    fn start_surface(&self) -> Option<&Surface> {
+    fn start_surface(&self) -> Option<&ContactFrame> {
         self.start
             .as_ref()
             .filter(|(at, _)| *at == [self.u.to_bits(), self.v.to_bits()])
@@ -184,17 +186,79 @@ impl<'a> TubeContact<'a> {
     }
 
     fn local(&self, u: f64, v: f64, e: &Point3<f64>, e_dot: &Vector3<f64>) -> Result<Local, Error> {
-        Self::local_on(&self.surface(u, v), u, e, e_dot)
+        self.local_on(&self.surface(u, v), u, v, e, e_dot)
     }
 
-    /// [`Tube::surface`] at `(u, v)`, from the spine interval of the last one.
-    fn surface(&self, u: f64, v: f64) -> Surface {
-        self.tube.surface_near(&self.piece, u, v)
+    /// The surface at `(u, v)`, from the spine interval of the last one.
+    fn surface(&self, u: f64, v: f64) -> ContactFrame {
+        self.tube.contact_frame(&self.piece, u, v)
     }
 
-    /// [`TubeContact::local`] on the surface `(x, n, dv)` evaluated at height `u`.
+    /// [`TubeContact::local`] on the surface `frame` evaluated at `(u, v)`. The parameters are
+    /// orthogonal ([`ContactFrame`]): the free fibre's tangential part is `a X_u + b X_v` with
+    /// `a = d·X_u / E` and `b = d·X_v / G`, and `dᵀ W d = −(a² X_uu·n + b² X_vv·n)`.
     fn local_on(
-        &(x, n, dv): &Surface,
+        &self,
+        frame: &ContactFrame,
+        u: f64,
+        #[allow(unused_variables)] v: f64,
+        e: &Point3<f64>,
+        e_dot: &Vector3<f64>,
+    ) -> Result<Local, Error> {
+        #[cfg(test)]
+        if self.general {
+            return Self::local_general(&self.tube.surface(u, v), u, e, e_dot);
+        }
+        let n = &frame.normal;
+        let d = e - frame.point;
+        let residual_mm = d.dot(n);
+        let dt = d - n * residual_mm;
+        if frame.first[0] * frame.first[1] == 0.0 {
+            return Err(Error::ContactUndefined {
+                height_mm: u,
+                reason: "the surface parametrisation is singular",
+            });
+        }
+        let ab = Vector2::new(dt.dot(&frame.du), dt.dot(&frame.dv));
+        let (a, b) = (ab.x, ab.y);
+        let curvature_mm = -(a * a * frame.second[0] + b * b * frame.second[1]);
+        Self::local_of(ab, curvature_mm, residual_mm, dt.norm_squared(), u, n, e_dot)
+    }
+
+    /// The contact's rates from the tangential direction `ab`, the curvature term and the
+    /// residual; refused where the free fibre would bridge.
+    fn local_of(
+        ab: Vector2<f64>,
+        curvature_mm: f64,
+        residual_mm: f64,
+        dt_squared: f64,
+        u: f64,
+        n: &Vector3<f64>,
+        e_dot: &Vector3<f64>,
+    ) -> Result<Local, Error> {
+        if curvature_mm <= 1e-12 * dt_squared.max(1e-300) {
+            return Err(Error::ContactUndefined {
+                height_mm: u,
+                reason: "the free fibre runs along a flat or concave direction (it would bridge)",
+            });
+        }
+        Ok(Local {
+            rate_per_lambda: ab,
+            lambda: -e_dot.dot(n) / curvature_mm,
+            residual_mm,
+            curvature_mm,
+        })
+    }
+
+    /// [`TubeContact::local_on`] as it was before [`Tube::contact_frame`]: the general first
+    /// fundamental form inverted and the general second one, on [`Tube::surface`]'s vectors.
+    #[cfg(test)]
+    fn local_general(
+        &(x, n, dv): &(
+            Point3<f64>,
+            Vector3<f64>,
+            crate::mandrel::SurfaceDerivatives,
+        ),
         u: f64,
         e: &Point3<f64>,
         e_dot: &Vector3<f64>,
@@ -217,19 +281,7 @@ impl<'a> TubeContact<'a> {
             })?;
         let (a, b) = (ab.x, ab.y);
         let second = a * a * dv.xuu.dot(&n) + 2.0 * a * b * dv.xuv.dot(&n) + b * b * dv.xvv.dot(&n);
-        let curvature_mm = -second;
-        if curvature_mm <= 1e-12 * dt.norm_squared().max(1e-300) {
-            return Err(Error::ContactUndefined {
-                height_mm: u,
-                reason: "the free fibre runs along a flat or concave direction (it would bridge)",
-            });
-        }
-        Ok(Local {
-            rate_per_lambda: ab,
-            lambda: -e_dot.dot(&n) / curvature_mm,
-            residual_mm,
-            curvature_mm,
-        })
+        Self::local_of(ab, -second, residual_mm, dt.norm_squared(), u, &n, e_dot)
     }
 
     /// Advances the contact to `t_end_s` in steps of at most `max_step_s`, returning the contact
@@ -287,7 +339,7 @@ impl<'a> TubeContact<'a> {
             _ => eye.at(t),
         };
         let here = match self.start_surface() {
-            Some(surface) => Self::local_on(surface, self.u, &e, &e_dot)?,
+            Some(surface) => self.local_on(surface, self.u, self.v, &e, &e_dot)?,
             None => self.local(self.u, self.v, &e, &e_dot)?,
         };
         self.state = if here.residual_mm > TANGENCY_TOLERANCE_MM
@@ -329,7 +381,7 @@ impl<'a> TubeContact<'a> {
             .start_surface()
             .copied()
             .unwrap_or_else(|| self.surface(self.u, self.v));
-        let l = Self::local_on(&surface, self.u, &e, &e_dot)?;
+        let l = self.local_on(&surface, self.u, self.v, &e, &e_dot)?;
         let corrected = self.state == ContactState::Wrapping || l.residual_mm < 0.0;
         if corrected {
             let correction = -l.residual_mm / l.curvature_mm;
