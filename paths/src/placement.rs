@@ -63,7 +63,23 @@ pub fn to_mandrel_frame(
     phi_rad: f64,
     phi_rate_rad_s: f64,
 ) -> (Point3<f64>, Vector3<f64>) {
-    let (s, c) = phi_rad.sin_cos();
+    rotated_to_mandrel_frame(
+        origin_mm,
+        eye_mm,
+        eye_velocity_mm_s,
+        phi_rad.sin_cos(),
+        phi_rate_rad_s,
+    )
+}
+
+/// [`to_mandrel_frame`] with `(sin φ, cos φ)` given.
+fn rotated_to_mandrel_frame(
+    origin_mm: &Vector3<f64>,
+    eye_mm: &Point3<f64>,
+    eye_velocity_mm_s: &Vector3<f64>,
+    (s, c): (f64, f64),
+    phi_rate_rad_s: f64,
+) -> (Point3<f64>, Vector3<f64>) {
     let rel = eye_mm - origin_mm;
     let p = Point3::new(c * rel.x + s * rel.y, -s * rel.x + c * rel.y, rel.z);
     let v = eye_velocity_mm_s;
@@ -185,13 +201,14 @@ impl<'a> TubeContact<'a> {
         self.state = ContactState::Pivoting;
     }
 
-    fn local(&self, u: f64, v: f64, e: &Point3<f64>, e_dot: &Vector3<f64>) -> Result<Local, Error> {
-        self.local_on(&self.surface(u, v), u, v, e, e_dot)
-    }
-
     /// The surface at `(u, v)`, from the spine interval of the last one.
     fn surface(&self, u: f64, v: f64) -> ContactFrame {
         self.tube.contact_frame(&self.piece, u, v)
+    }
+
+    /// [`TubeContact::surface`] at `(u, v)` near `start` ([`Tube::contact_frame_near`]).
+    fn surface_near(&self, u: f64, v: f64, start: &ContactFrame) -> ContactFrame {
+        self.tube.contact_frame_near(&self.piece, u, v, start)
     }
 
     /// [`TubeContact::local`] on the surface `frame` evaluated at `(u, v)`. The parameters are
@@ -338,10 +355,12 @@ impl<'a> TubeContact<'a> {
             Some((at, e)) if at.to_bits() == t.to_bits() => e,
             _ => eye.at(t),
         };
-        let here = match self.start_surface() {
-            Some(surface) => self.local_on(surface, self.u, self.v, &e, &e_dot)?,
-            None => self.local(self.u, self.v, &e, &e_dot)?,
+        // The surface where the step starts: its sine and cosine of `v` serve the stages'.
+        let start = match self.start_surface() {
+            Some(surface) => *surface,
+            None => self.surface(self.u, self.v),
         };
+        let here = self.local_on(&start, self.u, self.v, &e, &e_dot)?;
         self.state = if here.residual_mm > TANGENCY_TOLERANCE_MM
             || (here.lambda < 0.0 && here.residual_mm >= -TANGENCY_TOLERANCE_MM)
         {
@@ -357,7 +376,7 @@ impl<'a> TubeContact<'a> {
             (Vector2::zeros(), eye.at(t + h))
         } else {
             let rate = |e: &(Point3<f64>, Vector3<f64>), u: f64, v: f64| {
-                self.local(u, v, &e.0, &e.1)
+                self.local_on(&self.surface_near(u, v, &start), u, v, &e.0, &e.1)
                     .map(|l| l.rate_per_lambda * l.lambda.max(0.0))
             };
             let k1 = here.rate_per_lambda * here.lambda.max(0.0);
@@ -380,7 +399,7 @@ impl<'a> TubeContact<'a> {
         let surface = self
             .start_surface()
             .copied()
-            .unwrap_or_else(|| self.surface(self.u, self.v));
+            .unwrap_or_else(|| self.surface_near(self.u, self.v, &start));
         let l = self.local_on(&surface, self.u, self.v, &e, &e_dot)?;
         let corrected = self.state == ContactState::Wrapping || l.residual_mm < 0.0;
         if corrected {
@@ -562,6 +581,9 @@ pub struct SampledEye<'a> {
     mandrel_offset_rad: Option<f64>,
     /// Where the last query of each series fell (eye, mandrel): a hint, never a result.
     hints: [std::cell::Cell<usize>; 2],
+    /// A mandrel angle with its sine and cosine, for those of angles near it
+    /// ([`crate::mandrel::sin_cos_anchored`]).
+    angle: std::cell::Cell<(f64, f64, f64)>,
 }
 
 impl<'a> SampledEye<'a> {
@@ -577,6 +599,7 @@ impl<'a> SampledEye<'a> {
             transform,
             mandrel_offset_rad: None,
             hints: Default::default(),
+            angle: std::cell::Cell::new((f64::NAN, f64::NAN, f64::NAN)),
         }
     }
 
@@ -699,7 +722,8 @@ impl EyeTrack for SampledEye<'_> {
         let rt = self.transform.rotation.transpose();
         let p_drive = Point3::from(rt * (Vector3::from(p) - self.transform.origin));
         let v_drive = rt * Vector3::from(v);
-        to_mandrel_frame(&Vector3::zeros(), &p_drive, &v_drive, phi, phi_rate)
+        let sin_cos = crate::mandrel::sin_cos_anchored(phi, &self.angle);
+        rotated_to_mandrel_frame(&Vector3::zeros(), &p_drive, &v_drive, sin_cos, phi_rate)
     }
 }
 
