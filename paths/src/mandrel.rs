@@ -349,17 +349,17 @@ impl Tube {
         let [x, g, dg, _] = self.spine.eval_near(piece, u);
         let r = self.radius_mm;
         let w2 = 1.0 + g * g;
-        let w = w2.sqrt();
-        let (cw, sw) = (c / w, s / w);
+        let inv_w = 1.0 / w2.sqrt();
+        let (cw, sw) = (c * inv_w, s * inv_w);
         let normal = Vector3::new(cw, s, -g * cw);
-        let m = 1.0 - r * dg * cw / w2;
-        let e = m * m * w2;
+        let m = 1.0 - r * dg * cw * (inv_w * inv_w);
+        let mw2 = m * w2;
         ContactFrame {
             point: Point3::new(x + r * cw, r * s, u - r * g * cw),
             normal,
-            first: [e, r * r],
-            du: Vector3::new(g, 0.0, 1.0) * (m / e),
-            dv: Vector3::new(-sw, c, g * sw) / r,
+            first: [m * mw2, r * r],
+            du: Vector3::new(g, 0.0, 1.0) * (1.0 / mw2),
+            dv: Vector3::new(-sw, c, g * sw) * (1.0 / r),
             second: [m * dg * cw, -r],
             angle: (v, s, c),
         }

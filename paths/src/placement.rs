@@ -677,12 +677,15 @@ fn interpolate<const N: usize>(
     }
     let (a, b) = (&series[i - 1], &series[i]);
     let h = b.0 - a.0;
-    let w = if h > 0.0 { (t - a.0) / h } else { 1.0 };
+    // One division: the slope is the change times 1/h.
+    let per_s = if h > 0.0 { 1.0 / h } else { 0.0 };
+    let w = if h > 0.0 { (t - a.0) * per_s } else { 1.0 };
     let mut value = [0.0; N];
     let mut slope = [0.0; N];
     for k in 0..N {
-        value[k] = a.1[k] + (b.1[k] - a.1[k]) * w;
-        slope[k] = if h > 0.0 { (b.1[k] - a.1[k]) / h } else { 0.0 };
+        let change = b.1[k] - a.1[k];
+        value[k] = a.1[k] + change * w;
+        slope[k] = change * per_s;
     }
     (value, slope)
 }
@@ -711,7 +714,9 @@ impl SampledEye<'_> {
         if h <= 0.0 {
             return (b.1, 0.0);
         }
-        (a.1 + (b.1 - a.1) * (t_s - a.0) / h, (b.1 - a.1) / h)
+        let per_s = 1.0 / h;
+        let change = b.1 - a.1;
+        (a.1 + change * ((t_s - a.0) * per_s), change * per_s)
     }
 }
 
