@@ -89,8 +89,24 @@ pub struct ContactFrame {
     pub dv: Vector3<f64>,
     /// `X_uu·n` and `X_vv·n` (`X_uv·n` is zero).
     pub second: [f64; 2],
-    /// `(v, sin v, cos v)`.
-    pub angle: (f64, f64, f64),
+}
+
+/// Where a caller moving over a tube last evaluated it, for [`Tube::contact_frame`]: the
+/// spine's interval, tried first ([`Spine::eval_near`]), and an angle around the spine with its
+/// sine and cosine ([`sin_cos_anchored`]).
+#[derive(Debug, Clone)]
+pub struct FrameHints {
+    piece: std::cell::Cell<usize>,
+    angle: std::cell::Cell<(f64, f64, f64)>,
+}
+
+impl Default for FrameHints {
+    fn default() -> Self {
+        FrameHints {
+            piece: std::cell::Cell::new(0),
+            angle: std::cell::Cell::new((f64::NAN, f64::NAN, f64::NAN)),
+        }
+    }
 }
 
 /// How far from an angle whose sine and cosine are known [`sin_cos_near`] uses them, rad.
@@ -312,40 +328,16 @@ impl Tube {
     }
 
     /// What the fibre's contact model needs at `(u, v)` ([`ContactFrame`]), in closed form,
-    /// with the spine's interval tried first at `piece` ([`Spine::eval_near`]).
+    /// from the spine's interval and the angle `hints` hold ([`FrameHints`]).
     ///
     /// With `w = √(1 + x′²)`, the spine's curvature term `k = x″ / w³` and `m = 1 − r k cos v`:
     /// `X_u = m c′(u)` and `X_v = r (cos v B − sin v N)` are orthogonal (`F = 0`), with
     /// `E = m² w²` and `G = r²`; `X_uv·n = 0`, `X_vv·n = −r` and `X_uu·n = m x″ cos v / w`.
     /// These are [`Tube::surface`]'s vectors and the products the contact model takes of them,
     /// without the terms that cancel (the same values, to rounding).
-    pub fn contact_frame(&self, piece: &std::cell::Cell<usize>, u: f64, v: f64) -> ContactFrame {
-        let (s, c) = v.sin_cos();
-        self.contact_frame_with(piece, u, v, s, c)
-    }
-
-    /// [`Tube::contact_frame`] at a `v` near that of `near` (itself from
-    /// [`Tube::contact_frame`]): the sine and cosine of `v` from those of `near`'s
-    /// ([`sin_cos_near`]; the same to rounding).
-    pub fn contact_frame_near(
-        &self,
-        piece: &std::cell::Cell<usize>,
-        u: f64,
-        v: f64,
-        near: &ContactFrame,
-    ) -> ContactFrame {
-        let (s, c) = sin_cos_near(v, near.angle);
-        self.contact_frame_with(piece, u, v, s, c)
-    }
-
-    fn contact_frame_with(
-        &self,
-        piece: &std::cell::Cell<usize>,
-        u: f64,
-        v: f64,
-        s: f64,
-        c: f64,
-    ) -> ContactFrame {
+    pub fn contact_frame(&self, hints: &FrameHints, u: f64, v: f64) -> ContactFrame {
+        let (s, c) = sin_cos_anchored(v, &hints.angle);
+        let piece = &hints.piece;
         let [x, g, dg, _] = self.spine.eval_near(piece, u);
         let r = self.radius_mm;
         let w2 = 1.0 + g * g;
@@ -361,7 +353,6 @@ impl Tube {
             du: Vector3::new(g, 0.0, 1.0) * (1.0 / mw2),
             dv: Vector3::new(-sw, c, g * sw) * (1.0 / r),
             second: [m * dg * cw, -r],
-            angle: (v, s, c),
         }
     }
 

@@ -38,7 +38,7 @@ use nalgebra::{Point3, Vector2, Vector3};
 
 use crate::calibration::CellTransform;
 use crate::mesh::trace::Tracer;
-use crate::mandrel::ContactFrame;
+use crate::mandrel::{ContactFrame, FrameHints};
 use crate::{Error, Tube};
 
 /// The eye's position and velocity in the mandrel frame at time `t_s`.
@@ -108,9 +108,8 @@ pub struct TubeContact<'a> {
     /// The surface where the last step ended (the bits of `(u, v)` beside it): the contact
     /// point asked for after a step, and where the next step starts.
     start: Option<([u64; 2], ContactFrame)>,
-    /// The spine interval of the last surface evaluated, tried first for the next
-    /// ([`crate::Spine::eval_near`]).
-    piece: std::cell::Cell<usize>,
+    /// Where the last surface was evaluated, for the next ([`Tube::contact_frame`]).
+    hints: FrameHints,
     /// Tests: the contact geometry from [`Tube::surface`]'s vectors and the general
     /// first and second fundamental forms (the method before [`Tube::contact_frame`]).
     #[cfg(test)]
@@ -144,7 +143,7 @@ impl<'a> TubeContact<'a> {
             t_s,
             state: ContactState::Wrapping,
             start: None,
-            piece: std::cell::Cell::new(0),
+            hints: FrameHints::default(),
             #[cfg(test)]
             general: false,
         }
@@ -203,12 +202,7 @@ impl<'a> TubeContact<'a> {
 
     /// The surface at `(u, v)`, from the spine interval of the last one.
     fn surface(&self, u: f64, v: f64) -> ContactFrame {
-        self.tube.contact_frame(&self.piece, u, v)
-    }
-
-    /// [`TubeContact::surface`] at `(u, v)` near `start` ([`Tube::contact_frame_near`]).
-    fn surface_near(&self, u: f64, v: f64, start: &ContactFrame) -> ContactFrame {
-        self.tube.contact_frame_near(&self.piece, u, v, start)
+        self.tube.contact_frame(&self.hints, u, v)
     }
 
     /// [`TubeContact::local`] on the surface `frame` evaluated at `(u, v)`. The parameters are
@@ -355,12 +349,10 @@ impl<'a> TubeContact<'a> {
             Some((at, e)) if at.to_bits() == t.to_bits() => e,
             _ => eye.at(t),
         };
-        // The surface where the step starts: its sine and cosine of `v` serve the stages'.
-        let start = match self.start_surface() {
-            Some(surface) => *surface,
-            None => self.surface(self.u, self.v),
+        let here = match self.start_surface() {
+            Some(surface) => self.local_on(surface, self.u, self.v, &e, &e_dot)?,
+            None => self.local_on(&self.surface(self.u, self.v), self.u, self.v, &e, &e_dot)?,
         };
-        let here = self.local_on(&start, self.u, self.v, &e, &e_dot)?;
         self.state = if here.residual_mm > TANGENCY_TOLERANCE_MM
             || (here.lambda < 0.0 && here.residual_mm >= -TANGENCY_TOLERANCE_MM)
         {
@@ -376,7 +368,7 @@ impl<'a> TubeContact<'a> {
             (Vector2::zeros(), eye.at(t + h))
         } else {
             let rate = |e: &(Point3<f64>, Vector3<f64>), u: f64, v: f64| {
-                self.local_on(&self.surface_near(u, v, &start), u, v, &e.0, &e.1)
+                self.local_on(&self.surface(u, v), u, v, &e.0, &e.1)
                     .map(|l| l.rate_per_lambda * l.lambda.max(0.0))
             };
             let k1 = here.rate_per_lambda * here.lambda.max(0.0);
@@ -399,7 +391,7 @@ impl<'a> TubeContact<'a> {
         let surface = self
             .start_surface()
             .copied()
-            .unwrap_or_else(|| self.surface_near(self.u, self.v, &start));
+            .unwrap_or_else(|| self.surface(self.u, self.v));
         let l = self.local_on(&surface, self.u, self.v, &e, &e_dot)?;
         let corrected = self.state == ContactState::Wrapping || l.residual_mm < 0.0;
         if corrected {
