@@ -466,6 +466,89 @@ mod tests {
         }
     }
 
+    /// The closed form is [`Tube::surface`]'s vectors and the products the contact model took of
+    /// them, to rounding, on the S-bend (its tightest bends included) and a tilted cylinder, with
+    /// hints carried from one evaluation to the next as the contact carries them.
+    #[test]
+    fn contact_frame_is_the_surface_in_closed_form() {
+        let tilted = Tube::cylinder(63.5, 178.0, 31.75, 95.25).unwrap();
+        for tube in [sbend(), tilted] {
+            let hints = FrameHints::default();
+            let mut worst = 0.0f64;
+            for i in 0..=2000 {
+                let u = tube.u_min() - 1.0 + (tube.u_max() - tube.u_min() + 2.0) * i as f64 / 2000.0;
+                let v = -7.0 + 0.0173 * i as f64;
+                let f = tube.contact_frame(&hints, u, v);
+                let (x, n, d) = tube.surface(u, v);
+                let (e, g) = (d.xu.dot(&d.xu), d.xv.dot(&d.xv));
+                let scale = 1.0 + e.abs();
+                worst = worst
+                    .max((f.point - x).norm() / 400.0)
+                    .max((f.normal - n).norm())
+                    .max((f.first[0] - e).abs() / scale)
+                    .max((f.first[1] - g).abs() / g)
+                    .max((f.du - d.xu / e).norm() * e.sqrt())
+                    .max((f.dv - d.xv / g).norm() * g.sqrt())
+                    .max((f.second[0] - d.xuu.dot(&n)).abs() / (1.0 + d.xuu.norm()))
+                    .max((f.second[1] - d.xvv.dot(&n)).abs() / tube.radius_mm())
+                    // What the closed form leaves out.
+                    .max(d.xu.dot(&d.xv).abs() / (e * g).sqrt())
+                    .max(d.xuv.dot(&n).abs() / (1.0 + d.xuv.norm()));
+                // A fresh evaluation (no hints) gives the same.
+                let fresh = tube.contact_frame(&FrameHints::default(), u, v);
+                assert!((fresh.point - f.point).norm() < 1e-12, "u = {u}, v = {v}");
+            }
+            assert!(worst < 1e-14, "relative difference {worst:e}");
+        }
+    }
+
+    /// Near an anchor the sine and cosine are `sin_cos`'s to rounding; elsewhere (and for a
+    /// NaN) they are `sin_cos`'s, and the anchor moves there.
+    #[test]
+    fn sines_near_an_anchor_are_sin_cos_to_rounding() {
+        let mut worst = 0.0f64;
+        for k in 0..200 {
+            let x0 = -20.0 + 0.2013 * k as f64;
+            let (s0, c0) = x0.sin_cos();
+            for j in -100..=100 {
+                let x = x0 + NEAR_RAD * j as f64 / 100.0;
+                let (s, c) = sin_cos_near(x, (x0, s0, c0));
+                let (ws, wc) = x.sin_cos();
+                worst = worst.max((s - ws).abs()).max((c - wc).abs());
+            }
+            // Just past the limit, and far: sin_cos itself.
+            for x in [x0 + NEAR_RAD * 1.001, x0 - NEAR_RAD * 1.001, x0 + 3.0] {
+                assert_eq!(sin_cos_near(x, (x0, s0, c0)), x.sin_cos());
+            }
+        }
+        assert!(worst <= 4.0 * f64::EPSILON, "{worst:e}");
+        let (s, c) = sin_cos_near(f64::NAN, (0.0, 0.0, 1.0));
+        assert!(s.is_nan() && c.is_nan());
+
+        let anchor = std::cell::Cell::new((f64::NAN, f64::NAN, f64::NAN));
+        assert_eq!(sin_cos_anchored(1.0, &anchor), 1.0f64.sin_cos());
+        assert_eq!(anchor.get(), (1.0, 1.0f64.sin(), 1.0f64.cos()));
+        // Near: the anchor stays, the values are the angle-sum's.
+        let near = sin_cos_anchored(1.05, &anchor);
+        assert_eq!(anchor.get().0, 1.0);
+        assert_eq!(near, sin_cos_near(1.05, (1.0, 1.0f64.sin(), 1.0f64.cos())));
+        // Far: the anchor moves.
+        assert_eq!(sin_cos_anchored(1.2, &anchor), 1.2f64.sin_cos());
+        assert_eq!(anchor.get().0, 1.2);
+    }
+
+    /// Another radius on the same spine is the tube [`Tube::new`] makes, refusals included.
+    #[test]
+    fn with_radius_is_new_with_that_radius() {
+        let tube = sbend();
+        for r in [28.5, 1.0, 30.0, 55.0, 61.0, 70.0, 0.0, -1.0, f64::INFINITY, f64::NAN] {
+            let a = tube.with_radius(r);
+            let b = Tube::new(tube.spine().clone(), r);
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "r = {r}");
+        }
+        assert!(tube.with_radius(70.0).is_err() && tube.with_radius(28.6).is_ok());
+    }
+
     #[test]
     fn analytic_derivatives_match_finite_differences() {
         let tube = sbend();
