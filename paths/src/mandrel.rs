@@ -356,7 +356,6 @@ impl Tube {
         }
     }
 
-
     /// [`Tube::derivatives`] on the spine polynomial of interval `piece` (see
     /// [`Spine::eval_piece`]): `X_uu` holds the spine's third derivative, which jumps at knots.
     pub fn derivatives_on_piece(&self, piece: usize, u: f64, v: f64) -> SurfaceDerivatives {
@@ -476,7 +475,8 @@ mod tests {
             let hints = FrameHints::default();
             let mut worst = 0.0f64;
             for i in 0..=2000 {
-                let u = tube.u_min() - 1.0 + (tube.u_max() - tube.u_min() + 2.0) * i as f64 / 2000.0;
+                let u =
+                    tube.u_min() - 1.0 + (tube.u_max() - tube.u_min() + 2.0) * i as f64 / 2000.0;
                 let v = -7.0 + 0.0173 * i as f64;
                 let f = tube.contact_frame(&hints, u, v);
                 let (x, n, d) = tube.surface(u, v);
@@ -541,7 +541,18 @@ mod tests {
     #[test]
     fn with_radius_is_new_with_that_radius() {
         let tube = sbend();
-        for r in [28.5, 1.0, 30.0, 55.0, 61.0, 70.0, 0.0, -1.0, f64::INFINITY, f64::NAN] {
+        for r in [
+            28.5,
+            1.0,
+            30.0,
+            55.0,
+            61.0,
+            70.0,
+            0.0,
+            -1.0,
+            f64::INFINITY,
+            f64::NAN,
+        ] {
             let a = tube.with_radius(r);
             let b = Tube::new(tube.spine().clone(), r);
             assert_eq!(format!("{a:?}"), format!("{b:?}"), "r = {r}");
