@@ -1133,6 +1133,71 @@ mod tests {
     /// time no worse than medium movement's, per path. Discrete movement's error is the floor
     /// the thesis measured (Tables 13–14); continuous keeps the eye in step with the mandrel's
     /// real motion and stays under 0.7 of it (0.08 and 1.52 mm against 2.48 and 2.30 mm).
+    /// The figures `predict` gave before the placement model's closed-form contact geometry,
+    /// sines from an anchor and one-division interpolation (docs/benchmarks.md, "Prediction"),
+    /// on the S-bend and the cylinder in every mode with 20 samples: the largest error, the
+    /// setup median and 95th percentile stay within 1e-9 mm of them (they moved by 3e-12 mm at
+    /// most).
+    #[test]
+    fn figures_stay_within_a_nanometre_of_the_general_geometry() {
+        #[rustfmt::skip]
+        let before: [(&str, &str, &str, [f64; 3]); 16] = [
+            ("sbend", "discrete", "SBEND_1", [2.4766766255862307, 2.4861156985155404, 2.539527791117742]),
+            ("sbend", "discrete", "SBEND_2", [2.3045613952497632, 2.276395117178275, 2.427398592850227]),
+            ("sbend", "fine", "SBEND_1", [2.8724111806581036, 2.8818133709019795, 2.9848900347806726]),
+            ("sbend", "fine", "SBEND_2", [1.902815615401526, 1.9110202333113007, 2.04826519001331]),
+            ("sbend", "medium", "SBEND_1", [1.7775697411202511, 1.8026119665176388, 1.870137483265507]),
+            ("sbend", "medium", "SBEND_2", [0.9838404884581512, 0.9845930125275458, 1.1118248895313778]),
+            ("sbend", "continuous", "SBEND_1", [0.08141627639245773, 0.14186002786816662, 0.19669759121393793]),
+            ("sbend", "continuous", "SBEND_2", [1.51567631743098, 0.31297883735555226, 0.37677675093172625]),
+            ("cylinder", "discrete", "CYL_1", [1.2058867123779484, 1.213464881796035, 1.2847832498408651]),
+            ("cylinder", "discrete", "CYL_2", [1.1955098052119217, 1.18231618070051, 1.3389686174071715]),
+            ("cylinder", "fine", "CYL_1", [2.0179374363882747, 2.035955012843663, 2.144190937205611]),
+            ("cylinder", "fine", "CYL_2", [2.0078503349655192, 2.019274557949391, 2.1482745155117455]),
+            ("cylinder", "medium", "CYL_1", [1.0462095195939678, 1.0661904029302256, 1.1189884504074534]),
+            ("cylinder", "medium", "CYL_2", [1.0370059386595747, 1.0448279760212922, 1.1438184933546658]),
+            ("cylinder", "continuous", "CYL_1", [0.040428121972872044, 0.047264398311695016, 0.07516088552232328]),
+            ("cylinder", "continuous", "CYL_2", [0.050270275873595616, 0.07367648820566816, 0.14924847583357917]),
+        ];
+        for (example, text) in [
+            ("sbend", include_str!("../../examples/sbend.toml")),
+            ("cylinder", include_str!("../../examples/cylinder.toml")),
+        ] {
+            let job = Job::parse(text).unwrap();
+            let file = Path::new("examples").join(format!("{example}.toml"));
+            let cell = Cell::of_job(&job, &file).unwrap();
+            let opt = Options {
+                samples: 20,
+                ..Options::default()
+            };
+            let p = predict(&job, text, &file, &cell, &opt).unwrap();
+            let mut seen = 0;
+            for m in &p.modes {
+                for got in m.outcome.as_ref().unwrap() {
+                    let (.., want) = before
+                        .iter()
+                        .find(|b| (b.0, b.1, b.2) == (example, m.mode.keyword(), got.name.as_str()))
+                        .unwrap();
+                    let now = [
+                        got.max_error_mm,
+                        got.setup_median_mm.unwrap(),
+                        got.setup_p95_mm.unwrap(),
+                    ];
+                    for k in 0..3 {
+                        assert!(
+                            (now[k] - want[k]).abs() < 1e-9,
+                            "{example} {} {}: {now:?} against {want:?}",
+                            m.mode.keyword(),
+                            got.name
+                        );
+                    }
+                    seen += 1;
+                }
+            }
+            assert_eq!(seen, 8, "{example}");
+        }
+    }
+
     #[test]
     fn continuous_on_the_sbend_lays_as_well_as_discrete_in_medium_time() {
         let text = include_str!("../../examples/sbend.toml").to_string();
