@@ -135,7 +135,7 @@ pub fn sin_cos_anchored(x: f64, anchor: &std::cell::Cell<(f64, f64, f64)>) -> (f
 
 fn near(x: f64, (x0, s0, c0): (f64, f64, f64)) -> Option<(f64, f64)> {
     let d = x - x0;
-    if !(d.abs() <= NEAR_RAD) {
+    if d.is_nan() || d.abs() > NEAR_RAD {
         return None;
     }
     let d2 = d * d;

@@ -1296,6 +1296,7 @@ mod tests {
     /// An eye given in the mandrel frame, seen from a cell whose mandrel turns at `rate`
     /// (rad/s) through `transform`: the eye's and the mandrel's samples every millisecond
     /// from 0 to `t1`, as the simulated cell's trace holds them.
+    #[allow(clippy::type_complexity)]
     fn traced(
         eye: impl Fn(f64) -> (Point3<f64>, Vector3<f64>),
         rate: f64,
