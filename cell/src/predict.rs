@@ -626,11 +626,12 @@ fn predict_path(
         };
         let zero = tol.zero_angle_rad * rng.symmetric();
         let radius = tube.radius_mm() + 0.5 * tol.diameter_mm * rng.symmetric();
-        let true_tube = Tube::new(tube.spine().clone(), radius)
+        let true_tube = tube
+            .with_radius(radius)
             .map_err(|e| run_error(format!("setup sample: {e}")))?;
         let true_transform = true_cal.transform(b, h);
-        let shifted: Vec<(f64, f64)> = mandrel.iter().map(|&(t, p)| (t, p + zero)).collect();
-        let track = SampledEye::new(&trace.eye_mm, &shifted, &true_transform);
+        let track =
+            SampledEye::new(&trace.eye_mm, &mandrel, &true_transform).with_mandrel_offset(zero);
         let laid = placement::lay_on_tube(&true_tube, &track, &start, t0, t1, opt.sample_step_s)
             .map_err(|e| run_error(format!("{}: setup sample: {e}", path.name)))?;
         setup.push(max_error(&laid, desired));

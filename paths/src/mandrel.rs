@@ -72,25 +72,105 @@ pub struct SurfaceDerivatives {
     pub xvv: Vector3<f64>,
 }
 
+/// The surface at one `(u, v)` as the fibre's contact model uses it ([`Tube::contact_frame`]):
+/// the parameters are orthogonal there, so a tangent vector `t` is `a X_u + b X_v` with
+/// `a = t·du` and `b = t·dv`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactFrame {
+    /// `X(u, v)`.
+    pub point: Point3<f64>,
+    /// The outward unit normal.
+    pub normal: Vector3<f64>,
+    /// `E = X_u·X_u` and `G = X_v·X_v` (`F = X_u·X_v` is zero).
+    pub first: [f64; 2],
+    /// `X_u / E`.
+    pub du: Vector3<f64>,
+    /// `X_v / G`.
+    pub dv: Vector3<f64>,
+    /// `X_uu·n` and `X_vv·n` (`X_uv·n` is zero).
+    pub second: [f64; 2],
+}
+
+/// Where a caller moving over a tube last evaluated it, for [`Tube::contact_frame`]: the
+/// spine's interval, tried first ([`Spine::eval_near`]), and an angle around the spine with its
+/// sine and cosine ([`sin_cos_anchored`]).
+#[derive(Debug, Clone)]
+pub struct FrameHints {
+    piece: std::cell::Cell<usize>,
+    angle: std::cell::Cell<(f64, f64, f64)>,
+}
+
+impl Default for FrameHints {
+    fn default() -> Self {
+        FrameHints {
+            piece: std::cell::Cell::new(0),
+            angle: std::cell::Cell::new((f64::NAN, f64::NAN, f64::NAN)),
+        }
+    }
+}
+
+/// How far from an angle whose sine and cosine are known [`sin_cos_near`] uses them, rad.
+const NEAR_RAD: f64 = 1.0 / 16.0;
+
+/// `(sin x, cos x)` from `(x0, sin x0, cos x0)` for `x` near `x0`: the angle-sum formulas, with
+/// the sine of `δ = x − x0` and `cos δ − 1` from their Taylor series to `δ⁷` and `δ⁸`. For
+/// `|δ| ≤ 1/16` the first terms left out are below 5·10⁻¹⁷ (under half a unit in the last place
+/// of 1), so the result is `x.sin_cos()` to rounding; farther away (or for a NaN) it is
+/// `x.sin_cos()`. Cheaper than `sin_cos` where an integrator's stages lie close to where its
+/// step began.
+pub fn sin_cos_near(x: f64, from: (f64, f64, f64)) -> (f64, f64) {
+    near(x, from).unwrap_or_else(|| x.sin_cos())
+}
+
+/// [`sin_cos_near`] from `anchor`, which moves to `x` (its sine and cosine from `sin_cos`) when
+/// `x` is not near it: a caller whose angle moves steadily pays for one `sin_cos` per `1/16`
+/// rad.
+pub fn sin_cos_anchored(x: f64, anchor: &std::cell::Cell<(f64, f64, f64)>) -> (f64, f64) {
+    near(x, anchor.get()).unwrap_or_else(|| {
+        let (s, c) = x.sin_cos();
+        anchor.set((x, s, c));
+        (s, c)
+    })
+}
+
+fn near(x: f64, (x0, s0, c0): (f64, f64, f64)) -> Option<(f64, f64)> {
+    let d = x - x0;
+    if d.is_nan() || d.abs() > NEAR_RAD {
+        return None;
+    }
+    let d2 = d * d;
+    let sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0)));
+    let cm1 = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0))));
+    Some((s0 + (s0 * cm1 + c0 * sd), c0 + (c0 * cm1 - s0 * sd)))
+}
+
 /// A mandrel of constant radius swept along a planar spine.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tube {
     spine: Spine,
     radius_mm: f64,
+    /// The spine's tightest bend: its curvature (1/mm) and height (mm), as [`Tube::new`]
+    /// found it (kept for [`Tube::with_radius`]).
+    tightest: (f64, f64),
 }
 
 impl Tube {
     /// A tube of `radius_mm` around `spine`. Rejects a radius that is not positive and a spine that
     /// bends more tightly than the radius (the surface would fold onto itself).
     pub fn new(spine: Spine, radius_mm: f64) -> Result<Self, Error> {
-        if !(radius_mm > 0.0 && radius_mm.is_finite()) {
-            return Err(Error::OutOfRange {
-                name: "radius_mm",
-                value: radius_mm,
-                expected: "must be > 0",
-            });
-        }
-        // The spline's curvature peaks at knots (f'' is piecewise linear); sample them and between.
+        let tightest = Self::tightest_bend(&spine);
+        Self::checked(spine, radius_mm, tightest)
+    }
+
+    /// The same spine with another radius, checked as [`Tube::new`] checks it (the spine's
+    /// tightest bend is not searched again).
+    pub fn with_radius(&self, radius_mm: f64) -> Result<Self, Error> {
+        Self::checked(self.spine.clone(), radius_mm, self.tightest)
+    }
+
+    /// The spine's largest curvature and its height. The spline's curvature peaks at knots
+    /// (f'' is piecewise linear); sample them and between.
+    fn tightest_bend(spine: &Spine) -> (f64, f64) {
         let (mut worst, mut worst_z) = (0.0f64, 0.0);
         let knots = spine.knot_heights_mm();
         for pair in knots.windows(2) {
@@ -107,6 +187,18 @@ impl Tube {
         if dg.abs() / (1.0 + g * g).powf(1.5) > worst {
             (worst, worst_z) = (dg.abs() / (1.0 + g * g).powf(1.5), spine.z_max_mm());
         }
+        (worst, worst_z)
+    }
+
+    /// The tube, unless its radius is not positive or the spine bends more tightly than it.
+    fn checked(spine: Spine, radius_mm: f64, (worst, worst_z): (f64, f64)) -> Result<Self, Error> {
+        if !(radius_mm > 0.0 && radius_mm.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "radius_mm",
+                value: radius_mm,
+                expected: "must be > 0",
+            });
+        }
         if worst * radius_mm >= 1.0 {
             return Err(Error::SpineTooTight {
                 height_mm: worst_z,
@@ -114,7 +206,11 @@ impl Tube {
                 radius_mm,
             });
         }
-        Ok(Tube { spine, radius_mm })
+        Ok(Tube {
+            spine,
+            radius_mm,
+            tightest: (worst, worst_z),
+        })
     }
 
     /// A straight cylinder of `diameter_mm` whose axis runs `length_mm` from an offset of
@@ -231,6 +327,35 @@ impl Tube {
         (Point3::from(f.c + n * r), n, d)
     }
 
+    /// What the fibre's contact model needs at `(u, v)` ([`ContactFrame`]), in closed form,
+    /// from the spine's interval and the angle `hints` hold ([`FrameHints`]).
+    ///
+    /// With `w = √(1 + x′²)`, the spine's curvature term `k = x″ / w³` and `m = 1 − r k cos v`:
+    /// `X_u = m c′(u)` and `X_v = r (cos v B − sin v N)` are orthogonal (`F = 0`), with
+    /// `E = m² w²` and `G = r²`; `X_uv·n = 0`, `X_vv·n = −r` and `X_uu·n = m x″ cos v / w`.
+    /// These are [`Tube::surface`]'s vectors and the products the contact model takes of them,
+    /// without the terms that cancel (the same values, to rounding).
+    pub fn contact_frame(&self, hints: &FrameHints, u: f64, v: f64) -> ContactFrame {
+        let (s, c) = sin_cos_anchored(v, &hints.angle);
+        let piece = &hints.piece;
+        let [x, g, dg, _] = self.spine.eval_near(piece, u);
+        let r = self.radius_mm;
+        let w2 = 1.0 + g * g;
+        let inv_w = 1.0 / w2.sqrt();
+        let (cw, sw) = (c * inv_w, s * inv_w);
+        let normal = Vector3::new(cw, s, -g * cw);
+        let m = 1.0 - r * dg * cw * (inv_w * inv_w);
+        let mw2 = m * w2;
+        ContactFrame {
+            point: Point3::new(x + r * cw, r * s, u - r * g * cw),
+            normal,
+            first: [m * mw2, r * r],
+            du: Vector3::new(g, 0.0, 1.0) * (1.0 / mw2),
+            dv: Vector3::new(-sw, c, g * sw) * (1.0 / r),
+            second: [m * dg * cw, -r],
+        }
+    }
+
     /// [`Tube::derivatives`] on the spine polynomial of interval `piece` (see
     /// [`Spine::eval_piece`]): `X_uu` holds the spine's third derivative, which jumps at knots.
     pub fn derivatives_on_piece(&self, piece: usize, u: f64, v: f64) -> SurfaceDerivatives {
@@ -338,6 +463,101 @@ mod tests {
             assert_abs_diff_eq!(d.xu.dot(&tube.normal(u, v)), 0.0, epsilon = 1e-9);
             assert_abs_diff_eq!(d.xv.dot(&tube.normal(u, v)), 0.0, epsilon = 1e-9);
         }
+    }
+
+    /// The closed form is [`Tube::surface`]'s vectors and the products the contact model took of
+    /// them, to rounding, on the S-bend (its tightest bends included) and a tilted cylinder, with
+    /// hints carried from one evaluation to the next as the contact carries them.
+    #[test]
+    fn contact_frame_is_the_surface_in_closed_form() {
+        let tilted = Tube::cylinder(63.5, 178.0, 31.75, 95.25).unwrap();
+        for tube in [sbend(), tilted] {
+            let hints = FrameHints::default();
+            let mut worst = 0.0f64;
+            for i in 0..=2000 {
+                let u =
+                    tube.u_min() - 1.0 + (tube.u_max() - tube.u_min() + 2.0) * i as f64 / 2000.0;
+                let v = -7.0 + 0.0173 * i as f64;
+                let f = tube.contact_frame(&hints, u, v);
+                let (x, n, d) = tube.surface(u, v);
+                let (e, g) = (d.xu.dot(&d.xu), d.xv.dot(&d.xv));
+                let scale = 1.0 + e.abs();
+                worst = worst
+                    .max((f.point - x).norm() / 400.0)
+                    .max((f.normal - n).norm())
+                    .max((f.first[0] - e).abs() / scale)
+                    .max((f.first[1] - g).abs() / g)
+                    .max((f.du - d.xu / e).norm() * e.sqrt())
+                    .max((f.dv - d.xv / g).norm() * g.sqrt())
+                    .max((f.second[0] - d.xuu.dot(&n)).abs() / (1.0 + d.xuu.norm()))
+                    .max((f.second[1] - d.xvv.dot(&n)).abs() / tube.radius_mm())
+                    // What the closed form leaves out.
+                    .max(d.xu.dot(&d.xv).abs() / (e * g).sqrt())
+                    .max(d.xuv.dot(&n).abs() / (1.0 + d.xuv.norm()));
+                // A fresh evaluation (no hints) gives the same.
+                let fresh = tube.contact_frame(&FrameHints::default(), u, v);
+                assert!((fresh.point - f.point).norm() < 1e-12, "u = {u}, v = {v}");
+            }
+            assert!(worst < 1e-14, "relative difference {worst:e}");
+        }
+    }
+
+    /// Near an anchor the sine and cosine are `sin_cos`'s to rounding; elsewhere (and for a
+    /// NaN) they are `sin_cos`'s, and the anchor moves there.
+    #[test]
+    fn sines_near_an_anchor_are_sin_cos_to_rounding() {
+        let mut worst = 0.0f64;
+        for k in 0..200 {
+            let x0 = -20.0 + 0.2013 * k as f64;
+            let (s0, c0) = x0.sin_cos();
+            for j in -100..=100 {
+                let x = x0 + NEAR_RAD * j as f64 / 100.0;
+                let (s, c) = sin_cos_near(x, (x0, s0, c0));
+                let (ws, wc) = x.sin_cos();
+                worst = worst.max((s - ws).abs()).max((c - wc).abs());
+            }
+            // Just past the limit, and far: sin_cos itself.
+            for x in [x0 + NEAR_RAD * 1.001, x0 - NEAR_RAD * 1.001, x0 + 3.0] {
+                assert_eq!(sin_cos_near(x, (x0, s0, c0)), x.sin_cos());
+            }
+        }
+        assert!(worst <= 4.0 * f64::EPSILON, "{worst:e}");
+        let (s, c) = sin_cos_near(f64::NAN, (0.0, 0.0, 1.0));
+        assert!(s.is_nan() && c.is_nan());
+
+        let anchor = std::cell::Cell::new((f64::NAN, f64::NAN, f64::NAN));
+        assert_eq!(sin_cos_anchored(1.0, &anchor), 1.0f64.sin_cos());
+        assert_eq!(anchor.get(), (1.0, 1.0f64.sin(), 1.0f64.cos()));
+        // Near: the anchor stays, the values are the angle-sum's.
+        let near = sin_cos_anchored(1.05, &anchor);
+        assert_eq!(anchor.get().0, 1.0);
+        assert_eq!(near, sin_cos_near(1.05, (1.0, 1.0f64.sin(), 1.0f64.cos())));
+        // Far: the anchor moves.
+        assert_eq!(sin_cos_anchored(1.2, &anchor), 1.2f64.sin_cos());
+        assert_eq!(anchor.get().0, 1.2);
+    }
+
+    /// Another radius on the same spine is the tube [`Tube::new`] makes, refusals included.
+    #[test]
+    fn with_radius_is_new_with_that_radius() {
+        let tube = sbend();
+        for r in [
+            28.5,
+            1.0,
+            30.0,
+            55.0,
+            61.0,
+            70.0,
+            0.0,
+            -1.0,
+            f64::INFINITY,
+            f64::NAN,
+        ] {
+            let a = tube.with_radius(r);
+            let b = Tube::new(tube.spine().clone(), r);
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "r = {r}");
+        }
+        assert!(tube.with_radius(70.0).is_err() && tube.with_radius(28.6).is_ok());
     }
 
     #[test]

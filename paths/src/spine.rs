@@ -159,6 +159,24 @@ impl Spine {
         self.eval_piece(self.piece_of(z_mm), z_mm)
     }
 
+    /// [`Spine::eval`], trying first the interval `piece` holds (where the last evaluation of a
+    /// caller moving along the spine fell), and leaving there the interval used: the same
+    /// interval, so the same value, as [`Spine::eval`] gives.
+    pub fn eval_near(&self, piece: &std::cell::Cell<usize>, z_mm: f64) -> [f64; 4] {
+        let k = &self.z_mm;
+        let i = piece.get();
+        let i = if i + 1 < k.len()
+            && k[i].total_cmp(&z_mm).is_le()
+            && z_mm.total_cmp(&k[i + 1]).is_lt()
+        {
+            i
+        } else {
+            self.piece_of(z_mm)
+        };
+        piece.set(i);
+        self.eval_piece(i, z_mm)
+    }
+
     /// The interval holding `z_mm`: the last knot at or below it (in `total_cmp` order),
     /// clamped to the first and last interval. Tried first where evenly spaced knots would put
     /// it (the mandrel tables are), then by bisection.
@@ -291,6 +309,33 @@ pub const SBEND_TABLE_6_1_MM: [(f64, f64); 36] = [
 mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
+
+    /// From any hint, the interval (so every bit of the value) is [`Spine::eval`]'s, at and
+    /// between knots, outside the ends and for a NaN; the hint moves to it.
+    #[test]
+    fn eval_near_is_eval_from_any_hint() {
+        let spine = Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap();
+        let uneven = Spine::new(&[(0.0, 1.0), (3.0, 2.0), (10.0, -1.0), (11.0, 0.5)]).unwrap();
+        for spine in [spine, uneven] {
+            let knots = spine.knot_heights_mm().to_vec();
+            let mut zs: Vec<f64> = knots.clone();
+            zs.extend(knots.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+            zs.extend(knots.iter().map(|k| k - 1e-9));
+            zs.extend([-50.0, 1e9, -0.0, f64::NAN, -f64::NAN, f64::INFINITY]);
+            let bits = |a: [f64; 4]| a.map(f64::to_bits);
+            for hint in 0..knots.len() + 2 {
+                for &z in &zs {
+                    let piece = std::cell::Cell::new(hint);
+                    assert_eq!(
+                        bits(spine.eval_near(&piece, z)),
+                        bits(spine.eval(z)),
+                        "z = {z}, hint {hint}"
+                    );
+                    assert_eq!(piece.get(), spine.piece_of(z), "z = {z}, hint {hint}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn passes_through_every_knot_of_table_6_1() {
