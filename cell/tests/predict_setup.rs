@@ -1,4 +1,5 @@
-//! The setup Monte Carlo of `windcell predict` draws each calibration tolerance it is given:
+//! `windcell predict` winds on a cell built from the job: its drive, and a setup Monte Carlo that
+//! draws each calibration tolerance it is given:
 //! the mandrel axis displaced, or leaning, by up to 2 mm moves where the fibre lands by a
 //! comparable amount, while with every tolerance zero the samples do not spread at all.
 
@@ -59,4 +60,30 @@ fn each_tolerance_spreads_the_setup_samples() {
             "{what}: {p} mm: more than the 2 mm drawn can explain"
         );
     }
+}
+
+/// The simulated cell that `predict` winds on has the job's drive: with a 13:39 belt instead of
+/// the thesis's 13:60 the control files step the motor 1 200 times per mandrel turn instead of
+/// 1 846, and the cylinder's fine winding lays its fibre as closely as with the thesis's drive (a
+/// cell simulated with another drive would turn the mandrel by 39/60 of each commanded angle).
+#[test]
+fn the_simulated_cell_has_the_jobs_drive() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/cylinder.toml");
+    let thesis = std::fs::read_to_string(&path).unwrap();
+    assert!(thesis.contains("gear_ratio = [13, 60]"));
+    let other = thesis.replace("gear_ratio = [13, 60]", "gear_ratio = [13, 39]");
+    let first_error = |text: &str| -> f64 {
+        let job = Job::parse(text).unwrap();
+        let cell = Cell::of_job(&job, &path).unwrap();
+        let opt = Options {
+            modes: vec![Mode::Run(RunMode::Fine)],
+            samples: 0,
+            ..Options::default()
+        };
+        let p = predict::predict(&job, text, &path, &cell, &opt).unwrap();
+        p.modes[0].outcome.as_ref().unwrap()[0].max_error_mm
+    };
+    let (a, b) = (first_error(&thesis), first_error(&other));
+    assert!(a < 3.0 && b < 3.0, "13:60 {a} mm, 13:39 {b} mm");
+    assert!((a - b).abs() < 1.0, "13:60 {a} mm, 13:39 {b} mm");
 }
