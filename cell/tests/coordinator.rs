@@ -1510,17 +1510,9 @@ impl SyncLines for MortalStart {
     }
 }
 
-/// Killed after the program started and the mandrel's move was armed on the start line, before
-/// the start edge; then the robot is stopped at its own controls. On resume the robot is not
-/// waiting at the handshake (whose cancel would stop the indexer too), but the indexer still
-/// holds the armed move, which never turned and holds its command buffer: it is cancelled
-/// before the attach asks for the counter, and the path is wound again, every target once.
-#[test]
-fn an_armed_mandrel_move_that_never_started_is_cancelled_on_resume() {
-    let b = checked(&sbend(Some(RunMode::Fine)));
-    let dir = tempfile::tempdir().unwrap();
-    let jp = dir.path().join("J.journal");
-    let cell = SimCell::new(&SimCellConfig::default());
+/// Winds `b` in program mode until the PC "dies" `calls` device calls after the first program's
+/// event (the sync lines' start output counts as a call); nothing stops the devices.
+fn killed_after_the_first_program_event(cell: &SimCell, b: &Batch, jp: &Path, calls: i64) {
     let life = Life::new();
     let d = cell.devices(Drive::default());
     let dev = cell::coordinator::Devices {
@@ -1532,23 +1524,35 @@ fn an_armed_mandrel_move_that_never_started_is_cancelled_on_resume() {
         }),
         time: d.time,
     };
-    let l2 = life.clone();
-    // After the first program's event: RUN_PROGRAM and the armed move go out, the start edge
-    // does not.
     let mut sink = |e: Event| {
         if matches!(e, Event::Program { done: false, .. }) {
-            l2.die_after(2);
+            life.die_after(calls);
         }
     };
     let mut c = Coordinator::new(
         dev,
         Arc::new(AtomicBool::new(false)),
-        Journal::create(&jp).unwrap(),
+        Journal::create(jp).unwrap(),
         &mut sink,
     );
-    c.run(&b, &ResumePoint::default(), true, false, false)
+    c.run(b, &ResumePoint::default(), true, false, false)
         .unwrap_err();
-    drop(c);
+}
+
+/// Killed after the program started and the mandrel's move was armed on the start line, before
+/// the start edge; then the robot is stopped at its own controls. On resume the robot is not
+/// waiting at the handshake (whose cancel would stop the indexer too), but the indexer still
+/// holds the armed move, which never turned and holds its command buffer: it is cancelled
+/// before the attach asks for the counter, and the path is wound again, every target once.
+#[test]
+fn an_armed_mandrel_move_that_never_started_is_cancelled_on_resume() {
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    // After the first program's event: RUN_PROGRAM and the armed move go out, the start edge
+    // does not.
+    killed_after_the_first_program_event(&cell, &b, &jp, 2);
     cell.timebase_sleep(Duration::from_secs(5));
     // The operator stops the robot at its controls (a STOP telegram's effect).
     let stop = asea_protocol::Frame {
@@ -2071,33 +2075,8 @@ fn a_robot_stopped_at_its_handshake_while_the_mandrel_turned_starts_the_path_aga
     let dir = tempfile::tempdir().unwrap();
     let jp = dir.path().join("J.journal");
     let cell = SimCell::new(&SimCellConfig::default());
-    let life = Life::new();
-    let d = cell.devices(Drive::default());
-    let dev = cell::coordinator::Devices {
-        robot: Box::new(Mortal::new(d.robot, life.clone())),
-        mandrel: Box::new(Mortal::new(d.mandrel, life.clone())),
-        sync: Box::new(MortalStart {
-            inner: d.sync,
-            life: life.clone(),
-        }),
-        time: d.time,
-    };
-    let l2 = life.clone();
     // RUN_PROGRAM, the armed move and the start edge go out; nothing after.
-    let mut sink = |e: Event| {
-        if matches!(e, Event::Program { done: false, .. }) {
-            l2.die_after(3);
-        }
-    };
-    let mut c = Coordinator::new(
-        dev,
-        Arc::new(AtomicBool::new(false)),
-        Journal::create(&jp).unwrap(),
-        &mut sink,
-    );
-    c.run(&b, &ResumePoint::default(), true, false, false)
-        .unwrap_err();
-    drop(c);
+    killed_after_the_first_program_event(&cell, &b, &jp, 3);
     // The operator's STOP reaches the robot within the opto-coupler's delay of the edge.
     let stop = asea_protocol::Frame {
         code: 0x0C,
