@@ -243,4 +243,49 @@ mod tests {
         tap.saw(b"S\r\nS\r");
         assert_eq!(seen.lock().unwrap().len(), 2);
     }
+
+    #[test]
+    fn a_trace_keeps_the_last_passages_both_ways_up_to_each_stop() {
+        let frame = asea_protocol::FrameConfig::default();
+        let stop = asea_protocol::Command::Stop.encode(&frame).unwrap();
+        // Without tracing nothing is kept.
+        let (mut plain, _) = StopTap::new((), StopPattern::robot(&frame));
+        plain.sent(&[0x06]);
+        plain.saw(&stop);
+        assert!(plain.recent.is_none() && plain.traces.lock().unwrap().is_empty());
+
+        let (tap, _) = StopTap::new((), StopPattern::robot(&frame));
+        let (mut tap, traces) = tap.with_trace();
+        for k in 0..TRACE_EVENTS as u8 {
+            tap.saw(&[0x05, k]);
+            tap.sent(&[0x06]);
+        }
+        tap.sent(&[]);
+        assert!(traces.lock().unwrap().is_empty(), "no stop yet");
+        tap.saw(&stop[..3]);
+        tap.saw(&stop[3..]);
+        let t = traces.lock().unwrap().clone();
+        assert_eq!(t.len(), 1);
+        let w = &t[0];
+        // The last TRACE_EVENTS passages, oldest first, the STOP's bytes last; an empty write
+        // is not a passage.
+        assert_eq!(w.len(), TRACE_EVENTS);
+        assert_eq!(w[TRACE_EVENTS - 1].bytes, stop[3..].to_vec());
+        assert_eq!(w[TRACE_EVENTS - 2].bytes, stop[..3].to_vec());
+        assert!(w[TRACE_EVENTS - 1].inbound && w[TRACE_EVENTS - 2].inbound);
+        assert_eq!(
+            (w[TRACE_EVENTS - 3].inbound, &w[TRACE_EVENTS - 3].bytes[..]),
+            (false, &[0x06][..])
+        );
+        assert_eq!(
+            w[TRACE_EVENTS - 4].bytes,
+            vec![0x05, TRACE_EVENTS as u8 - 1]
+        );
+        assert!(w.windows(2).all(|p| p[0].unix_s <= p[1].unix_s));
+        assert_eq!(
+            w[TRACE_EVENTS - 3].json().as_array().unwrap()[1..],
+            [serde_json::json!("out"), serde_json::json!("06")]
+        );
+        assert_eq!(w[TRACE_EVENTS - 4].json()[2], serde_json::json!("05 2f"));
+    }
 }
