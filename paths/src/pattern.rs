@@ -63,6 +63,48 @@ pub fn dome_mandrel_angle(z_mm: f64, cylinder_radius_mm: f64, polar_radius_mm: f
     (polar_radius_mm * z_mm).atan2(cylinder_radius_mm * rest)
 }
 
+/// Eq. 10's reading: the radial extent Δr of a band of width `band_mm` laid at the polar
+/// opening, `b·cos(βc + b/(2Rc))` (the seed's "bcos(βc + R%)"; `docs/seed-readings.md`), mm. On
+/// the sphere it is the chord of the band's arc, `Rc·[sin(βc + b/Rc) − sin βc]`, to second order.
+pub fn opening_band_extent(band_mm: f64, cylinder_radius_mm: f64, polar_radius_mm: f64) -> f64 {
+    let beta_c = cylinder_wind_angle(cylinder_radius_mm, polar_radius_mm);
+    band_mm * (beta_c + band_mm / (2.0 * cylinder_radius_mm)).cos()
+}
+
+/// Eqs. 10–11, the "flat solution" for the dome's laminate (seed 002 §2.4): the thickness at
+/// height `z_mm` above the dome's equator as a multiple of the cylinder's, `t(z)/t_c`. Eq. 11,
+/// `Rc·cos βc / √(Rc² − rp² − z²)` (the conservation law `t·r·cos β` = constant of a geodesic
+/// winding), holds up to `z0` ([`dome_thickness_switch_z`]); beyond it, where the band laid at
+/// the opening covers the whole remaining dome, Eq. 10's constant `Rc·cos βc / √(Δr·(2·rp +
+/// Δr))` with Δr from [`opening_band_extent`]. The two meet at `z0`. `z_mm` is clamped to
+/// `[0, zp]` (the opening's height).
+pub fn dome_thickness_ratio(
+    z_mm: f64,
+    cylinder_radius_mm: f64,
+    polar_radius_mm: f64,
+    band_mm: f64,
+) -> f64 {
+    let (rc, rp) = (cylinder_radius_mm, polar_radius_mm);
+    let beta_c = cylinder_wind_angle(rc, rp);
+    let numerator = rc * beta_c.cos();
+    let z0 = dome_thickness_switch_z(rc, rp, band_mm);
+    if z_mm.max(0.0) < z0 {
+        numerator / (rc * rc - rp * rp - z_mm * z_mm).sqrt()
+    } else {
+        let dr = opening_band_extent(band_mm, rc, rp);
+        numerator / (dr * (2.0 * rp + dr)).sqrt()
+    }
+}
+
+/// The height where Eq. 11 gives way to Eq. 10's constant: the band's inner edge at the
+/// opening, radius `rp + Δr`, `z0 = √(Rc² − (rp + Δr)²)`, mm.
+pub fn dome_thickness_switch_z(cylinder_radius_mm: f64, polar_radius_mm: f64, band_mm: f64) -> f64 {
+    let r0 = polar_radius_mm + opening_band_extent(band_mm, cylinder_radius_mm, polar_radius_mm);
+    (cylinder_radius_mm * cylinder_radius_mm - r0 * r0)
+        .max(0.0)
+        .sqrt()
+}
+
 /// Eq. 9: the extra mandrel turn that shifts the pattern by one band width `band_mm`, radians.
 pub fn band_advance(band_mm: f64, cylinder_radius_mm: f64, wind_angle_rad: f64) -> f64 {
     band_mm / (cylinder_radius_mm * wind_angle_rad.cos())
@@ -438,6 +480,53 @@ mod tests {
             20.48732,
             epsilon = 1e-5
         );
+    }
+
+    /// TV-8 (`../shared/spec/notes-002-004.md`, Eqs. 10–11, b = 4 mm): t(0)/t_c = 1 exactly,
+    /// t(40)/t_c = 1.42348, t(50)/t_c = 2.18944, the opening's t_s0/t_c = 4.3234 with Δr =
+    /// 3.6983 and the switch at z0 = 54.681 mm; the other reading, Δr = b·cos βc, gives 4.2929.
+    #[test]
+    fn tv8_dome_thickness_flat_solution() {
+        assert_abs_diff_eq!(dome_thickness_ratio(0.0, RC, RP, 4.0), 1.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(
+            dome_thickness_ratio(40.0, RC, RP, 4.0),
+            1.42348,
+            epsilon = 1e-5
+        );
+        assert_abs_diff_eq!(
+            dome_thickness_ratio(50.0, RC, RP, 4.0),
+            2.18944,
+            epsilon = 1e-5
+        );
+        assert_abs_diff_eq!(opening_band_extent(4.0, RC, RP), 3.6983, epsilon = 1e-4);
+        let z0 = dome_thickness_switch_z(RC, RP, 4.0);
+        assert_abs_diff_eq!(z0, 54.681, epsilon = 1e-3);
+        // Eq. 10's constant from z0 to the opening, and Eq. 11 meets it at z0.
+        let t0 = dome_thickness_ratio(z0, RC, RP, 4.0);
+        assert_abs_diff_eq!(t0, 4.3234, epsilon = 1e-4);
+        assert_abs_diff_eq!(dome_thickness_ratio(57.0, RC, RP, 4.0), t0, epsilon = 1e-12);
+        let zp = (RC * RC - RP * RP).sqrt();
+        assert_abs_diff_eq!(dome_thickness_ratio(zp, RC, RP, 4.0), t0, epsilon = 1e-12);
+        assert_abs_diff_eq!(
+            dome_thickness_ratio(z0 - 1e-9, RC, RP, 4.0),
+            t0,
+            epsilon = 1e-6
+        );
+        // The alternative reading of Eq. 10 (Δr = b·cos βc), worked out here: 4.2929.
+        let beta_c = cylinder_wind_angle(RC, RP);
+        let dr = 4.0 * beta_c.cos();
+        assert_abs_diff_eq!(
+            RC * beta_c.cos() / (dr * (2.0 * RP + dr)).sqrt(),
+            4.2929,
+            epsilon = 1e-4
+        );
+        // Monotonic: the dome thickens toward the opening.
+        let mut last = 0.0;
+        for k in 0..=57 {
+            let t = dome_thickness_ratio(k as f64, RC, RP, 4.0);
+            assert!(t >= last, "z = {k}: {t} < {last}");
+            last = t;
+        }
     }
 
     #[test]

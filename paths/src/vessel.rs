@@ -11,7 +11,8 @@
 //! below it — a helical layer (two plies, ±β) adds twice the tow thickness, a hoop pass adds one.
 //! The domes are taken to grow by the same amount as the cylinder (a sphere of the new radius
 //! with the same polar opening); seed 002's Eqs. 10–11 show the dome really thickens towards the
-//! opening, so this understates the dome's growth near the pole.
+//! opening ([`crate::pattern::dome_thickness_ratio`]: 4.32 times the cylinder's at the opening of
+//! seed 002's vessel with a 4 mm band), so this understates the dome's growth near the pole.
 //!
 //! Dome strokes (seed 002 Eq. 17, Appendix A; `docs/seed-readings.md` R002-1). One stroke runs pole → cylinder →
 //! pole: the departure from the near dome (α from 90° to 180°), one straight move along the
