@@ -245,6 +245,16 @@ mod tests {
     }
 
     #[test]
+    fn unix_time_is_now_and_moves_on() {
+        // 2026-01-01 and 2100-01-01 in Unix seconds.
+        let t = unix_now_s();
+        assert!((1_767_225_600.0..4_102_444_800.0).contains(&t), "{t}");
+        std::thread::sleep(Duration::from_millis(5));
+        let dt = unix_now_s() - t;
+        assert!((0.004..1.0).contains(&dt), "{dt}");
+    }
+
+    #[test]
     fn a_trace_keeps_the_last_passages_both_ways_up_to_each_stop() {
         let frame = asea_protocol::FrameConfig::default();
         let stop = asea_protocol::Command::Stop.encode(&frame).unwrap();
