@@ -244,6 +244,22 @@ mod tests {
         assert_eq!(seen.lock().unwrap().len(), 2);
     }
 
+    /// Bytes that are no stop telegram are not kept beyond what could still begin one (the
+    /// telegram's length less one), however many come and in whatever reads.
+    #[test]
+    fn the_window_keeps_only_a_possible_telegram_start() {
+        let frame = asea_protocol::FrameConfig::default();
+        let stop = asea_protocol::Command::Stop.encode(&frame).unwrap();
+        let (mut tap, seen) = StopTap::new((), StopPattern::robot(&frame));
+        let noise = [0x41u8; 100];
+        for _ in 0..50 {
+            tap.saw(&noise);
+            assert!(tap.window.len() < stop.len(), "{}", tap.window.len());
+        }
+        tap.saw(&stop);
+        assert_eq!(seen.lock().unwrap().len(), 1);
+    }
+
     #[test]
     fn unix_time_is_now_and_moves_on() {
         // 2026-01-01 and 2100-01-01 in Unix seconds.
