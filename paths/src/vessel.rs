@@ -1327,6 +1327,34 @@ fn emit_geodesic_pass<S: MotionSink>(
     }
 }
 
+/// The start of a tube, cone or nose layer: the approach to the near end (carriage at `−half`,
+/// the eye at 0) and, if the layer asks for it, the lock turn there before the first pass.
+fn begin_tube_layer<S: MotionSink>(
+    c: &mut Cursor<'_, S>,
+    t: &TubeHelical,
+    half: f64,
+    cross: f64,
+    first: bool,
+) -> Result<(), S::Error> {
+    c.approach(
+        Axes {
+            mandrel_deg: c.at.mandrel_deg,
+            carriage_mm: -half,
+            cross_feed_mm: cross,
+            eye_deg: 0.0,
+        },
+        first,
+        f64::INFINITY,
+    )?;
+    if t.initial_lock {
+        c.feed(Axes {
+            mandrel_deg: c.at.mandrel_deg + t.lock_deg,
+            ..c.at
+        })?;
+    }
+    Ok(())
+}
+
 #[allow(clippy::too_many_arguments)]
 fn emit_tube<S: MotionSink>(
     c: &mut Cursor<'_, S>,
@@ -1339,23 +1367,7 @@ fn emit_tube<S: MotionSink>(
     first: bool,
 ) -> Result<(), S::Error> {
     let lay_eye = 90.0 - t.wind_angle_deg;
-    c.approach(
-        Axes {
-            mandrel_deg: c.at.mandrel_deg,
-            carriage_mm: -half,
-            cross_feed_mm: cross,
-            eye_deg: 0.0,
-        },
-        first,
-        f64::INFINITY,
-    )?;
-    // The lock at the near end before the first pass.
-    if t.initial_lock {
-        c.feed(Axes {
-            mandrel_deg: c.at.mandrel_deg + t.lock_deg,
-            ..c.at
-        })?;
-    }
+    begin_tube_layer(c, t, half, cross, first)?;
     let mut pending = 0.0;
     let slot = 360.0 / f64::from(t.pattern_number);
     let step = 360.0 / f64::from(circuits);
@@ -1425,22 +1437,7 @@ fn emit_nose<S: MotionSink>(
     cross: f64,
     first: bool,
 ) -> Result<(), S::Error> {
-    c.approach(
-        Axes {
-            mandrel_deg: c.at.mandrel_deg,
-            carriage_mm: -half,
-            cross_feed_mm: cross,
-            eye_deg: 0.0,
-        },
-        first,
-        f64::INFINITY,
-    )?;
-    if t.initial_lock {
-        c.feed(Axes {
-            mandrel_deg: c.at.mandrel_deg + t.lock_deg,
-            ..c.at
-        })?;
-    }
+    begin_tube_layer(c, t, half, cross, first)?;
     let pass = stations.last().map_or(0.0, |s| s.turn_deg);
     let slot = 360.0 / f64::from(t.pattern_number);
     let step = 360.0 / f64::from(circuits);
