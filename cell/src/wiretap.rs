@@ -109,13 +109,13 @@ impl<L> StopTap<L> {
         (self, traces)
     }
 
-    fn note(&mut self, inbound: bool, bytes: &[u8]) {
+    fn note(&mut self, inbound: bool, bytes: &[u8], unix_s: f64) {
         if let Some(r) = self.recent.as_mut() {
             if r.len() == TRACE_EVENTS {
                 r.pop_front();
             }
             r.push_back(WireEvent {
-                unix_s: unix_now_s(),
+                unix_s,
                 inbound,
                 bytes: bytes.to_vec(),
             });
@@ -124,7 +124,7 @@ impl<L> StopTap<L> {
 
     fn saw(&mut self, bytes: &[u8]) {
         let t = unix_now_s();
-        self.note(true, bytes);
+        self.note(true, bytes, t);
         let mut hits = 0;
         match &self.pattern {
             StopPattern::Telegram(p) => {
@@ -171,8 +171,8 @@ impl<L> StopTap<L> {
     }
 
     fn sent(&mut self, bytes: &[u8]) {
-        if !bytes.is_empty() {
-            self.note(false, bytes);
+        if !bytes.is_empty() && self.recent.is_some() {
+            self.note(false, bytes, unix_now_s());
         }
     }
 }

@@ -848,12 +848,11 @@ pub fn serve<L: Link>(
         // watcher may hold): a robot's UART notes a byte when it comes, and the host's urgent
         // ENQ counts on the robot measuring the silence before it to within its margin
         // (`session::URGENT_MARGIN`).
-        let arrived = clock.now();
-        let now = {
+        let now = clock.now();
+        {
             let mut r = robot
                 .lock()
                 .map_err(|_| std::io::Error::other("simulator lock poisoned"))?;
-            let now = arrived;
             if let Some(bytes) = buf.get(..n)
                 && n > 0
             {
@@ -869,8 +868,7 @@ pub fn serve<L: Link>(
                 }
                 out.extend_from_slice(&more);
             }
-            now
-        };
+        }
         if !out.is_empty() && now >= send_at {
             link.write_all(&out)?;
             out.clear();
