@@ -1101,6 +1101,11 @@ mod tests {
         (Job::parse(&text).unwrap(), text)
     }
 
+    fn sbend() -> (Job, String) {
+        let text = include_str!("../../examples/sbend.toml").to_string();
+        (Job::parse(&text).unwrap(), text)
+    }
+
     /// Fine movement on the cylinder: the winding takes the mandrel's time as the plan computes
     /// it from the indexer's trapezoid (an independent model of the same move) within the
     /// robot's last stop; the segment chords alone leave a small error (the eye's chords at
@@ -1155,8 +1160,7 @@ mod tests {
     /// real motion and stays under 0.2 of it (0.08 and 0.27 mm against 2.48 and 2.30 mm).
     #[test]
     fn continuous_on_the_sbend_lays_as_well_as_discrete_in_medium_time() {
-        let text = include_str!("../../examples/sbend.toml").to_string();
-        let job = Job::parse(&text).unwrap();
+        let (job, text) = sbend();
         let file = Path::new("examples/sbend.toml");
         let cell = Cell::of_job(&job, file).unwrap();
         let opt = Options {
@@ -1205,8 +1209,7 @@ mod tests {
     /// the path at 2 ms (1.52 mm of error against 0.27 mm at 1 and 0.5 ms).
     #[test]
     fn the_error_does_not_depend_on_the_placement_step() {
-        let text = include_str!("../../examples/sbend.toml").to_string();
-        let job = Job::parse(&text).unwrap();
+        let (job, text) = sbend();
         let file = Path::new("examples/sbend.toml");
         let cell = Cell::of_job(&job, file).unwrap();
         let errors = |step_s: f64| -> Vec<f64> {

@@ -171,6 +171,26 @@ fn every_dialect_file_reads_back_to_the_plan() {
     }
 }
 
+/// `windcell lathe plan JOB -o OUT --dialect grbl` refused as bad input: exit 2, one line that
+/// contains `expect`, and nothing written (`OUT` not even created). Returns the line.
+fn refused_in_one_line(job: &std::path::Path, out_dir: &std::path::Path, expect: &str) -> String {
+    let out = windcell(&[
+        "lathe",
+        "plan",
+        job.to_str().unwrap(),
+        "-o",
+        out_dir.to_str().unwrap(),
+        "--dialect",
+        "grbl",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(err.contains(expect), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(!out_dir.exists());
+    err
+}
+
 #[test]
 fn bad_input_exits_2_with_file_line_column_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
@@ -183,24 +203,12 @@ fn bad_input_exits_2_with_file_line_column_and_writes_nothing() {
         );
     std::fs::write(&job, text).unwrap();
     let out_dir = dir.path().join("out");
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
-        "grbl",
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = stderr(&out);
-    assert!(
-        err.contains("bad.toml:30:8: layer 1: the winding pattern does not close"),
-        "{err}"
+    let err = refused_in_one_line(
+        &job,
+        &out_dir,
+        "bad.toml:30:8: layer 1: the winding pattern does not close",
     );
     assert!(err.contains("nearest valid"), "{err}");
-    assert_eq!(err.lines().count(), 1);
-    assert!(!out_dir.exists());
     // fw-cnc on a 4-axis machine: refused, nothing written.
     let out = windcell(&[
         "lathe",
@@ -355,24 +363,11 @@ fn cone_layers_read_back_in_every_dialect() {
         .unwrap()
         .replace("\"windAngle\": 30", "\"windAngle\": 40");
     std::fs::write(&wind, text).unwrap();
-    let out_dir = dir.path().join("refused");
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
-        "grbl",
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = stderr(&out);
-    assert!(
-        err.contains("reducer.wind:4:5: layer 1: wind angle 40° is too steep for the cone"),
-        "{err}"
+    refused_in_one_line(
+        &wind,
+        &dir.path().join("refused"),
+        "reducer.wind:4:5: layer 1: wind angle 40° is too steep for the cone",
     );
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(!out_dir.exists());
 }
 
 #[test]
@@ -436,22 +431,9 @@ fn nose_layers_read_back_in_every_dialect() {
         text.replace("\"frictionLambda\": 0.15", "\"frictionLambda\": 0.5"),
     )
     .unwrap();
-    let out_dir = dir.path().join("refused");
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
-        "grbl",
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = stderr(&out);
-    assert!(
-        err.contains("ogive.wind:7:5: layer 3: frictionLambda 0.5 exceeds the machine slip limit"),
-        "{err}"
+    refused_in_one_line(
+        &wind,
+        &dir.path().join("refused"),
+        "ogive.wind:7:5: layer 3: frictionLambda 0.5 exceeds the machine slip limit",
     );
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(!out_dir.exists());
 }

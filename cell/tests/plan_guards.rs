@@ -102,6 +102,16 @@ fn refused(job: &Path, expected_place: &str, expected: &str) {
     assert!(took < Duration::from_secs(1), "{stderr}: took {took:?}");
 }
 
+/// Where the value of a job's `segments = …` stands, `LINE:COLUMN` (column 12, after
+/// `segments = `).
+fn segments_value_at(job_text: &str) -> String {
+    let line = job_text
+        .lines()
+        .position(|l| l.starts_with("segments = "))
+        .unwrap();
+    format!("{}:12", line + 1)
+}
+
 fn place(dir: &Path, file: &str, line_column: &str) -> String {
     format!("{}:{line_column}:", dir.join(file).display())
 }
@@ -251,13 +261,7 @@ fn segment_counts_the_robot_cannot_number_or_hold_are_refused_at_segments() {
             &s.drawing,
             ("segments = 50", &format!("segments = {value}")),
         );
-        // Where the value of `segments` stands in the job.
-        let text = std::fs::read_to_string(&job).unwrap();
-        let line = text
-            .lines()
-            .position(|l| l.starts_with("segments = "))
-            .unwrap();
-        let at = format!("{}:12", line + 1);
+        let at = segments_value_at(&std::fs::read_to_string(&job).unwrap());
         refused(&job, &place(d, &format!("{name}.toml"), &at), expected);
     }
 }
@@ -303,16 +307,8 @@ fn an_imported_segment_turning_more_than_half_a_revolution_is_refused_at_segment
     // 1.2 revolutions in 2 segments: 0.6 revolution (216°) each. Unwrapped to the nearest
     // multiple of a revolution, each would turn −144° the wrong way and plan.
     let job = helix_job(d, "wide", 1.2, 2);
-    let text = std::fs::read_to_string(&job).unwrap();
-    let line = text
-        .lines()
-        .position(|l| l.starts_with("segments = "))
-        .unwrap();
-    refused(
-        &job,
-        &place(d, "wide.toml", &format!("{}:12", line + 1)),
-        "turns the mandrel",
-    );
+    let at = segments_value_at(&std::fs::read_to_string(&job).unwrap());
+    refused(&job, &place(d, "wide.toml", &at), "turns the mandrel");
 }
 
 #[test]
@@ -351,13 +347,9 @@ fn continuous_movement_refuses_more_segments_than_the_robot_can_take() {
     assert!(text.contains("movement = \"continuous\""));
     let job = dir.path().join("cont.toml");
     std::fs::write(&job, text.replacen("segments = 50", "segments = 80", 1)).unwrap();
-    let line = text
-        .lines()
-        .position(|l| l.starts_with("segments = "))
-        .unwrap();
     refused(
         &job,
-        &place(dir.path(), "cont.toml", &format!("{}:12", line + 1)),
+        &place(dir.path(), "cont.toml", &segments_value_at(&text)),
         "the robot needs 0.1430 s per instruction in continuous movement (at most 68 segments",
     );
     std::fs::write(&job, text.replacen("segments = 50", "segments = 68", 1)).unwrap();

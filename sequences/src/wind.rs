@@ -413,6 +413,17 @@ mod tests {
         assert_eq!(job.machine.limits.axes[1].acceleration, 1000.0);
     }
 
+    /// Each `(from, to, expect)`: [`TUBE`] with `from` replaced by `to` is refused with a message
+    /// that begins with `expect` (its line and column first).
+    fn refused_as(cases: &[(&str, &str, &str)]) {
+        for &(from, to, expect) in cases {
+            let text = TUBE.replace(from, to);
+            assert_ne!(text, TUBE, "{from}");
+            let err = WindFile::parse(&text, "t").unwrap_err().to_string();
+            assert!(err.starts_with(expect), "{expect}: {err}");
+        }
+    }
+
     #[test]
     fn the_parsers_own_checks_come_first() {
         let cases = [
@@ -439,12 +450,7 @@ mod tests {
                 "8:5: layer 2: patternNumber and skipIndex must be ≥ 1",
             ),
         ];
-        for (from, to, expect) in cases {
-            let text = TUBE.replace(from, to);
-            assert_ne!(text, TUBE, "{from}");
-            let err = WindFile::parse(&text, "t").unwrap_err().to_string();
-            assert!(err.starts_with(expect), "{expect}: {err}");
-        }
+        refused_as(&cases);
     }
 
     #[test]
@@ -522,12 +528,7 @@ mod tests {
                 "13:1: missing field `defaultFeedRate`",
             ),
         ];
-        for (from, to, expect) in cases {
-            let text = TUBE.replace(from, to);
-            assert_ne!(text, TUBE, "{from}");
-            let err = WindFile::parse(&text, "t").unwrap_err().to_string();
-            assert!(err.starts_with(expect), "{expect}: {err}");
-        }
+        refused_as(&cases);
     }
 
     /// FiberPath's cone cases: 98 → 54 mm over 120 mm.

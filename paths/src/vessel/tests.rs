@@ -604,6 +604,20 @@ fn haack(z: f64) -> f64 {
 
 /// Walks a one-layer nose plan's moves: returns each circuit's (mandrel angle at its start,
 /// outward turn, return turn, farthest carriage) and the surface length of every move.
+/// Every circuit of [`nose_circuits`] starts on its own slot of 360°/n (n circuits), whatever
+/// the order in which the pattern visits them.
+fn assert_on_their_own_slots(circuits: &[(f64, f64, f64, f64)]) {
+    let n = circuits.len();
+    let mut slots: Vec<f64> = circuits
+        .iter()
+        .map(|c| (c.0 - circuits[0].0).rem_euclid(360.0))
+        .collect();
+    slots.sort_by(f64::total_cmp);
+    for (k, s) in slots.iter().enumerate() {
+        assert_abs_diff_eq!(*s, k as f64 * 360.0 / n as f64, epsilon = 1e-6);
+    }
+}
+
 fn nose_circuits(job: &Job) -> (Vec<(f64, f64, f64, f64)>, f64) {
     let r = record(job);
     let mut prev = r.moves[0].to;
@@ -653,18 +667,13 @@ fn nose_helical_runs_from_the_base_to_the_geodesic_turnaround_and_back() {
     assert_abs_diff_eq!(haack(zt), 24.5, epsilon = 1e-9);
     let (circuits, laid) = nose_circuits(&job);
     assert_eq!(circuits.len(), 39);
-    let mut slots: Vec<f64> = Vec::new();
-    for &(start, out, back, far) in &circuits {
+    for &(_, out, back, far) in &circuits {
         assert_abs_diff_eq!(far, zt, epsilon = 1e-6);
         assert_abs_diff_eq!(out, theta.to_degrees(), epsilon = 1e-5);
         assert_abs_diff_eq!(back, theta.to_degrees(), epsilon = 1e-5);
-        slots.push((start - circuits[0].0).rem_euclid(360.0));
     }
     // Every circuit starts on its own slot of 360°/39.
-    slots.sort_by(f64::total_cmp);
-    for (k, s) in slots.iter().enumerate() {
-        assert_abs_diff_eq!(*s, k as f64 * 360.0 / 39.0, epsilon = 1e-6);
-    }
+    assert_on_their_own_slots(&circuits);
     // The mark's tow: the passes' geodesic length and the turns at the base, against the
     // surface length of the moves (chords within 0.01 mm).
     let mark = plan.layers[0].mark.tow_length_mm;
@@ -682,18 +691,11 @@ fn nose_friction_lays_deeper_and_keeps_the_pattern() {
     assert!(far > geodesic[0].3 + 50.0, "{far}");
     let h = 1e-6;
     assert!((haack(far + h) - haack(far - h)).abs() / (2.0 * h) > 0.15);
-    let mut slots: Vec<f64> = circuits
-        .iter()
-        .map(|c| {
-            assert_abs_diff_eq!(c.1, c.2, epsilon = 1e-9);
-            assert_abs_diff_eq!(c.3, far, epsilon = 1e-9);
-            (c.0 - circuits[0].0).rem_euclid(360.0)
-        })
-        .collect();
-    slots.sort_by(f64::total_cmp);
-    for (k, s) in slots.iter().enumerate() {
-        assert_abs_diff_eq!(*s, k as f64 * 360.0 / 39.0, epsilon = 1e-6);
+    for c in &circuits {
+        assert_abs_diff_eq!(c.1, c.2, epsilon = 1e-9);
+        assert_abs_diff_eq!(c.3, far, epsilon = 1e-9);
     }
+    assert_on_their_own_slots(&circuits);
     let plan = nose_job(0.15).check().unwrap();
     assert_abs_diff_eq!(
         plan.layers[0].mark.tow_length_mm,
@@ -833,14 +835,7 @@ fn nose_base_turn_is_at_least_the_lead_out() {
         let step = if k % 3 == 2 { 360.0 / 39.0 } else { 0.0 };
         assert_abs_diff_eq!(gap, base_turn + 240.0 + step, epsilon = 1e-5);
     }
-    let mut slots: Vec<f64> = circuits
-        .iter()
-        .map(|c| (c.0 - circuits[0].0).rem_euclid(360.0))
-        .collect();
-    slots.sort_by(f64::total_cmp);
-    for (k, s) in slots.iter().enumerate() {
-        assert_abs_diff_eq!(*s, k as f64 * 360.0 / 39.0, epsilon = 1e-6);
-    }
+    assert_on_their_own_slots(&circuits);
     let plan = job.check().unwrap();
     assert_abs_diff_eq!(
         plan.layers[0].mark.tow_length_mm,
