@@ -311,6 +311,12 @@ fn tube_helical_counts_circuits_and_keeps_the_angle() {
             if dz.abs() > 100.0 {
                 passes += 1;
             }
+            // The eye lies at 90° − 45° on the side the carriage travels to.
+            assert_abs_diff_eq!(m.to.eye_deg, 45.0 * dz.signum(), epsilon = 1e-9);
+        } else {
+            // Every turn with the carriage still (lead-out, the turn at each end, the locks)
+            // has the eye back at 0.
+            assert_eq!(m.to.eye_deg, 0.0);
         }
         assert!(
             m.to.mandrel_deg >= prev.mandrel_deg,
