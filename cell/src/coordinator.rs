@@ -1050,37 +1050,53 @@ impl<'a> Coordinator<'a> {
 
     /// Robot to `target` as an immediate move unless it is there; waits and confirms.
     fn robot_to(&mut self, p: Positioning, target: [f64; 3]) -> Result<(), Step> {
+        if self.robot_send(p, target)? {
+            self.robot_settle(target)?;
+        }
+        Ok(())
+    }
+
+    /// Sends the immediate move to `target` (confirmed executed once) unless the robot is
+    /// there already; whether it was sent.
+    fn robot_send(&mut self, p: Positioning, target: [f64; 3]) -> Result<bool, Step> {
+        let here = self.dev.robot.position_mm()?;
+        if distance_mm(here, target) <= POSITION_TOLERANCE_MM {
+            return Ok(false);
+        }
+        self.dev.robot.move_immediate(p)?;
+        Ok(true)
+    }
+
+    /// Waits for the robot's immediate move to `target` to end, then confirms its state (idle,
+    /// no error) and its position.
+    fn robot_settle(&mut self, target: [f64; 3]) -> Result<(), Step> {
+        if self.dev.sync.wired() {
+            self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
+        } else {
+            self.wait("robot move", MOVE_TIMEOUT_S, |d| {
+                Ok(d.robot.state()?.state != State::Running)
+            })?;
+        }
+        let s = self.dev.robot.state()?;
+        if s.state != State::Idle || s.last_error != 0 {
+            return Err(Step::Halt(Halt::Fault {
+                message: format!(
+                    "robot: state {:?}, error {} after a move",
+                    s.state, s.last_error
+                ),
+            }));
+        }
         let here = self.dev.robot.position_mm()?;
         if distance_mm(here, target) > POSITION_TOLERANCE_MM {
-            self.dev.robot.move_immediate(p)?;
-            if self.dev.sync.wired() {
-                self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
-            } else {
-                self.wait("robot move", MOVE_TIMEOUT_S, |d| {
-                    Ok(d.robot.state()?.state != State::Running)
-                })?;
-            }
-            let s = self.dev.robot.state()?;
-            if s.state != State::Idle || s.last_error != 0 {
-                return Err(Step::Halt(Halt::Fault {
-                    message: format!(
-                        "robot: state {:?}, error {} after a move",
-                        s.state, s.last_error
-                    ),
-                }));
-            }
-            let here = self.dev.robot.position_mm()?;
-            if distance_mm(here, target) > POSITION_TOLERANCE_MM {
-                return Err(Step::Halt(Halt::Fault {
-                    message: format!(
-                        "robot: at ({:.2}, {:.2}, {:.2}) mm, {:.2} mm from its target",
-                        here[0],
-                        here[1],
-                        here[2],
-                        distance_mm(here, target)
-                    ),
-                }));
-            }
+            return Err(Step::Halt(Halt::Fault {
+                message: format!(
+                    "robot: at ({:.2}, {:.2}, {:.2}) mm, {:.2} mm from its target",
+                    here[0],
+                    here[1],
+                    here[2],
+                    distance_mm(here, target)
+                ),
+            }));
         }
         Ok(())
     }
@@ -1187,10 +1203,24 @@ impl<'a> Coordinator<'a> {
             } else {
                 base + prep.cumulative_steps[s]
             };
-            let moving = self.mandrel_start(prep.mandrel[s], counter, target, false)?;
-            self.robot_to(prep.immediate[s], prep.targets_mm[s])?;
+            // With the sync lines wired the mandrel's move waits for the start line, raised once
+            // the robot's move is confirmed: both devices start together, where the indexer's
+            // command and the robot's confirmation would otherwise put the mandrel 0.1–0.2 s
+            // ahead of the arm on every segment.
+            let wired = self.dev.sync.wired();
+            let moving = self.mandrel_start(prep.mandrel[s], counter, target, wired)?;
+            let sent = self.robot_send(prep.immediate[s], prep.targets_mm[s])?;
+            if wired && moving {
+                self.dev.sync.set_start(true)?;
+            }
+            if sent {
+                self.robot_settle(prep.targets_mm[s])?;
+            }
             if moving {
                 self.mandrel_finish(target)?;
+            }
+            if wired && moving {
+                self.dev.sync.set_start(false)?;
             }
             self.segments_done = s + 1;
             self.journal.append(json!({

@@ -2120,3 +2120,77 @@ fn a_robot_stopped_at_its_handshake_while_the_mandrel_turned_starts_the_path_aga
             .any(|r| r["rec"] == "program" && r["item"] == 0)
     );
 }
+
+/// Times at which a sampled motion starts: the first sample that differs from the one before
+/// after at least `rest_s` without change.
+fn motion_starts<T: Copy>(
+    series: &[(f64, T)],
+    moved: impl Fn(T, T) -> bool,
+    rest_s: f64,
+) -> Vec<f64> {
+    let mut starts = Vec::new();
+    let mut still_since = series.first().map_or(0.0, |s| s.0);
+    for w in series.windows(2) {
+        let ((t0, a), (t1, b)) = (w[0], w[1]);
+        if moved(a, b) {
+            if t0 - still_since >= rest_s {
+                starts.push(t0);
+            }
+            still_since = t1;
+        }
+    }
+    starts
+}
+
+/// Discrete movement with the sync lines wired: the mandrel's move of each segment waits for
+/// the start line, raised as soon as the robot's move is confirmed executed, so the mandrel
+/// starts no earlier than the arm and no later than the confirmation's two status exchanges
+/// after it (at 9600 baud, under 0.15 s; the arm is held while the robot computer serves them,
+/// seed 001 §4.1.2). Sending the indexer's move first and then the robot's put the mandrel
+/// 0.1–0.2 s ahead of the arm on every segment; a mandrel that turns before the robot's move
+/// is confirmed could also turn under an arm that never moves.
+#[test]
+fn discrete_segments_start_the_mandrel_with_the_arm_on_the_start_line() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let segments: usize = b.items.iter().map(|i| i.rob.instructions.len()).sum();
+    let cell = SimCell::new(&SimCellConfig::default());
+    cell.with(|p| p.trace = Some(cell::simcell::Trace::default()))
+        .unwrap();
+    wind(
+        &cell,
+        &b,
+        Journal::none(),
+        &ResumePoint::default(),
+        true,
+        None,
+    )
+    .unwrap();
+    let trace = cell.with(|p| p.trace.take().unwrap()).unwrap();
+    let eye = motion_starts(&trace.eye_mm, |a, b| a != b, 0.02);
+    let drive = motion_starts(&trace.drive_rad, |a, b| a != b, 0.02);
+    // Each mandrel start against the arm's start nearest to it. A path's sync turns the
+    // mandrel alone, before the arm's approach to the path's first point (which turns no
+    // mandrel): one per path, with no arm start in the 0.15 s before it.
+    let nearest: Vec<f64> = drive
+        .iter()
+        .map(|&m| {
+            eye.iter()
+                .map(|&e| m - e)
+                .min_by(|x, y| x.abs().total_cmp(&y.abs()))
+                .unwrap()
+        })
+        .collect();
+    let (lags, syncs): (Vec<f64>, Vec<f64>) = nearest
+        .iter()
+        .partition(|&&lag| (-0.15..0.5).contains(&lag));
+    assert_eq!(syncs.len(), b.items.len(), "syncs {syncs:?}");
+    assert_eq!(lags.len(), segments - b.items.len());
+    for (k, lag) in lags.iter().enumerate() {
+        assert!(
+            (0.0..0.15).contains(lag),
+            "segment {}: the mandrel starts {:.1} ms after the arm",
+            k + 1,
+            lag * 1e3
+        );
+    }
+}
