@@ -889,3 +889,159 @@ fn nose_eye_swings_over_the_lead_in_and_lies_at_the_local_angle() {
         "{inside} {outward} {back}"
     );
 }
+
+/// The eye's lie on a hoop pass at one band per turn: the fibre advances one band b along the
+/// axis per circumference 2πR, so it leans atan(b / 2πR) off the circumferential direction.
+fn hoop_eye_deg(radius_mm: f64, band_mm: f64) -> f64 {
+    (band_mm / (TAU * radius_mm)).atan().to_degrees()
+}
+
+/// Layer `k`'s moves (k ≥ 1) and where the layer before left the axes.
+fn layer_moves(r: &Recording, k: usize) -> (Axes, &[Move]) {
+    let start = r.layer_starts[k];
+    let end = r.layer_starts.get(k + 1).copied().unwrap_or(r.moves.len());
+    (r.moves[start - 1].to, &r.moves[start..end])
+}
+
+/// A feed to `want` (mandrel, carriage, cross-feed, eye).
+fn assert_feed_to(m: &Move, want: [f64; 4]) {
+    assert_move_to(m, MoveKind::Feed, want);
+}
+
+/// A move of `kind` to `want`, the mandrel to 10⁻⁶ ° (it may have turned through 10⁵ ° by
+/// then), the other axes to 10⁻⁹.
+fn assert_move_to(m: &Move, kind: MoveKind, want: [f64; 4]) {
+    assert_eq!(m.kind, kind, "{m:?}");
+    let got = m.to.to_array();
+    assert!(
+        (got[0] - want[0]).abs() <= 1e-6,
+        "mandrel: {m:?} vs {want:?}"
+    );
+    for axis in 1..4 {
+        assert!(
+            (got[axis] - want[axis]).abs() <= 1e-9,
+            "axis {axis}: {m:?} vs {want:?}"
+        );
+    }
+}
+
+#[test]
+fn hoop_starts_where_the_layer_before_ended_without_a_transition_turn() {
+    // Tube R 35 mm × 1460 mm, 6.5 mm band, the eye 80 mm from the axis. A tube layer ends at
+    // the near end (−730 mm), a one-pass hoop after it at the far end (+730 mm), then a
+    // two-pass hoop. Each hoop starts at the end the carriage is at: no travel, so no turn.
+    let mut job = tube_job(1);
+    job.layers.push(Layer::Hoop { passes: 1 });
+    job.layers.push(Layer::Hoop { passes: 2 });
+    let r = record(&job);
+    let e = hoop_eye_deg(35.0, 6.5);
+    // 1460 / 6.5 turns per pass.
+    let pass = 1460.0 / 6.5 * 360.0;
+
+    let (before, m) = layer_moves(&r, 1);
+    assert_eq!((before.carriage_mm, before.eye_deg), (-730.0, 0.0));
+    assert_eq!(m.len(), 2);
+    // The approach moves the eye alone: to +e, the pass runs towards +730.
+    let a = before.mandrel_deg;
+    assert_feed_to(&m[0], [a, -730.0, 80.0, e]);
+    assert_feed_to(&m[1], [a + pass, 730.0, 80.0, e]);
+
+    let (before, m) = layer_moves(&r, 2);
+    assert_eq!(before.carriage_mm, 730.0);
+    let a = before.mandrel_deg;
+    assert_eq!(m.len(), 4);
+    // From the far end: the first pass runs towards −730, the eye at −e.
+    assert_feed_to(&m[0], [a, 730.0, 80.0, -e]);
+    assert_feed_to(&m[1], [a + pass, -730.0, 80.0, -e]);
+    // Between the passes the eye swings over to +e with the mandrel and carriage still.
+    assert_feed_to(&m[2], [a + pass, -730.0, 80.0, e]);
+    assert_feed_to(&m[3], [a + 2.0 * pass, 730.0, 80.0, e]);
+}
+
+#[test]
+fn hoop_after_a_layer_ending_off_the_cylinder_end_turns_the_mandrel_once() {
+    // Seed 002's vessel (Rc 60, Lc 84.1, rp 21, 4 mm band, Re 90), no build-up. A dome layer
+    // ends at the near polar opening, √(60² − 21²) = 56.20498 mm beyond the cylinder's end; a
+    // polar layer ends at the cylinder's middle. A hoop after either starts at −42.05 mm (the
+    // nearer end; from the middle both are as near and the hoop runs forward), a carriage travel
+    // of more than one band: the approach turns the mandrel by one full turn.
+    let e = hoop_eye_deg(60.0, 4.0);
+    let pass = 84.1 / 4.0 * 360.0;
+    for (first, ended_at) in [
+        (Layer::Helical(PatternRequest::default()), -98.25498),
+        (
+            Layer::Polar {
+                slip_limit: POLAR_SLIP_LIMIT,
+            },
+            0.0,
+        ),
+    ] {
+        let mut job = seed_job(84.1, None);
+        job.build_up = false;
+        job.layers = vec![first, Layer::Hoop { passes: 1 }];
+        let r = record(&job);
+        let (before, m) = layer_moves(&r, 1);
+        assert_abs_diff_eq!(before.carriage_mm, ended_at, epsilon = 1e-5);
+        assert_eq!(m.len(), 2);
+        let a = before.mandrel_deg;
+        assert_feed_to(&m[0], [a + 360.0, -42.05, 90.0, e]);
+        assert_feed_to(&m[1], [a + 360.0 + pass, 42.05, 90.0, e]);
+    }
+}
+
+#[test]
+fn transition_turn_only_when_the_carriage_travels_more_than_a_band() {
+    // Tube R 35 mm, 4 mm band, eye at 80 mm. A skip first turns the mandrel 90° with the
+    // carriage where every plan starts, the middle; the hoop after it starts at −L/2: a travel of
+    // 3.75, 4 (one band, not more) and 4.25 mm for L = 7.5, 8 and 8.5 mm.
+    let e = hoop_eye_deg(35.0, 4.0);
+    for (length, turn) in [(7.5, 0.0), (8.0, 0.0), (8.5, 360.0)] {
+        let mut job = tube_job(1);
+        job.mandrel = Mandrel::Tube {
+            radius_mm: 35.0,
+            length_mm: length,
+        };
+        job.tow.band_mm = 4.0;
+        job.layers = vec![Layer::Skip { mandrel_deg: 90.0 }, Layer::Hoop { passes: 1 }];
+        let r = record(&job);
+        assert_eq!(r.layer_starts, [0, 1]);
+        assert_feed_to(&r.moves[0], [90.0, 0.0, 0.0, 0.0]);
+        let (_, m) = layer_moves(&r, 1);
+        assert_eq!(m.len(), 2, "L = {length}");
+        assert_feed_to(&m[0], [90.0 + turn, -length / 2.0, 80.0, e]);
+        assert_feed_to(
+            &m[1],
+            [90.0 + turn + length / 4.0 * 360.0, length / 2.0, 80.0, e],
+        );
+    }
+}
+
+#[test]
+fn one_pass_hoops_in_a_row_alternate_ends_at_any_length() {
+    // Three one-pass hoops on a tube (R 35 mm, eye at 80 mm), 0.8 mm long with a 0.2 mm band
+    // and 1460 mm long with a 6.5 mm band: each starts at the end the one before reached
+    // (+L/2, then −L/2), with no transition turn, the eye on the side the pass runs to.
+    for (length, band) in [(0.8, 0.2), (1460.0, 6.5)] {
+        let mut job = tube_job(1);
+        job.mandrel = Mandrel::Tube {
+            radius_mm: 35.0,
+            length_mm: length,
+        };
+        job.tow.band_mm = band;
+        job.layers = vec![Layer::Hoop { passes: 1 }; 3];
+        let r = record(&job);
+        let (h, e, pass) = (
+            length / 2.0,
+            hoop_eye_deg(35.0, band),
+            length / band * 360.0,
+        );
+        assert_eq!(r.layer_starts, [0, 2, 4], "L = {length}");
+        assert_move_to(&r.moves[0], MoveKind::Rapid, [0.0, -h, 80.0, e]);
+        assert_feed_to(&r.moves[1], [pass, h, 80.0, e]);
+        assert_feed_to(&r.moves[2], [pass, h, 80.0, -e]);
+        assert_feed_to(&r.moves[3], [2.0 * pass, -h, 80.0, -e]);
+        assert_feed_to(&r.moves[4], [2.0 * pass, -h, 80.0, e]);
+        assert_feed_to(&r.moves[5], [3.0 * pass, h, 80.0, e]);
+        assert_eq!(r.moves.len(), 6);
+    }
+}
