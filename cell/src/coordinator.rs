@@ -1050,16 +1050,21 @@ impl<'a> Coordinator<'a> {
 
     /// Robot to `target` as an immediate move unless it is there; waits and confirms.
     fn robot_to(&mut self, p: Positioning, target: [f64; 3]) -> Result<(), Step> {
-        if self.robot_send(p, target)? {
+        let here = self.dev.robot.position_mm()?;
+        if self.robot_send(p, target, here)? {
             self.robot_settle(target)?;
         }
         Ok(())
     }
 
-    /// Sends the immediate move to `target` (confirmed executed once) unless the robot is
-    /// there already; whether it was sent.
-    fn robot_send(&mut self, p: Positioning, target: [f64; 3]) -> Result<bool, Step> {
-        let here = self.dev.robot.position_mm()?;
+    /// Sends the immediate move to `target` (confirmed executed once) unless the robot, at
+    /// `here`, is there already; whether it was sent.
+    fn robot_send(
+        &mut self,
+        p: Positioning,
+        target: [f64; 3],
+        here: [f64; 3],
+    ) -> Result<bool, Step> {
         if distance_mm(here, target) <= POSITION_TOLERANCE_MM {
             return Ok(false);
         }
@@ -1068,8 +1073,8 @@ impl<'a> Coordinator<'a> {
     }
 
     /// Waits for the robot's immediate move to `target` to end, then confirms its state (idle,
-    /// no error) and its position.
-    fn robot_settle(&mut self, target: [f64; 3]) -> Result<(), Step> {
+    /// no error) and its position, which it returns.
+    fn robot_settle(&mut self, target: [f64; 3]) -> Result<[f64; 3], Step> {
         if self.dev.sync.wired() {
             self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
         } else {
@@ -1098,7 +1103,7 @@ impl<'a> Coordinator<'a> {
                 ),
             }));
         }
-        Ok(())
+        Ok(here)
     }
 
     /// Starts a mandrel move to counter `target` from `counter` (nothing if equal).
@@ -1194,6 +1199,8 @@ impl<'a> Coordinator<'a> {
         let from = resume.map_or(0, |r| r.segments_done);
         self.segments_done = from;
         let n = prep.targets_mm.len();
+        // Where the robot is: read before the first segment, then what each segment confirmed.
+        let mut here = None;
         for s in from..n {
             self.check()?;
             let target = base + prep.cumulative_steps[s + 1];
@@ -1209,19 +1216,27 @@ impl<'a> Coordinator<'a> {
             // ahead of the arm on every segment.
             let wired = self.dev.sync.wired();
             let moving = self.mandrel_start(prep.mandrel[s], counter, target, wired)?;
-            let sent = self.robot_send(prep.immediate[s], prep.targets_mm[s])?;
+            let at = match here {
+                Some(p) => p,
+                None => self.dev.robot.position_mm()?,
+            };
+            let sent = self.robot_send(prep.immediate[s], prep.targets_mm[s], at)?;
             if wired && moving {
                 self.dev.sync.set_start(true)?;
             }
-            if sent {
-                self.robot_settle(prep.targets_mm[s])?;
-            }
+            // The mandrel's shorter move is confirmed while the arm still moves (its reads are
+            // on the indexer's link, which does not hold the arm).
             if moving {
                 self.mandrel_finish(target)?;
             }
             if wired && moving {
                 self.dev.sync.set_start(false)?;
             }
+            here = Some(if sent {
+                self.robot_settle(prep.targets_mm[s])?
+            } else {
+                at
+            });
             self.segments_done = s + 1;
             self.journal.append(json!({
                 "rec": "segment", "item": k, "segment": s + 1,

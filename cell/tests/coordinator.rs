@@ -2194,3 +2194,102 @@ fn discrete_segments_start_the_mandrel_with_the_arm_on_the_start_line() {
         );
     }
 }
+
+/// A robot that notes its position reads and immediate moves in order.
+struct Counted {
+    inner: Box<dyn cell::device::RobotDevice>,
+    calls: Arc<std::sync::Mutex<Vec<char>>>,
+}
+
+impl cell::device::RobotDevice for Counted {
+    fn state(&mut self) -> cell::device::DeviceResult<cell::device::RobotState> {
+        self.inner.state()
+    }
+    fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
+        self.calls.lock().unwrap().push('p');
+        self.inner.position_mm()
+    }
+    fn set_speeds(
+        &mut self,
+        b: asea_protocol::Speed,
+        m: asea_protocol::Speed,
+    ) -> cell::device::DeviceResult<()> {
+        self.inner.set_speeds(b, m)
+    }
+    fn set_operate(&mut self, on: bool) -> cell::device::DeviceResult<()> {
+        self.inner.set_operate(on)
+    }
+    fn start_home(&mut self) -> cell::device::DeviceResult<()> {
+        self.inner.start_home()
+    }
+    fn move_immediate(&mut self, p: asea_protocol::Positioning) -> cell::device::DeviceResult<()> {
+        self.calls.lock().unwrap().push('m');
+        self.inner.move_immediate(p)
+    }
+    fn delete_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.inner.delete_program(p)
+    }
+    fn upload(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.inner.upload(p, i)
+    }
+    fn read_back(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
+        self.inner.read_back(p, i)
+    }
+    fn run_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
+        self.inner.run_program(p)
+    }
+    fn stop(&mut self) -> cell::device::DeviceResult<()> {
+        self.inner.stop()
+    }
+}
+
+/// Each discrete move's position is read back once, after the move, and that reading is where
+/// the next segment starts: between two moves of a path exactly one position read (each read
+/// holds the arm for an exchange, seed 001 §4.1.2); between paths, the last move's read-back
+/// and the next path's first reading; one read-back after the last move.
+#[test]
+fn a_discrete_move_is_read_back_once_and_not_read_before() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let cell = SimCell::new(&SimCellConfig::default());
+    let d = cell.devices(Drive::default());
+    let calls = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let dev = cell::coordinator::Devices {
+        robot: Box::new(Counted {
+            inner: d.robot,
+            calls: calls.clone(),
+        }),
+        mandrel: d.mandrel,
+        sync: d.sync,
+        time: d.time,
+    };
+    let mut sink = |_e: Event| {};
+    let mut c = Coordinator::new(
+        dev,
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap();
+    drop(c);
+    check_each_once(&cell, &b);
+    let calls: String = calls.lock().unwrap().iter().collect();
+    let first = calls.find('m').unwrap();
+    let last = calls.rfind('m').unwrap();
+    // Reads between consecutive moves.
+    let gaps: Vec<usize> = calls[first + 1..last].split('m').map(|g| g.len()).collect();
+    let moves = calls.matches('m').count();
+    assert_eq!(gaps.len(), moves - 1);
+    let paths = b.items.len();
+    assert_eq!(
+        gaps.iter().filter(|&&g| g == 2).count(),
+        paths - 1,
+        "{calls}"
+    );
+    assert_eq!(
+        gaps.iter().filter(|&&g| g == 1).count(),
+        moves - paths,
+        "{calls}"
+    );
+    assert!(calls[last..].starts_with("mp"), "{}", &calls[last..]);
+}
