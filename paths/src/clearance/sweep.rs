@@ -859,6 +859,68 @@ mod tests {
         );
     }
 
+    /// A finding on the approach from home is stamped before the path's first point by the eye's
+    /// remaining travel over the approach speed. Home is 400 mm behind the start eye along the
+    /// tool axis, so the approach (the wrist and the mandrel still: home takes the start's
+    /// orientation and angle) runs the eye down its own axis toward the mandrel for 400 mm /
+    /// 100 mm/s = 4 s. A 0.02 mm cube sits on that line 250 mm before the start eye, clear of
+    /// the 150 mm capsule at both ends of the move. The capsule's front, the eye's 2 mm sphere,
+    /// first touches the cube when the eye is `s` short of the cube's centre, `s` solved from the
+    /// box's distance along the line (`Σ max(s |uᵢ| − h, 0)² = r²`, bisection); so the contact is
+    /// at `−(250 + s) / 100` s, within the 0.001 mm resolution's travel.
+    #[test]
+    fn a_finding_on_the_approach_is_timed_by_the_travel_left_to_the_path() {
+        let setup = setup();
+        let (tube, p) = cylinder_plan(&setup);
+        let solid = TubeSolid::new(&tube);
+        let axis = axis_of(&p.start.wrist_q);
+        let home = p.start.eye_mm - axis * 400.0;
+        let centre = p.start.eye_mm - axis * 250.0;
+        let h = 0.01;
+        let half = Vector3::repeat(h);
+        let obstacles = [Obstacle {
+            name: "wire".into(),
+            min_mm: centre - half,
+            max_mm: centre + half,
+        }];
+        let mut c = cell(&setup, &obstacles);
+        c.home_mm = Some(home);
+        let r = sweep(&c, &solid, &[&p]).unwrap();
+        let f = r.findings.first().expect("the cube is found");
+        assert_eq!((f.path, f.segment), (1, 0), "{f:?}");
+        assert_eq!(f.part, Part::EyeMechanism);
+        assert_eq!(f.against, "wire");
+        assert!(f.clearance_mm < 0.0, "{f:?}");
+        // Where the eye's sphere meets the box: the eye at `centre − u s`, `u` the unit axis.
+        let gap = |s: f64| {
+            axis.iter()
+                .map(|u| (s * u.abs() - h).max(0.0).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let (mut lo, mut hi) = (0.0, 10.0);
+        for _ in 0..200 {
+            let m = 0.5 * (lo + hi);
+            if gap(m) > EYE_RADIUS_MM {
+                hi = m;
+            } else {
+                lo = m;
+            }
+        }
+        let s = 0.5 * (lo + hi);
+        assert!(s > EYE_RADIUS_MM && s < EYE_RADIUS_MM + 2.0 * h, "{s}");
+        let want = -(250.0 + s) / c.approach_speed_mm_s;
+        assert!((f.time_s - want).abs() < 1e-4, "{} s vs {want} s", f.time_s);
+        // The eye reported there is on the line, that far from the start.
+        let back = (p.start.eye_mm - f.eye_mm).norm();
+        assert!((back - (250.0 + s)).abs() < 0.01, "{back} mm");
+        // The approach row: 400 mm at 100 mm/s, ending at the path's first point.
+        let row = &r.paths[0][0];
+        assert_eq!(row.segment, 0);
+        assert!((row.duration_s - 4.0).abs() < 1e-9, "{row:?}");
+        assert!((row.start_s + 4.0).abs() < 1e-9, "{row:?}");
+    }
+
     /// A job of four paths (wind angles 40°, 48.3°, 55° and 40° again) with a thin wire on the
     /// third path's eye line, checked as the threads check it (runs of consecutive paths): the
     /// rows come back in path order, every link move starts where the path before ended (its
