@@ -780,4 +780,43 @@ mod tests {
         assert!((q.max_rps - p.max_rps).abs() < 1e-15);
         assert!((q.accel_rps2 - p.accel_rps2).abs() < 1e-15);
     }
+
+    /// The arm carries the job's eye mechanism, not the default's: the cylinder example with
+    /// `eye_mechanism_length_mm = 200` (the IRB 6/2 default is 150 mm). The wrist of every
+    /// planned pose, found from its joints and the link lengths alone (shoulder 300 mm above the
+    /// base, upper arm 450 mm, forearm 670 mm: `paths::robot`'s model, no `[cell.robot]` in the
+    /// job), lies 200 mm behind the planned eye along the roll axis (pitched `q4` below the
+    /// horizontal in the arm plane at base yaw `q1`). An arm built with the default 150 mm puts
+    /// every eye 50 mm off its planned place.
+    #[test]
+    fn the_planned_arm_carries_the_jobs_eye_mechanism() {
+        let text = include_str!("../../examples/cylinder.toml").replace(
+            "eye_mechanism_length_mm = 150.0",
+            "eye_mechanism_length_mm = 200.0",
+        );
+        assert!(text.contains("eye_mechanism_length_mm = 200.0"));
+        let job = Job::parse(&text).unwrap();
+        assert_eq!(arm(&job).eye_mechanism_mm, 200.0);
+        let planned = plan(&job, &text, Path::new("examples/cylinder.toml")).unwrap();
+        assert_eq!(planned.paths.len(), 2);
+        let (shoulder_height, upper, fore) = (300.0, 450.0, 670.0);
+        let mut poses = 0;
+        for path in &planned.paths {
+            let plan = &path.plan;
+            for pose in std::iter::once(&plan.start).chain(plan.segments.iter().map(|s| &s.pose)) {
+                let j = &pose.joints;
+                let (s1, c1) = j.base_yaw_rad.sin_cos();
+                let rho = upper * j.shoulder_rad.sin() + fore * j.elbow_rad.cos();
+                let z = shoulder_height + upper * j.shoulder_rad.cos() + fore * j.elbow_rad.sin();
+                let wrist = nalgebra::Point3::new(rho * c1, rho * s1, z);
+                let (sp, cp) = j.pitch_rad.sin_cos();
+                let roll_axis = nalgebra::Vector3::new(cp * c1, cp * s1, -sp);
+                let want = wrist + roll_axis * 200.0;
+                let off = (pose.eye_mm - want).norm();
+                assert!(off < 1e-6, "{}: eye {} mm off the arm's", path.name, off);
+                poses += 1;
+            }
+        }
+        assert_eq!(poses, 2 * 51);
+    }
 }
