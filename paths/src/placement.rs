@@ -1542,6 +1542,83 @@ mod tests {
         }
     }
 
+    /// A bridge that begins inside a step: the contact is held where the step began. A tube of
+    /// radius 28.5 mm around a spine bending with radius 150 mm at `u = 100` (`x = (z − 100)² /
+    /// 300`); at its inner side the surface is a saddle, concave along the spine. The contact
+    /// starts at `(100, 0.6)`, the eye 100 mm out along the tangent 25° from the spine (near the
+    /// saddle's flat direction, still convex), still for 60 ms, then pressed 5 mm inward along
+    /// the normal over the step's last 40 ms. At the step's start the fibre toward the step's end
+    /// eye wraps (its normal curvature, by finite differences of [`Tube::point`], is positive),
+    /// so the step moves the contact; but nearly flat, it slides far along the fibre into the
+    /// concave stretch, where the step's end refuses (the fibre would bridge). The laid point
+    /// after the step is where the step began, the brute-force tangent point of the first eye,
+    /// and the step is counted as bridged.
+    #[test]
+    fn a_bridge_that_begins_inside_a_step_holds_the_contact_where_the_step_began() {
+        let knots: Vec<(f64, f64)> = (0..=20)
+            .map(|i| {
+                let z = i as f64 * 10.0;
+                (z, (z - 100.0).powi(2) / 300.0)
+            })
+            .collect();
+        let tube = Tube::new(Spine::new(&knots).unwrap(), 28.5).unwrap();
+        let (u0, v0) = (100.0, 0.6);
+        let c0 = tube.point(u0, v0);
+        let n = tube.normal(u0, v0);
+        // The surface's tangents and second derivatives by central differences.
+        let q = 1e-3;
+        let x = |du: f64, dv: f64| tube.point(u0 + du, v0 + dv).coords;
+        let xu = (x(q, 0.0) - x(-q, 0.0)) / (2.0 * q);
+        let xv = (x(0.0, q) - x(0.0, -q)) / (2.0 * q);
+        let xuu = (x(q, 0.0) + x(-q, 0.0) - 2.0 * x(0.0, 0.0)) / (q * q);
+        let xvv = (x(0.0, q) + x(0.0, -q) - 2.0 * x(0.0, 0.0)) / (q * q);
+        let xuv = (x(q, q) - x(q, -q) - x(-q, q) + x(-q, -q)) / (4.0 * q * q);
+        let along = xu.normalize();
+        let across = n.cross(&along);
+        let angle = 25f64.to_radians();
+        let e0 = c0 + (along * angle.cos() + across * angle.sin()) * 100.0;
+        let e1 = e0 - n * 5.0;
+        let (h, still) = (0.1, 0.06);
+        let velocity = (e1 - e0) / (h - still);
+        let eye = move |t: f64| {
+            if t < still {
+                (e0, Vector3::zeros())
+            } else {
+                (e0 + velocity * (t - still), velocity)
+            }
+        };
+        // The start is a tangent point of the first eye (brute force).
+        assert!(
+            silhouette(&tube, u0, &e0)
+                .iter()
+                .any(|&v| (v - v0).abs() < 1e-9),
+            "{:?}",
+            silhouette(&tube, u0, &e0)
+        );
+        // The fibre from the start toward the step's end eye runs along a convex direction: its
+        // tangential part `a X_u + b X_v` has `n · (a² X_uu + 2ab X_uv + b² X_vv) < 0` (the
+        // surface bends away from the fibre), so the step begins by wrapping.
+        let d = e1 - c0;
+        let dt = d - n * d.dot(&n);
+        let g = Matrix2::new(xu.dot(&xu), xu.dot(&xv), xu.dot(&xv), xv.dot(&xv));
+        let ab = g.try_inverse().unwrap() * Vector2::new(dt.dot(&xu), dt.dot(&xv));
+        let second = n.dot(&(xuu * ab.x * ab.x + xuv * (2.0 * ab.x * ab.y) + xvv * ab.y * ab.y));
+        let curvature = -second / dt.norm_squared();
+        assert!(curvature > 1e-4, "normal curvature {curvature} /mm");
+        // One step of the placement model.
+        let laid = lay_on_tube(&tube, &eye, &c0, 0.0, h, h).unwrap();
+        assert_eq!(laid.points.len(), 2);
+        assert!(laid.left_at_s.is_none());
+        assert!((laid.bridged_s - h).abs() < 1e-12, "{}", laid.bridged_s);
+        let (t, held) = laid.points[1];
+        assert!((t - h).abs() < 1e-12);
+        assert!(
+            (held - c0).norm() < 1e-9,
+            "the contact left the step's start by {} mm",
+            (held - c0).norm()
+        );
+    }
+
     #[test]
     fn surface_parameters_round_trip_on_the_s_bend() {
         let tube = Tube::new(
