@@ -1221,16 +1221,16 @@ impl<'a> Coordinator<'a> {
                 None => self.dev.robot.position_mm()?,
             };
             let sent = self.robot_send(prep.immediate[s], prep.targets_mm[s], at)?;
-            if wired && moving {
-                self.dev.sync.set_start(true)?;
-            }
             // The mandrel's shorter move is confirmed while the arm still moves (its reads are
             // on the indexer's link, which does not hold the arm).
             if moving {
+                if wired {
+                    self.dev.sync.set_start(true)?;
+                }
                 self.mandrel_finish(target)?;
-            }
-            if wired && moving {
-                self.dev.sync.set_start(false)?;
+                if wired {
+                    self.dev.sync.set_start(false)?;
+                }
             }
             here = Some(if sent {
                 self.robot_settle(prep.targets_mm[s])?

@@ -1743,14 +1743,30 @@ fn a_stored_program_runs_in_the_mandrels_time_without_status_reads() {
 }
 
 /// A robot whose status reads are timed on the cell's clock and, once `faulty` is set, report
-/// an error code (`as_state`: the error state instead, with no code); and sync lines that note the start edge and, after it, never show "in
-/// position" (a program that hangs).
+/// an error code (`as_state`: the error state instead, with no code), and which notes its
+/// position reads (`p`) and immediate moves (`m`) in order in `calls`; and sync lines that note
+/// the start edge and, after it, never show "in position" (a program that hangs).
 struct Watched {
     inner: Box<dyn cell::device::RobotDevice>,
     clock: asea_protocol::clock::VirtualClock,
     reads_s: Arc<std::sync::Mutex<Vec<f64>>>,
+    calls: Arc<std::sync::Mutex<Vec<char>>>,
     faulty: Arc<AtomicBool>,
     as_state: bool,
+}
+
+impl Watched {
+    /// Watches `inner` on `cell`'s clock, never faulty.
+    fn new(inner: Box<dyn cell::device::RobotDevice>, cell: &SimCell) -> Self {
+        Watched {
+            inner,
+            clock: cell.clock().clone(),
+            reads_s: Arc::default(),
+            calls: Arc::default(),
+            faulty: Arc::default(),
+            as_state: false,
+        }
+    }
 }
 
 impl cell::device::RobotDevice for Watched {
@@ -1767,6 +1783,7 @@ impl cell::device::RobotDevice for Watched {
         Ok(s)
     }
     fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
+        self.calls.lock().unwrap().push('p');
         self.inner.position_mm()
     }
     fn set_speeds(
@@ -1783,6 +1800,7 @@ impl cell::device::RobotDevice for Watched {
         self.inner.start_home()
     }
     fn move_immediate(&mut self, p: asea_protocol::Positioning) -> cell::device::DeviceResult<()> {
+        self.calls.lock().unwrap().push('m');
         self.inner.move_immediate(p)
     }
     fn delete_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
@@ -1852,11 +1870,10 @@ fn hung_program(as_state: bool) {
     let faulty = Arc::new(AtomicBool::new(false));
     let dev = cell::coordinator::Devices {
         robot: Box::new(Watched {
-            inner: d.robot,
-            clock: cell.clock().clone(),
             reads_s: reads_s.clone(),
             faulty: faulty.clone(),
             as_state,
+            ..Watched::new(d.robot, &cell)
         }),
         mandrel: d.mandrel,
         sync: Box::new(Hanging {
@@ -2195,54 +2212,6 @@ fn discrete_segments_start_the_mandrel_with_the_arm_on_the_start_line() {
     }
 }
 
-/// A robot that notes its position reads and immediate moves in order.
-struct Counted {
-    inner: Box<dyn cell::device::RobotDevice>,
-    calls: Arc<std::sync::Mutex<Vec<char>>>,
-}
-
-impl cell::device::RobotDevice for Counted {
-    fn state(&mut self) -> cell::device::DeviceResult<cell::device::RobotState> {
-        self.inner.state()
-    }
-    fn position_mm(&mut self) -> cell::device::DeviceResult<[f64; 3]> {
-        self.calls.lock().unwrap().push('p');
-        self.inner.position_mm()
-    }
-    fn set_speeds(
-        &mut self,
-        b: asea_protocol::Speed,
-        m: asea_protocol::Speed,
-    ) -> cell::device::DeviceResult<()> {
-        self.inner.set_speeds(b, m)
-    }
-    fn set_operate(&mut self, on: bool) -> cell::device::DeviceResult<()> {
-        self.inner.set_operate(on)
-    }
-    fn start_home(&mut self) -> cell::device::DeviceResult<()> {
-        self.inner.start_home()
-    }
-    fn move_immediate(&mut self, p: asea_protocol::Positioning) -> cell::device::DeviceResult<()> {
-        self.calls.lock().unwrap().push('m');
-        self.inner.move_immediate(p)
-    }
-    fn delete_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
-        self.inner.delete_program(p)
-    }
-    fn upload(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
-        self.inner.upload(p, i)
-    }
-    fn read_back(&mut self, p: u8, i: &[Instruction]) -> cell::device::DeviceResult<()> {
-        self.inner.read_back(p, i)
-    }
-    fn run_program(&mut self, p: u8) -> cell::device::DeviceResult<()> {
-        self.inner.run_program(p)
-    }
-    fn stop(&mut self) -> cell::device::DeviceResult<()> {
-        self.inner.stop()
-    }
-}
-
 /// Each discrete move's position is read back once, after the move, and that reading is where
 /// the next segment starts: between two moves of a path exactly one position read (each read
 /// holds the arm for an exchange, seed 001 §4.1.2); between paths, the last move's read-back
@@ -2252,12 +2221,10 @@ fn a_discrete_move_is_read_back_once_and_not_read_before() {
     let b = checked(&sbend(Some(RunMode::Discrete)));
     let cell = SimCell::new(&SimCellConfig::default());
     let d = cell.devices(Drive::default());
-    let calls = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let watched = Watched::new(d.robot, &cell);
+    let calls = watched.calls.clone();
     let dev = cell::coordinator::Devices {
-        robot: Box::new(Counted {
-            inner: d.robot,
-            calls: calls.clone(),
-        }),
+        robot: Box::new(watched),
         mandrel: d.mandrel,
         sync: d.sync,
         time: d.time,

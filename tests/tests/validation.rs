@@ -275,23 +275,31 @@ fn score(rows: &[&Row], preds: &[Predicted]) -> Scores {
 /// rows). Only configuration-1 rows reach this function.
 fn fit_scale(config1: &[&Row], reading: Reading, accel_rps2: f64) -> (f64, f64) {
     assert!(config1.iter().all(|r| r.table <= 2));
-    let mut best = (f64::INFINITY, 0.0);
-    for k in [0.0, 1.0, 3.0, 9.0] {
+    least([0.0, 1.0, 3.0, 9.0], |k| {
         let fit = Fitted {
             accel_rps2,
             tol: Tolerances::default().scaled(k),
         };
         let preds = predict_rows(config1, reading, fit);
-        let cost: f64 = config1
+        config1
             .iter()
             .zip(&preds)
             .map(|(r, p)| (p.median_mm - r.mean_mm()).abs())
-            .sum();
-        if cost < best.0 {
-            best = (cost, k);
+            .sum::<f64>()
+            / config1.len() as f64
+    })
+}
+
+/// The candidate of least cost (the first of equals) and its cost.
+fn least<const N: usize>(candidates: [f64; N], mut cost: impl FnMut(f64) -> f64) -> (f64, f64) {
+    let mut best = (candidates[0], f64::INFINITY);
+    for c in candidates {
+        let e = cost(c);
+        if e < best.1 {
+            best = (c, e);
         }
     }
-    (best.1, best.0 / config1.len() as f64)
+    best
 }
 
 /// Candidate mandrel accelerations, rev/s². The thesis gives none (the mandrel instruction
@@ -311,14 +319,13 @@ fn fit_accel(config1: &[&Row], reading: Reading) -> (f64, f64) {
         .copied()
         .filter(|r| r.mode == "discrete")
         .collect();
-    let mut best = (f64::INFINITY, ACCELS_RPS2[0]);
-    for a in ACCELS_RPS2 {
+    least(ACCELS_RPS2, |a| {
         let fit = Fitted {
             accel_rps2: a,
             tol: Tolerances::default(),
         };
         let preds = predict_rows(&discrete, reading, fit);
-        let cost: f64 = discrete
+        discrete
             .iter()
             .zip(&preds)
             .map(|(r, p)| {
@@ -329,12 +336,8 @@ fn fit_accel(config1: &[&Row], reading: Reading) -> (f64, f64) {
                 }
             })
             .sum::<f64>()
-            / discrete.len() as f64;
-        if cost < best.0 {
-            best = (cost, a);
-        }
-    }
-    (best.1, best.0)
+            / discrete.len() as f64
+    })
 }
 
 #[test]
