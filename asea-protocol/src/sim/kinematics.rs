@@ -114,7 +114,7 @@ impl Kinematics for ArmModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use paths::robot::Joints;
+    use paths::robot::{Arm, Joints};
 
     /// The forward pose of a joint set inside the ranges is accepted; the same eye with its roll
     /// axis turned out of the arm plane (a wrist yaw) is refused, and so is a pose beyond reach.
@@ -149,6 +149,45 @@ mod tests {
         assert_eq!(Reach::default().check(eye, yawed), Ok(()));
         assert_eq!(
             Reach::default().check([1700.0, 0.0, 0.0], wxyz),
+            Err(RobotError::Kinematics)
+        );
+    }
+
+    /// An eye on the base axis lies in every vertical plane through it, so no roll axis there
+    /// needs a wrist yaw. The eye mechanism then points back over the pedestal (roll axis at more
+    /// than 90° from the arm's outward direction), which the default arm's pitch (±90°) cannot
+    /// take; an arm whose pitch turns to ±170° can: base yaw 0, forearm −60°, pitch 150° (roll
+    /// axis 30° below the horizontal, pointing at −x), the wrist 150 mm · cos 30° out, so that
+    /// the 150 mm eye mechanism ends on the axis.
+    #[test]
+    fn an_eye_on_the_base_axis_is_in_every_arm_plane() {
+        let mut arm = Arm::default();
+        arm.joints[3].min_rad = (-170f64).to_radians();
+        arm.joints[3].max_rad = 170f64.to_radians();
+        let model = ArmModel { arm };
+        let elbow = (-60f64).to_radians();
+        let wrist_rho = 150.0 * 30f64.to_radians().cos();
+        // 450 sin(shoulder) + 670 cos(forearm) = the wrist's distance from the axis.
+        let shoulder = ((wrist_rho - 670.0 * elbow.cos()) / 450.0).asin();
+        let j = Joints {
+            base_yaw_rad: 0.0,
+            shoulder_rad: shoulder,
+            elbow_rad: elbow,
+            pitch_rad: 150f64.to_radians(),
+            roll_rad: 0.0,
+        };
+        let pose = model.arm.forward(&j);
+        assert!(pose.eye_mm.x.hypot(pose.eye_mm.y) < 1e-9);
+        let q = pose.orientation;
+        let wxyz = [q.w, q.i, q.j, q.k];
+        let eye = [0.0, 0.0, pose.eye_mm.z];
+        assert_eq!(model.check(eye, wxyz), Ok(()));
+        let axis = ArmModel::roll_axis(wxyz);
+        let kept = ArmModel::in_arm_plane(eye, axis).expect("on the axis every plane holds it");
+        assert!((kept.as_ref() - axis.as_ref()).norm() < 1e-12);
+        // The default arm refuses the same pose: its pitch stops at 90°.
+        assert_eq!(
+            ArmModel::default().check(eye, wxyz),
             Err(RobotError::Kinematics)
         );
     }

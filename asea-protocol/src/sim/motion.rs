@@ -3,24 +3,28 @@
 //! floor of Table 6.2 (seed 001 §5.4, §6.7).
 //!
 //! - A positioning instruction followed by another one is *flying*: the corner at its point is
-//!   cut by a chord from `r` before the point to `r` after it, `r` the zone radius (1 mm fine,
-//!   10 mm medium; at most half of either segment). The chord passes within `r` of the point
-//!   (seed 001 §5.4.2, Fig. 5.7).
+//!   cut by a chord from `r` before the point to `r` after it. `r` is where the arm would have to
+//!   start braking to stop at the point, `v²/2a`, bounded by the zone radius (1 mm fine, 10 mm
+//!   medium) and by half of either segment (seed 001 §5.4.2: "the extent of the smoothing is
+//!   dependent of the robot movement speed"; the zone is the bound, not the rule). The chord
+//!   passes within `r` of the point (Fig. 5.7).
 //! - Otherwise (a discrete move, the last move, or a move before a control instruction) the arm
 //!   stops at the point: it accelerates and decelerates at [`MotionParams::accel_mm_s2`], then
 //!   settles for the zone's overhead.
-//! - A stop move takes no less than its zone's floor: 710 ms fine, 540 ms medium for short moves
-//!   (Table 6.2), `max(floor, overhead + ramp time)`. With 4000 mm/s² and the overheads below,
-//!   Table 6.2 is met within about 30 ms at 2000 and 100 mm/s (see the tests).
-//! - A flying move takes its motion time, or [`MotionParams::flying_floor_s`] if that is longer
-//!   (none by default). Table 6.2 timed isolated moves, from the robot's start signal to its stop
-//!   signal (§6.7); in a stored program the robot computer reads the next instruction while the
-//!   arm moves. App. B shows it: the cylinder's 50-segment windings in fine and medium mode took
-//!   exactly the mandrel's time, `2 rev / speed` (20 s at 0.1 rev/s down to 6.7 s at 0.3 rev/s),
-//!   about 0.13 s per instruction in medium mode at the fastest, far below the 540 ms plateau.
+//! - A stop move takes `max(floor, overhead + ramp time)`. The floor is the zone's plateau,
+//!   710 ms fine and 540 ms medium, at commanded speeds of [`PLATEAU_MIN_SPEED_MM_S`] and more,
+//!   and [`LOW_SPEED_FLOOR_S`] below (§6.7: "speeds of less than 500 mm/s do not have a
+//!   plateau"). `docs/protocol.md` §8.1 sets every row of Table 6.2 beside the model.
+//! - A flying move takes its motion time, or the robot computer's interpretation time of the
+//!   next instruction ([`INTERPRETATION_S`], [`MotionParams::flying_floor_s`]) if that is
+//!   longer; the arm is then slowed so that it covers the move in that time. Table 6.2 timed
+//!   isolated moves, from the robot's start signal to its stop signal (§6.7); in a stored
+//!   program the robot computer reads the next instruction while the arm moves, so a flying
+//!   move pays no plateau.
 //! - Joint interpolation moves linearly in (radius, azimuth, height) about the base axis, the
 //!   coordinates the IRB 6's base rotation and arm joints change almost independently; this is a
-//!   joint-like parameterisation, not a kinematic model.
+//!   joint-like parameterisation, not a kinematic model (the kinematic check is
+//!   [`super::kinematics`]).
 //! - The speed changes between flying moves without a ramp.
 
 use crate::command::{Interpolation, Positioning, Reference, Zone};

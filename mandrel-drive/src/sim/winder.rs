@@ -85,6 +85,8 @@ pub struct Winder {
     running: Option<(Block, f64)>,
     position: [f64; 6],
     planned_end: [f64; 6],
+    /// Modal motion: 0 (`G0`, GRBL's power-up mode) or 1 (`G1`).
+    motion: u8,
     absolute: bool,
     inverse_time: bool,
     inch: bool,
@@ -108,6 +110,7 @@ impl Winder {
             running: None,
             position: [0.0; 6],
             planned_end: [0.0; 6],
+            motion: 0,
             absolute: true,
             inverse_time: false,
             inch: false,
@@ -308,12 +311,14 @@ impl Winder {
             self.commit_modes(absolute, inverse_time, inch, feed);
             return Ok(());
         }
-        let has_axes = axes.iter().any(Option::is_some);
-        let motion = motion.or(if has_axes { Some(1) } else { None });
-        let Some(motion) = motion.filter(|_| has_axes) else {
+        // The motion mode is modal (GRBL's group 1): a line of axis words alone moves as the
+        // last G0 or G1 did.
+        let motion = motion.unwrap_or(self.motion);
+        if !axes.iter().any(Option::is_some) {
+            self.motion = motion;
             self.commit_modes(absolute, inverse_time, inch, feed);
             return Ok(());
-        };
+        }
         let mut to = self.planned_end;
         for (i, a) in axes.iter().enumerate() {
             if let Some(v) = a {
@@ -333,6 +338,7 @@ impl Winder {
         } else {
             dist / (feed.or(self.feed).ok_or(ERROR_FEED)? * unit)
         };
+        self.motion = motion;
         self.commit_modes(absolute, inverse_time, inch, feed);
         let block = Block {
             from: self.planned_end,
@@ -633,5 +639,161 @@ mod tests {
         w.receive(b"G92 A0\nG1 A90 F3600\n", 10.0);
         w.poll(20.0);
         assert!((w.position()[3] - 90.0).abs() < 1e-9);
+    }
+
+    /// Feeds `lines` at t = 0 and returns the replies.
+    fn feed_lines(w: &mut Winder, lines: &str) -> String {
+        w.receive(lines.as_bytes(), 0.0);
+        replies(w)
+    }
+
+    /// The modal words GRBL 1.1 keeps between lines, each checked by where the axis ends and
+    /// when: distance mode (`G90`/`G91`), units (`G21`/`G20`: 25.4 mm an inch, the feed in
+    /// inches a minute), motion (`G0` at the rapid rate, `G1` at the feed; an axis-only line
+    /// moves as the last of them). Times from distance ÷ rate, by hand.
+    #[test]
+    fn distance_units_and_motion_are_modal() {
+        let mut w = Winder::new(1.0);
+        // G1 X10 at 600 mm/min: 1 s. Then G91: X5 more (0.5 s), then G90 back to X0 (1.5 s).
+        let r = feed_lines(
+            &mut w,
+            "G21 G90 G94 G1 X10 F600
+G91 G1 X5
+G90 G1 X0
+",
+        );
+        assert_eq!(r, "ok\r\n".repeat(3));
+        w.poll(1.0);
+        assert!((w.position()[0] - 10.0).abs() < 1e-9, "{:?}", w.position());
+        w.poll(1.5);
+        assert!((w.position()[0] - 15.0).abs() < 1e-9, "{:?}", w.position());
+        w.poll(3.0);
+        assert!(w.position()[0].abs() < 1e-9, "{:?}", w.position());
+
+        // G20: X1 is 25.4 mm, F60 is 60 in/min = 1524 mm/min, so 1 s; G21 then takes Y in mm.
+        let mut w = Winder::new(1.0);
+        let r = feed_lines(
+            &mut w,
+            "G20 G94 G1 X1 F60
+G21 G1 Y25.4 F1524
+",
+        );
+        assert_eq!(r, "ok\r\n".repeat(2));
+        w.poll(0.5);
+        assert!((w.position()[0] - 12.7).abs() < 1e-9, "{:?}", w.position());
+        w.poll(1.5);
+        assert!((w.position()[1] - 12.7).abs() < 1e-9, "{:?}", w.position());
+        w.poll(2.0);
+        assert_eq!(w.position()[..2], [25.4, 25.4]);
+
+        // G0: 50 mm at the rapid rate, 5000 mm/min: 0.6 s, whatever F says. An axis-only line
+        // after it is a rapid too (0.6 s for the 50 mm back), and after a G1 a feed move.
+        let mut w = Winder::new(1.0);
+        let r = feed_lines(
+            &mut w,
+            "G94 F60
+G0 X50
+X0
+G1 X1
+X2
+",
+        );
+        assert_eq!(r, "ok\r\n".repeat(5));
+        w.poll(0.3);
+        assert!((w.position()[0] - 25.0).abs() < 1e-9, "{:?}", w.position());
+        w.poll(0.9);
+        assert!((w.position()[0] - 25.0).abs() < 1e-9, "{:?}", w.position());
+        // Then 1 mm at 60 mm/min: 1 s each.
+        w.poll(1.7);
+        assert!((w.position()[0] - 0.5).abs() < 1e-9, "{:?}", w.position());
+        w.poll(2.7);
+        assert!((w.position()[0] - 1.5).abs() < 1e-9, "{:?}", w.position());
+    }
+
+    /// Words GRBL takes without a motion of their own (planes, spindle and program ends) are
+    /// answered `ok`; a zero feed is `error:22`; a line of exactly the line buffer's 80
+    /// characters (spaces dropped) is taken and one more is `error:14`; a `)` outside a comment is
+    /// no letter (`error:1`).
+    #[test]
+    fn accepted_words_feed_and_line_limits() {
+        let mut w = Winder::new(1.0);
+        let r = feed_lines(
+            &mut w,
+            "G17
+G18
+G19
+M3
+M5
+M0
+M2
+M30
+",
+        );
+        assert_eq!(r, "ok\r\n".repeat(8));
+        assert!(w.is_idle());
+        assert_eq!(
+            feed_lines(
+                &mut w,
+                "G94 G1 X1 F0
+"
+            ),
+            "error:22\r\n"
+        );
+        assert!(w.is_idle());
+        assert_eq!(feed_lines(&mut w, "F60\n"), "ok\r\n");
+        // "G1X" + 77 digits = 80 characters; spaces do not count.
+        let exact = format!(
+            "G1 X{}
+",
+            "0".repeat(LINE_BUFFER - 3)
+        );
+        assert_eq!(feed_lines(&mut w, &exact), "ok\r\n");
+        let long = format!(
+            "G1 X{}
+",
+            "0".repeat(LINE_BUFFER - 2)
+        );
+        assert_eq!(feed_lines(&mut w, &long), "error:14\r\n");
+        assert_eq!(
+            feed_lines(
+                &mut w,
+                "G1 X1 F60 )
+"
+            ),
+            "error:1\r\n"
+        );
+    }
+
+    /// `G92` renames the planned end while blocks are queued and running: every block is shifted
+    /// with it, so the motion itself does not change. Two 1 s moves of A (100° each at
+    /// 6000 °/min); at 0.5 s, A = 50 and the planned end is 200; `G92 A0` makes it 0 (shift
+    /// −200), so A reads −150 then, −100 at 1 s and 0 at 2 s. In inches the given value is
+    /// scaled: `G20 G92 X1` puts X at 25.4 mm.
+    #[test]
+    fn g92_shifts_the_queued_and_running_blocks() {
+        let mut w = Winder::new(1.0);
+        w.receive(
+            b"G94 G1 A100 F6000
+G1 A200
+",
+            0.0,
+        );
+        w.poll(0.5);
+        w.receive(
+            b"G92 A0
+", 0.5,
+        );
+        assert!((w.position()[3] + 150.0).abs() < 1e-9, "{:?}", w.position());
+        w.poll(1.0);
+        assert!((w.position()[3] + 100.0).abs() < 1e-9, "{:?}", w.position());
+        w.poll(2.0);
+        assert!(w.position()[3].abs() < 1e-9, "{:?}", w.position());
+        assert!(w.is_idle());
+        w.receive(
+            b"G20 G92 X1
+",
+            2.0,
+        );
+        assert!((w.position()[0] - 25.4).abs() < 1e-9, "{:?}", w.position());
     }
 }
