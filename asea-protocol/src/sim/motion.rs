@@ -820,4 +820,111 @@ mod tests {
         assert!(joint.moves[0].length_mm() > lin.moves[0].length_mm());
         assert_abs_diff_eq!(joint.end_pose().xyz_mm[1], 300.0, epsilon = 1e-6);
     }
+
+    /// The eye's orientation between two instructions: normalised linear interpolation along
+    /// the shorter arc. For a turn of 90° about z the ends are the two quaternions and the middle
+    /// is the 45° turn, (cos 22.5°, 0, 0, sin 22.5°), exactly (equal weights lie on the arc's
+    /// bisector); the same end given with the opposite sign (the same rotation) gives the same
+    /// middle; every result has unit length.
+    #[test]
+    fn orientation_turns_along_the_shorter_arc() {
+        let a = [1.0, 0.0, 0.0, 0.0];
+        let h = std::f64::consts::FRAC_PI_4;
+        let b = [h.cos(), 0.0, 0.0, h.sin()];
+        let nb = b.map(|c| -c);
+        assert_eq!(nlerp(a, b, 0.0), a);
+        for (got, want) in nlerp(a, b, 1.0).iter().zip(b) {
+            assert_abs_diff_eq!(*got, want, epsilon = 1e-15);
+        }
+        let q = std::f64::consts::FRAC_PI_8;
+        let mid = [q.cos(), 0.0, 0.0, q.sin()];
+        for end in [b, nb] {
+            let m = nlerp(a, end, 0.5);
+            for (got, want) in m.iter().zip(mid) {
+                assert_abs_diff_eq!(*got, want, epsilon = 1e-15);
+            }
+            let u = nlerp(a, end, 0.3);
+            assert_abs_diff_eq!(u.iter().map(|c| c * c).sum::<f64>(), 1.0, epsilon = 1e-15);
+            // Between the ends on the arc: a turn about z of less than 45°, more than 0.
+            let turn = 2.0 * u[3].atan2(u[0]);
+            assert!(turn > 0.0 && turn < h, "{turn}");
+        }
+        // A move's pose carries it: half way through the motion of a stop move.
+        let start = EyePose {
+            xyz_mm: [900.0, 0.0, 500.0],
+            q: a,
+        };
+        // 0.125 of the base speed, 125 mm/s: exact on the wire (1024/8192 m/s).
+        let mut p = pos([900.0, 0.0, 600.0], Zone::Fine, 0.125);
+        p.pose = Pose::from_mm([900.0, 0.0, 600.0], b).unwrap();
+        let tr = plan(
+            start,
+            &[(1, p)],
+            Speeds::default(),
+            &MotionParams::default(),
+            0.0,
+            true,
+        );
+        // 100 mm at 125 mm/s with 4000 mm/s² ramps: symmetric, so half the distance at half the
+        // motion time, 0.5 × (100/125 + 125/4000) s.
+        let half = 0.5 * (100.0 / 125.0 + 125.0 / 4000.0);
+        let pose = tr.pose_at(half);
+        assert_abs_diff_eq!(pose.xyz_mm[2], 550.0, epsilon = 1e-9);
+        for (got, want) in pose.q.iter().zip(mid) {
+            assert_abs_diff_eq!(*got, want, epsilon = 2e-4);
+        }
+    }
+
+    /// Joint-like interpolation moves linearly in radius, azimuth and height about the base
+    /// axis: a move between two points 900 mm from the axis stays 900 mm from it all the way, and
+    /// one from azimuth 170° to −170° (or back) turns the 20° through 180° (the shorter way), not
+    /// the 340° through 0°. Half way in distance it is at azimuth 180°: (−900, 0).
+    #[test]
+    fn joint_moves_keep_the_radius_and_take_the_shorter_turn() {
+        let at = |deg: f64| {
+            let r = deg.to_radians();
+            [900.0 * r.cos(), 900.0 * r.sin(), 500.0]
+        };
+        for (from, to, mid_deg) in [
+            (0.0, 90.0, 45.0),
+            (170.0, -170.0, 180.0),
+            (-170.0, 170.0, 180.0),
+        ] {
+            let start = EyePose {
+                xyz_mm: at(from),
+                ..EyePose::default()
+            };
+            // 125 mm/s, exact on the wire.
+            let mut p = pos(at(to), Zone::Fine, 0.125);
+            p.flags.interpolation = Interpolation::Joint;
+            let tr = plan(
+                start,
+                &[(1, p)],
+                Speeds::default(),
+                &MotionParams::default(),
+                0.0,
+                true,
+            );
+            let m = &tr.moves[0];
+            let arc = 900.0
+                * (to - from)
+                    .abs()
+                    .min(360.0 - (to - from).abs())
+                    .to_radians();
+            // The length is summed over 8 chords of the arc; the ends are on the wire's 1/16 mm
+            // grid, which moves them by up to 0.03 mm.
+            let chords = 8.0 * 2.0 * 900.0 * (arc / 900.0 / 16.0).sin();
+            assert_abs_diff_eq!(m.length_mm(), chords, epsilon = 0.1);
+            let motion = chords / 125.0 + 125.0 / 4000.0;
+            for k in 0..=20 {
+                let xyz = m.pose_at(motion * f64::from(k) / 20.0).xyz_mm;
+                assert_abs_diff_eq!(xyz[0].hypot(xyz[1]), 900.0, epsilon = 0.05);
+                assert_abs_diff_eq!(xyz[2], 500.0, epsilon = 1e-9);
+            }
+            let mid = m.pose_at(motion / 2.0).xyz_mm;
+            let want = at(mid_deg);
+            assert_abs_diff_eq!(mid[0], want[0], epsilon = 0.1);
+            assert_abs_diff_eq!(mid[1], want[1], epsilon = 0.1);
+        }
+    }
 }

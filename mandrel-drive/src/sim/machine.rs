@@ -686,4 +686,60 @@ mod tests {
         let end = m.next_event_s(1e-3).unwrap();
         assert!(end > 10.0, "{end}");
     }
+
+    /// Over any stretch wholly above the pulse limit the translator passes exactly `limit`
+    /// pulses a second, however the rate changes within it, so the lost steps are
+    /// `pulses − limit · span` whatever the sampling. A ramp at 20 000 steps/s² from rest to
+    /// 12 500 steps/s, advanced in 50 ms ticks: from the limit (0.5 s) to the end of the ramp
+    /// (0.625 s) the closed form is ∫(f − L) df / a = (12 500 − 10 000)² / (2 · 20 000) =
+    /// 156.25 steps; each tick's end rate would count 205. Just above the limit, 10 000.5
+    /// steps/s for 10 s, 5 of the 100 005 pulses are lost.
+    #[test]
+    fn the_translator_passes_its_limit_over_a_ramp_sampled_coarsely() {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.motor.holding_nm = 1.0e9;
+        m.profile = StepProfile {
+            v0_sps: 0.0,
+            vmax_sps: 12_500.0,
+            accel_sps2: 20_000.0,
+        };
+        m.start_continuous(1).unwrap();
+        for k in 1..=10 {
+            m.advance(0.05 * f64::from(k));
+        }
+        assert_eq!(m.lost_steps(), 0, "below the limit until 0.5 s");
+        for t in [0.55, 0.6, 0.625] {
+            m.advance(t);
+        }
+        let lost = m.lost_steps() as f64;
+        assert!((lost - 156.25).abs() <= 2.0, "{lost}");
+
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.motor.holding_nm = 1.0e9;
+        m.profile = StepProfile {
+            v0_sps: 0.0,
+            vmax_sps: 10_000.5,
+            accel_sps2: 1.0e9,
+        };
+        m.start_continuous(1).unwrap();
+        for k in 1..=100 {
+            m.advance(0.1 * f64::from(k));
+        }
+        let lost = m.lost_steps();
+        assert!((4..=6).contains(&lost), "{lost} of {}", m.counter_steps());
+    }
+
+    /// What the simulated indexer says when it refuses a command.
+    #[test]
+    fn refusals_read_as_the_operator_sees_them() {
+        let rate = Refusal::PulseRate {
+            requested_pps: 12_500.4,
+            limit_pps: 10_000.0,
+        };
+        assert_eq!(
+            rate.to_string(),
+            "12500 pulses/s exceeds the translator limit of 10000 pulses/s"
+        );
+        assert_eq!(Refusal::Busy.to_string(), "busy resetting");
+    }
 }
