@@ -927,4 +927,33 @@ mod tests {
             assert_abs_diff_eq!(mid[1], want[1], epsilon = 0.1);
         }
     }
+
+    /// Where the eye is along a stop move: from rest at 4000 mm/s² to the commanded speed, on at
+    /// that speed, and down to rest at the point, `s = a t²/2`, `s_up + v (t − t_up)` and
+    /// `L − a (T − t)²/2`. 100 mm at 125 mm/s: t_up = 31.25 ms, s_up = 1.953 mm, T = 0.83125 s.
+    #[test]
+    fn a_stop_move_ramps_cruises_and_ramps_down() {
+        let start = EyePose {
+            xyz_mm: [900.0, 0.0, 500.0],
+            ..EyePose::default()
+        };
+        let tr = plan(
+            start,
+            &[(1, pos([900.0, 0.0, 600.0], Zone::Fine, 0.125))],
+            Speeds::default(),
+            &MotionParams::default(),
+            0.0,
+            true,
+        );
+        let (a, v, len) = (4000.0, 125.0, 100.0);
+        let (t_up, total) = (v / a, len / v + v / a);
+        let s_up = 0.5 * a * t_up * t_up;
+        let z = |t: f64| tr.pose_at(t).xyz_mm[2] - 500.0;
+        assert_abs_diff_eq!(z(0.02), 0.5 * a * 0.02 * 0.02, epsilon = 1e-9);
+        assert_abs_diff_eq!(z(0.4), s_up + v * (0.4 - t_up), epsilon = 1e-9);
+        assert_abs_diff_eq!(z(total - 0.02), len - 0.5 * a * 0.02 * 0.02, epsilon = 1e-9);
+        // At rest at the point through the settling that follows.
+        assert_abs_diff_eq!(z(total + 0.1), len, epsilon = 1e-9);
+        assert!(tr.t1() > total + 0.1);
+    }
 }

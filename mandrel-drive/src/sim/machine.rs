@@ -742,4 +742,58 @@ mod tests {
         );
         assert_eq!(Refusal::Busy.to_string(), "busy resetting");
     }
+
+    /// The pull-in rate is the fastest start the motor takes: a start at exactly 1000 steps/s
+    /// runs, one above it stalls at once, for a preset move and a continuous run alike.
+    #[test]
+    fn a_start_at_the_pull_in_rate_runs_and_one_above_stalls() {
+        for (v0, stalls) in [(PULL_IN_SPS, false), (PULL_IN_SPS + 1.0, true)] {
+            for preset in [true, false] {
+                let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+                m.profile = StepProfile {
+                    v0_sps: v0,
+                    vmax_sps: 2_000.0,
+                    accel_sps2: 2_000.0,
+                };
+                if preset {
+                    m.start_preset(500).unwrap();
+                } else {
+                    m.start_continuous(1).unwrap();
+                }
+                m.advance(0.2);
+                assert_eq!(m.is_stalled(), stalls, "{v0} preset {preset}");
+            }
+        }
+    }
+
+    /// A short preset move from a start rate peaks at √(v0² + a·steps) (half the steps up, half
+    /// down). With the steep ramp of 40 000 steps/s² (pull-out rate f ≈ 2183 steps/s) from
+    /// 900 steps/s, 107 steps peak above f and stall after ⌊(f² − v0²)/2a⌋ steps; 60 steps peak
+    /// at about 1792 steps/s and run through.
+    #[test]
+    fn a_short_move_stalls_only_if_its_peak_passes_the_pull_out_rate() {
+        let (v0, a) = (900.0, 40_000.0);
+        let f = pull_out_rate(a);
+        assert!((f - 2183.0).abs() < 5.0, "{f}");
+        for (steps, stalls) in [(107_i64, true), (60, false)] {
+            let peak = (v0 * v0 + a * steps as f64).sqrt();
+            assert_eq!(peak > f, stalls, "{steps}: peak {peak}");
+            let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+            m.profile = StepProfile {
+                v0_sps: v0,
+                vmax_sps: 6_000.0,
+                accel_sps2: a,
+            };
+            m.start_preset(steps).unwrap();
+            run(&mut m);
+            assert_eq!(m.is_stalled(), stalls, "{steps}");
+            assert_eq!(m.counter_steps(), steps);
+            let want = if stalls {
+                ((f * f - v0 * v0) / (2.0 * a)).floor() as i64
+            } else {
+                steps
+            };
+            assert_eq!(m.motor_steps(), want, "{steps}");
+        }
+    }
 }
