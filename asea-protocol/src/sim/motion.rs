@@ -956,4 +956,39 @@ mod tests {
         assert_abs_diff_eq!(z(total + 0.1), len, epsilon = 1e-9);
         assert!(tr.t1() > total + 0.1);
     }
+
+    /// A flying move shorter than the interpretation time is slowed, not paused: the arm covers
+    /// it in the whole 0.2 s of a fine instruction. Three points 10 mm apart on a vertical line
+    /// at 125 mm/s: the first move runs from rest through its (straight) corner, 1 mm past the
+    /// point (the fine zone bounds the cut), 11 mm in 31.25 ms of ramp (1.953 mm) and 72.4 ms at
+    /// speed, 0.1036 s of motion spread over 0.2 s; 0.1 s in, the eye is where the motion is
+    /// after 0.1 × 0.1036/0.2 s.
+    #[test]
+    fn a_short_flying_move_is_stretched_to_the_interpretation_time() {
+        let start = EyePose {
+            xyz_mm: [900.0, 0.0, 500.0],
+            ..EyePose::default()
+        };
+        let moves: Vec<(u16, Positioning)> = (1..=3)
+            .map(|k| {
+                let z = 500.0 + 10.0 * f64::from(k);
+                (k, pos([900.0, 0.0, z], Zone::Fine, 0.125))
+            })
+            .collect();
+        let tr = plan(
+            start,
+            &moves,
+            Speeds::default(),
+            &MotionParams::default(),
+            0.0,
+            false,
+        );
+        let (a, v) = (4000.0, 125.0);
+        let (t_up, s_up) = (v / a, v * v / (2.0 * a));
+        let motion = t_up + (11.0 - s_up) / v;
+        assert_abs_diff_eq!(tr.moves[0].duration, INTERPRETATION_S[0], epsilon = 1e-12);
+        let local = 0.1 * motion / INTERPRETATION_S[0];
+        let want = s_up + v * (local - t_up);
+        assert_abs_diff_eq!(tr.pose_at(0.1).xyz_mm[2], 500.0 + want, epsilon = 1e-9);
+    }
 }

@@ -796,4 +796,19 @@ mod tests {
             assert_eq!(m.motor_steps(), want, "{steps}");
         }
     }
+
+    /// A continuous run at a top speed of zero does not start (nothing to run at).
+    #[test]
+    fn a_continuous_run_at_zero_speed_does_not_start() {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.profile = StepProfile {
+            v0_sps: 0.0,
+            vmax_sps: 0.0,
+            accel_sps2: 2_000.0,
+        };
+        m.start_continuous(1).unwrap();
+        assert!(!m.is_moving());
+        m.advance(1.0);
+        assert_eq!(m.counter_steps(), 0);
+    }
 }
