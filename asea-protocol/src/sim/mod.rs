@@ -1191,4 +1191,145 @@ mod tests {
         assert_eq!(m.last_error(), RobotError::Range.code());
         assert_eq!(m.program_len(1), 0);
     }
+
+    /// The link idles the arm (seed 001 §4.1.2): while the robot computer serves a session the
+    /// arm stands where it was, and its move, and a home synchronisation, end later by as long
+    /// as the session lasted.
+    #[test]
+    fn a_link_session_holds_the_arm_and_the_move_ends_later_by_as_much() {
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 400.0, 800.0],
+                Reference::Absolute,
+            ))),
+            10.0,
+        );
+        let planned_end = m.trajectory().unwrap().t1();
+        m.advance(10.2);
+        let held = m.pose().xyz_mm;
+        m.hold(10.5);
+        assert_eq!(m.pose().xyz_mm, held);
+        m.advance(10.5);
+        assert_eq!(m.pose().xyz_mm, held, "0.3 s of link: no motion");
+        m.advance(planned_end + 0.29);
+        assert!(!m.io().output(IN_POSITION_OUTPUT));
+        m.advance(planned_end + 0.31);
+        assert!(m.io().output(IN_POSITION_OUTPUT));
+        // Home synchronisation (3 s) held 1 s ends at 4 s.
+        let mut m = Machine::default();
+        m.execute(&frame(Command::Operate), 0.0);
+        m.execute(&frame(Command::SyncHome), 0.0);
+        m.advance(1.0);
+        m.hold(2.0);
+        m.advance(3.9);
+        assert!(!m.homed());
+        m.advance(4.01);
+        assert!(m.homed());
+    }
+
+    /// The same through the robot's side of the link: an ENQ opens a session while the arm
+    /// moves and the host's EOT closes it 0.3 s later; the arm stood still meanwhile. With
+    /// `link_idles_arm` off it moves on.
+    #[test]
+    fn the_robot_holds_its_arm_from_enq_to_eot() {
+        use crate::frame::{ENQ, EOT};
+        let at = |s: f64| Duration::from_secs_f64(s);
+        for idles in [true, false] {
+            let params = MotionParams {
+                link_idles_arm: idles,
+                ..MotionParams::default()
+            };
+            let mut r = Robot::new(FrameConfig::default(), Timers::default(), params);
+            r.machine.execute(&frame(Command::Operate), 0.0);
+            r.machine.execute(&frame(Command::SyncHome), 0.0);
+            r.poll(at(3.0));
+            r.machine.execute(
+                &frame(Command::MoveImmediate(pos(
+                    [900.0, 400.0, 800.0],
+                    Reference::Absolute,
+                ))),
+                10.0,
+            );
+            r.poll(at(10.2));
+            let y0 = r.machine.pose().xyz_mm[1];
+            r.receive(&[ENQ], at(10.2));
+            assert!(r.session.in_session());
+            r.poll(at(10.4));
+            r.receive(&[EOT], at(10.5));
+            let y1 = r.machine.pose().xyz_mm[1];
+            if idles {
+                assert_eq!(y1, y0);
+            } else {
+                assert!(y1 > y0 + 10.0, "{y0} {y1}");
+            }
+        }
+    }
+
+    /// A STOP leaves the arm where its braking ends, and that is where the robot stands: a
+    /// relative move after it goes from there, and once the ramp is over (v/a) the robot takes
+    /// the next move. A STOP while the arm already rests (settling at the end of a move) leaves
+    /// it where it is.
+    #[test]
+    fn after_a_stop_the_next_move_starts_where_the_arm_came_to_rest() {
+        // Down from home (900, 0, 800) towards z = 400, in the xz plane, so that the relative
+        // move's level roll axis (+x) stays radial.
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 0.0, 400.0],
+                Reference::Absolute,
+            ))),
+            10.0,
+        );
+        m.advance(10.3);
+        let v =
+            (m.trajectory().unwrap().pose_at(10.3 - 1e-3).xyz_mm[2] - m.pose().xyz_mm[2]) / 1e-3;
+        assert!(v > 100.0, "{v}");
+        m.execute(&frame(Command::Stop), 10.3);
+        let a = MotionParams::default().accel_mm_s2;
+        m.advance(10.3 + v / a + 1e-3);
+        let rest = m.pose().xyz_mm;
+        assert!(rest[2] > 400.0);
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [0.0, 0.0, 10.0],
+                Reference::Relative,
+            ))),
+            10.3 + v / a + 1e-3,
+        );
+        assert_eq!(m.status().last_error, 0, "taken once the ramp is over");
+        assert_eq!(m.status().state, State::Running);
+        m.advance(20.0);
+        let end = m.pose().xyz_mm;
+        assert!((end[2] - rest[2] - 10.0).abs() < 1e-6, "{rest:?} {end:?}");
+        assert!((end[0] - rest[0]).abs() < 1e-6 && (end[1] - rest[1]).abs() < 1e-6);
+
+        // At rest in the settling time of a move: the STOP leaves the arm at the point.
+        let mut m = homed_operate();
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [900.0, 0.0, 750.0],
+                Reference::Absolute,
+            ))),
+            10.0,
+        );
+        let t1 = m.trajectory().unwrap().t1();
+        m.advance(t1 - 0.05);
+        let here = m.pose().xyz_mm;
+        assert!((here[2] - 750.0).abs() < 1e-9, "settling at the point");
+        m.execute(&frame(Command::Stop), t1 - 0.05);
+        m.advance(t1 + 1.0);
+        m.execute(
+            &frame(Command::MoveImmediate(pos(
+                [0.0, 0.0, 10.0],
+                Reference::Relative,
+            ))),
+            t1 + 1.0,
+        );
+        m.advance(t1 + 10.0);
+        let end = m.pose().xyz_mm;
+        assert!(end.iter().all(|c| c.is_finite()), "{end:?}");
+        assert!((end[2] - 760.0).abs() < 1e-6, "{end:?}");
+    }
 }
