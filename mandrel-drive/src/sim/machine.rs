@@ -811,4 +811,17 @@ mod tests {
         m.advance(1.0);
         assert_eq!(m.counter_steps(), 0);
     }
+
+    /// The direction of the motion under way: +1 forwards, −1 backwards, 0 at rest.
+    #[test]
+    fn direction_follows_the_motion() {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        assert_eq!(m.direction(), 0);
+        m.start_continuous(-1).unwrap();
+        assert_eq!(m.direction(), -1);
+        m.kill();
+        assert_eq!(m.direction(), 0);
+        m.start_preset(100).unwrap();
+        assert_eq!(m.direction(), 1);
+    }
 }

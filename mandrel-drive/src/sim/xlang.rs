@@ -368,6 +368,21 @@ mod tests {
         assert_eq!(say(&mut c, "2R\r", 5.0), "");
     }
 
+    /// `PZ` zeroes the absolute position where the mandrel stands: the counter and the
+    /// simulator's truth alike, without a move.
+    #[test]
+    fn pz_zeroes_the_position_where_the_mandrel_stands() {
+        let mut c = card();
+        say(&mut c, "1A10 1V2 1MPI 1D400 1G\r", 0.0);
+        c.poll(5.0);
+        assert_eq!(c.machine.counter_steps(), 400);
+        assert_eq!(c.machine.motor_steps(), 400);
+        say(&mut c, "1SSA1\r", 5.0);
+        assert_eq!(say(&mut c, "1PZ 1PR\r", 5.0), "*+0000000000\r");
+        assert_eq!(c.machine.motor_steps(), 0);
+        assert!(!c.machine.is_moving());
+    }
+
     #[test]
     fn reset_is_busy_for_one_second() {
         let mut c = card();
