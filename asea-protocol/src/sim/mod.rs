@@ -950,9 +950,9 @@ mod tests {
         assert_eq!(m.last_error(), RobotError::NotHomed.code());
 
         let mut m = homed_operate();
-        // Relative, with the roll axis radial at the point it leads to.
-        let mut rel = pos([0.0, 100.0, 0.0], Reference::Relative);
-        rel.pose = Pose::from_mm([0.0, 100.0, 0.0], radial([900.0, 100.0, 800.0])).unwrap();
+        // Relative, with the roll axis radial at the point it leads to; every coordinate moves.
+        let mut rel = pos([20.0, 100.0, -30.0], Reference::Relative);
+        rel.pose = Pose::from_mm([20.0, 100.0, -30.0], radial([920.0, 100.0, 770.0])).unwrap();
         m.execute(&frame(Command::MoveImmediate(rel)), 10.0);
         assert!(!m.io().output(IN_POSITION_OUTPUT));
         // A second move while the first runs is refused.
@@ -966,7 +966,7 @@ mod tests {
         assert_eq!(m.last_error(), RobotError::Busy.code());
         m.advance(12.0);
         assert!(m.io().output(IN_POSITION_OUTPUT));
-        assert_eq!(m.pose().xyz_mm, [900.0, 100.0, 800.0]);
+        assert_eq!(m.pose().xyz_mm, [920.0, 100.0, 770.0]);
         // Reading the status does not clear the error: it stays latched until acknowledged by
         // its sequence number, and an acknowledgement of another number leaves it.
         let r = m.execute(&frame(Command::Enquire(Selector::Status)), 12.0);
