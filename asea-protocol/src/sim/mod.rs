@@ -1332,4 +1332,203 @@ mod tests {
         assert!(end.iter().all(|c| c.is_finite()), "{end:?}");
         assert!((end[2] - 760.0).abs() < 1e-6, "{end:?}");
     }
+
+    /// The six lines are six bits: each line is driven and read on its own, and clearing one
+    /// leaves the others.
+    #[test]
+    fn io_lines_are_independent() {
+        let io = IoLines::default();
+        io.set_input(1, true);
+        io.set_input(3, true);
+        assert!(io.input(1) && !io.input(2) && io.input(3) && !io.input(6));
+        io.set_input(3, false);
+        assert!(io.input(1) && !io.input(3));
+        io.set_input(6, true);
+        assert!(io.input(6) && !io.input(5));
+    }
+
+    /// The machine's own accessors and switches: the mode it is in, the kinematic model it was
+    /// given (the radius model takes a wrist yaw the five-axis arm refuses), and the count of
+    /// stores executed twice (the same instruction into the same slot; another instruction into
+    /// it is a new store).
+    #[test]
+    fn mode_kinematics_and_repeated_stores() {
+        let mut m = Machine::default();
+        assert_eq!(m.mode(), Mode::Standby);
+        m.execute(&frame(Command::Operate), 0.0);
+        assert_eq!(m.mode(), Mode::Operate);
+        m.execute(&frame(Command::Standby), 0.0);
+        assert_eq!(m.mode(), Mode::Standby);
+
+        // A roll axis 20° out of the arm's plane: a wrist yaw.
+        let h = 10f64.to_radians();
+        let mut yawed = pos([900.0, 0.0, 800.0], Reference::Absolute);
+        yawed.pose = Pose::from_mm([900.0, 0.0, 800.0], [h.cos(), 0.0, 0.0, h.sin()]).unwrap();
+        let store = |m: &mut Machine, p: Positioning| {
+            m.execute(
+                &frame(Command::StorePos {
+                    program: 5,
+                    instruction: 1,
+                    positioning: p,
+                }),
+                0.0,
+            );
+        };
+        let mut arm = Machine::default();
+        store(&mut arm, yawed);
+        arm.execute(&frame(Command::RunProgram { program: 5 }), 0.0);
+        assert_eq!(arm.last_error(), RobotError::Kinematics.code());
+        let mut radius = Machine::default().with_kinematics(Arc::new(Reach::default()));
+        store(&mut radius, yawed);
+        radius.execute(&frame(Command::RunProgram { program: 5 }), 0.0);
+        assert_eq!(radius.last_error(), 0);
+
+        let mut m = Machine::default();
+        let p = pos([900.0, 0.0, 800.0], Reference::Absolute);
+        store(&mut m, p);
+        assert_eq!(m.redundant_stores(), 0);
+        store(&mut m, p);
+        assert_eq!(m.redundant_stores(), 1);
+        store(&mut m, pos([900.0, 0.0, 700.0], Reference::Absolute));
+        assert_eq!(m.redundant_stores(), 1);
+        store(&mut m, pos([900.0, 0.0, 700.0], Reference::Absolute));
+        assert_eq!(m.redundant_stores(), 2);
+    }
+
+    /// A program checked in standby stops at its first bad instruction in the error state; an
+    /// immediate move with a quaternion far from unit length is refused (error 3) and the arm
+    /// does not move.
+    #[test]
+    fn bad_positions_are_refused() {
+        let mut m = Machine::default();
+        m.execute(
+            &frame(Command::StorePos {
+                program: 6,
+                instruction: 1,
+                positioning: pos([900.0, 0.0, 800.0], Reference::Absolute),
+            }),
+            0.0,
+        );
+        // 2000 mm out: inside the wire's range, beyond the arm's reach.
+        let far = pos([2000.0, 0.0, 800.0], Reference::Absolute);
+        m.execute(
+            &frame(Command::StorePos {
+                program: 6,
+                instruction: 2,
+                positioning: far,
+            }),
+            0.0,
+        );
+        m.execute(&frame(Command::RunProgram { program: 6 }), 0.0);
+        let s = m.status();
+        assert_eq!(s.state, State::Error);
+        assert_eq!(s.instruction, 2);
+        assert_eq!(s.last_error, RobotError::Kinematics.code());
+
+        let mut m = homed_operate();
+        let mut half = pos([900.0, 0.0, 700.0], Reference::Absolute);
+        // Q1.14: 8192 is 0.5, a quaternion of norm 0.5 (the host normalises; the wire does not).
+        half.pose.q = crate::command::Quaternion([8192, 0, 0, 0]);
+        m.execute(&frame(Command::MoveImmediate(half)), 10.0);
+        assert_eq!(m.last_error(), RobotError::Range.code());
+        m.advance(20.0);
+        assert_eq!(m.pose().xyz_mm, MotionParams::default().home.xyz_mm);
+    }
+
+    /// The base speed scales every instruction's fraction, the maximum caps it: a 100 mm stop
+    /// move at 0.25 of a 0.5 m/s base runs at 125 mm/s and takes 0.5 s of settling + 0.8 s +
+    /// the ramp's v/a; with the maximum set to 0.0625 m/s a move at 0.5 of the 1 m/s base runs
+    /// at 62.5 mm/s. (Every figure is exact on the wire's 1/8192 m/s.)
+    #[test]
+    fn base_speed_scales_and_maximum_caps() {
+        let a = MotionParams::default().accel_mm_s2;
+        let run = |base: f64, max: f64, frac: f64| {
+            let mut m = homed_operate();
+            for c in [
+                Command::SetBaseSpeed(Speed::from_value("base", base).unwrap()),
+                Command::SetMaxSpeed(Speed::from_value("max", max).unwrap()),
+            ] {
+                m.execute(&frame(c), 5.0);
+                assert_eq!(m.last_error(), 0);
+            }
+            let mut p = pos([900.0, 0.0, 700.0], Reference::Absolute);
+            p.speed = Speed::from_value("speed", frac).unwrap();
+            m.execute(&frame(Command::MoveImmediate(p)), 10.0);
+            m.trajectory().unwrap().t1() - 10.0
+        };
+        let want = |v: f64| 0.5 + 100.0 / v + v / a;
+        assert!((run(0.5, 2.0, 0.25) - want(125.0)).abs() < 1e-9);
+        assert!((run(1.0, 0.0625, 0.5) - want(62.5)).abs() < 1e-9);
+    }
+
+    /// A program may not be deleted while it runs (error 7); another one may.
+    #[test]
+    fn a_running_program_cannot_be_deleted() {
+        let mut m = homed_operate();
+        for program in [1, 2] {
+            m.execute(
+                &frame(Command::StorePos {
+                    program,
+                    instruction: 1,
+                    positioning: pos([900.0, 0.0, 400.0], Reference::Absolute),
+                }),
+                5.0,
+            );
+        }
+        m.execute(&frame(Command::RunProgram { program: 1 }), 10.0);
+        m.advance(10.1);
+        assert_eq!(m.status().state, State::Running);
+        m.execute(&frame(Command::DeleteProgram { program: 2 }), 10.1);
+        assert_eq!(m.last_error(), 0);
+        m.execute(&frame(Command::DeleteProgram { program: 1 }), 10.1);
+        assert_eq!(m.last_error(), RobotError::Busy.code());
+    }
+
+    /// A `WaitInput` whose input is already at its level does not wait: the program runs on to
+    /// its move at once.
+    #[test]
+    fn a_wait_for_an_input_already_set_does_not_wait() {
+        let mut m = homed_operate();
+        let store = |m: &mut Machine, n: u16, i: Instruction| {
+            m.execute(&frame(crate::client::store_command(3, n, &i)), 5.0);
+        };
+        store(
+            &mut m,
+            1,
+            Instruction::Control(Control::SetOutput { line: 2, on: true }),
+        );
+        store(
+            &mut m,
+            2,
+            Instruction::Control(Control::WaitInput {
+                line: START_INPUT,
+                on: true,
+            }),
+        );
+        store(
+            &mut m,
+            3,
+            Instruction::Position(pos([900.0, 0.0, 700.0], Reference::Absolute)),
+        );
+        store(&mut m, 4, Instruction::Control(Control::End));
+        m.io().set_input(START_INPUT, true);
+        m.execute(&frame(Command::RunProgram { program: 3 }), 10.0);
+        m.advance(10.1);
+        assert!(m.io().output(2));
+        assert!(m.pose().xyz_mm[2] < 800.0, "moving at once: {:?}", m.pose());
+        m.advance(20.0);
+        assert_eq!(m.pose().xyz_mm, [900.0, 0.0, 700.0]);
+        assert_eq!(m.status().state, State::Idle);
+    }
+
+    /// The record of executed telegrams keeps the last [`RECORD_LIMIT`] at most: at the limit it
+    /// drops the older half.
+    #[test]
+    fn the_executed_record_is_bounded() {
+        let mut m = Machine::default();
+        for _ in 0..RECORD_LIMIT + 10 {
+            m.execute(&frame(Command::Enquire(Selector::Status)), 0.0);
+        }
+        assert_eq!(m.executed.len(), RECORD_LIMIT / 2 + 10);
+    }
 }

@@ -849,6 +849,12 @@ mod tests {
             let turn = 2.0 * u[3].atan2(u[0]);
             assert!(turn > 0.0 && turn < h, "{turn}");
         }
+        // The sign is the quaternions' dot product, not their sums: ±106.26° about x
+        // (components 0.6 and ±0.8) are 147.5° apart through 180°, 212.5° through 0°.
+        let (p, m) = ([0.6, 0.8, 0.0, 0.0], [0.6, -0.8, 0.0, 0.0]);
+        let half = nlerp(p, m, 0.5);
+        assert_abs_diff_eq!(half[0], 0.0, epsilon = 1e-15);
+        assert_abs_diff_eq!(half[1].abs(), 1.0, epsilon = 1e-15);
         // A move's pose carries it: half way through the motion of a stop move.
         let start = EyePose {
             xyz_mm: [900.0, 0.0, 500.0],
