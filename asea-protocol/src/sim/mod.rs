@@ -1286,11 +1286,20 @@ mod tests {
         let v =
             (m.trajectory().unwrap().pose_at(10.3 - 1e-3).xyz_mm[2] - m.pose().xyz_mm[2]) / 1e-3;
         assert!(v > 100.0, "{v}");
+        let z_stop = m.pose().xyz_mm[2];
         m.execute(&frame(Command::Stop), 10.3);
         let a = MotionParams::default().accel_mm_s2;
+        // Half way through the ramp, v·t − a·t²/2 = 3v²/8a further on.
+        m.advance(10.3 + v / (2.0 * a));
+        let mid = m.pose().xyz_mm[2];
+        assert!(
+            (z_stop - mid - 3.0 * v * v / (8.0 * a)).abs() < 0.05,
+            "{z_stop} {mid} {v}"
+        );
         m.advance(10.3 + v / a + 1e-3);
         let rest = m.pose().xyz_mm;
         assert!(rest[2] > 400.0);
+        assert!((z_stop - rest[2] - v * v / (2.0 * a)).abs() < 0.05);
         m.execute(
             &frame(Command::MoveImmediate(pos(
                 [0.0, 0.0, 10.0],
