@@ -1540,4 +1540,67 @@ mod tests {
         }
         assert_eq!(m.executed.len(), RECORD_LIMIT / 2 + 10);
     }
+
+    /// A line for [`serve`] on a virtual clock: each read waits its whole timeout (the clock
+    /// runs on by it) unless a scripted byte is due within it, which it then returns at its time;
+    /// every write is noted with its time; once the script is done and 50 ms have passed it
+    /// stops the server.
+    struct ScriptedLine {
+        clock: Arc<crate::clock::VirtualClock>,
+        script: Vec<(Duration, Vec<u8>)>,
+        writes: Arc<std::sync::Mutex<Vec<(Duration, Vec<u8>)>>>,
+        stop: Arc<AtomicBool>,
+    }
+
+    impl Link for ScriptedLine {
+        fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+            self.writes
+                .lock()
+                .unwrap()
+                .push((self.clock.now(), bytes.to_vec()));
+            Ok(())
+        }
+        fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> std::io::Result<usize> {
+            let now = self.clock.now();
+            if let Some((at, bytes)) = self.script.first().cloned()
+                && at <= now + timeout
+            {
+                self.clock.advance_to(at.max(now));
+                self.script.remove(0);
+                buf[..bytes.len()].copy_from_slice(&bytes);
+                return Ok(bytes.len());
+            }
+            self.clock.advance(timeout);
+            if self.script.is_empty() && self.clock.now() > Duration::from_millis(60) {
+                self.stop.store(true, Ordering::Relaxed);
+            }
+            Ok(0)
+        }
+        fn discard_input(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// The simulator answers bytes [`TURNAROUND`] after they came, once, and not sooner: an ENQ
+    /// at 10 ms is acknowledged at 13 ms.
+    #[test]
+    fn serve_answers_after_the_turnaround() {
+        use crate::frame::{ACK, ENQ};
+        let clock = Arc::new(crate::clock::VirtualClock::new());
+        let writes = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let line = ScriptedLine {
+            clock: clock.clone(),
+            script: vec![(Duration::from_millis(10), vec![ENQ])],
+            writes: writes.clone(),
+            stop: stop.clone(),
+        };
+        let robot = std::sync::Mutex::new(Robot::default());
+        serve(line, &robot, clock.as_ref(), &stop).unwrap();
+        let writes = writes.lock().unwrap();
+        assert_eq!(
+            *writes,
+            vec![(Duration::from_millis(10) + TURNAROUND, vec![ACK])]
+        );
+    }
 }
