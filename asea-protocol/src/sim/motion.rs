@@ -997,4 +997,63 @@ mod tests {
         let want = s_up + v * (local - t_up);
         assert_abs_diff_eq!(tr.pose_at(0.1).xyz_mm[2], 500.0 + want, epsilon = 1e-9);
     }
+
+    /// A corner next to a short leg is cut by at most half of that leg: medium at 500 mm/s
+    /// (braking distance 31 mm, zone 10 mm) at a right angle between legs of 8 and 20 mm (in
+    /// either order) cuts 4 mm before and after the point, so the chord passes 4/√2 = 2.83 mm
+    /// from it. A repeated point (a leg of zero length) is passed through, not divided by.
+    #[test]
+    fn short_legs_bound_the_corner_and_a_repeated_point_is_passed() {
+        for (leg_in, leg_out) in [(8.0, 20.0), (20.0, 8.0)] {
+            let start = EyePose {
+                xyz_mm: [1000.0 - leg_in, 0.0, 500.0],
+                ..EyePose::default()
+            };
+            let moves = [
+                (1, pos([1000.0, 0.0, 500.0], Zone::Medium, 0.5)),
+                (2, pos([1000.0, leg_out, 500.0], Zone::Medium, 0.5)),
+            ];
+            let tr = plan(
+                start,
+                &moves,
+                Speeds::default(),
+                &MotionParams::default(),
+                0.0,
+                false,
+            );
+            let mut best = f64::MAX;
+            let mut t = tr.t0();
+            while t <= tr.t1() {
+                let p = tr.pose_at(t).xyz_mm;
+                best = best.min(norm(sub(p, [1000.0, 0.0, 500.0])));
+                t += 1e-5;
+            }
+            assert_abs_diff_eq!(best, 4.0 / 2f64.sqrt(), epsilon = 0.01);
+        }
+
+        let start = EyePose {
+            xyz_mm: [992.0, 0.0, 500.0],
+            ..EyePose::default()
+        };
+        let moves = [
+            (1, pos([1000.0, 0.0, 500.0], Zone::Fine, 0.5)),
+            (2, pos([1000.0, 0.0, 500.0], Zone::Fine, 0.5)),
+            (3, pos([1000.0, 50.0, 500.0], Zone::Fine, 0.5)),
+        ];
+        let tr = plan(
+            start,
+            &moves,
+            Speeds::default(),
+            &MotionParams::default(),
+            0.0,
+            false,
+        );
+        let mut t = tr.t0();
+        while t <= tr.t1() {
+            let p = tr.pose_at(t).xyz_mm;
+            assert!(p.iter().all(|c| c.is_finite()), "{t}: {p:?}");
+            t += 1e-3;
+        }
+        assert_eq!(tr.end_pose().xyz_mm, [1000.0, 50.0, 500.0]);
+    }
 }
