@@ -655,13 +655,7 @@ mod tests {
     fn distance_units_and_motion_are_modal() {
         let mut w = Winder::new(1.0);
         // G1 X10 at 600 mm/min: 1 s. Then G91: X5 more (0.5 s), then G90 back to X0 (1.5 s).
-        let r = feed_lines(
-            &mut w,
-            "G21 G90 G94 G1 X10 F600
-G91 G1 X5
-G90 G1 X0
-",
-        );
+        let r = feed_lines(&mut w, "G21 G90 G94 G1 X10 F600\nG91 G1 X5\nG90 G1 X0\n");
         assert_eq!(r, "ok\r\n".repeat(3));
         w.poll(1.0);
         assert!((w.position()[0] - 10.0).abs() < 1e-9, "{:?}", w.position());
@@ -672,12 +666,7 @@ G90 G1 X0
 
         // G20: X1 is 25.4 mm, F60 is 60 in/min = 1524 mm/min, so 1 s; G21 then takes Y in mm.
         let mut w = Winder::new(1.0);
-        let r = feed_lines(
-            &mut w,
-            "G20 G94 G1 X1 F60
-G21 G1 Y25.4 F1524
-",
-        );
+        let r = feed_lines(&mut w, "G20 G94 G1 X1 F60\nG21 G1 Y25.4 F1524\n");
         assert_eq!(r, "ok\r\n".repeat(2));
         w.poll(0.5);
         assert!((w.position()[0] - 12.7).abs() < 1e-9, "{:?}", w.position());
@@ -685,19 +674,16 @@ G21 G1 Y25.4 F1524
         assert!((w.position()[1] - 12.7).abs() < 1e-9, "{:?}", w.position());
         w.poll(2.0);
         assert_eq!(w.position()[..2], [25.4, 25.4]);
+        // Relative inches: G91 X1 is 25.4 mm more (1 s at F60 in/min).
+        let r = feed_lines(&mut w, "G20 G91 G1 X1\n");
+        assert_eq!(r, "ok\r\n");
+        w.poll(3.0);
+        assert!((w.position()[0] - 50.8).abs() < 1e-9, "{:?}", w.position());
 
         // G0: 50 mm at the rapid rate, 5000 mm/min: 0.6 s, whatever F says. An axis-only line
         // after it is a rapid too (0.6 s for the 50 mm back), and after a G1 a feed move.
         let mut w = Winder::new(1.0);
-        let r = feed_lines(
-            &mut w,
-            "G94 F60
-G0 X50
-X0
-G1 X1
-X2
-",
-        );
+        let r = feed_lines(&mut w, "G94 F60\nG0 X50\nX0\nG1 X1\nX2\n");
         assert_eq!(r, "ok\r\n".repeat(5));
         w.poll(0.3);
         assert!((w.position()[0] - 25.0).abs() < 1e-9, "{:?}", w.position());
@@ -710,58 +696,30 @@ X2
         assert!((w.position()[0] - 1.5).abs() < 1e-9, "{:?}", w.position());
     }
 
-    /// Words GRBL takes without a motion of their own (planes, spindle and program ends) are
-    /// answered `ok`; a zero feed is `error:22`; a line of exactly the line buffer's 80
+    /// A number may carry a `+` sign. Words GRBL takes without a motion of their own (planes,
+    /// spindle and program ends) are answered `ok`; a zero feed is `error:22`; a line of exactly the line buffer's 80
     /// characters (spaces dropped) is taken and one more is `error:14`; a `)` outside a comment is
     /// no letter (`error:1`).
     #[test]
     fn accepted_words_feed_and_line_limits() {
         let mut w = Winder::new(1.0);
-        let r = feed_lines(
-            &mut w,
-            "G17
-G18
-G19
-M3
-M5
-M0
-M2
-M30
-",
-        );
+        // A signed number: X+5 is X5.
+        let r = feed_lines(&mut w, "G94 G1 X+5 F600\n");
+        assert_eq!(r, "ok\r\n");
+        w.poll(1.0);
+        assert!((w.position()[0] - 5.0).abs() < 1e-9, "{:?}", w.position());
+        let r = feed_lines(&mut w, "G17\nG18\nG19\nM3\nM5\nM0\nM2\nM30\n");
         assert_eq!(r, "ok\r\n".repeat(8));
         assert!(w.is_idle());
-        assert_eq!(
-            feed_lines(
-                &mut w,
-                "G94 G1 X1 F0
-"
-            ),
-            "error:22\r\n"
-        );
+        assert_eq!(feed_lines(&mut w, "G94 G1 X1 F0\n"), "error:22\r\n");
         assert!(w.is_idle());
         assert_eq!(feed_lines(&mut w, "F60\n"), "ok\r\n");
         // "G1X" + 77 digits = 80 characters; spaces do not count.
-        let exact = format!(
-            "G1 X{}
-",
-            "0".repeat(LINE_BUFFER - 3)
-        );
+        let exact = format!("G1 X{}\n", "0".repeat(LINE_BUFFER - 3));
         assert_eq!(feed_lines(&mut w, &exact), "ok\r\n");
-        let long = format!(
-            "G1 X{}
-",
-            "0".repeat(LINE_BUFFER - 2)
-        );
+        let long = format!("G1 X{}\n", "0".repeat(LINE_BUFFER - 2));
         assert_eq!(feed_lines(&mut w, &long), "error:14\r\n");
-        assert_eq!(
-            feed_lines(
-                &mut w,
-                "G1 X1 F60 )
-"
-            ),
-            "error:1\r\n"
-        );
+        assert_eq!(feed_lines(&mut w, "G1 X1 F60 )\n"), "error:1\r\n");
     }
 
     /// `G92` renames the planned end while blocks are queued and running: every block is shifted
@@ -772,28 +730,21 @@ M30
     #[test]
     fn g92_shifts_the_queued_and_running_blocks() {
         let mut w = Winder::new(1.0);
-        w.receive(
-            b"G94 G1 A100 F6000
-G1 A200
-",
-            0.0,
-        );
+        w.receive(b"G94 G1 A100 F6000\nG1 A200\n", 0.0);
         w.poll(0.5);
-        w.receive(
-            b"G92 A0
-", 0.5,
-        );
+        w.receive(b"G92 A0\n", 0.5);
         assert!((w.position()[3] + 150.0).abs() < 1e-9, "{:?}", w.position());
+        // Mid-way through each block, its shifted ends: −200 → −100, then −100 → 0.
+        w.poll(0.75);
+        assert!((w.position()[3] + 125.0).abs() < 1e-9, "{:?}", w.position());
         w.poll(1.0);
         assert!((w.position()[3] + 100.0).abs() < 1e-9, "{:?}", w.position());
+        w.poll(1.5);
+        assert!((w.position()[3] + 50.0).abs() < 1e-9, "{:?}", w.position());
         w.poll(2.0);
         assert!(w.position()[3].abs() < 1e-9, "{:?}", w.position());
         assert!(w.is_idle());
-        w.receive(
-            b"G20 G92 X1
-",
-            2.0,
-        );
+        w.receive(b"G20 G92 X1\n", 2.0);
         assert!((w.position()[0] - 25.4).abs() < 1e-9, "{:?}", w.position());
     }
 }
