@@ -1056,4 +1056,31 @@ mod tests {
         }
         assert_eq!(tr.end_pose().xyz_mm, [1000.0, 50.0, 500.0]);
     }
+
+    /// A move to the same point with another orientation (the wrist turns, the eye stays) has
+    /// no length to spread the turn over: the eye takes the new orientation at once, a unit
+    /// quaternion, never a 0/0.
+    #[test]
+    fn a_turn_in_place_takes_the_new_orientation() {
+        let start = EyePose {
+            xyz_mm: [900.0, 0.0, 500.0],
+            q: [1.0, 0.0, 0.0, 0.0],
+        };
+        let h = 0.2f64;
+        let mut p = pos([900.0, 0.0, 500.0], Zone::Fine, 0.125);
+        p.pose = Pose::from_mm([900.0, 0.0, 500.0], [h.cos(), h.sin(), 0.0, 0.0]).unwrap();
+        let tr = plan(
+            start,
+            &[(1, p)],
+            Speeds::default(),
+            &MotionParams::default(),
+            0.0,
+            true,
+        );
+        let q = tr.pose_at(0.1).q;
+        assert!(q.iter().all(|c| c.is_finite()), "{q:?}");
+        assert_abs_diff_eq!(q[0], h.cos(), epsilon = 1e-4);
+        assert_abs_diff_eq!(q[1], h.sin(), epsilon = 1e-4);
+        assert_eq!(tr.pose_at(0.1).xyz_mm, [900.0, 0.0, 500.0]);
+    }
 }
