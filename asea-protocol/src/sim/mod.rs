@@ -1543,13 +1543,14 @@ mod tests {
 
     /// A line for [`serve`] on a virtual clock: each read waits its whole timeout (the clock
     /// runs on by it) unless a scripted byte is due within it, which it then returns at its time;
-    /// every write is noted with its time; once the script is done and 50 ms have passed it
-    /// stops the server.
+    /// every write is noted with its time; once the script is done and the clock has passed
+    /// `until` it stops the server.
     struct ScriptedLine {
         clock: Arc<crate::clock::VirtualClock>,
         script: Vec<(Duration, Vec<u8>)>,
         writes: Arc<std::sync::Mutex<Vec<(Duration, Vec<u8>)>>>,
         stop: Arc<AtomicBool>,
+        until: Duration,
     }
 
     impl Link for ScriptedLine {
@@ -1571,7 +1572,7 @@ mod tests {
                 return Ok(bytes.len());
             }
             self.clock.advance(timeout);
-            if self.script.is_empty() && self.clock.now() > Duration::from_millis(60) {
+            if self.script.is_empty() && self.clock.now() > self.until {
                 self.stop.store(true, Ordering::Relaxed);
             }
             Ok(0)
@@ -1594,6 +1595,7 @@ mod tests {
             script: vec![(Duration::from_millis(10), vec![ENQ])],
             writes: writes.clone(),
             stop: stop.clone(),
+            until: Duration::from_millis(60),
         };
         let robot = std::sync::Mutex::new(Robot::default());
         serve(line, &robot, clock.as_ref(), &stop).unwrap();
@@ -1601,6 +1603,62 @@ mod tests {
         assert_eq!(
             *writes,
             vec![(Duration::from_millis(10) + TURNAROUND, vec![ACK])]
+        );
+    }
+
+    /// What a timer prompts goes out without the turnaround: the robot's reply session opens
+    /// with its ENQ 3 ms after the host's EOT (bytes prompted it), and when the host does not
+    /// answer, the ENQ is sent again when the robot's own timer says, within the loop's poll
+    /// period.
+    #[test]
+    fn serve_sends_what_a_timer_prompts_at_once() {
+        use crate::frame::{ACK, ENQ, EOT};
+        let clock = Arc::new(crate::clock::VirtualClock::new());
+        let writes = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let status_again = || {
+            Command::Enquire(Selector::Status)
+                .encode(&FrameConfig::default())
+                .unwrap()
+        };
+        let status = status_again();
+        let ms = Duration::from_millis;
+        let line = ScriptedLine {
+            clock: clock.clone(),
+            script: vec![(ms(10), vec![ENQ]), (ms(20), status), (ms(40), vec![EOT])],
+            writes: writes.clone(),
+            stop: stop.clone(),
+            until: ms(43) + crate::session::T_ENQ + ms(5),
+        };
+        let robot = std::sync::Mutex::new(Robot::default());
+        serve(line, &robot, clock.as_ref(), &stop).unwrap();
+        let writes = writes.lock().unwrap();
+        // The same robot driven by hand: its reply session's ENQ comes with the EOT, and its
+        // own timer asks for the ENQ again at its next deadline.
+        let mut r = Robot::default();
+        r.receive(&[ENQ], ms(10));
+        r.receive(&status_again(), ms(20));
+        r.take_output();
+        r.receive(&[EOT], ms(40));
+        r.poll(ms(40));
+        assert!(r.take_output().contains(&ENQ));
+        let retry = r.deadline().expect("the ENQ's timer");
+        assert!(retry >= ms(40) + crate::session::T_ENQ, "{retry:?}");
+        assert_eq!(
+            writes[..3],
+            [
+                (ms(13), vec![ACK]),
+                (ms(23), vec![ACK]),
+                (ms(43), vec![ENQ]),
+            ]
+        );
+        // The loop looks at the robot's timers once a poll period: the retry goes within one
+        // of its deadline, with no turnaround added.
+        let (at, bytes) = &writes[3];
+        assert_eq!(bytes, &vec![ENQ]);
+        assert!(
+            *at >= retry && *at <= retry + POLL_PERIOD,
+            "{at:?} {retry:?}"
         );
     }
 }
