@@ -1541,6 +1541,9 @@ mod tests {
         assert_eq!(m.executed.len(), RECORD_LIMIT / 2 + 10);
     }
 
+    /// Bytes written, each with the clock time of its write.
+    type Writes = Arc<std::sync::Mutex<Vec<(Duration, Vec<u8>)>>>;
+
     /// A line for [`serve`] on a virtual clock: each read waits its whole timeout (the clock
     /// runs on by it) unless a scripted byte is due within it, which it then returns at its time;
     /// every write is noted with its time; once the script is done and the clock has passed
@@ -1548,7 +1551,7 @@ mod tests {
     struct ScriptedLine {
         clock: Arc<crate::clock::VirtualClock>,
         script: Vec<(Duration, Vec<u8>)>,
-        writes: Arc<std::sync::Mutex<Vec<(Duration, Vec<u8>)>>>,
+        writes: Writes,
         stop: Arc<AtomicBool>,
         until: Duration,
     }
