@@ -333,6 +333,7 @@ impl Frontend for Card {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::profile::StepProfile;
     use crate::sim::machine::PULL_IN_SPS;
     use crate::sim::{Clock, VirtualClock};
     use crate::sync::{SyncOutput, Wire};
@@ -381,6 +382,81 @@ mod tests {
         assert_eq!(say(&mut c, "1PZ 1PR\r", 5.0), "*+0000000000\r");
         assert_eq!(c.machine.motor_steps(), 0);
         assert!(!c.machine.is_moving());
+    }
+
+    /// `MPA`/`MPI` choose absolute or incremental distances: 300 absolute, then 100 more. `H`
+    /// turns a continuous run round.
+    #[test]
+    fn position_modes_and_direction() {
+        let mut c = card();
+        let run = |c: &mut Card, from: f64, to: f64| {
+            let mut t = from;
+            while t < to {
+                t += 0.01;
+                c.poll(t);
+            }
+        };
+        say(&mut c, "1A10 1V2 1MPA 1D300 1G\r", 0.0);
+        run(&mut c, 0.0, 5.0);
+        assert_eq!(c.machine.counter_steps(), 300);
+        say(&mut c, "1MPI 1D100 1G\r", 5.0);
+        run(&mut c, 5.0, 10.0);
+        assert_eq!(c.machine.counter_steps(), 400);
+        say(&mut c, "1MC 1G\r", 10.0);
+        run(&mut c, 10.0, 11.0);
+        let forward = c.machine.counter_steps();
+        assert!(forward > 400, "{forward}");
+        say(&mut c, "1K\r", 11.0);
+        say(&mut c, "1H 1G\r", 11.0);
+        run(&mut c, 11.0, 12.0);
+        assert!(
+            c.machine.counter_steps() < forward,
+            "{}",
+            c.machine.counter_steps()
+        );
+    }
+
+    /// `L n … N` runs its body n times; `L0` runs it until stopped.
+    #[test]
+    fn loops_run_their_count_and_l0_until_stopped() {
+        let mut c = card();
+        say(&mut c, "1A10 1V2 1MPI 1L3 1D100 1G 1N\r", 0.0);
+        let mut t = 0.0;
+        while t < 10.0 {
+            t += 0.01;
+            c.poll(t);
+        }
+        assert_eq!(c.machine.counter_steps(), 300);
+        let mut c = card();
+        say(&mut c, "1A10 1V2 1MPI 1L0 1D100 1G 1N\r", 0.0);
+        let mut t = 0.0;
+        while t < 20.0 {
+            t += 0.05;
+            c.poll(t);
+        }
+        assert!(
+            c.machine.counter_steps() > 1000,
+            "{}",
+            c.machine.counter_steps()
+        );
+    }
+
+    /// Values outside the guide's ranges are ignored (A 0.01–999 rev/s², V and VS 0–50 rev/s, MR
+    /// above 0): the profile keeps the last good ones, in steps at the motor resolution.
+    #[test]
+    fn values_outside_the_ranges_are_ignored() {
+        let mut c = card();
+        say(&mut c, "1MR400 1A10 1V2 1VS0.5\r", 0.0);
+        let want = StepProfile {
+            v0_sps: 200.0,
+            vmax_sps: 800.0,
+            accel_sps2: 4000.0,
+        };
+        assert_eq!(c.machine.profile, want);
+        say(&mut c, "1A1000 1A0.001 1V60 1VS51 1MR0\r", 0.0);
+        assert_eq!(c.machine.profile, want);
+        say(&mut c, "1MR800\r", 0.0);
+        assert_eq!(c.machine.profile.vmax_sps, 1600.0);
     }
 
     #[test]
