@@ -43,6 +43,9 @@ struct Script {
     /// The robot falls silent at the host's first ENQ after this many more replies with this
     /// code.
     silent_after_replies: Option<(u8, u32)>,
+    /// The first telegram with this code is replaced on the line by this other whole telegram,
+    /// which the robot acknowledges and executes: a foreign command in place of the host's.
+    replace: Option<(u8, Vec<u8>)>,
 }
 
 /// The simulated robot behind a scripted line.
@@ -79,6 +82,12 @@ impl Line {
     fn telegram(&mut self, mut t: Vec<u8>, now: Duration) {
         let code = t[1];
         let s = &mut self.script;
+        if let Some((c, other)) = &s.replace
+            && *c == code
+        {
+            t = other.clone();
+            s.replace = None;
+        }
         if let Some((c, n)) = &mut s.swallow
             && *c == code
             && *n > 0
@@ -513,4 +522,51 @@ fn an_error_latched_before_a_stop_does_not_hold_back_the_confirmed_stop() {
     assert_eq!(executed(&c), (before.wrapping_add(1), stop_digest()));
     assert_eq!(robot(&c).machine.last_error(), 0, "acknowledged");
     assert_eq!(c.check_status().unwrap().state, State::Stopped);
+}
+
+/// A command the robot acknowledged and did not execute (the line forged the ACK) is proven not
+/// executed by the status (the count did not move) and sent again: the call succeeds and the
+/// robot has executed it exactly once.
+#[test]
+fn a_command_acknowledged_and_not_executed_is_sent_again() {
+    const SET_BASE_SPEED: u8 = 0x0A;
+    let (mut c, _) = client(Script {
+        swallow: Some((SET_BASE_SPEED, 1)),
+        ..Script::default()
+    });
+    let (before, _) = executed(&c);
+    let speed = asea_protocol::Speed::from_value("base", 0.5).unwrap();
+    c.set_base_speed(speed).unwrap();
+    assert_eq!(c.link().peer.script.swallow, Some((SET_BASE_SPEED, 0)));
+    let cmd = asea_protocol::Command::SetBaseSpeed(speed)
+        .encode(&asea_protocol::FrameConfig::default())
+        .unwrap();
+    let data = &cmd[3..3 + usize::from(cmd[2])];
+    assert_eq!(
+        executed(&c),
+        (
+            before.wrapping_add(1),
+            telegram_digest(SET_BASE_SPEED, data)
+        ),
+        "executed once"
+    );
+}
+
+/// A command with an effect whose place on the line another command took (the count moved by
+/// one, with the other telegram's digest) is reported as a foreign delivery, never taken for
+/// its own.
+#[test]
+fn another_command_executed_in_place_of_ours_is_foreign() {
+    const SET_BASE_SPEED: u8 = 0x0A;
+    let other =
+        asea_protocol::Command::SetMaxSpeed(asea_protocol::Speed::from_value("max", 1.0).unwrap())
+            .encode(&asea_protocol::FrameConfig::default())
+            .unwrap();
+    let (mut c, _) = client(Script {
+        replace: Some((SET_BASE_SPEED, other)),
+        ..Script::default()
+    });
+    let speed = asea_protocol::Speed::from_value("base", 0.5).unwrap();
+    let e = c.set_base_speed(speed).unwrap_err();
+    assert!(matches!(e, Error::Foreign { executed: 1, .. }), "{e:?}");
 }
