@@ -570,3 +570,24 @@ fn another_command_executed_in_place_of_ours_is_foreign() {
     let e = c.set_base_speed(speed).unwrap_err();
     assert!(matches!(e, Error::Foreign { executed: 1, .. }), "{e:?}");
 }
+
+/// A batch upload on a clean line reads every instruction back twice (once in its program's
+/// verified upload, once more after the whole batch) and repairs nothing; a program already in
+/// memory is replaced, not added to.
+#[test]
+fn a_clean_batch_upload_reads_every_instruction_back_twice() {
+    let (mut c, _) = client(Script::default());
+    let wait = Instruction::Control(Control::WaitInput {
+        line: START_INPUT,
+        on: true,
+    });
+    let end = Instruction::Control(Control::End);
+    // Program 2 holds four instructions before the batch, which gives it two.
+    c.upload(2, &[wait, wait, wait, end]).unwrap();
+    let one = [wait, wait, end];
+    let two = [wait, end];
+    let r = c.upload_batch(&[(1, &one), (2, &two)]).unwrap();
+    assert_eq!(r.checked, 2 * (one.len() + two.len()));
+    assert_eq!((r.restored, r.refused_twins), (0, 0));
+    assert_eq!(c.program_info(2).unwrap(), (2, 2, 5));
+}
