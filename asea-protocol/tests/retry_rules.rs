@@ -46,6 +46,9 @@ struct Script {
     /// The first telegram with this code is replaced on the line by this other whole telegram,
     /// which the robot acknowledges and executes: a foreign command in place of the host's.
     replace: Option<(u8, Vec<u8>)>,
+    /// After this many read-back replies, this many more are replaced on the line by this whole
+    /// reply telegram, with its own good check value (a corruption the one-byte sum lets pass).
+    forge_read_back: Option<(u32, u32, Vec<u8>)>,
 }
 
 /// The simulated robot behind a scripted line.
@@ -161,6 +164,16 @@ impl Peer for Line {
                 out[1] = code.wrapping_add(1);
                 let cs = out.len() - 1;
                 out[cs] = out[cs].wrapping_add(1);
+            }
+            if code == REPLY_READ_BACK
+                && let Some((skip, n, forged)) = &mut self.script.forge_read_back
+            {
+                if *skip > 0 {
+                    *skip -= 1;
+                } else if *n > 0 {
+                    *n -= 1;
+                    out = forged.clone();
+                }
             }
             if let Some((c, n)) = &mut self.script.silent_after_replies
                 && *c == code
@@ -590,4 +603,54 @@ fn a_clean_batch_upload_reads_every_instruction_back_twice() {
     assert_eq!(r.checked, 2 * (one.len() + two.len()));
     assert_eq!((r.restored, r.refused_twins), (0, 0));
     assert_eq!(c.program_info(2).unwrap(), (2, 2, 5));
+}
+
+/// A read-back reply whose check value is good but which names another slot is not taken for
+/// the slot asked for.
+#[test]
+fn a_read_back_naming_another_slot_is_refused() {
+    let wait = Instruction::Control(Control::WaitInput {
+        line: START_INPUT,
+        on: true,
+    });
+    let end = Instruction::Control(Control::End);
+    let other = asea_protocol::Reply::ReadBack {
+        program: 1,
+        instruction: 2,
+        stored: Some(end),
+    }
+    .encode(&asea_protocol::FrameConfig::default())
+    .unwrap();
+    let (mut c, _) = client(Script::default());
+    c.upload(1, &[wait, end]).unwrap();
+    c.link_mut().peer.script.forge_read_back = Some((0, 1, other));
+    let e = c.read_back(1, 1).unwrap_err();
+    assert!(matches!(e, Error::UnexpectedReply(_)), "{e:?}");
+}
+
+/// A store is confirmed by two read-backs in a row that agree, and refuted only by three that
+/// agree on something else: one true answer, two forged ones showing another instruction (each
+/// agreeing with the one before it only once), then the true one twice: stored.
+#[test]
+fn only_answers_that_agree_in_a_row_confirm_a_store() {
+    let wait = Instruction::Control(Control::WaitInput {
+        line: START_INPUT,
+        on: true,
+    });
+    let end = Instruction::Control(Control::End);
+    let forged = asea_protocol::Reply::ReadBack {
+        program: 1,
+        instruction: 1,
+        stored: Some(end),
+    }
+    .encode(&asea_protocol::FrameConfig::default())
+    .unwrap();
+    let (mut c, _) = client(Script::default());
+    c.upload(1, &[wait, end]).unwrap();
+    c.link_mut().peer.script.forge_read_back = Some((1, 2, forged));
+    assert!(c.confirm_stored(1, 1, &wait).unwrap());
+    assert_eq!(
+        c.link().peer.script.forge_read_back.as_ref().map(|f| f.1),
+        Some(0)
+    );
 }
