@@ -564,6 +564,29 @@ mod tests {
         }
     }
 
+    /// `plan` at the default speeds and motion constants, from time 0.
+    fn plan_default(start: EyePose, moves: &[(u16, Positioning)], discrete: bool) -> Trajectory {
+        plan(
+            start,
+            moves,
+            Speeds::default(),
+            &MotionParams::default(),
+            0.0,
+            discrete,
+        )
+    }
+
+    /// The eye's closest approach to `point` along `tr`, sampled every `step_s`, mm.
+    fn closest_approach_mm(tr: &Trajectory, point: [f64; 3], step_s: f64) -> f64 {
+        let mut best = f64::MAX;
+        let mut t = tr.t0();
+        while t <= tr.t1() {
+            best = best.min(norm(sub(tr.pose_at(t).xyz_mm, point)));
+            t += step_s;
+        }
+        best
+    }
+
     fn isolated(d: f64, v: f64, zone: Zone) -> f64 {
         let start = EyePose {
             xyz_mm: [900.0, 0.0, 500.0],
@@ -687,14 +710,7 @@ mod tests {
             let moves: Vec<(u16, Positioning)> = (1..=20u16)
                 .map(|n| (n, pos([900.0, 0.0, 500.0 + step * f64::from(n)], zone, 0.1)))
                 .collect();
-            let tr = plan(
-                start,
-                &moves,
-                Speeds::default(),
-                &MotionParams::default(),
-                0.0,
-                false,
-            );
+            let tr = plan_default(start, &moves, false);
             // The flying moves 2..19 only.
             tr.moves[18].t1() - tr.moves[0].t1()
         };
@@ -718,20 +734,8 @@ mod tests {
                 (1, pos([1000.0, 0.0, 500.0], zone, frac)),
                 (2, pos([1000.0, 200.0, 500.0], zone, frac)),
             ];
-            let tr = plan(
-                start,
-                &moves,
-                Speeds::default(),
-                &MotionParams::default(),
-                0.0,
-                false,
-            );
-            let mut best = f64::MAX;
-            let mut t = tr.t0();
-            while t <= tr.t1() {
-                best = best.min(norm(sub(tr.pose_at(t).xyz_mm, [1000.0, 0.0, 500.0])));
-                t += 0.0002;
-            }
+            let tr = plan_default(start, &moves, false);
+            let best = closest_approach_mm(&tr, [1000.0, 0.0, 500.0], 0.0002);
             best
         };
         // v = frac × 1000 mm/s; r = min(zone, v²/8000); the chord passes r/√2 from the corner.
@@ -763,23 +767,10 @@ mod tests {
                 (1, pos([1000.0, 0.0, 500.0], zone, 0.5)),
                 (2, pos([1000.0, 200.0, 500.0], zone, 0.5)),
             ];
-            let tr = plan(
-                start,
-                &moves,
-                Speeds::default(),
-                &MotionParams::default(),
-                0.0,
-                false,
-            );
+            let tr = plan_default(start, &moves, false);
             // Closest approach to the corner (1000, 0, 500) over the first move's end and the
             // second's start.
-            let mut best = f64::MAX;
-            let mut t = tr.t0();
-            while t <= tr.t1() {
-                let p = tr.pose_at(t).xyz_mm;
-                best = best.min(norm(sub(p, [1000.0, 0.0, 500.0])));
-                t += 0.0005;
-            }
+            let best = closest_approach_mm(&tr, [1000.0, 0.0, 500.0], 0.0005);
             let r = zone.radius_mm();
             assert!(best <= r + 1e-6, "{zone:?}: {best}");
             assert!(best >= r * 0.5, "{zone:?} should cut the corner: {best}");
@@ -795,23 +786,9 @@ mod tests {
             ..EyePose::default()
         };
         let mut p = pos([900.0, 300.0, 500.0], Zone::Fine, 0.5);
-        let lin = plan(
-            start,
-            &[(0, p)],
-            Speeds::default(),
-            &MotionParams::default(),
-            0.0,
-            true,
-        );
+        let lin = plan_default(start, &[(0, p)], true);
         p.flags.interpolation = Interpolation::Joint;
-        let joint = plan(
-            start,
-            &[(0, p)],
-            Speeds::default(),
-            &MotionParams::default(),
-            0.0,
-            true,
-        );
+        let joint = plan_default(start, &[(0, p)], true);
         let mid_l = lin.moves[0].pose_at(lin.moves[0].t0 + 0.3).xyz_mm;
         let mid_j = joint.moves[0].pose_at(joint.moves[0].t0 + 0.3).xyz_mm;
         // The straight path keeps x = 900; the joint-like one swings out on an arc.
@@ -863,14 +840,7 @@ mod tests {
         // 0.125 of the base speed, 125 mm/s: exact on the wire (1024/8192 m/s).
         let mut p = pos([900.0, 0.0, 600.0], Zone::Fine, 0.125);
         p.pose = Pose::from_mm([900.0, 0.0, 600.0], b).unwrap();
-        let tr = plan(
-            start,
-            &[(1, p)],
-            Speeds::default(),
-            &MotionParams::default(),
-            0.0,
-            true,
-        );
+        let tr = plan_default(start, &[(1, p)], true);
         // 100 mm at 125 mm/s with 4000 mm/s² ramps: symmetric, so half the distance at half the
         // motion time, 0.5 × (100/125 + 125/4000) s.
         let half = 0.5 * (100.0 / 125.0 + 125.0 / 4000.0);
@@ -903,14 +873,7 @@ mod tests {
             // 125 mm/s, exact on the wire.
             let mut p = pos(at(to), Zone::Fine, 0.125);
             p.flags.interpolation = Interpolation::Joint;
-            let tr = plan(
-                start,
-                &[(1, p)],
-                Speeds::default(),
-                &MotionParams::default(),
-                0.0,
-                true,
-            );
+            let tr = plan_default(start, &[(1, p)], true);
             let m = &tr.moves[0];
             let arc = 900.0
                 * (to - from)
@@ -943,12 +906,9 @@ mod tests {
             xyz_mm: [900.0, 0.0, 500.0],
             ..EyePose::default()
         };
-        let tr = plan(
+        let tr = plan_default(
             start,
             &[(1, pos([900.0, 0.0, 600.0], Zone::Fine, 0.125))],
-            Speeds::default(),
-            &MotionParams::default(),
-            0.0,
             true,
         );
         let (a, v, len) = (4000.0, 125.0, 100.0);
@@ -981,14 +941,7 @@ mod tests {
                 (k, pos([900.0, 0.0, z], Zone::Fine, 0.125))
             })
             .collect();
-        let tr = plan(
-            start,
-            &moves,
-            Speeds::default(),
-            &MotionParams::default(),
-            0.0,
-            false,
-        );
+        let tr = plan_default(start, &moves, false);
         let (a, v) = (4000.0, 125.0);
         let (t_up, s_up) = (v / a, v * v / (2.0 * a));
         let motion = t_up + (11.0 - s_up) / v;
@@ -1013,21 +966,8 @@ mod tests {
                 (1, pos([1000.0, 0.0, 500.0], Zone::Medium, 0.5)),
                 (2, pos([1000.0, leg_out, 500.0], Zone::Medium, 0.5)),
             ];
-            let tr = plan(
-                start,
-                &moves,
-                Speeds::default(),
-                &MotionParams::default(),
-                0.0,
-                false,
-            );
-            let mut best = f64::MAX;
-            let mut t = tr.t0();
-            while t <= tr.t1() {
-                let p = tr.pose_at(t).xyz_mm;
-                best = best.min(norm(sub(p, [1000.0, 0.0, 500.0])));
-                t += 1e-5;
-            }
+            let tr = plan_default(start, &moves, false);
+            let best = closest_approach_mm(&tr, [1000.0, 0.0, 500.0], 1e-5);
             assert_abs_diff_eq!(best, 4.0 / 2f64.sqrt(), epsilon = 0.01);
         }
 
@@ -1040,14 +980,7 @@ mod tests {
             (2, pos([1000.0, 0.0, 500.0], Zone::Fine, 0.5)),
             (3, pos([1000.0, 50.0, 500.0], Zone::Fine, 0.5)),
         ];
-        let tr = plan(
-            start,
-            &moves,
-            Speeds::default(),
-            &MotionParams::default(),
-            0.0,
-            false,
-        );
+        let tr = plan_default(start, &moves, false);
         let mut t = tr.t0();
         while t <= tr.t1() {
             let p = tr.pose_at(t).xyz_mm;
@@ -1069,14 +1002,7 @@ mod tests {
         let h = 0.2f64;
         let mut p = pos([900.0, 0.0, 500.0], Zone::Fine, 0.125);
         p.pose = Pose::from_mm([900.0, 0.0, 500.0], [h.cos(), h.sin(), 0.0, 0.0]).unwrap();
-        let tr = plan(
-            start,
-            &[(1, p)],
-            Speeds::default(),
-            &MotionParams::default(),
-            0.0,
-            true,
-        );
+        let tr = plan_default(start, &[(1, p)], true);
         let q = tr.pose_at(0.1).q;
         assert!(q.iter().all(|c| c.is_finite()), "{q:?}");
         assert_abs_diff_eq!(q[0], h.cos(), epsilon = 1e-4);
