@@ -909,6 +909,11 @@ mod tests {
         }
     }
 
+    /// Sends `m` an immediate move to `xyz` at `t_s`.
+    fn move_immediate(m: &mut Machine, xyz: [f64; 3], reference: Reference, t_s: f64) {
+        m.execute(&frame(Command::MoveImmediate(pos(xyz, reference))), t_s);
+    }
+
     /// The wrist quaternion whose X axis (the roll axis) is horizontal and radial at `xyz`.
     fn radial(xyz: [f64; 3]) -> [f64; 4] {
         let half = xyz[1].atan2(xyz[0]) / 2.0;
@@ -929,24 +934,12 @@ mod tests {
     fn immediate_moves_need_operate_and_home_and_stop_at_the_point() {
         let mut m = Machine::default();
         // Standby: checked, not moved.
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 50.0, 800.0],
-                Reference::Absolute,
-            ))),
-            0.0,
-        );
+        move_immediate(&mut m, [900.0, 50.0, 800.0], Reference::Absolute, 0.0);
         assert_eq!(m.last_error(), 0);
         assert_eq!(m.pose().xyz_mm, MotionParams::default().home.xyz_mm);
         // Operate without home.
         m.execute(&frame(Command::Operate), 0.0);
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 50.0, 800.0],
-                Reference::Absolute,
-            ))),
-            0.0,
-        );
+        move_immediate(&mut m, [900.0, 50.0, 800.0], Reference::Absolute, 0.0);
         assert_eq!(m.last_error(), RobotError::NotHomed.code());
 
         let mut m = homed_operate();
@@ -956,13 +949,7 @@ mod tests {
         m.execute(&frame(Command::MoveImmediate(rel)), 10.0);
         assert!(!m.io().output(IN_POSITION_OUTPUT));
         // A second move while the first runs is refused.
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 0.0, 800.0],
-                Reference::Absolute,
-            ))),
-            10.1,
-        );
+        move_immediate(&mut m, [900.0, 0.0, 800.0], Reference::Absolute, 10.1);
         assert_eq!(m.last_error(), RobotError::Busy.code());
         m.advance(12.0);
         assert!(m.io().output(IN_POSITION_OUTPUT));
@@ -1009,13 +996,7 @@ mod tests {
         assert!(m.homed());
         assert_eq!(m.next_event_s(), None, "idle");
 
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 300.0, 800.0],
-                Reference::Absolute,
-            ))),
-            10.0,
-        );
+        move_immediate(&mut m, [900.0, 300.0, 800.0], Reference::Absolute, 10.0);
         let end = m.next_event_s().unwrap();
         assert_eq!(end, m.trajectory().unwrap().t1());
         assert!(end > 10.0);
@@ -1026,13 +1007,7 @@ mod tests {
         assert_eq!(m.next_event_s(), None);
 
         // A stop names the end of its braking ramp.
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, -300.0, 800.0],
-                Reference::Absolute,
-            ))),
-            20.0,
-        );
+        move_immediate(&mut m, [900.0, -300.0, 800.0], Reference::Absolute, 20.0);
         let planned = m.next_event_s().unwrap();
         m.advance(20.2);
         m.execute(&frame(Command::Stop), 20.2);
@@ -1050,13 +1025,7 @@ mod tests {
     #[test]
     fn stop_decelerates_to_rest_and_leaves_in_position_low() {
         let mut m = homed_operate();
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 400.0, 800.0],
-                Reference::Absolute,
-            ))),
-            10.0,
-        );
+        move_immediate(&mut m, [900.0, 400.0, 800.0], Reference::Absolute, 10.0);
         m.advance(10.3);
         let y0 = m.pose().xyz_mm[1];
         let v = (y0 - m.trajectory().unwrap().pose_at(10.3 - 1e-3).xyz_mm[1]) / 1e-3;
@@ -1077,13 +1046,7 @@ mod tests {
     #[test]
     fn a_program_run_lowers_in_position_and_waits_for_start() {
         let mut m = homed_operate();
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 0.0, 700.0],
-                Reference::Absolute,
-            ))),
-            10.0,
-        );
+        move_immediate(&mut m, [900.0, 0.0, 700.0], Reference::Absolute, 10.0);
         m.advance(15.0);
         assert!(m.io().output(IN_POSITION_OUTPUT));
         let store = |m: &mut Machine, n: u16, i: Instruction| {
@@ -1198,13 +1161,7 @@ mod tests {
     #[test]
     fn a_link_session_holds_the_arm_and_the_move_ends_later_by_as_much() {
         let mut m = homed_operate();
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 400.0, 800.0],
-                Reference::Absolute,
-            ))),
-            10.0,
-        );
+        move_immediate(&mut m, [900.0, 400.0, 800.0], Reference::Absolute, 10.0);
         let planned_end = m.trajectory().unwrap().t1();
         m.advance(10.2);
         let held = m.pose().xyz_mm;
@@ -1244,11 +1201,10 @@ mod tests {
             r.machine.execute(&frame(Command::Operate), 0.0);
             r.machine.execute(&frame(Command::SyncHome), 0.0);
             r.poll(at(3.0));
-            r.machine.execute(
-                &frame(Command::MoveImmediate(pos(
-                    [900.0, 400.0, 800.0],
-                    Reference::Absolute,
-                ))),
+            move_immediate(
+                &mut r.machine,
+                [900.0, 400.0, 800.0],
+                Reference::Absolute,
                 10.0,
             );
             r.poll(at(10.2));
@@ -1275,13 +1231,7 @@ mod tests {
         // Down from home (900, 0, 800) towards z = 400, in the xz plane, so that the relative
         // move's level roll axis (+x) stays radial.
         let mut m = homed_operate();
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 0.0, 400.0],
-                Reference::Absolute,
-            ))),
-            10.0,
-        );
+        move_immediate(&mut m, [900.0, 0.0, 400.0], Reference::Absolute, 10.0);
         m.advance(10.3);
         let v =
             (m.trajectory().unwrap().pose_at(10.3 - 1e-3).xyz_mm[2] - m.pose().xyz_mm[2]) / 1e-3;
@@ -1300,11 +1250,10 @@ mod tests {
         let rest = m.pose().xyz_mm;
         assert!(rest[2] > 400.0);
         assert!((z_stop - rest[2] - v * v / (2.0 * a)).abs() < 0.05);
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [0.0, 0.0, 10.0],
-                Reference::Relative,
-            ))),
+        move_immediate(
+            &mut m,
+            [0.0, 0.0, 10.0],
+            Reference::Relative,
             10.3 + v / a + 1e-3,
         );
         assert_eq!(m.status().last_error, 0, "taken once the ramp is over");
@@ -1316,26 +1265,14 @@ mod tests {
 
         // At rest in the settling time of a move: the STOP leaves the arm at the point.
         let mut m = homed_operate();
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [900.0, 0.0, 750.0],
-                Reference::Absolute,
-            ))),
-            10.0,
-        );
+        move_immediate(&mut m, [900.0, 0.0, 750.0], Reference::Absolute, 10.0);
         let t1 = m.trajectory().unwrap().t1();
         m.advance(t1 - 0.05);
         let here = m.pose().xyz_mm;
         assert!((here[2] - 750.0).abs() < 1e-9, "settling at the point");
         m.execute(&frame(Command::Stop), t1 - 0.05);
         m.advance(t1 + 1.0);
-        m.execute(
-            &frame(Command::MoveImmediate(pos(
-                [0.0, 0.0, 10.0],
-                Reference::Relative,
-            ))),
-            t1 + 1.0,
-        );
+        move_immediate(&mut m, [0.0, 0.0, 10.0], Reference::Relative, t1 + 1.0);
         m.advance(t1 + 10.0);
         let end = m.pose().xyz_mm;
         assert!(end.iter().all(|c| c.is_finite()), "{end:?}");
