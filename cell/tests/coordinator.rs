@@ -1239,25 +1239,10 @@ fn a_robot_that_ends_a_move_off_its_target_halts_the_batch() {
     let b = checked(&sbend(Some(RunMode::Discrete)));
     for (misread_mm, halts) in [(0.2, true), (0.1, false)] {
         let cell = SimCell::new(&SimCellConfig::default());
-        let d = cell.devices(Drive::default());
-        let dev = cell::coordinator::Devices {
-            robot: Box::new(Mortal {
-                misread_mm,
-                ..Mortal::new(d.robot, Life::new())
-            }),
-            mandrel: d.mandrel,
-            sync: d.sync,
-            time: d.time,
-        };
-        let mut sink = |_e: Event| {};
-        let mut c = Coordinator::new(
-            dev,
-            Arc::new(AtomicBool::new(false)),
-            Journal::none(),
-            &mut sink,
-        );
-        let r = c.run(&b, &ResumePoint::default(), true, false, false);
-        drop(c);
+        let r = wind_with(&cell, &b, |r| Mortal {
+            misread_mm,
+            ..Mortal::new(r, Life::new())
+        });
         if halts {
             let stopped = r.unwrap_err();
             assert!(
@@ -1315,11 +1300,12 @@ fn the_sync_turns_the_mandrel_to_the_start_angle_by_the_shorter_way() {
     }
 }
 
-/// Runs `b` fresh on `cell` through `robot` (a [`Mortal`] around the cell's robot); the result.
-fn wind_with(
+/// Runs `b` fresh on `cell` through `robot` (a wrapper around the cell's robot: a [`Mortal`],
+/// a [`Watched`]); the result.
+fn wind_with<R: cell::device::RobotDevice + 'static>(
     cell: &SimCell,
     b: &Batch,
-    robot: impl FnOnce(Box<dyn cell::device::RobotDevice>) -> Mortal<Box<dyn cell::device::RobotDevice>>,
+    robot: impl FnOnce(Box<dyn cell::device::RobotDevice>) -> R,
 ) -> Result<(), cell::coordinator::Stopped> {
     let d = cell.devices(Drive::default());
     let dev = cell::coordinator::Devices {
@@ -2220,25 +2206,12 @@ fn discrete_segments_start_the_mandrel_with_the_arm_on_the_start_line() {
 fn a_discrete_move_is_read_back_once_and_not_read_before() {
     let b = checked(&sbend(Some(RunMode::Discrete)));
     let cell = SimCell::new(&SimCellConfig::default());
-    let d = cell.devices(Drive::default());
-    let watched = Watched::new(d.robot, &cell);
-    let calls = watched.calls.clone();
-    let dev = cell::coordinator::Devices {
-        robot: Box::new(watched),
-        mandrel: d.mandrel,
-        sync: d.sync,
-        time: d.time,
-    };
-    let mut sink = |_e: Event| {};
-    let mut c = Coordinator::new(
-        dev,
-        Arc::new(AtomicBool::new(false)),
-        Journal::none(),
-        &mut sink,
-    );
-    c.run(&b, &ResumePoint::default(), true, false, false)
-        .unwrap();
-    drop(c);
+    let calls = Arc::new(std::sync::Mutex::new(Vec::new()));
+    wind_with(&cell, &b, |r| Watched {
+        calls: calls.clone(),
+        ..Watched::new(r, &cell)
+    })
+    .unwrap();
     check_each_once(&cell, &b);
     let calls: String = calls.lock().unwrap().iter().collect();
     let first = calls.find('m').unwrap();
