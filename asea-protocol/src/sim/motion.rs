@@ -735,8 +735,7 @@ mod tests {
                 (2, pos([1000.0, 200.0, 500.0], zone, frac)),
             ];
             let tr = plan_default(start, &moves, false);
-            let best = closest_approach_mm(&tr, [1000.0, 0.0, 500.0], 0.0002);
-            best
+            closest_approach_mm(&tr, [1000.0, 0.0, 500.0], 0.0002)
         };
         // v = frac × 1000 mm/s; r = min(zone, v²/8000); the chord passes r/√2 from the corner.
         for (frac, zone, r) in [
