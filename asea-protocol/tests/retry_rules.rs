@@ -23,6 +23,14 @@ const STORE_CONTROL: u8 = 0x09;
 const REPLY_ENQUIRE: u8 = 0x86;
 const REPLY_READ_BACK: u8 = 0x8D;
 const REPLY_PROGRAM_INFO: u8 = 0x8F;
+const SET_BASE_SPEED: u8 = 0x0A;
+
+/// A program's wait for the PC's start, and its end.
+const WAIT_FOR_START: Instruction = Instruction::Control(Control::WaitInput {
+    line: START_INPUT,
+    on: true,
+});
+const END: Instruction = Instruction::Control(Control::End);
 
 /// What the line does to the traffic, each rule a set number of times.
 #[derive(Debug, Default)]
@@ -227,13 +235,7 @@ fn running(script: Script) -> (TestClient, VirtualClock) {
     c.operate().unwrap();
     c.sync_home().unwrap();
     c.link_mut().run_for(Duration::from_secs(4));
-    let program = [
-        Instruction::Control(Control::WaitInput {
-            line: START_INPUT,
-            on: true,
-        }),
-        Instruction::Control(Control::End),
-    ];
+    let program = [WAIT_FOR_START, END];
     c.upload(1, &program).unwrap();
     c.run_program(1).unwrap();
     assert_eq!(robot(&c).machine.status().state, State::Running);
@@ -542,7 +544,6 @@ fn an_error_latched_before_a_stop_does_not_hold_back_the_confirmed_stop() {
 /// robot has executed it exactly once.
 #[test]
 fn a_command_acknowledged_and_not_executed_is_sent_again() {
-    const SET_BASE_SPEED: u8 = 0x0A;
     let (mut c, _) = client(Script {
         swallow: Some((SET_BASE_SPEED, 1)),
         ..Script::default()
@@ -570,7 +571,6 @@ fn a_command_acknowledged_and_not_executed_is_sent_again() {
 /// its own.
 #[test]
 fn another_command_executed_in_place_of_ours_is_foreign() {
-    const SET_BASE_SPEED: u8 = 0x0A;
     let other =
         asea_protocol::Command::SetMaxSpeed(asea_protocol::Speed::from_value("max", 1.0).unwrap())
             .encode(&asea_protocol::FrameConfig::default())
@@ -590,11 +590,7 @@ fn another_command_executed_in_place_of_ours_is_foreign() {
 #[test]
 fn a_clean_batch_upload_reads_every_instruction_back_twice() {
     let (mut c, _) = client(Script::default());
-    let wait = Instruction::Control(Control::WaitInput {
-        line: START_INPUT,
-        on: true,
-    });
-    let end = Instruction::Control(Control::End);
+    let (wait, end) = (WAIT_FOR_START, END);
     // Program 2 holds four instructions before the batch, which gives it two.
     c.upload(2, &[wait, wait, wait, end]).unwrap();
     let one = [wait, wait, end];
@@ -605,22 +601,24 @@ fn a_clean_batch_upload_reads_every_instruction_back_twice() {
     assert_eq!(c.program_info(2).unwrap(), (2, 2, 5));
 }
 
+/// A read-back reply telegram for `program`, `instruction` showing `stored`, with its own good
+/// check value (for the line to forge).
+fn read_back_reply(program: u8, instruction: u16, stored: Instruction) -> Vec<u8> {
+    asea_protocol::Reply::ReadBack {
+        program,
+        instruction,
+        stored: Some(stored),
+    }
+    .encode(&asea_protocol::FrameConfig::default())
+    .unwrap()
+}
+
 /// A read-back reply whose check value is good but which names another slot is not taken for
 /// the slot asked for.
 #[test]
 fn a_read_back_naming_another_slot_is_refused() {
-    let wait = Instruction::Control(Control::WaitInput {
-        line: START_INPUT,
-        on: true,
-    });
-    let end = Instruction::Control(Control::End);
-    let other = asea_protocol::Reply::ReadBack {
-        program: 1,
-        instruction: 2,
-        stored: Some(end),
-    }
-    .encode(&asea_protocol::FrameConfig::default())
-    .unwrap();
+    let (wait, end) = (WAIT_FOR_START, END);
+    let other = read_back_reply(1, 2, end);
     let (mut c, _) = client(Script::default());
     c.upload(1, &[wait, end]).unwrap();
     c.link_mut().peer.script.forge_read_back = Some((0, 1, other));
@@ -633,18 +631,8 @@ fn a_read_back_naming_another_slot_is_refused() {
 /// agreeing with the one before it only once), then the true one twice: stored.
 #[test]
 fn only_answers_that_agree_in_a_row_confirm_a_store() {
-    let wait = Instruction::Control(Control::WaitInput {
-        line: START_INPUT,
-        on: true,
-    });
-    let end = Instruction::Control(Control::End);
-    let forged = asea_protocol::Reply::ReadBack {
-        program: 1,
-        instruction: 1,
-        stored: Some(end),
-    }
-    .encode(&asea_protocol::FrameConfig::default())
-    .unwrap();
+    let (wait, end) = (WAIT_FOR_START, END);
+    let forged = read_back_reply(1, 1, end);
     let (mut c, _) = client(Script::default());
     c.upload(1, &[wait, end]).unwrap();
     c.link_mut().peer.script.forge_read_back = Some((1, 2, forged));
