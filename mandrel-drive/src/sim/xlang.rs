@@ -344,6 +344,15 @@ mod tests {
         Card::new(Machine::new(Drive::default(), PULL_IN_SPS), 1)
     }
 
+    /// Lets the card's clock run from `from_s` to `to_s`, polled every `step_s`.
+    fn run(c: &mut Card, from_s: f64, to_s: f64, step_s: f64) {
+        let mut t = from_s;
+        while t < to_s {
+            t += step_s;
+            c.poll(t);
+        }
+    }
+
     fn say(c: &mut Card, text: &str, t: f64) -> String {
         c.receive(text.as_bytes(), t);
         String::from_utf8_lossy(&c.take_output()).into_owned()
@@ -389,26 +398,19 @@ mod tests {
     #[test]
     fn position_modes_and_direction() {
         let mut c = card();
-        let run = |c: &mut Card, from: f64, to: f64| {
-            let mut t = from;
-            while t < to {
-                t += 0.01;
-                c.poll(t);
-            }
-        };
         say(&mut c, "1A10 1V2 1MPA 1D300 1G\r", 0.0);
-        run(&mut c, 0.0, 5.0);
+        run(&mut c, 0.0, 5.0, 0.01);
         assert_eq!(c.machine.counter_steps(), 300);
         say(&mut c, "1MPI 1D100 1G\r", 5.0);
-        run(&mut c, 5.0, 10.0);
+        run(&mut c, 5.0, 10.0, 0.01);
         assert_eq!(c.machine.counter_steps(), 400);
         say(&mut c, "1MC 1G\r", 10.0);
-        run(&mut c, 10.0, 11.0);
+        run(&mut c, 10.0, 11.0, 0.01);
         let forward = c.machine.counter_steps();
         assert!(forward > 400, "{forward}");
         say(&mut c, "1K\r", 11.0);
         say(&mut c, "1H 1G\r", 11.0);
-        run(&mut c, 11.0, 12.0);
+        run(&mut c, 11.0, 12.0, 0.01);
         assert!(
             c.machine.counter_steps() < forward,
             "{}",
@@ -421,19 +423,11 @@ mod tests {
     fn loops_run_their_count_and_l0_until_stopped() {
         let mut c = card();
         say(&mut c, "1A10 1V2 1MPI 1L3 1D100 1G 1N\r", 0.0);
-        let mut t = 0.0;
-        while t < 10.0 {
-            t += 0.01;
-            c.poll(t);
-        }
+        run(&mut c, 0.0, 10.0, 0.01);
         assert_eq!(c.machine.counter_steps(), 300);
         let mut c = card();
         say(&mut c, "1A10 1V2 1MPI 1L0 1D100 1G 1N\r", 0.0);
-        let mut t = 0.0;
-        while t < 20.0 {
-            t += 0.05;
-            c.poll(t);
-        }
+        run(&mut c, 0.0, 20.0, 0.05);
         assert!(
             c.machine.counter_steps() > 1000,
             "{}",
@@ -500,11 +494,7 @@ mod tests {
         // motor follows up to the translator's 10 000 (sim::motor: a steeper one stalls it).
         let out = say(&mut c, "1A10 1V30 1D80000 1G\r", 0.0);
         assert!(!out.contains('?'), "{out}");
-        let mut t = 0.0;
-        while t < 14.0 {
-            t += 0.001;
-            c.poll(t);
-        }
+        run(&mut c, 0.0, 14.0, 0.001);
         assert_eq!(say(&mut c, "1R\r", 14.0), "*R\r");
         assert_eq!(c.machine.counter_steps(), 80_000);
         assert!(c.machine.lost_steps() > 5_000, "{}", c.machine.lost_steps());
