@@ -378,6 +378,19 @@ mod tests {
     use crate::profile::{Profile, trapezoid_duration_s};
     use approx::assert_abs_diff_eq;
 
+    /// A machine for tests of the translator: a motor strong enough for any ramp, from rest to
+    /// `vmax_sps` at `accel_sps2`.
+    fn strong_motor(vmax_sps: f64, accel_sps2: f64) -> Machine {
+        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
+        m.motor.holding_nm = 1.0e9;
+        m.profile = StepProfile {
+            v0_sps: 0.0,
+            vmax_sps,
+            accel_sps2,
+        };
+        m
+    }
+
     fn run(m: &mut Machine) {
         let mut t = m.now_s();
         while m.is_moving() {
@@ -421,14 +434,8 @@ mod tests {
     /// steps, while the indexer counts them all.
     #[test]
     fn over_the_pulse_limit_steps_are_lost_silently() {
-        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
         // The translator is the subject here: a motor strong enough for the instant ramp.
-        m.motor.holding_nm = 1.0e9;
-        m.profile = StepProfile {
-            v0_sps: 0.0,
-            vmax_sps: 12_500.0,
-            accel_sps2: 1.0e9,
-        };
+        let mut m = strong_motor(12_500.0, 1.0e9);
         m.start_preset(125_000).unwrap();
         run(&mut m);
         assert_eq!(m.counter_steps(), 125_000);
@@ -437,10 +444,7 @@ mod tests {
         assert_eq!(m.motor_steps() + m.lost_steps() as i64, 125_000);
         assert!(!m.is_stalled());
         // At the limit nothing is lost.
-        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
-        m.motor.holding_nm = 1.0e9;
-        m.profile.vmax_sps = 10_000.0;
-        m.profile.accel_sps2 = 1.0e9;
+        let mut m = strong_motor(10_000.0, 1.0e9);
         m.start_preset(20_000).unwrap();
         run(&mut m);
         assert_eq!(m.lost_steps(), 0);
@@ -696,13 +700,7 @@ mod tests {
     /// steps/s for 10 s, 5 of the 100 005 pulses are lost.
     #[test]
     fn the_translator_passes_its_limit_over_a_ramp_sampled_coarsely() {
-        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
-        m.motor.holding_nm = 1.0e9;
-        m.profile = StepProfile {
-            v0_sps: 0.0,
-            vmax_sps: 12_500.0,
-            accel_sps2: 20_000.0,
-        };
+        let mut m = strong_motor(12_500.0, 20_000.0);
         m.start_continuous(1).unwrap();
         for k in 1..=10 {
             m.advance(0.05 * f64::from(k));
@@ -714,13 +712,7 @@ mod tests {
         let lost = m.lost_steps() as f64;
         assert!((lost - 156.25).abs() <= 2.0, "{lost}");
 
-        let mut m = Machine::new(Drive::default(), PULL_IN_SPS);
-        m.motor.holding_nm = 1.0e9;
-        m.profile = StepProfile {
-            v0_sps: 0.0,
-            vmax_sps: 10_000.5,
-            accel_sps2: 1.0e9,
-        };
+        let mut m = strong_motor(10_000.5, 1.0e9);
         m.start_continuous(1).unwrap();
         for k in 1..=100 {
             m.advance(0.1 * f64::from(k));
