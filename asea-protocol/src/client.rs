@@ -714,9 +714,10 @@ impl<L: Link, C: Clock> Client<L, C> {
             let len = u16::try_from(instructions.len()).unwrap_or(u16::MAX);
             let mut uploads = 1;
             loop {
-                let (count, highest, total) = self.program_info(*program)?;
+                // After the read-backs every slot 1..=len holds its instruction, so the two
+                // conditions agree; together they say what is meant: exactly those slots.
+                let (count, highest, _) = self.program_info(*program)?;
                 if count == len && highest == len {
-                    let _ = total;
                     break;
                 }
                 if uploads >= self.cfg.retry.program_uploads {

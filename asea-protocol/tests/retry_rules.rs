@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use asea_protocol::client::CONFIRMING_READS;
 use asea_protocol::clock::{Clock, VirtualClock};
-use asea_protocol::frame::{ACK, ENQ, EOT, STX, telegram_digest};
+use asea_protocol::frame::{ACK, ENQ, EOT, Frame, STX, telegram_digest};
 use asea_protocol::link::{Paced, Peer};
 use asea_protocol::session::{N_ENQ, N_TX, T_ENQ};
 use asea_protocol::sim::START_INPUT;
@@ -24,6 +24,7 @@ const REPLY_ENQUIRE: u8 = 0x86;
 const REPLY_READ_BACK: u8 = 0x8D;
 const REPLY_PROGRAM_INFO: u8 = 0x8F;
 const SET_BASE_SPEED: u8 = 0x0A;
+const DELETE_PROGRAM: u8 = 0x07;
 
 /// A program's wait for the PC's start, and its end.
 const WAIT_FOR_START: Instruction = Instruction::Control(Control::WaitInput {
@@ -38,6 +39,8 @@ struct Script {
     /// Telegrams with this code the line acknowledges to the host itself and never delivers: a
     /// telegram the robot acknowledges and does not execute.
     swallow: Option<(u8, u32)>,
+    /// Telegrams of the swallowed code delivered before the swallowing starts.
+    swallow_skip: u32,
     /// Sessions in which the STOP telegram reaches the robot (which executes it) and every
     /// answer of the robot after it is lost until the host's EOT.
     mute_after_stop: u32,
@@ -57,6 +60,21 @@ struct Script {
     /// After this many read-back replies, this many more are replaced on the line by this whole
     /// reply telegram, with its own good check value (a corruption the one-byte sum lets pass).
     forge_read_back: Option<(u32, u32, Vec<u8>)>,
+    /// Twins: after this many host telegrams with this code, the next ones (this many) each
+    /// reach the robot with a corrupted twin, which the robot executes right after it: the
+    /// resent copy of a telegram whose ACK was lost, corrupted so that the one-byte sum still
+    /// matches (docs/protocol.md §7.1). Each rule counts the host's telegrams, swallowed or not.
+    twins: Vec<Twin>,
+}
+
+/// One twin rule of [`Script::twins`].
+#[derive(Debug)]
+struct Twin {
+    code: u8,
+    skip: u32,
+    count: u32,
+    /// What the robot executes as the twin.
+    twin: Frame,
 }
 
 /// The simulated robot behind a scripted line.
@@ -90,7 +108,25 @@ impl Line {
     }
 
     /// A whole telegram from the host.
-    fn telegram(&mut self, mut t: Vec<u8>, now: Duration) {
+    fn telegram(&mut self, t: Vec<u8>, now: Duration) {
+        let code = t[1];
+        let mut twin = None;
+        for rule in self.script.twins.iter_mut().filter(|r| r.code == code) {
+            if rule.skip > 0 {
+                rule.skip -= 1;
+            } else if rule.count > 0 {
+                rule.count -= 1;
+                twin = Some(rule.twin.clone());
+            }
+        }
+        self.deliver(t, now);
+        if let Some(f) = twin {
+            self.robot.machine.execute(&f, now.as_secs_f64());
+        }
+    }
+
+    /// Delivers a whole host telegram as the script says.
+    fn deliver(&mut self, mut t: Vec<u8>, now: Duration) {
         let code = t[1];
         let s = &mut self.script;
         if let Some((c, other)) = &s.replace
@@ -103,6 +139,11 @@ impl Line {
             && *c == code
             && *n > 0
         {
+            if s.swallow_skip > 0 {
+                s.swallow_skip -= 1;
+                self.robot.receive(&t, now);
+                return;
+            }
             *n -= 1;
             self.forged.push(ACK);
             return;
@@ -641,4 +682,181 @@ fn only_answers_that_agree_in_a_row_confirm_a_store() {
         c.link().peer.script.forge_read_back.as_ref().map(|f| f.1),
         Some(0)
     );
+}
+
+/// A twin of a STORE_CONTROL landing as instruction `instruction` of `program`: the
+/// instruction `stored` there.
+fn twin_store(program: u8, instruction: u16, stored: Control) -> Frame {
+    let t = asea_protocol::Command::StoreControl {
+        program,
+        instruction,
+        control: stored,
+    }
+    .encode(&asea_protocol::FrameConfig::default())
+    .unwrap();
+    Frame {
+        code: t[1],
+        data: t[3..3 + usize::from(t[2])].to_vec(),
+    }
+}
+
+/// The DELETE_PROGRAM telegrams for `program` the robot executed.
+fn deletes(c: &TestClient, program: u8) -> usize {
+    robot(c)
+        .machine
+        .executed
+        .iter()
+        .filter(|f| f.code == DELETE_PROGRAM && f.data == [program])
+        .count()
+}
+
+/// The batch's own uploads repair what they see and the batch's second read-back repairs what a
+/// later program's twin did to an earlier one: a store of program 1 acknowledged and not
+/// executed (stored again), a twin refused (instruction number corrupted to 0: counted), and a
+/// twin of program 2's first store landing on program 1's first instruction (program number
+/// corrupted), put right when the batch reads program 1 back once more. Nothing is uploaded
+/// again: no slot was added.
+#[test]
+fn a_twin_over_an_earlier_program_of_the_batch_is_put_right_by_its_second_read_back() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    let (Instruction::Control(wait_control), Instruction::Control(end_control)) = (wait, end)
+    else {
+        unreachable!()
+    };
+    let mut refused = twin_store(1, 9, wait_control);
+    refused.data[1..3].fill(0);
+    let (mut c, _) = client(Script {
+        // STORE_CONTROLs: 1 (1,1) swallowed, 2 (1,1) again, 3 (1,2) with the refused twin,
+        // 4 (1,3), 5 (2,1) with its twin on (1,1), 6 (2,2).
+        swallow: Some((STORE_CONTROL, 1)),
+        twins: vec![
+            Twin {
+                code: STORE_CONTROL,
+                skip: 2,
+                count: 1,
+                twin: refused,
+            },
+            Twin {
+                code: STORE_CONTROL,
+                skip: 4,
+                count: 1,
+                twin: twin_store(1, 1, end_control),
+            },
+        ],
+        ..Script::default()
+    });
+    let one = [wait, wait, end];
+    let two = [wait, end];
+    let r = c.upload_batch(&[(1, &one), (2, &two)]).unwrap();
+    assert_eq!(
+        (r.checked, r.restored, r.refused_twins),
+        (2 * (one.len() + two.len()), 2, 1)
+    );
+    assert_eq!(deletes(&c, 1), 0);
+    assert_eq!(robot(&c).machine.instruction(1, 1), Some(&wait));
+    assert_eq!(c.program_info(1).unwrap(), (3, 3, 5));
+}
+
+/// A twin that lands beyond a program's end passes every read-back of the program's
+/// instructions; the batch upload finds it in the program information (4 instructions, the
+/// highest 9, for 3 written), deletes the program and uploads it once more. That second upload
+/// meets a store acknowledged and not executed (stored again: restored 1) and a twin the robot
+/// refused (instruction number corrupted to 0: its error latched, acknowledged and counted), and
+/// the report counts its read-backs with the batch's: 2 × 5 for the batch, 3 for the second
+/// upload.
+#[test]
+fn a_twin_beyond_a_programs_end_is_cleared_by_uploading_the_program_again() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    let Instruction::Control(wait_control) = wait else {
+        unreachable!()
+    };
+    let mut refused = twin_store(1, 9, wait_control);
+    refused.data[1..3].fill(0);
+    let (mut c, _) = client(Script {
+        // STORE_CONTROLs 1–5 are the batch's (the twin rides on 2), 6 the second upload's first
+        // (swallowed), 7 the same store again, 8 its second instruction (with the refused twin).
+        twins: vec![
+            Twin {
+                code: STORE_CONTROL,
+                skip: 1,
+                count: 1,
+                twin: twin_store(1, 9, wait_control),
+            },
+            Twin {
+                code: STORE_CONTROL,
+                skip: 7,
+                count: 1,
+                twin: refused,
+            },
+        ],
+        swallow: Some((STORE_CONTROL, 1)),
+        swallow_skip: 5,
+        ..Script::default()
+    });
+    let one = [wait, wait, end];
+    let two = [wait, end];
+    let r = c.upload_batch(&[(1, &one), (2, &two)]).unwrap();
+    assert_eq!(
+        (r.checked, r.restored, r.refused_twins),
+        (2 * (one.len() + two.len()) + one.len(), 1, 1)
+    );
+    assert_eq!(
+        deletes(&c, 1),
+        1,
+        "program 1 deleted once, for its second upload"
+    );
+    assert_eq!(deletes(&c, 2), 0);
+    assert_eq!(c.program_info(1).unwrap(), (3, 3, 5));
+    assert_eq!(
+        robot(&c).machine.last_error(),
+        0,
+        "the refused twin's error acknowledged"
+    );
+    let script = &c.link().peer.script;
+    assert!(
+        script.twins.iter().all(|t| t.count == 0),
+        "both twins landed"
+    );
+    assert_eq!(script.swallow, Some((STORE_CONTROL, 0)));
+}
+
+/// A twin that lands beyond the program's end at every upload: the batch deletes and uploads
+/// the program `program_uploads` times in all, then reports the extra slot, never a success.
+#[test]
+fn a_program_that_keeps_an_extra_slot_is_reported_after_its_uploads() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    let Instruction::Control(wait_control) = wait else {
+        unreachable!()
+    };
+    let uploads = ClientConfig::default().retry.program_uploads;
+    let one = [wait, wait, end];
+    let (mut c, _) = client(Script {
+        // The twin rides on the second store of every upload of program 1.
+        twins: (0..uploads)
+            .map(|_| Twin {
+                code: STORE_CONTROL,
+                skip: 1,
+                count: 1,
+                twin: twin_store(1, 9, wait_control),
+            })
+            .collect(),
+        ..Script::default()
+    });
+    // Rule k waits for its own upload: 1 + 3k stores before it.
+    for (k, t) in c.link_mut().peer.script.twins.iter_mut().enumerate() {
+        t.skip = 1 + 3 * u32::try_from(k).unwrap();
+    }
+    let e = c.upload_batch(&[(1, &one)]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::ExtraSlots {
+                program: 1,
+                count: 4,
+                expected: 3
+            }
+        ),
+        "{e:?}"
+    );
+    assert_eq!(deletes(&c, 1), usize::try_from(uploads).unwrap() - 1);
 }
