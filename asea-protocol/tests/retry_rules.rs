@@ -27,10 +27,11 @@ const SET_BASE_SPEED: u8 = 0x0A;
 const DELETE_PROGRAM: u8 = 0x07;
 
 /// A program's wait for the PC's start, and its end.
-const WAIT_FOR_START: Instruction = Instruction::Control(Control::WaitInput {
+const WAIT_CONTROL: Control = Control::WaitInput {
     line: START_INPUT,
     on: true,
-});
+};
+const WAIT_FOR_START: Instruction = Instruction::Control(WAIT_CONTROL);
 const END: Instruction = Instruction::Control(Control::End);
 
 /// What the line does to the traffic, each rule a set number of times.
@@ -700,6 +701,23 @@ fn twin_store(program: u8, instruction: u16, stored: Control) -> Frame {
     }
 }
 
+/// A twin that the robot refuses: a STORE_CONTROL whose instruction number was corrupted to 0.
+fn refused_twin() -> Frame {
+    let mut f = twin_store(1, 9, WAIT_CONTROL);
+    f.data[1..3].fill(0);
+    f
+}
+
+/// `twin` rides on the STORE_CONTROL after the first `skip`.
+fn twin_on_store(skip: u32, twin: Frame) -> Twin {
+    Twin {
+        code: STORE_CONTROL,
+        skip,
+        count: 1,
+        twin,
+    }
+}
+
 /// The DELETE_PROGRAM telegrams for `program` the robot executed.
 fn deletes(c: &TestClient, program: u8) -> usize {
     robot(c)
@@ -719,29 +737,17 @@ fn deletes(c: &TestClient, program: u8) -> usize {
 #[test]
 fn a_twin_over_an_earlier_program_of_the_batch_is_put_right_by_its_second_read_back() {
     let (wait, end) = (WAIT_FOR_START, END);
-    let (Instruction::Control(wait_control), Instruction::Control(end_control)) = (wait, end)
+    let (Instruction::Control(WAIT_CONTROL), Instruction::Control(Control::End)) = (wait, end)
     else {
         unreachable!()
     };
-    let mut refused = twin_store(1, 9, wait_control);
-    refused.data[1..3].fill(0);
     let (mut c, _) = client(Script {
         // STORE_CONTROLs: 1 (1,1) swallowed, 2 (1,1) again, 3 (1,2) with the refused twin,
         // 4 (1,3), 5 (2,1) with its twin on (1,1), 6 (2,2).
         swallow: Some((STORE_CONTROL, 1)),
         twins: vec![
-            Twin {
-                code: STORE_CONTROL,
-                skip: 2,
-                count: 1,
-                twin: refused,
-            },
-            Twin {
-                code: STORE_CONTROL,
-                skip: 4,
-                count: 1,
-                twin: twin_store(1, 1, end_control),
-            },
+            twin_on_store(2, refused_twin()),
+            twin_on_store(4, twin_store(1, 1, Control::End)),
         ],
         ..Script::default()
     });
@@ -767,27 +773,12 @@ fn a_twin_over_an_earlier_program_of_the_batch_is_put_right_by_its_second_read_b
 #[test]
 fn a_twin_beyond_a_programs_end_is_cleared_by_uploading_the_program_again() {
     let (wait, end) = (WAIT_FOR_START, END);
-    let Instruction::Control(wait_control) = wait else {
-        unreachable!()
-    };
-    let mut refused = twin_store(1, 9, wait_control);
-    refused.data[1..3].fill(0);
     let (mut c, _) = client(Script {
         // STORE_CONTROLs 1–5 are the batch's (the twin rides on 2), 6 the second upload's first
         // (swallowed), 7 the same store again, 8 its second instruction (with the refused twin).
         twins: vec![
-            Twin {
-                code: STORE_CONTROL,
-                skip: 1,
-                count: 1,
-                twin: twin_store(1, 9, wait_control),
-            },
-            Twin {
-                code: STORE_CONTROL,
-                skip: 7,
-                count: 1,
-                twin: refused,
-            },
+            twin_on_store(1, twin_store(1, 9, WAIT_CONTROL)),
+            twin_on_store(7, refused_twin()),
         ],
         swallow: Some((STORE_CONTROL, 1)),
         swallow_skip: 5,
@@ -825,27 +816,16 @@ fn a_twin_beyond_a_programs_end_is_cleared_by_uploading_the_program_again() {
 #[test]
 fn a_program_that_keeps_an_extra_slot_is_reported_after_its_uploads() {
     let (wait, end) = (WAIT_FOR_START, END);
-    let Instruction::Control(wait_control) = wait else {
-        unreachable!()
-    };
     let uploads = ClientConfig::default().retry.program_uploads;
     let one = [wait, wait, end];
     let (mut c, _) = client(Script {
-        // The twin rides on the second store of every upload of program 1.
+        // The twin rides on the second store of every upload of program 1: 1 + 3k stores
+        // before the one of upload k.
         twins: (0..uploads)
-            .map(|_| Twin {
-                code: STORE_CONTROL,
-                skip: 1,
-                count: 1,
-                twin: twin_store(1, 9, wait_control),
-            })
+            .map(|k| twin_on_store(1 + 3 * k, twin_store(1, 9, WAIT_CONTROL)))
             .collect(),
         ..Script::default()
     });
-    // Rule k waits for its own upload: 1 + 3k stores before it.
-    for (k, t) in c.link_mut().peer.script.twins.iter_mut().enumerate() {
-        t.skip = 1 + 3 * u32::try_from(k).unwrap();
-    }
     let e = c.upload_batch(&[(1, &one)]).unwrap_err();
     assert!(
         matches!(
