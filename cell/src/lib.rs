@@ -12,6 +12,7 @@ pub mod gcode;
 pub mod imported;
 pub mod journal;
 pub mod lathe;
+pub mod linktap;
 pub mod mesh;
 pub mod output;
 pub mod predict;

@@ -15,7 +15,7 @@
 //! | `/mandrel` | `windcell.MandrelAngle` (JSON) | commanded and true mandrel angle, degrees |
 //! | `/scene/mandrel` | `foxglove.SceneUpdate` | the mandrel surface as triangles, frame `mandrel` |
 //! | `/scene/fibre` | `foxglove.SceneUpdate` | desired and laid fibre as lines, frame `mandrel` |
-//! | `/sync` | `windcell.SyncEdge` (JSON) | every edge of the opto-isolated lines |
+//! | `/sync` | `windcell.SyncEdge` (JSON) | every edge of the opto-isolated lines, as the PC drives and reads them |
 //! | `/link/robot`, `/link/indexer` | `windcell.Telegram` (JSON) | raw bytes (hex) and the decoded text |
 //! | `/lathe/axes` | `windcell.LatheAxes` (JSON) | the lathe winder's A, X, Y: commanded, actual and following error every interrupt |
 //! | `/log` | `foxglove.Log` | the run's events in words |

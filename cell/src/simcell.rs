@@ -27,7 +27,7 @@ use std::time::Duration;
 
 use asea_protocol::clock::{Clock as _, VirtualClock};
 use asea_protocol::link::{Paced, Peer};
-use asea_protocol::sim::{IN_POSITION_OUTPUT, MotionParams, Robot};
+use asea_protocol::sim::{EyePose, IN_POSITION_OUTPUT, MotionParams, Robot};
 use asea_protocol::{FrameConfig, Instruction, State, Timers};
 use mandrel_drive::sim::xlang::Card;
 use mandrel_drive::sim::{Frontend, Machine as IndexerMachine};
@@ -35,6 +35,7 @@ use mandrel_drive::sync::{OPTO_DELAY_S, Wire};
 use mandrel_drive::{Drive, sim::machine::PULL_IN_SPS};
 
 use crate::device::{DeviceError, DeviceResult, SyncLines, Timebase};
+use crate::linktap::{LinkTap, RecordSlot, SyncTap};
 
 /// The robot input the PC's start line is wired to (App. D).
 pub const START_INPUT: u8 = 1;
@@ -292,9 +293,25 @@ pub struct CellPeer {
     pub observer: Option<Observer>,
 }
 
-/// What an [`Observer`] is told at each poll of the cell: the cell time (s), the eye position
-/// (cell frame, mm) and orientation (w, x, y, z), and the mandrel's drive angle (rad).
-pub type ObserverFn = Box<dyn FnMut(f64, [f64; 3], [f64; 4], f64) + Send>;
+/// What an [`Observer`] is told at each poll of the cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    /// The cell time, s.
+    pub t_s: f64,
+    /// The eye position (cell frame, mm) and orientation (w, x, y, z).
+    pub eye: EyePose,
+    /// The point the stored program's move under way is commanded to (its instruction's pose),
+    /// if a program moves the arm (a MOVE_IMMEDIATE's point is in its telegram).
+    pub target: Option<EyePose>,
+    /// The mandrel's drive angle, rad: where the motor really is.
+    pub drive_rad: f64,
+    /// The drive angle the indexer's step counter commands, rad (parts from `drive_rad` by the
+    /// steps lost).
+    pub commanded_drive_rad: f64,
+}
+
+/// Told at each poll of the cell.
+pub type ObserverFn = Box<dyn FnMut(&Observation) + Send>;
 
 /// Watches the devices' true motion as the cell's time passes.
 pub struct Observer(pub ObserverFn);
@@ -456,13 +473,20 @@ impl Peer for CellPeer {
             trace.sample(&self.robot.machine, self.card.machine(), now.as_secs_f64());
         }
         if let Some(Observer(f)) = self.observer.as_mut() {
-            let pose = self.robot.machine.pose();
-            f(
-                now.as_secs_f64(),
-                pose.xyz_mm,
-                pose.q,
-                self.card.machine().mandrel_angle_rad(),
-            );
+            let t_s = now.as_secs_f64();
+            let m = &self.robot.machine;
+            let target = m
+                .trajectory()
+                .and_then(|traj| traj.move_at(t_s))
+                .filter(|mv| mv.instruction != 0)
+                .map(|mv| mv.target());
+            f(&Observation {
+                t_s,
+                eye: m.pose(),
+                target,
+                drive_rad: self.card.machine().mandrel_angle_rad(),
+                commanded_drive_rad: self.card.machine().commanded_angle_rad(),
+            });
         }
     }
 
@@ -618,13 +642,23 @@ impl SimCell {
     /// The coordinator's devices on this cell: the robot client and the X-language client on the
     /// cell's links, the PC side of the sync lines, the cell's time.
     pub fn devices(&self, drive: Drive) -> crate::coordinator::Devices {
-        let client = asea_protocol::Client::with_clock(
+        self.recorded_devices(drive, &RecordSlot::default())
+    }
+
+    /// [`SimCell::devices`] with taps on both links and the sync lines that write to the
+    /// recorder `slot` will hold ([`crate::linktap`]).
+    pub fn recorded_devices(&self, drive: Drive, slot: &RecordSlot) -> crate::coordinator::Devices {
+        let time: Arc<dyn Timebase> = Arc::new(self.timebase());
+        let client_cfg = asea_protocol::ClientConfig::default();
+        let robot_link = LinkTap::robot(
             self.robot_link(),
-            self.clock.clone(),
-            asea_protocol::ClientConfig::default(),
+            client_cfg.frame,
+            slot.clone(),
+            time.clone(),
         );
+        let client = asea_protocol::Client::with_clock(robot_link, self.clock.clone(), client_cfg);
         let x = mandrel_drive::XClient::new(
-            self.indexer_link(),
+            LinkTap::indexer(self.indexer_link(), slot.clone(), time.clone()),
             mandrel_drive::IndexerConfig {
                 drive,
                 address: INDEXER_ADDRESS,
@@ -642,8 +676,12 @@ impl SimCell {
                     start_velocity_command: true,
                 },
             )),
-            sync: Box::new(self.sync_lines()),
-            time: Arc::new(self.timebase()),
+            sync: Box::new(SyncTap::new(
+                Box::new(self.sync_lines()),
+                slot.clone(),
+                time.clone(),
+            )),
+            time,
         }
     }
 

@@ -1015,7 +1015,7 @@ fn event_driven_polling_winds_as_polling_every_tick_does() {
     let run = |ticked: bool| {
         let cell = SimCell::new(&SimCellConfig::default());
         if ticked {
-            cell.with(|p| p.observer = Some(cell::simcell::Observer(Box::new(|_, _, _, _| {}))))
+            cell.with(|p| p.observer = Some(cell::simcell::Observer(Box::new(|_| {}))))
                 .unwrap();
         }
         let jp = dir.path().join(format!("SBEND{ticked}.journal"));

@@ -42,9 +42,37 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
     // Fine movement, two paths of about 10 s each and the moves between them, one pose per
     // 20 ms of cell time.
     assert!(eye > 1000, "{eye} eye poses");
-    for t in ["/tf", "/mandrel", "/log"] {
+    for t in [
+        "/tf",
+        "/mandrel",
+        "/log",
+        "/sync",
+        "/link/indexer",
+        "/scene/mandrel",
+    ] {
         assert!(topics.iter().any(|x| x == t), "no {t}");
     }
+    // In fine mode every point is commanded once: the approach by its MOVE_IMMEDIATE (from the
+    // telegram), each stored point when the program's move to it starts (from the robot).
+    let (mut sent_points, mut commanded) = (0, 0);
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        match m.channel.topic.as_str() {
+            "/link/robot" => {
+                let t: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+                let d = t["decoded"].as_str().unwrap();
+                if t["direction"] == "sent"
+                    && (d.starts_with("MoveImmediate") || d.starts_with("StorePos"))
+                {
+                    sent_points += 1;
+                }
+            }
+            "/eye/commanded" => commanded += 1,
+            _ => {}
+        }
+    }
+    assert!(sent_points > 100, "{sent_points} points sent");
+    assert_eq!(commanded, sent_points);
     // The chunks as the summary lists them: cut the file inside the middle chunk.
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
     let chunks = &summary.chunk_indexes;
@@ -106,6 +134,131 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
     assert!(
         n >= whole && n <= topics.len(),
         "{line} (whole chunks: {whole})"
+    );
+}
+
+/// A discrete run's recording holds the wire and the lines as the coordinator saw them: every
+/// robot telegram and indexer line decoded (none undefined on the clean simulated links), one
+/// MOVE_IMMEDIATE per segment the journal confirms, each commanded pose on `/eye/commanded`
+/// equal to the position the journal read back after that segment (a discrete move stops at its
+/// point; both on the wire's 1/16 mm grid), the start line rising once for each segment that
+/// turns the mandrel (the journal's counter moves; a path's first segment only brings the eye to
+/// its start) and falling in turn, and the job's scene: the mandrel surface and each path's
+/// desired fibre.
+#[test]
+fn a_recorded_discrete_run_holds_the_wire_the_lines_the_commanded_eye_and_the_scene() {
+    use foxglove::Decode as _;
+    let dir = tempfile::tempdir().unwrap();
+    let mcap_path = dir.path().join("run.mcap");
+    let journal = dir.path().join("run.journal");
+    let o = windcell(&[
+        "run",
+        example("cylinder.toml").to_str().unwrap(),
+        "--mode",
+        "discrete",
+        "--journal",
+        journal.to_str().unwrap(),
+        "--record",
+        mcap_path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let records: Vec<serde_json::Value> = std::fs::read_to_string(&journal)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let confirmed: Vec<[f64; 3]> = records
+        .iter()
+        .filter(|r| r["rec"] == "segment")
+        .map(|r| {
+            let p = r["robot_mm"].as_array().unwrap();
+            [0, 1, 2].map(|i| p[i].as_f64().unwrap())
+        })
+        .collect();
+    let (mut turning, mut counter) = (0, None);
+    for r in &records {
+        let now = r["counter"].as_i64();
+        if r["rec"] == "segment" && counter.is_some() && now != counter {
+            turning += 1;
+        }
+        if now.is_some() {
+            counter = now;
+        }
+    }
+    assert!(confirmed.len() >= 100, "{} segments", confirmed.len());
+    let bytes = std::fs::read(&mcap_path).unwrap();
+    let (mut moves, mut commanded, mut start) = (0, Vec::new(), Vec::new());
+    let (mut surface, mut fibres) = (0, std::collections::BTreeSet::new());
+    let mut lines_sent = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let json = || serde_json::from_slice::<serde_json::Value>(&m.data).unwrap();
+        match m.channel.topic.as_str() {
+            "/link/robot" => {
+                let t = json();
+                let decoded = t["decoded"].as_str().unwrap();
+                assert!(
+                    !decoded.contains("undefined") && !decoded.contains("bad"),
+                    "{t}"
+                );
+                if t["direction"] == "sent" && decoded.starts_with("MoveImmediate") {
+                    moves += 1;
+                }
+            }
+            "/link/indexer" => {
+                let t = json();
+                if t["direction"] == "sent" {
+                    lines_sent += 1;
+                    assert!(
+                        t["decoded"].as_str().unwrap().starts_with("unit 1: "),
+                        "{t}"
+                    );
+                }
+            }
+            "/eye/commanded" => {
+                let p = foxglove::schemas::PoseInFrame::decode(m.data.as_ref()).unwrap();
+                let v = p.pose.unwrap().position.unwrap();
+                commanded.push([v.x, v.y, v.z].map(|c| c * 1000.0));
+            }
+            "/sync" => {
+                let e = json();
+                if e["line"] == "start" {
+                    start.push(e["high"].as_bool().unwrap());
+                }
+            }
+            "/scene/mandrel" => {
+                let u = foxglove::schemas::SceneUpdate::decode(m.data.as_ref()).unwrap();
+                surface += u.entities[0].triangles[0].points.len() / 3;
+            }
+            "/scene/fibre" => {
+                let u = foxglove::schemas::SceneUpdate::decode(m.data.as_ref()).unwrap();
+                fibres.extend(u.entities.into_iter().map(|e| e.id));
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(moves, confirmed.len(), "one MOVE_IMMEDIATE a segment");
+    assert_eq!(commanded.len(), confirmed.len());
+    for (k, (c, j)) in commanded.iter().zip(&confirmed).enumerate() {
+        for i in 0..3 {
+            assert!(
+                (c[i] - j[i]).abs() < 1e-6,
+                "segment {k}: {c:?} against {j:?}"
+            );
+        }
+    }
+    assert!(lines_sent > 0);
+    assert!(turning > 90, "{turning} segments turn the mandrel");
+    assert_eq!(start.iter().filter(|h| **h).count(), turning, "{start:?}");
+    assert_eq!(start.first(), Some(&false));
+    assert!(
+        start.windows(2).all(|w| w[0] != w[1]),
+        "start edges alternate"
+    );
+    assert!(surface > 1000, "{surface} triangles");
+    assert_eq!(
+        fibres.into_iter().collect::<Vec<_>>(),
+        ["CYL_1/desired", "CYL_1/laid", "CYL_2/desired", "CYL_2/laid"]
     );
 }
 

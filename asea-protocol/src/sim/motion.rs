@@ -281,6 +281,14 @@ pub struct Move {
 }
 
 impl Move {
+    /// The commanded pose: the instruction's point and orientation.
+    pub fn target(&self) -> EyePose {
+        EyePose {
+            xyz_mm: self.target_mm,
+            q: self.q1,
+        }
+    }
+
     /// End time, s.
     pub fn t1(&self) -> f64 {
         self.t0 + self.duration

@@ -131,7 +131,7 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
             )));
         }
     }
-    let (devices, _sim) = super::run::devices(&cell, None)?;
+    let (devices, _sim) = super::run::devices(&cell, None, &cell::linktap::RecordSlot::default())?;
     let mut sink = |_e: Event| {};
     let mut c = Coordinator::new(
         devices,

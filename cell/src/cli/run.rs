@@ -16,8 +16,10 @@ use cell::coordinator::{
     Batch, Coordinator, Devices, Event, Halt, Reach, ResumePoint, RunMode, StopRequest,
 };
 use cell::journal::Journal;
+use cell::linktap::{LinkTap, RecordSlot, SyncTap};
 use cell::simcell::{SimCell, SimCellConfig};
 use clap::{Args, ValueEnum};
+use nalgebra::Point3;
 use serde_json::json;
 
 use super::Failure;
@@ -130,22 +132,25 @@ fn recorder(
     if let Some(sim) = sim {
         let r = rec.clone();
         let mut next = 0.0;
+        let mut commanded = None;
         sim.with(|p| {
-            p.observer = Some(cell::simcell::Observer(Box::new(
-                move |t, xyz, q, drive| {
-                    if t < next {
-                        return;
+            p.observer = Some(cell::simcell::Observer(Box::new(move |o| {
+                // The commanded pose whenever the move under way changes (a stored program's
+                // points; a MOVE_IMMEDIATE is recorded from its telegram by the link's tap).
+                if o.target.is_some() && o.target != commanded {
+                    commanded = o.target;
+                    if let Some(c) = o.target {
+                        r.eye(o.t_s, &Point3::from(c.xyz_mm), &unit_q(c.q), false);
                     }
-                    next = t + RECORD_STEP_S;
-                    let eye = nalgebra::Point3::from(xyz);
-                    let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-                        q[0], q[1], q[2], q[3],
-                    ));
-                    r.eye(t, &eye, &q, true);
-                    r.mandrel_frame(t, &origin, drive);
-                    r.mandrel_angle(t, drive, drive);
-                },
-            )));
+                }
+                if o.t_s < next {
+                    return;
+                }
+                next = o.t_s + RECORD_STEP_S;
+                r.eye(o.t_s, &Point3::from(o.eye.xyz_mm), &unit_q(o.eye.q), true);
+                r.mandrel_frame(o.t_s, &origin, o.drive_rad);
+                r.mandrel_angle(o.t_s, o.commanded_drive_rad, o.drive_rad);
+            })));
         })
         .map_err(Failure::runtime)?;
     }
@@ -155,6 +160,11 @@ fn recorder(
         ));
     }
     Ok(Some(rec))
+}
+
+/// The unit quaternion of wire-order (w, x, y, z) components.
+fn unit_q([w, x, y, z]: [f64; 4]) -> nalgebra::UnitQuaternion<f64> {
+    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z))
 }
 
 fn mode_of(m: ModeArg) -> RunMode {
@@ -266,6 +276,32 @@ fn sequence_gate(args: &RunArgs, loaded: &Loaded) -> Result<Option<Clearance>, F
     }))
 }
 
+/// Facets per circumference of the mandrel surface a recording shows.
+const SCENE_FACETS: usize = 48;
+/// Section spacing of the mandrel surface a recording shows, mm.
+const SCENE_SPACING_MM: f64 = 5.0;
+
+/// What a recording shows of the job before anything moves: the mandrel surface (TRIASYM,
+/// [`SCENE_FACETS`] facets, sections at most [`SCENE_SPACING_MM`] apart) and each path's
+/// desired fibre, both in the mandrel frame. `None` without the job (a bare sequence) or when
+/// the mandrel cannot be meshed.
+type Scene = (Vec<[Point3<f64>; 3]>, Vec<(String, Vec<Point3<f64>>)>);
+
+fn scene(c: &Clearance) -> Option<Scene> {
+    let tube = cell::tool::mandrel_in(&c.job, &c.text, &c.path).ok()?;
+    let mesh = paths::mesh::triasym::tube(&tube, SCENE_FACETS, SCENE_SPACING_MM, true).ok()?;
+    let triangles = (0..mesh.triangles().len())
+        .map(|t| mesh.corners(t))
+        .collect();
+    let fibres = c
+        .plan
+        .paths
+        .iter()
+        .map(|p| (p.name.clone(), p.desired_mm.clone()))
+        .collect();
+    Some((triangles, fibres))
+}
+
 /// What the collision gate checks: the job, its text and file, its plan.
 struct Clearance {
     job: sequences::Job,
@@ -375,7 +411,11 @@ fn open_port(path: &str) -> Result<Box<dyn serialport::SerialPort>, Failure> {
 /// The devices of `cell` (and the simulated cell, to keep its log). A serial port is opened with
 /// an exclusive lock (`serialport`'s `flock`): a port another program holds is refused as bad
 /// input.
-pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCell>), Failure> {
+pub fn devices(
+    cell: &Cell,
+    log: Option<&Path>,
+    slot: &RecordSlot,
+) -> Result<(Devices, Option<SimCell>), Failure> {
     match &cell.devices {
         cellfile::Devices::Simulated => {
             let sim = SimCell::new(&SimCellConfig {
@@ -389,7 +429,7 @@ pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCe
                     .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?;
                 sim.log_to(f).map_err(Failure::runtime)?;
             }
-            Ok((sim.devices(cell.drive), Some(sim)))
+            Ok((sim.recorded_devices(cell.drive, slot), Some(sim)))
         }
         cellfile::Devices::Serial {
             robot,
@@ -417,10 +457,13 @@ pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCe
                 }
                 None => Box::new(cell::device::NoSync),
             };
-            let client =
-                asea_protocol::Client::new(robot_port, asea_protocol::ClientConfig::default());
+            let time: Arc<dyn cell::device::Timebase> = Arc::new(cell::device::WallClock::new());
+            let client_cfg = asea_protocol::ClientConfig::default();
+            let robot_port =
+                LinkTap::robot(robot_port, client_cfg.frame, slot.clone(), time.clone());
+            let client = asea_protocol::Client::new(robot_port, client_cfg);
             let x = mandrel_drive::XClient::new(
-                indexer_port,
+                LinkTap::indexer(indexer_port, slot.clone(), time.clone()),
                 mandrel_drive::IndexerConfig {
                     drive: cell.drive,
                     ..mandrel_drive::IndexerConfig::default()
@@ -434,8 +477,8 @@ pub fn devices(cell: &Cell, log: Option<&Path>) -> Result<(Devices, Option<SimCe
                 Devices {
                     robot: Box::new(cell::device::ProtocolRobot::new(client)),
                     mandrel: Box::new(cell::device::XIndexer::new(x, setup)),
-                    sync,
-                    time: Arc::new(cell::device::WallClock::new()),
+                    sync: Box::new(SyncTap::new(sync, slot.clone(), time.clone())),
+                    time,
                 },
                 None,
             ))
@@ -622,7 +665,13 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         }
         None => None,
     };
-    let (devices, sim) = devices(&cell, args.log.as_deref())?;
+    let slot = RecordSlot::default();
+    let (devices, sim) = devices(&cell, args.log.as_deref(), &slot)?;
+    let scene = if args.record.is_some() || args.live.is_some() {
+        clearance.as_ref().and_then(scene)
+    } else {
+        None
+    };
     // Every exit-code-2 check has passed: the collision gate (exit 3 unless --force).
     gate(&args, clearance)?;
     let (journal, from, fresh) = match resumed {
@@ -634,6 +683,15 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         ),
     };
     let rec = recorder(&args, sim.as_ref())?;
+    if let Some(r) = &rec {
+        slot.set(r.clone());
+        if let Some((triangles, fibres)) = &scene {
+            r.mandrel_surface(0.0, triangles);
+            for (name, desired) in fibres {
+                r.fibre(0.0, name, desired, &[]);
+            }
+        }
+    }
     let rec_events = rec.clone();
     let display = Display::new(args.json, std::io::stdout().is_terminal(), &batch, &from);
     if args.json {

@@ -30,7 +30,7 @@ pub fn stroking_cell(points: u16, speed_m_s: f64, ticked: bool) -> SimCell {
     let cell = SimCell::new(&SimCellConfig::default());
     cell.with(|p| {
         if ticked {
-            p.observer = Some(Observer(Box::new(|_, _, _, _| {})));
+            p.observer = Some(Observer(Box::new(|_| {})));
         }
         let m = &mut p.robot.machine;
         for n in 1..=points {

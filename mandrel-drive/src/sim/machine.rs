@@ -370,6 +370,13 @@ impl Machine {
     pub fn mandrel_angle_rad(&self) -> f64 {
         self.motor_steps as f64 / self.drive.steps_per_mandrel_rev() * TAU
     }
+
+    /// The mandrel angle (rad) the indexer's step counter commands: the true angle
+    /// ([`Machine::mandrel_angle_rad`]) and this part when the translator loses steps or the
+    /// motor stalls (seed 001 §6.2.1).
+    pub fn commanded_angle_rad(&self) -> f64 {
+        self.counter_steps as f64 / self.drive.steps_per_mandrel_rev() * TAU
+    }
 }
 
 #[cfg(test)]
