@@ -990,6 +990,121 @@ mod tests {
     use crate::decoder::{Decoder, Token};
     use proptest::prelude::*;
 
+    /// The wire range is symmetric: ±2047.9375 mm lie in it, the raw −32768 (−2048.0 mm) does
+    /// not (docs/protocol.md §4).
+    #[test]
+    fn the_length_range_is_symmetric() {
+        assert!(Length(i16::MAX).in_range());
+        assert!(Length(-i16::MAX).in_range());
+        assert!(!Length(i16::MIN).in_range());
+    }
+
+    /// `from_wxyz` divides by the norm over all four components and keeps w ≥ 0: (3, 3, 3, 3)
+    /// has norm 6, so every component is 0.5 (8192 in Q1.14); with w negative the whole
+    /// quaternion changes sign (the same rotation). A norm of exactly the 1e-9 guard is still
+    /// normalised; zero is degenerate.
+    #[test]
+    fn quaternions_are_normalised_over_all_four_components() {
+        assert_eq!(
+            Quaternion::from_wxyz(3.0, 3.0, 3.0, 3.0).unwrap().0,
+            [8192; 4]
+        );
+        assert_eq!(
+            Quaternion::from_wxyz(-3.0, 3.0, 3.0, 3.0).unwrap().0,
+            [8192, -8192, -8192, -8192]
+        );
+        assert_eq!(
+            Quaternion::from_wxyz(0.0, 0.0, 3.0, 4.0).unwrap().0,
+            [0, 0, 9830, 13107]
+        );
+        assert_eq!(
+            Quaternion::from_wxyz(1e-9, 0.0, 0.0, 0.0).unwrap(),
+            Quaternion::IDENTITY
+        );
+        assert!(Quaternion::from_wxyz(0.0, 0.0, 0.0, 0.0).is_err());
+    }
+
+    /// A control instruction's line must be 1–6 for SET_OUTPUT and WAIT_INPUT, and `End` carries
+    /// line 0 and level 0; anything else of operations 1–3 is a bad line, not a bad operation.
+    #[test]
+    fn control_instructions_check_their_line_and_level() {
+        let read = |d: [u8; 3]| Control::read(&d);
+        let bad_line = Err(ParseError::Field("control: line"));
+        assert_eq!(
+            read([1, 6, 1]),
+            Ok(Control::SetOutput { line: 6, on: true })
+        );
+        assert_eq!(read([1, 0, 1]), bad_line);
+        assert_eq!(read([1, IO_LINES + 1, 1]), bad_line);
+        assert_eq!(read([2, 0, 0]), bad_line);
+        assert_eq!(read([3, 0, 0]), Ok(Control::End));
+        assert_eq!(read([3, 1, 0]), bad_line);
+        assert_eq!(read([3, 0, 1]), bad_line);
+        assert_eq!(
+            read([4, 1, 0]),
+            Err(ParseError::Field("control: operation"))
+        );
+    }
+
+    /// `well_formed` refuses a positioning whose quaternion is off unit norm and a frame that
+    /// does not parse, and passes a good one.
+    #[test]
+    fn well_formed_checks_the_quaternion_norm() {
+        let good = golden_positioning();
+        let frame = |c: Command| {
+            let mut data = Vec::new();
+            c.write_data(&mut data);
+            Frame {
+                code: c.code(),
+                data,
+            }
+        };
+        assert!(well_formed(&frame(Command::MoveImmediate(good))));
+        let mut off = good;
+        off.pose.q = Quaternion([16384, 16384, 0, 0]);
+        assert!(!well_formed(&frame(Command::MoveImmediate(off))));
+        assert!(well_formed(&frame(Command::Stop)));
+        assert!(!well_formed(&Frame {
+            code: 0x7F,
+            data: vec![],
+        }));
+    }
+
+    /// A read-back reply of a known kind with a body of the wrong length is refused for its
+    /// length; an unknown kind for its kind.
+    #[test]
+    fn read_back_replies_name_a_wrong_length_and_a_wrong_kind() {
+        let reply = |kind: u8, body: &[u8]| {
+            let mut data = vec![1, 0, 1, kind];
+            data.extend_from_slice(body);
+            Reply::from_frame(&Frame { code: 0x8D, data })
+        };
+        assert_eq!(
+            reply(0x01, &[1, 0, 0]),
+            Err(ParseError::Field("read-back length"))
+        );
+        assert_eq!(
+            reply(0x05, &[1, 0, 0]),
+            Err(ParseError::Field("read-back kind"))
+        );
+    }
+
+    /// Every robot error code maps back to its error, 0 and unknown codes to none, and each error
+    /// has a description of its own.
+    #[test]
+    fn robot_error_codes_and_messages() {
+        for e in RobotError::ALL {
+            assert_eq!(RobotError::from_code(e.code()), Some(e));
+        }
+        assert_eq!(RobotError::from_code(0), None);
+        assert_eq!(RobotError::from_code(200), None);
+        let messages: std::collections::BTreeSet<&str> =
+            RobotError::ALL.iter().map(|e| e.message()).collect();
+        assert_eq!(messages.len(), RobotError::ALL.len());
+        assert!(messages.iter().all(|m| !m.is_empty()));
+        assert!(RobotError::MemoryFull.message().contains("memory"));
+    }
+
     fn golden_positioning() -> Positioning {
         Positioning {
             flags: Flags::default(),
