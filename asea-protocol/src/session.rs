@@ -958,8 +958,10 @@ mod tests {
     #[test]
     fn happy_path_bytes() {
         let mut h = host();
+        assert!(!h.is_active());
         h.start(RUN3.to_vec(), false, ms(0));
         assert_eq!(h.take_output(), [ENQ]);
+        assert!(h.is_active());
         assert_eq!(h.deadline(), Some(T_ENQ));
         h.on_bytes(&[ACK], ms(5));
         assert_eq!(h.take_output(), RUN3);
@@ -974,6 +976,7 @@ mod tests {
         assert_eq!(h.deadline(), Some(ms(20) + T_GAP));
         h.on_time(ms(20) + T_GAP);
         assert_eq!(h.take_outcome(), Some(Ok(None)));
+        assert!(!h.is_active());
         h.start(RUN3.to_vec(), false, ms(20) + T_GAP);
         assert!(h.take_output().is_empty());
         assert_eq!(h.deadline(), Some(ms(21) + T_GAP));
@@ -1121,6 +1124,16 @@ mod tests {
         assert!(r.take_output().is_empty());
         assert_eq!(r.deadline(), Some(ms(5) + T_FLUSH));
         r.on_time(ms(5) + T_FLUSH);
+        assert_eq!(r.take_output(), [NAK, NAK]);
+        // Bytes arriving during a flush extend it to T_FLUSH after the last of them.
+        let mut bad = RUN3;
+        bad[5] ^= 0x10;
+        assert!(r.on_bytes(&bad, ms(40)).is_empty());
+        assert!(r.on_bytes(&[0x55], ms(55)).is_empty());
+        assert_eq!(r.deadline(), Some(ms(55) + T_FLUSH));
+        r.on_time(ms(45) + T_FLUSH);
+        assert!(r.take_output().is_empty(), "the flush still runs");
+        r.on_time(ms(55) + T_FLUSH);
         assert_eq!(r.take_output(), [NAK, NAK]);
         // Half a telegram, then silence beyond T_CHAR.
         r.on_bytes(&RUN3[..3], ms(100));
