@@ -891,6 +891,35 @@ fn laid_until(laid: &[(f64, Point3<f64>)], until_s: f64) -> Vec<Point3<f64>> {
     out
 }
 
+/// The fibre the simulated cell laid for `path` of `job` during a run (`windcell run --record`):
+/// the placement model over the cell's `trace` in the path's winding window (after `after_s`,
+/// up to `done_s`, cell time), thinned to a point every [`RECORD_SPACING_MM`]; mandrel frame.
+pub fn laid_in_run(
+    job: &Job,
+    tube: &Tube,
+    path: &PlannedPath,
+    trace: &Trace,
+    after_s: f64,
+    done_s: f64,
+) -> Result<Vec<Point3<f64>>, Error> {
+    let (setup, _) = tool::setup(job);
+    let cal = setup.calibration;
+    let transform = cal.transform(setup.robot_distance_mm, setup.mandrel_height_mm);
+    let (t0, t1) = window(trace, &path.plan.start.eye_mm, after_s, done_s);
+    let mandrel: Vec<(f64, f64)> = spaced(
+        trace
+            .drive_rad
+            .iter()
+            .map(|&(t, d)| (t, mandrel_of_drive(&cal, d))),
+        crate::simcell::TRACE_EYE_STEP_S,
+    );
+    let track = SampledEye::new(&trace.eye_mm, &mandrel, &transform);
+    let start = path.plan.start.tangent_point_mm;
+    let laid = placement::lay_on_tube(tube, &track, &start, t0, t1, Options::default().step_s)
+        .map_err(|e| run_error(format!("{}: placement model: {e}", path.name)))?;
+    Ok(laid_until(&laid.points, f64::INFINITY))
+}
+
 impl Prediction {
     /// Writes the prediction to `rec`: the modes one after another on one timeline
     /// ([`RECORD_MODE_GAP_S`] apart), each path's desired fibre and its laid fibre growing every

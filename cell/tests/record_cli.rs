@@ -73,6 +73,7 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
     }
     assert!(sent_points > 100, "{sent_points} points sent");
     assert_eq!(commanded, sent_points);
+    laid_fibre_agrees_with_the_prediction(&bytes);
     // The chunks as the summary lists them: cut the file inside the middle chunk.
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
     let chunks = &summary.chunk_indexes;
@@ -135,6 +136,82 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
         n >= whole && n <= topics.len(),
         "{line} (whole chunks: {whole})"
     );
+}
+
+/// The laid fibre a fine run on the simulated cell records at each path's end lies as far from
+/// the desired path as `windcell predict` says it will (the same placement model over the same
+/// simulated cell, reached through the run's trace instead of the prediction's own winding).
+fn laid_fibre_agrees_with_the_prediction(bytes: &[u8]) {
+    use foxglove::Decode as _;
+    // Per path: the desired fibre, and the laid one.
+    type Fibres = (Vec<[f64; 3]>, Vec<[f64; 3]>);
+    let mut laid: std::collections::BTreeMap<String, Fibres> = Default::default();
+    for m in mcap::MessageStream::new(bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic != "/scene/fibre" {
+            continue;
+        }
+        let u = foxglove::schemas::SceneUpdate::decode(m.data.as_ref()).unwrap();
+        for e in u.entities {
+            let pts: Vec<[f64; 3]> = e.lines[0]
+                .points
+                .iter()
+                .map(|p| [p.x, p.y, p.z].map(|c| c * 1000.0))
+                .collect();
+            let (path, kind) = e.id.split_once('/').unwrap();
+            let slot = laid.entry(path.to_string()).or_default();
+            if kind == "desired" {
+                slot.0 = pts;
+            } else if !pts.is_empty() {
+                slot.1 = pts;
+            }
+        }
+    }
+    let o = windcell(&[
+        "predict",
+        example("cylinder.toml").to_str().unwrap(),
+        "--mode",
+        "fine",
+        "--samples",
+        "1",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let predicted = &report["modes"][0]["paths"];
+    assert_eq!(laid.len(), 2);
+    for (k, (name, (desired, fibre))) in laid.iter().enumerate() {
+        assert!(fibre.len() > 50, "{name}: {} laid points", fibre.len());
+        // Largest distance of a laid point from the desired polyline.
+        let dist = |p: &[f64; 3]| {
+            desired
+                .windows(2)
+                .map(|w| {
+                    let (a, b) = (w[0], w[1]);
+                    let ab = [0, 1, 2].map(|i| b[i] - a[i]);
+                    let ap = [0, 1, 2].map(|i| p[i] - a[i]);
+                    let l2: f64 = ab.iter().map(|c| c * c).sum();
+                    let t = if l2 > 0.0 {
+                        ((0..3).map(|i| ab[i] * ap[i]).sum::<f64>() / l2).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    (0..3)
+                        .map(|i| (ap[i] - t * ab[i]).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let worst = fibre.iter().map(dist).fold(0.0, f64::max);
+        let want = predicted[k]["max_error_mm"].as_f64().unwrap();
+        assert_eq!(predicted[k]["name"], name.as_str());
+        eprintln!("{name}: laid {worst:.3} mm from the desired path, predicted {want:.3} mm");
+        assert!(
+            (worst - want).abs() <= 0.1 * want + 0.05,
+            "{name}: {worst} against {want}"
+        );
+    }
 }
 
 /// A discrete run's recording holds the wire and the lines as the coordinator saw them: every

@@ -281,11 +281,17 @@ const SCENE_FACETS: usize = 48;
 /// Section spacing of the mandrel surface a recording shows, mm.
 const SCENE_SPACING_MM: f64 = 5.0;
 
-/// What a recording shows of the job before anything moves: the mandrel surface (TRIASYM,
-/// [`SCENE_FACETS`] facets, sections at most [`SCENE_SPACING_MM`] apart) and each path's
-/// desired fibre, both in the mandrel frame. `None` without the job (a bare sequence) or when
-/// the mandrel cannot be meshed.
-type Scene = (Vec<[Point3<f64>; 3]>, Vec<(String, Vec<Point3<f64>>)>);
+/// What a recording shows of the job: the mandrel surface (TRIASYM, [`SCENE_FACETS`] facets,
+/// sections at most [`SCENE_SPACING_MM`] apart) and each path's desired fibre at the start, and
+/// on the simulated cell each path's laid fibre at its end (the placement model over the cell's
+/// trace, `cell::predict::laid_in_run`). Mandrel frame. Made without the job (a bare sequence)
+/// or when the mandrel cannot be meshed: never.
+struct Scene {
+    job: sequences::Job,
+    tube: paths::Tube,
+    triangles: Vec<[Point3<f64>; 3]>,
+    paths: Vec<cell::tool::PlannedPath>,
+}
 
 fn scene(c: &Clearance) -> Option<Scene> {
     let tube = cell::tool::mandrel_in(&c.job, &c.text, &c.path).ok()?;
@@ -293,13 +299,41 @@ fn scene(c: &Clearance) -> Option<Scene> {
     let triangles = (0..mesh.triangles().len())
         .map(|t| mesh.corners(t))
         .collect();
-    let fibres = c
-        .plan
-        .paths
-        .iter()
-        .map(|p| (p.name.clone(), p.desired_mm.clone()))
-        .collect();
-    Some((triangles, fibres))
+    Some(Scene {
+        job: c.job.clone(),
+        tube,
+        triangles,
+        paths: c.plan.paths.clone(),
+    })
+}
+
+impl Scene {
+    /// The surface and every desired fibre, at the run's start.
+    fn record_start(&self, rec: &cell::record::Recorder) {
+        rec.mandrel_surface(0.0, &self.triangles);
+        for p in &self.paths {
+            rec.fibre(0.0, &p.name, &p.desired_mm, &[]);
+        }
+    }
+
+    /// Path `name`'s laid fibre over `trace` between `after_s` and `done_s` (cell time), recorded
+    /// at `done_s`; a placement that fails is logged as a warning, the run goes on.
+    fn record_laid(
+        &self,
+        rec: &cell::record::Recorder,
+        name: &str,
+        trace: &cell::simcell::Trace,
+        after_s: f64,
+        done_s: f64,
+    ) {
+        let Some(path) = self.paths.iter().find(|p| p.name == name) else {
+            return;
+        };
+        match cell::predict::laid_in_run(&self.job, &self.tube, path, trace, after_s, done_s) {
+            Ok(laid) => rec.fibre(done_s, name, &path.desired_mm, &laid),
+            Err(e) => rec.log(done_s, cell::record::Level::Warning, &e.to_string()),
+        }
+    }
 }
 
 /// What the collision gate checks: the job, its text and file, its plan.
@@ -685,11 +719,8 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     let rec = recorder(&args, sim.as_ref())?;
     if let Some(r) = &rec {
         slot.set(r.clone());
-        if let Some((triangles, fibres)) = &scene {
-            r.mandrel_surface(0.0, triangles);
-            for (name, desired) in fibres {
-                r.fibre(0.0, name, desired, &[]);
-            }
+        if let Some(sc) = &scene {
+            sc.record_start(r);
         }
     }
     let rec_events = rec.clone();
@@ -732,7 +763,17 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         .enable_all()
         .build()
         .map_err(Failure::runtime)?;
-    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Event>();
+    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<(f64, Event)>();
+    let clock = devices.time.clone();
+    // The laid fibre needs the recorder, the simulated cell's trace and the job's scene.
+    let laying = match (&rec, &sim, scene) {
+        (Some(r), Some(sim), Some(sc)) => {
+            sim.with(|p| p.trace = Some(cell::simcell::Trace::default()))
+                .map_err(Failure::runtime)?;
+            Some((r.clone(), sim.clone(), sc))
+        }
+        _ => None,
+    };
     let standby = args.standby;
     let force = args.force;
     let engine_stop = stop.clone();
@@ -756,10 +797,23 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                 }
             }
         });
-        // The coordinator, owning the devices.
+        // The coordinator, owning the devices. Each event is stamped with the cell's clock as it
+        // happens; at each path's end on the simulated cell the recording gets its laid fibre
+        // (the coordinator waits meanwhile; the virtual clock with it).
         let engine = tokio::task::spawn_blocking(move || {
+            let mut after_s = 0.0;
             let mut sink = |e: Event| {
-                let _ = tx.send(e);
+                let t = clock.now_s();
+                if let (Event::PathDone { path, .. }, Some((r, sim, sc))) = (&e, &laying) {
+                    // The trace restarts with each path: its memory is one path's.
+                    if let Ok(Some(trace)) =
+                        sim.with(|p| p.trace.replace(cell::simcell::Trace::default()))
+                    {
+                        sc.record_laid(r, path, &trace, after_s, t);
+                    }
+                    after_s = t;
+                }
+                let _ = tx.send((t, e));
             };
             let mut c = Coordinator::with_stop(devices, engine_stop, journal, &mut sink);
             let t0 = std::time::Instant::now();
@@ -768,15 +822,9 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         });
         // The display.
         let mut paths = Vec::new();
-        while let Some(e) = rx.recv().await {
+        while let Some((t, e)) = rx.recv().await {
             display.event(&e);
             if let Some(r) = &rec_events {
-                let t = match &e {
-                    Event::Segment { time_s, .. }
-                    | Event::Program { time_s, .. }
-                    | Event::PathDone { time_s, .. } => *time_s,
-                    _ => 0.0,
-                };
                 r.log(t, cell::record::Level::Info, &format!("{e:?}"));
             }
             if let Event::PathDone {
