@@ -984,6 +984,194 @@ mod tests {
         assert_eq!(h.take_output(), [ENQ]);
     }
 
+    /// Every counter of the host's [`Stats`] follows the bytes: a NAK to the ENQ (backoff, ENQ
+    /// again), an ENQ unanswered (timeout, ENQ again), the telegram refused once (NAK) and once
+    /// unacknowledged (timeout), then taken: 3 ENQs, 3 telegrams, 2 NAKs received, 2 timeouts.
+    #[test]
+    fn host_counts_every_event_of_a_session() {
+        let t = Timers::default();
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        assert_eq!(h.take_output(), [ENQ]);
+        h.on_bytes(&[NAK], ms(5));
+        assert_eq!(h.deadline(), Some(ms(5) + t.t_busy));
+        let t1 = ms(5) + t.t_busy;
+        h.on_time(t1);
+        assert_eq!(h.take_output(), [ENQ]);
+        h.on_time(t1 + t.t_enq);
+        assert_eq!(h.take_output(), [ENQ]);
+        let t2 = t1 + t.t_enq;
+        h.on_bytes(&[ACK], t2 + ms(5));
+        assert_eq!(h.take_output(), RUN3);
+        h.on_bytes(&[NAK], t2 + ms(10));
+        assert_eq!(h.take_output(), RUN3);
+        h.on_time(t2 + ms(10) + t.t_ack);
+        assert_eq!(h.take_output(), RUN3);
+        let t3 = t2 + ms(10) + t.t_ack;
+        h.on_bytes(&[ACK], t3 + ms(5));
+        assert_eq!(h.take_output(), [EOT]);
+        h.on_time(t3 + ms(5) + t.t_gap);
+        assert_eq!(h.take_outcome(), Some(Ok(None)));
+        assert_eq!(
+            h.stats(),
+            Stats {
+                enq_sent: 3,
+                frames_sent: 3,
+                nak_received: 2,
+                nak_sent: 0,
+                timeouts: 2,
+                duplicates: 0,
+                bad_frames: 0,
+            }
+        );
+    }
+
+    /// A NAK within `T_GAP` after the host's EOT means its "ACK" was a corrupted NAK: the
+    /// session fails as not taken, and the NAK is counted.
+    #[test]
+    fn a_nak_after_the_eot_refuses_the_telegram_and_is_counted() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.on_bytes(&[ACK], ms(5));
+        h.on_bytes(&[ACK], ms(10));
+        assert_eq!(h.take_output().last(), Some(&EOT));
+        h.on_bytes(&[NAK], ms(15));
+        assert_eq!(
+            h.take_outcome(),
+            Some(Err(LinkError::Retries { attempts: 1 }))
+        );
+        assert_eq!(h.stats().nak_received, 1);
+    }
+
+    /// A robot that never answers is reported after exactly `N_ENQ` ENQs, `T_ENQ` apart.
+    #[test]
+    fn host_reports_no_response_after_n_enq() {
+        let t = Timers::default();
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        let mut now = ms(0);
+        let mut enqs = h.take_output().len();
+        while h.take_outcome().is_none() {
+            now += t.t_enq;
+            h.on_time(now);
+            enqs += h.take_output().iter().filter(|b| **b == ENQ).count();
+            assert!(now <= t.t_enq * (t.n_enq + 1), "no outcome");
+        }
+        assert_eq!(enqs, t.n_enq as usize);
+        assert_eq!(now, t.t_enq * t.n_enq);
+    }
+
+    /// The robot's EOT while the host waits for its telegram's ACK, or before its reply
+    /// telegram, interrupts the session.
+    #[test]
+    fn an_eot_in_place_of_an_ack_or_a_reply_interrupts() {
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.on_bytes(&[ACK], ms(5));
+        h.on_bytes(&[EOT], ms(10));
+        assert_eq!(h.take_outcome(), Some(Err(LinkError::Interrupted)));
+        let mut h = host();
+        h.start(RUN3.to_vec(), true, ms(0));
+        h.on_bytes(&[ACK], ms(5));
+        h.on_bytes(&[ACK], ms(10));
+        h.on_bytes(&[ENQ], ms(20));
+        h.on_bytes(&[EOT], ms(30));
+        assert_eq!(h.take_outcome(), Some(Err(LinkError::Interrupted)));
+    }
+
+    /// A reply session as the host receives it: the robot's ENQ answered (deadline `T_ENQ +
+    /// T_FLUSH` for its repeat), half a telegram (the `T_CHAR` deadline comes first), the whole
+    /// reply acknowledged (deadline `T_ACK + T_FLUSH` for the EOT), the same reply again (our ACK
+    /// lost: acknowledged again, a duplicate), another telegram (refused with NAK), a bad one
+    /// (counted and flushed; the flush's end is a NAK), then EOT: the first reply is the outcome.
+    #[test]
+    fn host_receives_a_reply_session() {
+        let t = Timers::default();
+        let reply = encode(&cfg(), 0x86, &[1, 2, 3]).unwrap();
+        let other = encode(&cfg(), 0x86, &[1, 2, 4]).unwrap();
+        let mut h = host();
+        h.start(RUN3.to_vec(), true, ms(0));
+        h.on_bytes(&[ACK], ms(5));
+        h.on_bytes(&[ACK], ms(10));
+        assert_eq!(
+            h.take_output(),
+            [
+                ENQ, RUN3[0], RUN3[1], RUN3[2], RUN3[3], RUN3[4], RUN3[5], EOT
+            ]
+        );
+        h.on_bytes(&[ENQ], ms(100));
+        assert_eq!(h.take_output(), [ACK]);
+        assert_eq!(h.deadline(), Some(ms(100) + t.t_enq + t.t_flush));
+        h.on_bytes(&reply[..3], ms(110));
+        assert_eq!(h.deadline(), Some(ms(110) + t.t_char));
+        h.on_bytes(&reply[3..], ms(120));
+        assert_eq!(h.take_output(), [ACK]);
+        assert_eq!(h.deadline(), Some(ms(120) + t.t_ack + t.t_flush));
+        h.on_bytes(&reply, ms(200));
+        assert_eq!(h.take_output(), [ACK]);
+        h.on_bytes(&other, ms(300));
+        assert_eq!(h.take_output(), [NAK]);
+        let mut bad = reply.clone();
+        *bad.last_mut().unwrap() ^= 0x10;
+        h.on_bytes(&bad, ms(400));
+        assert!(h.take_output().is_empty());
+        h.on_time(ms(400) + t.t_flush);
+        assert_eq!(h.take_output(), [NAK]);
+        assert_eq!(h.deadline(), Some(ms(400) + t.t_flush + t.t_ack));
+        h.on_bytes(&[EOT], ms(500));
+        let Some(Ok(Some(f))) = h.take_outcome() else {
+            panic!("no reply")
+        };
+        assert_eq!((f.code, f.data), (0x86, vec![1, 2, 3]));
+        let s = h.stats();
+        assert_eq!((s.duplicates, s.nak_sent, s.bad_frames), (1, 2, 1));
+    }
+
+    /// After noise while the host waits for its telegram's ACK, an ACK may be a corrupted NAK:
+    /// the host sends the telegram again. With an ACK window, an ACK later than the window after
+    /// the line fell free is treated the same; one at the window's end is taken.
+    #[test]
+    fn an_ack_behind_noise_or_after_the_window_is_asked_again() {
+        // Noise, then ACK: sent again.
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.on_bytes(&[ACK], ms(5));
+        h.take_output();
+        h.on_bytes(&[0x55, ACK], ms(20));
+        assert_eq!(h.take_output(), RUN3);
+        // A NAK is no noise: the ACK after it is taken.
+        let mut h = host();
+        h.start(RUN3.to_vec(), false, ms(0));
+        h.on_bytes(&[ACK], ms(5));
+        h.take_output();
+        h.on_bytes(&[NAK], ms(20));
+        assert_eq!(h.take_output(), RUN3);
+        h.on_bytes(&[ACK], ms(40));
+        assert_eq!(h.take_output(), [EOT]);
+        // The ACK window, counted from the end of the telegram on the line.
+        let window = ms(30);
+        for (at, taken) in [(ms(30), true), (ms(31), false)] {
+            let mut h = Host::new(
+                cfg(),
+                Timers {
+                    t_ack_window: Some(window),
+                    ..Timers::default()
+                },
+            );
+            h.start(RUN3.to_vec(), false, ms(0));
+            h.on_bytes(&[ACK], ms(5));
+            h.take_output();
+            h.on_sent(ms(10));
+            h.on_bytes(&[ACK], ms(10) + at);
+            let out = h.take_output();
+            assert_eq!(
+                out == [EOT],
+                taken,
+                "ACK {at:?} after the line fell free: {out:?}"
+            );
+        }
+    }
+
     #[test]
     fn nak_twice_then_ack_is_three_transmissions() {
         let mut h = host();
