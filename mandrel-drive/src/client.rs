@@ -860,3 +860,48 @@ impl<L: Link> Indexer for GrblClient<L> {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::Pipe;
+
+    /// A line may hold up to [`MAX_LINE`] bytes before its end: that many without an end is
+    /// still waited for (here until the deadline), one more is refused as too long at once.
+    #[test]
+    fn a_line_is_refused_only_beyond_max_line_bytes() {
+        let wait = Duration::from_millis(120);
+        let (mut host, mut device) = Pipe::pair();
+        device.write_all(&[b'X'; MAX_LINE]).unwrap();
+        let e = LineReader::default()
+            .next_line(&mut host, b'\r', b'\n', wait, "R")
+            .unwrap_err();
+        assert!(matches!(e, Error::Timeout { .. }), "{e:?}");
+        let (mut host, mut device) = Pipe::pair();
+        device.write_all(&[b'X'; MAX_LINE + 1]).unwrap();
+        let e = LineReader::default()
+            .next_line(&mut host, b'\r', b'\n', wait, "R")
+            .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::BadReply {
+                    reason: "line too long",
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+    }
+
+    /// The client keeps the configuration it was made with.
+    #[test]
+    fn the_client_reports_its_configuration() {
+        let cfg = IndexerConfig {
+            address: 7,
+            ..IndexerConfig::default()
+        };
+        let (host, _device) = Pipe::pair();
+        assert_eq!(XClient::new(host, cfg.clone()).config(), &cfg);
+    }
+}
