@@ -1339,6 +1339,46 @@ mod tests {
         r.busy = true;
         r.on_bytes(&[ENQ], ms(0));
         assert_eq!(r.take_output(), [NAK]);
+        assert_eq!(r.stats().nak_sent, 1);
+    }
+
+    /// The robot's reply session, counted: after the host's ENQUIRE session it sends ENQ; a
+    /// host that never answers gets exactly `N_ENQ` of them, `T_ENQ` apart, and then none; one
+    /// that answers gets the reply telegram, sent again after a NAK, then EOT.
+    #[test]
+    fn robot_reply_session_counts_its_enqs_and_telegrams() {
+        let t = Timers::default();
+        let reply = encode(&cfg(), 0x86, &[1, 2, 3]).unwrap();
+        let enquired = |r: &mut RobotSession, at: Duration| {
+            r.on_bytes(&[ENQ], at);
+            assert_eq!(r.on_bytes(&ENQUIRE, at + ms(5)).len(), 1);
+            r.queue_reply(reply.clone());
+            r.on_bytes(&[EOT], at + ms(10));
+            assert_eq!(r.take_output(), [ACK, ACK, ENQ]);
+        };
+        // Unanswered.
+        let mut r = robot();
+        enquired(&mut r, ms(0));
+        let mut now = ms(10);
+        let mut enqs = 1;
+        for _ in 0..2 * t.n_enq {
+            now += t.t_enq;
+            r.on_time(now);
+            enqs += r.take_output().iter().filter(|b| **b == ENQ).count();
+        }
+        assert_eq!(enqs, t.n_enq as usize);
+        assert_eq!(r.stats().enq_sent, u64::from(t.n_enq));
+        // Answered, the telegram refused once.
+        let mut r = robot();
+        enquired(&mut r, ms(0));
+        r.on_bytes(&[ACK], ms(20));
+        assert_eq!(r.take_output(), reply);
+        r.on_bytes(&[NAK], ms(30));
+        assert_eq!(r.take_output(), reply);
+        r.on_bytes(&[ACK], ms(40));
+        assert_eq!(r.take_output(), [EOT]);
+        let s = r.stats();
+        assert_eq!((s.enq_sent, s.frames_sent, s.nak_received), (1, 2, 1));
     }
 
     /// Host and robot wired back to back with no delay; the robot answers ENQUIRE with `reply`.
