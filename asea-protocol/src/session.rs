@@ -1342,6 +1342,32 @@ mod tests {
         assert_eq!(r.stats().nak_sent, 1);
     }
 
+    /// Accepts RUN_PROGRAM 3 only (a robot's strict check, [`RobotSession::validate`]).
+    fn only_run3(f: &Frame) -> bool {
+        f.code == 0x02 && f.data == [3]
+    }
+
+    /// A robot that validates telegrams takes a telegram that fails the check as bad (counted,
+    /// flushed, then NAK) and passes a good one and its repetition.
+    #[test]
+    fn a_validating_robot_refuses_a_telegram_that_fails_its_check() {
+        let mut r = robot();
+        r.validate = Some(only_run3);
+        r.on_bytes(&[ENQ], ms(0));
+        assert_eq!(r.take_output(), [ACK]);
+        let other = encode(&cfg(), 0x02, &[4]).unwrap();
+        assert!(r.on_bytes(&other, ms(5)).is_empty());
+        assert!(r.take_output().is_empty());
+        assert_eq!(r.stats().bad_frames, 1);
+        r.on_time(ms(5) + T_FLUSH);
+        assert_eq!(r.take_output(), [NAK, NAK]);
+        assert_eq!(r.on_bytes(&RUN3, ms(100)).len(), 1);
+        assert_eq!(r.take_output(), [ACK]);
+        assert!(r.on_bytes(&RUN3, ms(200)).is_empty());
+        assert_eq!(r.take_output(), [ACK]);
+        assert_eq!((r.stats().bad_frames, r.stats().duplicates), (1, 1));
+    }
+
     /// The robot's reply session, counted: after the host's ENQUIRE session it sends ENQ; a
     /// host that never answers gets exactly `N_ENQ` of them, `T_ENQ` apart, and then none; one
     /// that answers gets the reply telegram, sent again after a NAK, then EOT.
@@ -1379,6 +1405,22 @@ mod tests {
         assert_eq!(r.take_output(), [EOT]);
         let s = r.stats();
         assert_eq!((s.enq_sent, s.frames_sent, s.nak_received), (1, 2, 1));
+        // Its ENQ refused (the host is busy): ENQ again after T_BUSY, the NAK counted.
+        let mut r = robot();
+        enquired(&mut r, ms(0));
+        r.on_bytes(&[NAK], ms(20));
+        assert!(r.take_output().is_empty());
+        assert_eq!(r.deadline(), Some(ms(20) + t.t_busy));
+        r.on_time(ms(20) + t.t_busy);
+        assert_eq!(r.take_output(), [ENQ]);
+        assert_eq!(r.stats().nak_received, 1);
+        // The host's EOT ends the reply session: no ENQ follows.
+        let mut r = robot();
+        enquired(&mut r, ms(0));
+        r.on_bytes(&[EOT], ms(20));
+        r.on_time(ms(20) + t.t_enq);
+        assert!(r.take_output().is_empty());
+        assert_eq!(r.deadline(), None);
     }
 
     /// Host and robot wired back to back with no delay; the robot answers ENQUIRE with `reply`.

@@ -894,6 +894,44 @@ mod tests {
         );
     }
 
+    /// A client on a pipe whose card end has already written `card` (CR-ended lines).
+    fn answered(card: &str) -> XClient<Pipe> {
+        let (host, mut device) = Pipe::pair();
+        device.write_all(card.as_bytes()).unwrap();
+        XClient::new(
+            host,
+            IndexerConfig {
+                reply_timeout: Duration::from_millis(150),
+                ..IndexerConfig::default()
+            },
+        )
+    }
+
+    /// A move's completion (an empty line) that arrives among another command's echo or reply
+    /// lines is counted, so that the wait for it ends at once: here before `G`'s echo, and
+    /// between `R`'s echo and its status reply.
+    #[test]
+    fn completions_among_other_lines_are_counted() {
+        let mut c = answered("\r1G\r1R\r*R\r");
+        assert_eq!(c.send(&Command::Go).unwrap(), None);
+        c.wait_complete(Duration::from_millis(100)).unwrap();
+        let mut c = answered("1R\r\r*R\r1R\r*R\r");
+        c.send(&Command::Status).unwrap();
+        c.wait_complete(Duration::from_millis(100)).unwrap();
+    }
+
+    /// With echo turned off (`SSA1`, whose own echo still comes) the client reads a reply with
+    /// no echo before it.
+    #[test]
+    fn echo_off_is_followed() {
+        let mut c = answered("1SSA1\r*R\r");
+        c.send(&Command::Echo(false)).unwrap();
+        assert!(matches!(
+            c.send(&Command::Status).unwrap(),
+            Some(Reply::Status { busy: false, .. })
+        ));
+    }
+
     /// The client keeps the configuration it was made with.
     #[test]
     fn the_client_reports_its_configuration() {
