@@ -1331,6 +1331,8 @@ mod tests {
         // The retransmission goes through.
         assert_eq!(r.on_bytes(&RUN3, ms(400)).len(), 1);
         assert_eq!(r.take_output(), [ACK]);
+        // Two bad telegrams counted; three NAK pairs (two flushes, one T_CHAR gap).
+        assert_eq!((r.stats().bad_frames, r.stats().nak_sent), (2, 3));
     }
 
     #[test]
@@ -1365,7 +1367,12 @@ mod tests {
         assert_eq!(r.take_output(), [ACK]);
         assert!(r.on_bytes(&RUN3, ms(200)).is_empty());
         assert_eq!(r.take_output(), [ACK]);
-        assert_eq!((r.stats().bad_frames, r.stats().duplicates), (1, 1));
+        // Another (valid) telegram in the same session is refused: one per session.
+        r.validate = None;
+        assert!(r.on_bytes(&other, ms(300)).is_empty());
+        assert_eq!(r.take_output(), [NAK, NAK]);
+        let s = r.stats();
+        assert_eq!((s.bad_frames, s.duplicates, s.nak_sent), (1, 1, 2));
     }
 
     /// The robot's reply session, counted: after the host's ENQUIRE session it sends ENQ; a
@@ -1394,6 +1401,33 @@ mod tests {
         }
         assert_eq!(enqs, t.n_enq as usize);
         assert_eq!(r.stats().enq_sent, u64::from(t.n_enq));
+        assert_eq!(r.stats().timeouts, u64::from(t.n_enq));
+        // Every ENQ refused: it gives up after N_ENQ of them.
+        let mut r = robot();
+        enquired(&mut r, ms(0));
+        let (mut now, mut enqs) = (ms(20), 1);
+        for _ in 0..2 * t.n_enq {
+            r.on_bytes(&[NAK], now);
+            now += t.t_busy;
+            r.on_time(now);
+            enqs += r.take_output().iter().filter(|b| **b == ENQ).count();
+        }
+        assert_eq!(enqs, t.n_enq as usize);
+        assert_eq!(r.deadline(), None);
+        // Its ENQ taken, its telegram never acknowledged: N_TX transmissions, T_ACK apart, then
+        // EOT.
+        let mut r = robot();
+        enquired(&mut r, ms(0));
+        r.on_bytes(&[ACK], ms(20));
+        let (mut now, mut out) = (ms(20), r.take_output());
+        for _ in 0..2 * t.n_tx {
+            now += t.t_ack;
+            r.on_time(now);
+            out.extend(r.take_output());
+        }
+        assert_eq!(out.len(), t.n_tx as usize * reply.len() + 1);
+        assert_eq!(out.last(), Some(&EOT));
+        assert_eq!(r.stats().timeouts, u64::from(t.n_tx));
         // Answered, the telegram refused once.
         let mut r = robot();
         enquired(&mut r, ms(0));
