@@ -932,6 +932,56 @@ mod tests {
         ));
     }
 
+    /// `range` passes a finite value inside its bounds unchanged and refuses one outside or
+    /// not finite.
+    #[test]
+    fn range_passes_only_finite_values_inside_the_bounds() {
+        assert_eq!(range("v", 2.5, 0.01, 50.0, "").unwrap(), 2.5);
+        assert_eq!(range("v", 0.01, 0.01, 50.0, "").unwrap(), 0.01);
+        for bad in [0.005, 50.5, f64::NAN, f64::INFINITY] {
+            assert!(range("v", bad, 0.01, 50.0, "").is_err(), "{bad}");
+        }
+    }
+
+    /// A start velocity needs the backend's `VS` command: refused without it, and a profile
+    /// that starts from rest needs nothing of the kind (its `A` and `V` go out, echoed).
+    #[test]
+    fn a_start_velocity_needs_the_start_velocity_command() {
+        let drive = Drive::default();
+        let cfg = IndexerConfig {
+            start_velocity_command: false,
+            reply_timeout: Duration::from_millis(150),
+            ..IndexerConfig::default()
+        };
+        let profile = |start_rps| Profile {
+            accel_rps2: 1.0,
+            start_rps,
+            max_rps: 0.5,
+        };
+        let (host, mut card) = Pipe::pair();
+        let mut c = XClient::new(host, cfg.clone());
+        let a = xlang::encode(Some(1), &Command::Accel(drive.motor_rps(1.0)));
+        let v = xlang::encode(Some(1), &Command::Velocity(drive.motor_rps(0.5)));
+        card.write_all(format!("{a}\r{v}\r").as_bytes()).unwrap();
+        c.set_profile(profile(0.0)).unwrap();
+        let e = c.set_profile(profile(0.05)).unwrap_err();
+        assert!(matches!(e, Error::Unsupported { .. }), "{e:?}");
+    }
+
+    /// The stop that goes on the wire at once is the unit's `S`.
+    #[test]
+    fn stop_on_wire_writes_the_stop_command() {
+        let (host, mut card) = Pipe::pair();
+        XClient::new(host, IndexerConfig::default())
+            .stop_on_wire()
+            .unwrap();
+        let mut buf = [0u8; 16];
+        let n = card
+            .read_timeout(&mut buf, Duration::from_millis(50))
+            .unwrap();
+        assert_eq!(&buf[..n], b"1S\r");
+    }
+
     /// The client keeps the configuration it was made with.
     #[test]
     fn the_client_reports_its_configuration() {
