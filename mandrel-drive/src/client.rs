@@ -982,6 +982,21 @@ mod tests {
         assert_eq!(&buf[..n], b"1S\r");
     }
 
+    /// The wait for a move's completion skips a stray line, ends at the empty line (then reads
+    /// the status), uses each completion once (a second wait waits again), and reports a
+    /// refusal (`?`) that comes instead.
+    #[test]
+    fn the_wait_for_completion_takes_each_completion_once_and_reports_a_refusal() {
+        let short = Duration::from_millis(100);
+        let mut c = answered("stray\r\r1R\r*R\r");
+        c.wait_complete(short).unwrap();
+        let e = c.wait_complete(short).unwrap_err();
+        assert!(matches!(e, Error::MoveTimeout { .. }), "{e:?}");
+        let mut c = answered("?X\r");
+        let e = c.wait_complete(short).unwrap_err();
+        assert!(matches!(e, Error::Refused { .. }), "{e:?}");
+    }
+
     /// The client keeps the configuration it was made with.
     #[test]
     fn the_client_reports_its_configuration() {
