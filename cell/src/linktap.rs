@@ -17,7 +17,8 @@ use std::time::Duration;
 
 use asea_protocol::frame::{self, ACK, ENQ, EOT, FrameConfig, NAK, Parsed, STX};
 use asea_protocol::{Command, Reply};
-use nalgebra::{Point3, Quaternion, UnitQuaternion};
+use nalgebra::Point3;
+use paths::wrist::from_components;
 
 use crate::device::{DeviceResult, SyncLines, Timebase};
 use crate::record::{Device, Direction, Recorder};
@@ -89,7 +90,16 @@ impl Cutter {
 /// What one robot-link unit says: a control character by name, a telegram as the command
 /// (sent) or reply (received) it decodes to, or why it does not.
 pub fn robot_unit(frame_cfg: &FrameConfig, direction: Direction, bytes: &[u8]) -> String {
-    match bytes {
+    decode_robot_unit(frame_cfg, direction, bytes).0
+}
+
+/// [`robot_unit`], and the command when the unit is one the host sent.
+fn decode_robot_unit(
+    frame_cfg: &FrameConfig,
+    direction: Direction,
+    bytes: &[u8],
+) -> (String, Option<Command>) {
+    let text = match bytes {
         [ENQ] => "ENQ".into(),
         [ACK] => "ACK".into(),
         [NAK] => "NAK".into(),
@@ -97,15 +107,18 @@ pub fn robot_unit(frame_cfg: &FrameConfig, direction: Direction, bytes: &[u8]) -
         [b] => format!("byte 0x{b:02x} outside a telegram"),
         _ => match frame::parse(frame_cfg, bytes) {
             Parsed::Frame { frame: f, .. } => match direction {
-                Direction::Sent => Command::from_frame(&f)
-                    .map_or_else(|e| format!("undefined command: {e}"), |c| format!("{c:?}")),
+                Direction::Sent => match Command::from_frame(&f) {
+                    Ok(c) => return (format!("{c:?}"), Some(c)),
+                    Err(e) => format!("undefined command: {e}"),
+                },
                 Direction::Received => Reply::from_frame(&f)
                     .map_or_else(|e| format!("undefined reply: {e}"), |r| format!("{r:?}")),
             },
             Parsed::Bad(e) => format!("bad telegram: {e}"),
             Parsed::Incomplete => "incomplete telegram".into(),
         },
-    }
+    };
+    (text, None)
 }
 
 /// What one indexer line says: a command of the X-language subset (sent), or the indexer's echo,
@@ -184,38 +197,18 @@ impl<L> LinkTap<L> {
         for u in units {
             let decoded = match cutter {
                 Cutter::Robot { frame, .. } => {
-                    if let Some(p) = move_immediate(frame, direction, &u) {
-                        rec.eye(t, &p.0, &p.1, false);
+                    let (text, command) = decode_robot_unit(frame, direction, &u);
+                    if let Some(Command::MoveImmediate(p)) = command {
+                        let eye = Point3::from(p.pose.xyz_mm());
+                        rec.eye(t, &eye, &from_components(p.pose.q.wxyz()), false);
                     }
-                    robot_unit(frame, direction, &u)
+                    text
                 }
                 Cutter::Indexer { .. } => indexer_line(direction, &u),
             };
             rec.telegram(t, self.device, direction, &u, &decoded);
         }
     }
-}
-
-/// The eye pose a MOVE_IMMEDIATE telegram commands (cell frame), if `bytes` is one.
-fn move_immediate(
-    frame_cfg: &FrameConfig,
-    direction: Direction,
-    bytes: &[u8],
-) -> Option<(Point3<f64>, UnitQuaternion<f64>)> {
-    if direction != Direction::Sent {
-        return None;
-    }
-    let Parsed::Frame { frame: f, .. } = frame::parse(frame_cfg, bytes) else {
-        return None;
-    };
-    let Ok(Command::MoveImmediate(p)) = Command::from_frame(&f) else {
-        return None;
-    };
-    let [w, x, y, z] = p.pose.q.wxyz();
-    Some((
-        Point3::from(p.pose.xyz_mm()),
-        UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)),
-    ))
 }
 
 impl<L: asea_protocol::Link> asea_protocol::Link for LinkTap<L> {

@@ -482,6 +482,18 @@ fn eye_cell(
 /// Model steps per segment for the chord and corner models.
 const MODEL_STEPS_PER_SEGMENT: f64 = 200.0;
 
+/// The mandrel angle over the cell's `trace` (its drive angle through `cal`), thinned to the
+/// eye's sampling step: the mandrel series of the placement model.
+fn mandrel_series(trace: &Trace, cal: &Calibration) -> Vec<(f64, f64)> {
+    spaced(
+        trace
+            .drive_rad
+            .iter()
+            .map(|&(t, d)| (t, mandrel_of_drive(cal, d))),
+        crate::simcell::TRACE_EYE_STEP_S,
+    )
+}
+
 #[allow(clippy::too_many_arguments)]
 fn predict_path(
     path: &PlannedPath,
@@ -498,13 +510,7 @@ fn predict_path(
     let start = path.plan.start.tangent_point_mm;
     let desired = &path.desired_mm;
     // The full simulation.
-    let mandrel: Vec<(f64, f64)> = spaced(
-        trace
-            .drive_rad
-            .iter()
-            .map(|&(t, d)| (t, mandrel_of_drive(cal, d))),
-        crate::simcell::TRACE_EYE_STEP_S,
-    );
+    let mandrel = mandrel_series(trace, cal);
     let track = SampledEye::new(&trace.eye_mm, &mandrel, transform);
     let laid = placement::lay_on_tube(tube, &track, &start, t0, t1, opt.step_s)
         .map_err(|e| run_error(format!("{}: placement model: {e}", path.name)))?;
@@ -906,13 +912,7 @@ pub fn laid_in_run(
     let cal = setup.calibration;
     let transform = cal.transform(setup.robot_distance_mm, setup.mandrel_height_mm);
     let (t0, t1) = window(trace, &path.plan.start.eye_mm, after_s, done_s);
-    let mandrel: Vec<(f64, f64)> = spaced(
-        trace
-            .drive_rad
-            .iter()
-            .map(|&(t, d)| (t, mandrel_of_drive(&cal, d))),
-        crate::simcell::TRACE_EYE_STEP_S,
-    );
+    let mandrel = mandrel_series(trace, &cal);
     let track = SampledEye::new(&trace.eye_mm, &mandrel, &transform);
     let start = path.plan.start.tangent_point_mm;
     let laid = placement::lay_on_tube(tube, &track, &start, t0, t1, Options::default().step_s)

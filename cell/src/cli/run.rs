@@ -20,6 +20,7 @@ use cell::linktap::{LinkTap, RecordSlot, SyncTap};
 use cell::simcell::{SimCell, SimCellConfig};
 use clap::{Args, ValueEnum};
 use nalgebra::Point3;
+use paths::wrist::from_components;
 use serde_json::json;
 
 use super::Failure;
@@ -137,17 +138,22 @@ fn recorder(
             p.observer = Some(cell::simcell::Observer(Box::new(move |o| {
                 // The commanded pose whenever the move under way changes (a stored program's
                 // points; a MOVE_IMMEDIATE is recorded from its telegram by the link's tap).
-                if o.target.is_some() && o.target != commanded {
+                if let Some(c) = o.target
+                    && o.target != commanded
+                {
                     commanded = o.target;
-                    if let Some(c) = o.target {
-                        r.eye(o.t_s, &Point3::from(c.xyz_mm), &unit_q(c.q), false);
-                    }
+                    r.eye(o.t_s, &Point3::from(c.xyz_mm), &from_components(c.q), false);
                 }
                 if o.t_s < next {
                     return;
                 }
                 next = o.t_s + RECORD_STEP_S;
-                r.eye(o.t_s, &Point3::from(o.eye.xyz_mm), &unit_q(o.eye.q), true);
+                r.eye(
+                    o.t_s,
+                    &Point3::from(o.eye.xyz_mm),
+                    &from_components(o.eye.q),
+                    true,
+                );
                 r.mandrel_frame(o.t_s, &origin, o.drive_rad);
                 r.mandrel_angle(o.t_s, o.commanded_drive_rad, o.drive_rad);
             })));
@@ -160,11 +166,6 @@ fn recorder(
         ));
     }
     Ok(Some(rec))
-}
-
-/// The unit quaternion of wire-order (w, x, y, z) components.
-fn unit_q([w, x, y, z]: [f64; 4]) -> nalgebra::UnitQuaternion<f64> {
-    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z))
 }
 
 fn mode_of(m: ModeArg) -> RunMode {
