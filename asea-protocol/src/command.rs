@@ -578,6 +578,16 @@ impl Command {
         Ok(out)
     }
 
+    /// The telegram before framing: its code and data (the inverse of [`Command::from_frame`]).
+    pub fn to_frame(&self) -> Frame {
+        let mut data = Vec::with_capacity(24);
+        self.write_data(&mut data);
+        Frame {
+            code: self.code(),
+            data,
+        }
+    }
+
     /// Appends the framed telegram to `out`.
     pub fn encode_into(&self, cfg: &FrameConfig, out: &mut Vec<u8>) -> Result<(), EncodeError> {
         let mut data = Vec::with_capacity(24);
@@ -1051,19 +1061,11 @@ mod tests {
     #[test]
     fn well_formed_checks_the_quaternion_norm() {
         let good = golden_positioning();
-        let frame = |c: Command| {
-            let mut data = Vec::new();
-            c.write_data(&mut data);
-            Frame {
-                code: c.code(),
-                data,
-            }
-        };
-        assert!(well_formed(&frame(Command::MoveImmediate(good))));
+        assert!(well_formed(&Command::MoveImmediate(good).to_frame()));
         let mut off = good;
         off.pose.q = Quaternion([16384, 16384, 0, 0]);
-        assert!(!well_formed(&frame(Command::MoveImmediate(off))));
-        assert!(well_formed(&frame(Command::Stop)));
+        assert!(!well_formed(&Command::MoveImmediate(off).to_frame()));
+        assert!(well_formed(&Command::Stop.to_frame()));
         assert!(!well_formed(&Frame {
             code: 0x7F,
             data: vec![],

@@ -887,13 +887,7 @@ fn read_backs_under_faults_are_true_or_errors() {
     let mut robot = Robot::new(cfg, timers, MotionParams::default());
     let prog = program_50();
     for (n, i) in (1u16..).zip(&prog) {
-        let bytes = asea_protocol::client::store_command(5, n, i)
-            .encode(&cfg)
-            .unwrap();
-        let f = asea_protocol::frame::Frame {
-            code: bytes[1],
-            data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
-        };
+        let f = asea_protocol::client::store_command(5, n, i).to_frame();
         robot.machine.execute(&f, 0.0);
     }
     let wire = Paced::new(clock.clone(), 9600, robot).with_faults(

@@ -89,11 +89,7 @@ fn positioning(x: f64, y: f64, z: f64, zone: Zone) -> Positioning {
 }
 
 fn frame_of(cmd: &Command) -> Frame {
-    let bytes = cmd.encode(&FrameConfig::default()).unwrap();
-    Frame {
-        code: bytes[1],
-        data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
-    }
+    cmd.to_frame()
 }
 
 type Link = Client<Paced<Robot>, VirtualClock>;

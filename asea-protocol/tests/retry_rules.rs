@@ -594,15 +594,12 @@ fn a_command_acknowledged_and_not_executed_is_sent_again() {
     let speed = asea_protocol::Speed::from_value("base", 0.5).unwrap();
     c.set_base_speed(speed).unwrap();
     assert_eq!(c.link().peer.script.swallow, Some((SET_BASE_SPEED, 0)));
-    let cmd = asea_protocol::Command::SetBaseSpeed(speed)
-        .encode(&asea_protocol::FrameConfig::default())
-        .unwrap();
-    let data = &cmd[3..3 + usize::from(cmd[2])];
+    let sent = asea_protocol::Command::SetBaseSpeed(speed).to_frame();
     assert_eq!(
         executed(&c),
         (
             before.wrapping_add(1),
-            telegram_digest(SET_BASE_SPEED, data)
+            telegram_digest(SET_BASE_SPEED, &sent.data)
         ),
         "executed once"
     );
@@ -688,17 +685,12 @@ fn only_answers_that_agree_in_a_row_confirm_a_store() {
 /// A twin of a STORE_CONTROL landing as instruction `instruction` of `program`: the
 /// instruction `stored` there.
 fn twin_store(program: u8, instruction: u16, stored: Control) -> Frame {
-    let t = asea_protocol::Command::StoreControl {
+    asea_protocol::Command::StoreControl {
         program,
         instruction,
         control: stored,
     }
-    .encode(&asea_protocol::FrameConfig::default())
-    .unwrap();
-    Frame {
-        code: t[1],
-        data: t[3..3 + usize::from(t[2])].to_vec(),
-    }
+    .to_frame()
 }
 
 /// A twin that the robot refuses: a STORE_CONTROL whose instruction number was corrupted to 0.

@@ -883,11 +883,7 @@ mod tests {
     use crate::command::{Flags, Reference, Speed, Zone};
 
     fn frame(cmd: Command) -> Frame {
-        let bytes = cmd.encode(&FrameConfig::default()).unwrap();
-        Frame {
-            code: bytes[1],
-            data: bytes[3..3 + usize::from(bytes[2])].to_vec(),
-        }
+        cmd.to_frame()
     }
 
     /// A positioning at `xyz`; an absolute one with the eye's roll axis (the quaternion's X
