@@ -322,7 +322,13 @@ mod tests {
         }
         assert_eq!(units, vec![vec![ENQ], stop.clone(), vec![EOT]]);
         assert_eq!(robot_unit(&cfg, Direction::Sent, &units[1]), "Stop");
-        assert_eq!(robot_unit(&cfg, Direction::Sent, &units[0]), "ENQ");
+        for (b, name) in [(ENQ, "ENQ"), (ACK, "ACK"), (NAK, "NAK"), (EOT, "EOT")] {
+            assert_eq!(robot_unit(&cfg, Direction::Received, &[b]), name);
+        }
+        assert_eq!(
+            robot_unit(&cfg, Direction::Received, &[0x55]),
+            "byte 0x55 outside a telegram"
+        );
         // A wrong check value is still one unit, named as bad.
         let mut bad = stop.clone();
         *bad.last_mut().unwrap() ^= 0xFF;
@@ -348,5 +354,56 @@ mod tests {
         assert_eq!(indexer_line(Direction::Received, b""), "completion");
         assert_eq!(indexer_line(Direction::Received, b"?X"), "refused ?X");
         assert_eq!(indexer_line(Direction::Received, b"1G"), "echo 1G");
+    }
+
+    /// A link that counts the discards it is asked for.
+    #[derive(Debug, Default)]
+    struct Counting(u32);
+
+    impl asea_protocol::Link for Counting {
+        fn write_all(&mut self, _: &[u8]) -> io::Result<()> {
+            Ok(())
+        }
+        fn read_timeout(&mut self, _: &mut [u8], _: Duration) -> io::Result<usize> {
+            Ok(0)
+        }
+        fn discard_input(&mut self) -> io::Result<()> {
+            self.0 += 1;
+            Ok(())
+        }
+    }
+
+    impl mandrel_drive::Link for Counting {
+        fn write_all(&mut self, _: &[u8]) -> io::Result<()> {
+            Ok(())
+        }
+        fn read_timeout(&mut self, _: &mut [u8], _: Duration) -> io::Result<usize> {
+            Ok(0)
+        }
+        fn discard_input(&mut self) -> io::Result<()> {
+            self.0 += 1;
+            Ok(())
+        }
+    }
+
+    /// A tap passes a discard of input through to its link (both kinds), and a sync tap says
+    /// whether the lines under it are wired.
+    #[test]
+    fn taps_pass_discards_and_wiring_through() {
+        let time: Arc<dyn Timebase> = Arc::new(crate::device::WallClock::new());
+        let slot = RecordSlot::default();
+        let mut robot = LinkTap::robot(
+            Counting::default(),
+            FrameConfig::default(),
+            slot.clone(),
+            time.clone(),
+        );
+        asea_protocol::Link::discard_input(&mut robot).unwrap();
+        assert_eq!(robot.inner.0, 1);
+        let mut indexer = LinkTap::indexer(Counting::default(), slot.clone(), time.clone());
+        mandrel_drive::Link::discard_input(&mut indexer).unwrap();
+        assert_eq!(indexer.inner.0, 1);
+        let unwired = SyncTap::new(Box::new(crate::device::NoSync), slot, time);
+        assert!(!unwired.wired());
     }
 }
