@@ -129,6 +129,52 @@ mod tests {
         assert_eq!(d.pending(), 0);
     }
 
+    /// The buffer is emptied once everything in it is decoded and compacted once more than
+    /// 4096 decoded bytes lie before an unfinished frame, and neither loses the unfinished frame.
+    #[test]
+    fn memory_stays_bounded_and_a_partial_frame_survives() {
+        let cfg = FrameConfig::default();
+        let f = encode(&cfg, 0x02, &[3]).unwrap();
+        let mut d = Decoder::new(cfg);
+        // An ENQ, then the first three bytes of a frame.
+        d.push(&[ENQ]);
+        d.push(&f[..3]);
+        assert_eq!(d.next_token(), Some(Token::Control(ENQ)));
+        assert_eq!(d.next_token(), None);
+        assert_eq!(d.pending(), 3);
+        d.push(&f[3..]);
+        assert_eq!(
+            all(&mut d),
+            [Token::Frame(Frame {
+                code: 2,
+                data: vec![3]
+            })]
+        );
+        assert_eq!(d.pending(), 0);
+        // Everything decoded: the next bytes start an empty buffer.
+        d.push(&[EOT]);
+        assert_eq!(d.buf.len(), 1);
+        assert_eq!(all(&mut d), [Token::Control(EOT)]);
+
+        // 5000 stray bytes decoded ahead of an unfinished frame: the next push drops them.
+        d.clear();
+        d.push(&[0x41; 5000]);
+        d.push(&f[..2]);
+        assert_eq!(all(&mut d).len(), 5000);
+        assert_eq!(d.pending(), 2);
+        d.push(&f[2..4]);
+        assert_eq!(d.buf.len(), 4);
+        assert_eq!(d.pending(), 4);
+        d.push(&f[4..]);
+        assert_eq!(
+            all(&mut d),
+            [Token::Frame(Frame {
+                code: 2,
+                data: vec![3]
+            })]
+        );
+    }
+
     #[test]
     fn resyncs_after_bogus_stx() {
         let cfg = FrameConfig::default();

@@ -58,9 +58,10 @@ struct Script {
     /// The first telegram with this code is replaced on the line by this other whole telegram,
     /// which the robot acknowledges and executes: a foreign command in place of the host's.
     replace: Option<(u8, Vec<u8>)>,
-    /// After this many read-back replies, this many more are replaced on the line by this whole
-    /// reply telegram, with its own good check value (a corruption the one-byte sum lets pass).
-    forge_read_back: Option<(u32, u32, Vec<u8>)>,
+    /// After this many replies with this code, this many more are replaced on the line by this
+    /// whole reply telegram, with its own good check value (a corruption the one-byte sum lets
+    /// pass).
+    forge_reply: Option<(u8, u32, u32, Vec<u8>)>,
     /// Twins: after this many host telegrams with this code, the next ones (this many) each
     /// reach the robot with a corrupted twin, which the robot executes right after it: the
     /// resent copy of a telegram whose ACK was lost, corrupted so that the one-byte sum still
@@ -215,8 +216,8 @@ impl Peer for Line {
                 let cs = out.len() - 1;
                 out[cs] = out[cs].wrapping_add(1);
             }
-            if code == REPLY_READ_BACK
-                && let Some((skip, n, forged)) = &mut self.script.forge_read_back
+            if let Some((c, skip, n, forged)) = &mut self.script.forge_reply
+                && *c == code
             {
                 if *skip > 0 {
                     *skip -= 1;
@@ -623,6 +624,57 @@ fn another_command_executed_in_place_of_ours_is_foreign() {
     assert!(matches!(e, Error::Foreign { executed: 1, .. }), "{e:?}");
 }
 
+/// A program-info reply telegram with its own good check value (for the line to forge).
+fn program_info_reply(program: u8, count: u16, highest: u16, total: u16) -> Vec<u8> {
+    asea_protocol::Reply::ProgramInfo {
+        program,
+        count,
+        highest,
+        total,
+    }
+    .encode(&asea_protocol::FrameConfig::default())
+    .unwrap()
+}
+
+/// PROGRAM_INFO is taken only from `AGREE_STORED` (2) answers in a row that agree and name the
+/// program asked for: a forged first answer is not taken alone, a forged second one does not
+/// agree with the first, and two answers about another program are not this program's.
+#[test]
+fn program_info_is_taken_from_answers_that_agree_and_name_the_program() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    // Program 1 holds three instructions (highest number 3), program 2 two: five in memory.
+    let setup = || {
+        let (mut c, _) = client(Script::default());
+        c.upload(1, &[wait, wait, end]).unwrap();
+        c.upload(2, &[wait, end]).unwrap();
+        c
+    };
+    let truth = (3, 3, 5);
+    let forged = program_info_reply(1, 4, 4, 6);
+    for skip in [0, 1] {
+        let mut c = setup();
+        c.link_mut().peer.script.forge_reply = Some((REPLY_PROGRAM_INFO, skip, 1, forged.clone()));
+        assert_eq!(
+            c.program_info(1).unwrap(),
+            truth,
+            "answer {} forged",
+            skip + 1
+        );
+        assert_eq!(
+            c.link().peer.script.forge_reply.as_ref().map(|f| f.2),
+            Some(0)
+        );
+    }
+    let mut c = setup();
+    let other = program_info_reply(2, 2, 2, 5);
+    c.link_mut().peer.script.forge_reply = Some((REPLY_PROGRAM_INFO, 0, 2, other));
+    assert_eq!(c.program_info(1).unwrap(), truth);
+    assert_eq!(
+        c.link().peer.script.forge_reply.as_ref().map(|f| f.2),
+        Some(0)
+    );
+}
+
 /// A batch upload on a clean line reads every instruction back twice (once in its program's
 /// verified upload, once more after the whole batch) and repairs nothing; a program already in
 /// memory is replaced, not added to.
@@ -660,7 +712,7 @@ fn a_read_back_naming_another_slot_is_refused() {
     let other = read_back_reply(1, 2, end);
     let (mut c, _) = client(Script::default());
     c.upload(1, &[wait, end]).unwrap();
-    c.link_mut().peer.script.forge_read_back = Some((0, 1, other));
+    c.link_mut().peer.script.forge_reply = Some((REPLY_READ_BACK, 0, 1, other));
     let e = c.read_back(1, 1).unwrap_err();
     assert!(matches!(e, Error::UnexpectedReply(_)), "{e:?}");
 }
@@ -674,10 +726,10 @@ fn only_answers_that_agree_in_a_row_confirm_a_store() {
     let forged = read_back_reply(1, 1, end);
     let (mut c, _) = client(Script::default());
     c.upload(1, &[wait, end]).unwrap();
-    c.link_mut().peer.script.forge_read_back = Some((1, 2, forged));
+    c.link_mut().peer.script.forge_reply = Some((REPLY_READ_BACK, 1, 2, forged));
     assert!(c.confirm_stored(1, 1, &wait).unwrap());
     assert_eq!(
-        c.link().peer.script.forge_read_back.as_ref().map(|f| f.1),
+        c.link().peer.script.forge_reply.as_ref().map(|f| f.2),
         Some(0)
     );
 }
@@ -718,6 +770,43 @@ fn deletes(c: &TestClient, program: u8) -> usize {
         .iter()
         .filter(|f| f.code == DELETE_PROGRAM && f.data == [program])
         .count()
+}
+
+/// The batch clears its programs first, and a program already gone when its DELETE_PROGRAM
+/// arrives is what the batch wanted: two program-information answers forged alike (program 1
+/// holding two instructions, when the memory is empty) make the batch delete a program the robot
+/// does not hold; the robot refuses with "no such program" and the batch goes on. A program the
+/// robot refuses to delete because it is running fails the batch with the robot's reason, and
+/// nothing is stored.
+#[test]
+fn the_batch_deletes_its_programs_and_only_a_missing_program_is_no_error() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    let (mut c, _) = client(Script {
+        forge_reply: Some((REPLY_PROGRAM_INFO, 0, 2, program_info_reply(1, 2, 2, 2))),
+        ..Script::default()
+    });
+    let one = [wait, end];
+    c.upload_batch(&[(1, &one)]).unwrap();
+    assert_eq!(
+        c.link().peer.script.forge_reply.as_ref().map(|f| f.2),
+        Some(0)
+    );
+    assert_eq!(deletes(&c, 1), 1);
+    assert_eq!(c.program_info(1).unwrap(), (2, 2, 2));
+
+    // Program 1 runs (it holds a wait for the start and its end) and the batch would give it
+    // three instructions: only the refused DELETE is executed.
+    let (mut c, _) = running(Script::default());
+    let before = robot(&c).machine.status().executed;
+    let three = [wait, wait, end];
+    let e = c.upload_batch(&[(1, &three)]).unwrap_err();
+    assert!(
+        matches!(e, Error::Robot { code, .. } if code == asea_protocol::RobotError::Busy.code()),
+        "{e:?}"
+    );
+    assert_eq!(robot(&c).machine.status().executed, before.wrapping_add(1));
+    assert_eq!(deletes(&c, 1), 1);
+    assert_eq!(c.program_info(1).unwrap(), (2, 2, 2));
 }
 
 /// The batch's own uploads repair what they see and the batch's second read-back repairs what a

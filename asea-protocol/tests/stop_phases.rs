@@ -326,3 +326,46 @@ fn a_robot_that_notes_the_eot_late_takes_the_repeated_urgent_enq() {
     }
     assert!(repeated > 0, "no stop needed the repeat");
 }
+
+/// A cancelled session is never left open on the wire: one whose telegram the robot has seen is
+/// ended with EOT before the call returns; one held for a STOP (the robot has seen no telegram of
+/// it) and followed by another command instead is ended with EOT before that command's ENQ.
+#[test]
+fn a_cancelled_session_is_ended_with_eot() {
+    let start = Duration::from_millis(60);
+    let (mut ended, mut held) = (0, 0);
+    for k in 0..480u32 {
+        let t = start + Duration::from_micros(250) * k;
+        let (mut c, b) = client();
+        c.link_mut().peer.cancel_at = Some(t);
+        loop {
+            match c.status() {
+                Ok(_) => {}
+                Err(Error::Cancelled) => break,
+                Err(e) => panic!("status: {e}"),
+            }
+        }
+        let sent_by_return = c.link().peer.log.len();
+        match phase(&c.link().peer.log, t, b) {
+            Phase::TelegramOut(_) => {
+                let last = c.link().peer.log.iter().rev().find(|e| e.1 == From::Host);
+                assert_eq!(last.map(|e| e.2), Some(EOT), "at {t:?}");
+                ended += 1;
+            }
+            Phase::AwaitingAck(_) => {
+                c.cancel_token().reset();
+                c.status().expect("the next command goes through");
+                let after: Vec<u8> = c.link().peer.log[sent_by_return..]
+                    .iter()
+                    .filter(|e| e.1 == From::Host)
+                    .map(|e| e.2)
+                    .collect();
+                assert_eq!(after.first(), Some(&EOT), "at {t:?}: {after:02X?}");
+                assert_eq!(after.get(1), Some(&ENQ), "at {t:?}: {after:02X?}");
+                held += 1;
+            }
+            Phase::Closed(_) => {}
+        }
+    }
+    assert!(ended > 0 && held > 0, "{ended} {held}");
+}
