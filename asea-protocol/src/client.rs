@@ -1059,3 +1059,117 @@ impl From<Positioning> for Instruction {
         Instruction::Position(p)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::command::{Mode, Positioning, Selector, State};
+
+    fn status(mode: Mode, state: State, program: u8, homed: bool) -> Status {
+        Status {
+            mode,
+            state,
+            program,
+            homed,
+            ..Status::default()
+        }
+    }
+
+    /// Each command class's effect in the status (docs/protocol.md §7, the table's motion and mode
+    /// row): the mode; homing, or homed and at rest; the program running (or already finished,
+    /// at rest) in OPERATE, at rest in STANDBY; STOPPED; the arm moving or at rest. Every other
+    /// command has no effect to see. A missing effect is named.
+    #[test]
+    fn each_command_class_is_judged_by_its_own_effect() {
+        use Mode::{Operate, Standby};
+        use State::{Homing, Idle, Running, Stopped};
+        let ok = |c: &Command, s: Status| effect_of(c, &s).is_ok();
+        let why = |c: &Command, s: Status| effect_of(c, &s).unwrap_err();
+
+        assert!(ok(&Command::Standby, status(Standby, Idle, 0, true)));
+        assert_eq!(
+            why(&Command::Standby, status(Operate, Idle, 0, true)),
+            "mode STANDBY"
+        );
+        assert!(ok(&Command::Operate, status(Operate, Idle, 0, true)));
+        assert_eq!(
+            why(&Command::Operate, status(Standby, Idle, 0, true)),
+            "mode OPERATE"
+        );
+
+        assert!(ok(&Command::SyncHome, status(Operate, Homing, 0, false)));
+        assert!(ok(&Command::SyncHome, status(Operate, Idle, 0, true)));
+        assert_eq!(
+            why(&Command::SyncHome, status(Operate, Idle, 0, false)),
+            "homing or homed"
+        );
+        assert!(!ok(&Command::SyncHome, status(Operate, Stopped, 0, true)));
+
+        let run = Command::RunProgram { program: 2 };
+        assert!(ok(&run, status(Operate, Running, 2, true)));
+        assert!(ok(&run, status(Operate, Idle, 3, true)), "already finished");
+        assert_eq!(
+            why(&run, status(Operate, Running, 3, true)),
+            "the program running"
+        );
+        assert!(!ok(&run, status(Operate, Stopped, 2, true)));
+        assert!(ok(&run, status(Standby, Idle, 2, true)));
+        assert!(!ok(&run, status(Standby, Running, 2, true)));
+
+        assert!(ok(&Command::Stop, status(Operate, Stopped, 2, true)));
+        assert_eq!(
+            why(&Command::Stop, status(Operate, Running, 2, true)),
+            "state STOPPED"
+        );
+
+        let mv = Command::MoveImmediate(Positioning::default());
+        assert!(ok(&mv, status(Operate, Running, 0, true)));
+        assert!(ok(&mv, status(Operate, Idle, 0, true)));
+        assert_eq!(
+            why(&mv, status(Operate, Stopped, 0, true)),
+            "the arm moving or at rest"
+        );
+        assert!(ok(&mv, status(Standby, Idle, 0, true)));
+        assert!(!ok(&mv, status(Standby, Running, 0, true)));
+
+        // No effect to see: judged by the execution count alone.
+        assert!(ok(
+            &Command::DeleteProgram { program: 1 },
+            status(Standby, Stopped, 0, false)
+        ));
+    }
+
+    /// The names errors give (docs/protocol.md §5's table; a request's selector is named).
+    #[test]
+    fn commands_and_requests_are_named_as_the_protocol_names_them() {
+        assert_eq!(command_name(&Command::Stop), "STOP");
+        assert_eq!(
+            command_name(&Command::MoveImmediate(Positioning::default())),
+            "MOVE_IMMEDIATE"
+        );
+        assert_eq!(
+            command_name(&Command::DeleteProgram { program: 1 }),
+            "DELETE_PROGRAM"
+        );
+        assert_eq!(
+            request_name(&Command::Enquire(Selector::Status)),
+            "ENQUIRE status"
+        );
+        assert_eq!(
+            request_name(&Command::Enquire(Selector::Position)),
+            "ENQUIRE position"
+        );
+        assert_eq!(
+            request_name(&Command::ReadBack {
+                program: 1,
+                instruction: 1
+            }),
+            "READ_BACK"
+        );
+        assert_eq!(
+            request_name(&Command::ProgramInfo { program: 1 }),
+            "PROGRAM_INFO"
+        );
+        assert_eq!(request_name(&Command::Stop), "STOP");
+    }
+}

@@ -271,6 +271,73 @@ pub fn parse(cfg: &FrameConfig, buf: &[u8]) -> Parsed {
 mod tests {
     use super::*;
 
+    /// STX, CMD, LEN, the data, ETX and the check value (one byte for the sum, two for the CRC):
+    /// 5 + LEN and 6 + LEN bytes, as the frames the encoder writes.
+    #[test]
+    fn frame_len_counts_every_byte_on_the_wire() {
+        for checksum in [Checksum::Sum8, Checksum::Crc16] {
+            let cfg = FrameConfig {
+                checksum,
+                ..FrameConfig::default()
+            };
+            for len in [0usize, 1, 20, 64] {
+                let want = 4 + len + checksum.width();
+                assert_eq!(cfg.frame_len(len), want, "{checksum:?} {len}");
+                assert_eq!(encode(&cfg, 0x01, &vec![0x55; len]).unwrap().len(), want);
+            }
+        }
+        assert_eq!(FrameConfig::default().frame_len(20), 25);
+    }
+
+    /// CRC-16/CCITT-FALSE a bit at a time (poly 0x1021, init 0xFFFF, no reflection, no final
+    /// XOR), independent of the table.
+    fn crc16_bitwise(bytes: &[u8]) -> u16 {
+        let mut crc = 0xFFFFu16;
+        for &b in bytes {
+            crc ^= u16::from(b) << 8;
+            for _ in 0..8 {
+                crc = if crc & 0x8000 != 0 {
+                    (crc << 1) ^ 0x1021
+                } else {
+                    crc << 1
+                };
+            }
+        }
+        crc
+    }
+
+    /// The executed telegram's digest is CRC-16/CCITT-FALSE over CMD, LEN and DATA only (not
+    /// STX, not ETX), whatever the link's own check value.
+    #[test]
+    fn the_digest_is_the_crc_of_cmd_len_and_data() {
+        assert_eq!(crc16_bitwise(b"123456789"), 0x29B1);
+        assert_eq!(telegram_digest(0x0C, &[]), crc16_bitwise(&[0x0C, 0]));
+        let data = [1u8, 0, 5, 0, 0x1F, 0x40, 0xF0, 0x58];
+        assert_eq!(
+            telegram_digest(0x01, &data),
+            crc16_bitwise(&[&[0x01, 8][..], &data[..]].concat())
+        );
+    }
+
+    /// A telegram of exactly the largest LEN is encoded and parsed; one byte more is refused.
+    #[test]
+    fn the_largest_len_is_accepted_and_one_more_refused() {
+        let cfg = FrameConfig::default();
+        let max = usize::from(cfg.max_len);
+        let f = encode(&cfg, 0x01, &vec![0x55; max]).unwrap();
+        assert!(matches!(parse(&cfg, &f), Parsed::Frame { used, .. } if used == f.len()));
+        assert!(matches!(
+            encode(&cfg, 0x01, &vec![0x55; max + 1]),
+            Err(EncodeError::TooLong { .. })
+        ));
+        let mut long = f.clone();
+        long[2] = cfg.max_len + 1;
+        assert!(matches!(
+            parse(&cfg, &long),
+            Parsed::Bad(FrameError::TooLong { .. })
+        ));
+    }
+
     /// docs/protocol.md §3 golden vector: STORE_POS, CS 0x3F.
     const STORE_POS: [u8; 25] = [
         0x02, // STX

@@ -762,6 +762,46 @@ fn twin_on_store(skip: u32, twin: Frame) -> Twin {
     }
 }
 
+/// A verified upload reads its whole program back once more at the end: a twin of its second
+/// store that overwrote its first instruction (already verified) is found there, stored again
+/// and counted as restored.
+#[test]
+fn a_verified_upload_restores_what_a_later_twin_overwrote() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    let (mut c, _) = client(Script {
+        twins: vec![twin_on_store(1, twin_store(1, 1, Control::End))],
+        ..Script::default()
+    });
+    let program = [wait, wait, end];
+    let r = c.upload_verified(1, &program).unwrap();
+    assert_eq!(c.link().peer.script.twins[0].count, 0, "the twin ran");
+    assert_eq!((r.checked, r.restored, r.refused_twins), (3, 1, 0));
+    assert_eq!(robot(&c).machine.instruction(1, 1), Some(&wait));
+    assert_eq!(robot(&c).machine.program_len(1), 3);
+}
+
+/// `verify` reads an uploaded program back and stores again what differs: a plain upload whose
+/// second store carried a twin onto the first instruction is put right, one instruction
+/// restored of three checked.
+#[test]
+fn verify_restores_an_instruction_a_twin_overwrote() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    let (mut c, _) = client(Script {
+        twins: vec![twin_on_store(1, twin_store(1, 1, Control::End))],
+        ..Script::default()
+    });
+    let program = [wait, wait, end];
+    c.upload(1, &program).unwrap();
+    assert_eq!(
+        robot(&c).machine.instruction(1, 1),
+        Some(&end),
+        "the twin landed"
+    );
+    let r = c.verify(1, &program).unwrap();
+    assert_eq!((r.checked, r.restored), (3, 1));
+    assert_eq!(robot(&c).machine.instruction(1, 1), Some(&wait));
+}
+
 /// The DELETE_PROGRAM telegrams for `program` the robot executed.
 fn deletes(c: &TestClient, program: u8) -> usize {
     robot(c)
