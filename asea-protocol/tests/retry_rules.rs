@@ -25,6 +25,7 @@ const REPLY_READ_BACK: u8 = 0x8D;
 const REPLY_PROGRAM_INFO: u8 = 0x8F;
 const SET_BASE_SPEED: u8 = 0x0A;
 const DELETE_PROGRAM: u8 = 0x07;
+const ACK_ERROR: u8 = 0x0E;
 
 /// A program's wait for the PC's start, and its end.
 const WAIT_CONTROL: Control = Control::WaitInput {
@@ -52,6 +53,9 @@ struct Script {
     garble: Option<(u8, u32)>,
     /// The robot falls silent at the host's first ENQ after the session of a STOP.
     silent_after_stop: bool,
+    /// ACK_ERROR telegrams the line acknowledges itself and never delivers: the robot's error
+    /// stays latched.
+    lose_ack_errors: bool,
     /// The robot falls silent at the host's first ENQ after this many more replies with this
     /// code.
     silent_after_replies: Option<(u8, u32)>,
@@ -147,6 +151,10 @@ impl Line {
                 return;
             }
             *n -= 1;
+            self.forged.push(ACK);
+            return;
+        }
+        if code == ACK_ERROR && s.lose_ack_errors {
             self.forged.push(ACK);
             return;
         }
@@ -800,6 +808,63 @@ fn verify_restores_an_instruction_a_twin_overwrote() {
     let r = c.verify(1, &program).unwrap();
     assert_eq!((r.checked, r.restored), (3, 1));
     assert_eq!(robot(&c).machine.instruction(1, 1), Some(&wait));
+}
+
+/// A verified store whose read-backs keep differing (every STORE_CONTROL acknowledged by the
+/// line and never delivered) fails with `Verify`, naming the slot: the robot gave no reason. When
+/// the robot shows a latched error that was already reported (RUN_PROGRAM of a program it does
+/// not hold, the acknowledgement of that error lost on the line), the failure names that error
+/// again, with the slot, rather than a bare `Verify`.
+#[test]
+fn a_store_that_never_takes_names_the_robots_latched_error_or_none() {
+    let (wait, end) = (WAIT_FOR_START, END);
+    let (mut c, _) = client(Script {
+        swallow: Some((STORE_CONTROL, u32::MAX)),
+        ..Script::default()
+    });
+    c.check_status().unwrap();
+    let e = c.upload_verified(1, &[wait, end]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Verify {
+                program: 1,
+                instruction: 1
+            }
+        ),
+        "{e:?}"
+    );
+
+    let (mut c, _) = client(Script {
+        lose_ack_errors: true,
+        ..Script::default()
+    });
+    c.check_status().unwrap();
+    let no_program = asea_protocol::RobotError::NoProgram.code();
+    let e = c.run_program(9).unwrap_err();
+    assert!(
+        matches!(e, Error::Robot { code, .. } if code == no_program),
+        "{e:?}"
+    );
+    assert_eq!(
+        robot(&c).machine.status().last_error,
+        no_program,
+        "still latched"
+    );
+    c.link_mut().peer.script.swallow = Some((STORE_CONTROL, u32::MAX));
+    let e = c.upload_verified(1, &[wait, end]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Robot {
+                code,
+                program: 1,
+                instruction: 1,
+                ..
+            } if code == no_program
+        ),
+        "{e:?}"
+    );
 }
 
 /// The DELETE_PROGRAM telegrams for `program` the robot executed.
