@@ -221,4 +221,26 @@ mod tests {
         clock.advance(0.002);
         assert!(!indexer_side.level().unwrap());
     }
+
+    /// A line toggled for a whole shift keeps only the edges a receiver may still see: memory
+    /// stays bounded however long the cell runs, and every level read is the one driven a delay
+    /// earlier.
+    #[test]
+    fn a_wire_forgets_edges_every_receiver_has_seen() {
+        let clock = VirtualClock::new();
+        let mut pc = Wire::new(Arc::new(clock.clone()), 0.001);
+        let mut robot_side = pc.clone();
+        for k in 0..10_000u32 {
+            let level = k % 2 == 0;
+            pc.set(level).unwrap();
+            clock.advance(0.0015);
+            assert_eq!(robot_side.level().unwrap(), level);
+            assert!(pc.line.lock().unwrap().edges.len() <= 2);
+        }
+        // Within the delay the earlier level is still seen, so its edge is kept.
+        pc.set(true).unwrap();
+        clock.advance(0.0005);
+        assert!(!robot_side.level().unwrap());
+        assert_eq!(pc.line.lock().unwrap().edges.len(), 2);
+    }
 }
