@@ -40,8 +40,16 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
     let topics = topics_of(&bytes);
     let eye = topics.iter().filter(|t| *t == "/eye/simulated").count();
     // Fine movement, two paths of about 10 s each and the moves between them, one pose per
-    // 20 ms of cell time.
+    // 20 ms of cell time (`RECORD_STEP_S`): never closer than that.
     assert!(eye > 1000, "{eye} eye poses");
+    let times: Vec<u64> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic == "/eye/simulated")
+        .map(|m| m.log_time)
+        .collect();
+    let closest = times.windows(2).map(|w| w[1] - w[0]).min().unwrap();
+    assert!(closest >= 20_000_000 - 1_000, "poses {closest} ns apart");
     for t in [
         "/tf",
         "/mandrel",

@@ -323,6 +323,77 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Commands of the subset the language spells without a number (docs: spec's X-language
+    /// table): a bare `L` loops forever like `L0`, `SSD0` turns the device-ID prefix off, and a
+    /// `TR` without its pattern of 0, 1 and X is not a command.
+    #[test]
+    fn bare_and_switch_commands_parse() {
+        assert_eq!(parse_command("L"), Some((None, Command::Loop(0))));
+        assert_eq!(parse_command("1L"), Some((Some(1), Command::Loop(0))));
+        assert_eq!(parse_command("L0"), Some((None, Command::Loop(0))));
+        assert_eq!(
+            parse_command("SSD0"),
+            Some((None, Command::DeviceId(false)))
+        );
+        assert_eq!(parse_command("SSD1"), Some((None, Command::DeviceId(true))));
+        assert_eq!(parse_command("TR"), None);
+        assert_eq!(parse_command("TR12"), None);
+        assert_eq!(
+            parse_command("1TR1X"),
+            Some((Some(1), Command::Trigger("1X".into())))
+        );
+    }
+
+    /// `*S` is ready with attention; a device ID is read as a decimal number of three digits;
+    /// a limit status is one printable character, not a control character or a space.
+    #[test]
+    fn attention_device_ids_and_limit_characters() {
+        assert_eq!(
+            parse_reply(&Command::Status, b"*S", None),
+            Ok(Reply::Status {
+                busy: false,
+                attention: true
+            })
+        );
+        assert_eq!(
+            parse_reply(&Command::Status, b"*C", None),
+            Ok(Reply::Status {
+                busy: true,
+                attention: true
+            })
+        );
+        assert_eq!(
+            parse_reply(&Command::Status, b"*123R", Some(123)),
+            Ok(Reply::Status {
+                busy: false,
+                attention: false
+            })
+        );
+        assert_eq!(
+            parse_reply(&Command::Status, b"*012R", Some(13)),
+            Err(ReplyError::WrongAddress {
+                expected: 13,
+                got: 12
+            })
+        );
+        // W3 is exactly eight hex digits: fewer or more is not a count.
+        for bad in [&b"*FFFF"[..], b"*0FFFF9E58"] {
+            assert_eq!(
+                parse_reply(&Command::MoveSteps, bad, None),
+                Err(ReplyError::Malformed("W3 is not 8 hex digits"))
+            );
+        }
+        for bad in [&b"* "[..], b"*\x07", b"*\x7F"] {
+            assert!(
+                matches!(
+                    parse_reply(&Command::LimitStatus, bad, None),
+                    Err(ReplyError::Malformed(_))
+                ),
+                "{bad:?}"
+            );
+        }
+    }
+
     #[test]
     fn golden_replies() {
         assert_eq!(

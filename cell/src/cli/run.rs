@@ -933,3 +933,59 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::f64::consts::FRAC_PI_2;
+
+    use paths::robot::Joints;
+
+    use super::*;
+
+    /// `--live HOST:PORT`, an IPv6 host in brackets; no port or a port beyond 16 bits refused.
+    #[test]
+    fn live_addresses_are_host_and_port() {
+        assert_eq!(
+            live_address("127.0.0.1:8765").unwrap(),
+            ("127.0.0.1".to_string(), 8765)
+        );
+        assert_eq!(live_address("[::1]:0").unwrap(), ("::1".to_string(), 0));
+        assert_eq!(
+            live_address("cell-pc.local:9000").unwrap(),
+            ("cell-pc.local".to_string(), 9000)
+        );
+        assert!(live_address("localhost").is_err());
+        assert!(live_address("localhost:65536").is_err());
+    }
+
+    /// The envelope's bounds are where the arm's forward kinematics put the eye with every link
+    /// stretched out: horizontally at shoulder height (the largest radius), straight up and
+    /// straight down (the height range).
+    #[test]
+    fn the_envelope_is_the_arm_stretched_out() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/cylinder.toml");
+        let (job, _) = sequences::Job::load(&path).unwrap();
+        let arm = cell::tool::arm(&job);
+        let reach = envelope(&job);
+        let eye = |shoulder_rad: f64, elbow_rad: f64, pitch_rad: f64| {
+            arm.forward(&Joints {
+                base_yaw_rad: 0.3,
+                shoulder_rad,
+                elbow_rad,
+                pitch_rad,
+                roll_rad: 0.0,
+            })
+            .eye_mm
+        };
+        let out = eye(FRAC_PI_2, 0.0, 0.0);
+        assert!((out.x.hypot(out.y) - reach.max_radius_mm).abs() < 1e-9);
+        let up = eye(0.0, FRAC_PI_2, -FRAC_PI_2);
+        assert!((up.z - reach.z_range_mm.1).abs() < 1e-9, "{up} {reach:?}");
+        let down = eye(std::f64::consts::PI, -FRAC_PI_2, FRAC_PI_2);
+        assert!(
+            (down.z - reach.z_range_mm.0).abs() < 1e-9,
+            "{down} {reach:?}"
+        );
+        assert_eq!(reach.min_radius_mm, 0.0);
+    }
+}
