@@ -32,6 +32,9 @@ use crate::transfer;
 /// The coordinator's control tick: the longest it goes without looking at the stop request and
 /// the e-stop input while it waits.
 pub const CONTROL_TICK: Duration = Duration::from_millis(10);
+/// How often an immediate move's end waits out an in-position level seen high while the robot
+/// still runs (the previous move's level, behind the opto delay) before it is a fault.
+pub const STALE_IN_POSITION_WAITS: u32 = 2;
 /// A robot position within this of its target is reached (the telegram's 0.0625 mm LSB, twice).
 pub const POSITION_TOLERANCE_MM: f64 = 0.125;
 /// The program number a resumed program-mode path is stored under.
@@ -1074,15 +1077,32 @@ impl<'a> Coordinator<'a> {
 
     /// Waits for the robot's immediate move to `target` to end, then confirms its state (idle,
     /// no error) and its position, which it returns.
+    ///
+    /// The in-position line is seen through the opto-isolators' delay (App. D): right after
+    /// the move's telegram and its confirming reads it may still show the level the previous
+    /// move left high. The state read that follows the line tells a stale level (the robot still
+    /// running) from the move's end; a stale level is waited out, low and then high again, at
+    /// most [`STALE_IN_POSITION_WAITS`] times.
     fn robot_settle(&mut self, target: [f64; 3]) -> Result<[f64; 3], Step> {
-        if self.dev.sync.wired() {
-            self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
+        let s = if self.dev.sync.wired() {
+            let mut waits = 0;
+            loop {
+                self.wait("robot move", MOVE_TIMEOUT_S, |d| d.sync.in_position())?;
+                let s = self.dev.robot.state()?;
+                if s.state != State::Running || waits == STALE_IN_POSITION_WAITS {
+                    break s;
+                }
+                waits += 1;
+                self.wait("robot move", MOVE_TIMEOUT_S, |d| {
+                    Ok(!d.sync.in_position()?)
+                })?;
+            }
         } else {
             self.wait("robot move", MOVE_TIMEOUT_S, |d| {
                 Ok(d.robot.state()?.state != State::Running)
             })?;
-        }
-        let s = self.dev.robot.state()?;
+            self.dev.robot.state()?
+        };
         if s.state != State::Idle || s.last_error != 0 {
             return Err(Step::Halt(Halt::Fault {
                 message: format!(

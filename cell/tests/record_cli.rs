@@ -81,7 +81,7 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
     }
     assert!(sent_points > 100, "{sent_points} points sent");
     assert_eq!(commanded, sent_points);
-    laid_fibre_agrees_with_the_prediction(&bytes);
+    laid_fibre_agrees_with_the_prediction(&bytes, &example("cylinder.toml"));
     // The chunks as the summary lists them: cut the file inside the middle chunk.
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
     let chunks = &summary.chunk_indexes;
@@ -149,7 +149,7 @@ fn a_recorded_run_reads_back_and_a_cut_file_recovers_every_whole_chunk() {
 /// The laid fibre a fine run on the simulated cell records at each path's end lies as far from
 /// the desired path as `windcell predict` says it will (the same placement model over the same
 /// simulated cell, reached through the run's trace instead of the prediction's own winding).
-fn laid_fibre_agrees_with_the_prediction(bytes: &[u8]) {
+fn laid_fibre_agrees_with_the_prediction(bytes: &[u8], job: &Path) {
     use foxglove::Decode as _;
     // Per path: the desired fibre, and the laid one.
     type Fibres = (Vec<[f64; 3]>, Vec<[f64; 3]>);
@@ -177,7 +177,7 @@ fn laid_fibre_agrees_with_the_prediction(bytes: &[u8]) {
     }
     let o = windcell(&[
         "predict",
-        example("cylinder.toml").to_str().unwrap(),
+        job.to_str().unwrap(),
         "--mode",
         "fine",
         "--samples",
@@ -220,6 +220,77 @@ fn laid_fibre_agrees_with_the_prediction(bytes: &[u8]) {
             "{name}: {worst} against {want}"
         );
     }
+}
+
+/// The simulated cell is built from the job's own drive: with the motor in quarter steps (800
+/// per revolution) the mandrel turns as the plan's steps say, and the laid fibre again matches
+/// the prediction (a cell simulated with the thesis's 400 steps per revolution would turn it
+/// twice as far).
+#[test]
+fn the_simulated_cell_runs_the_jobs_own_drive() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(example("cylinder.toml")).unwrap();
+    assert!(text.contains("steps_per_rev = 400"));
+    let job = dir.path().join("cylinder-800.toml");
+    std::fs::write(
+        &job,
+        text.replace("steps_per_rev = 400", "steps_per_rev = 800"),
+    )
+    .unwrap();
+    let mcap = dir.path().join("run.mcap");
+    let o = windcell(&[
+        "run",
+        job.to_str().unwrap(),
+        "--mode",
+        "fine",
+        "--journal",
+        dir.path().join("run.journal").to_str().unwrap(),
+        "--record",
+        mcap.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    laid_fibre_agrees_with_the_prediction(&std::fs::read(&mcap).unwrap(), &job);
+}
+
+/// …and from the job's own arm: with the robot 1300 mm from the mandrel and a forearm of
+/// 1000 mm the job plans and winds, where the IRB 6/2's own arm would need its shoulder at 82°,
+/// beyond its 60° (`windcell plan` of the same job without the `[cell.robot]` section says so).
+#[test]
+fn the_simulated_cell_runs_the_jobs_own_arm() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(example("cylinder.toml")).unwrap();
+    let far = text.replace("robot_distance_mm = 800.0", "robot_distance_mm = 1300.0");
+    assert_ne!(far, text);
+    let short = dir.path().join("short.toml");
+    std::fs::write(&short, &far).unwrap();
+    let o = windcell(&[
+        "plan",
+        short.to_str().unwrap(),
+        "-o",
+        dir.path().join("s").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("shoulder"), "{}", stderr(&o));
+    let long = dir.path().join("long.toml");
+    std::fs::write(
+        &long,
+        far.replacen(
+            "[mandrel]",
+            "[cell.robot]\nforearm_mm = 1000.0\n\n[mandrel]",
+            1,
+        ),
+    )
+    .unwrap();
+    let o = windcell(&[
+        "run",
+        long.to_str().unwrap(),
+        "--mode",
+        "fine",
+        "--journal",
+        dir.path().join("run.journal").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("batch done: 2 paths"));
 }
 
 /// A discrete run's recording holds the wire and the lines as the coordinator saw them: every

@@ -103,6 +103,7 @@ fn the_console_stop_then_resume_finishes_the_batch() {
     assert!(err.contains("stopped at path 1 (SBEND_1)"), "{err}");
     assert!(err.contains("the console's stop"), "{err}");
     assert!(err.contains("--resume"), "{err}");
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("resuming"));
     let o = run(&[
         seq.to_str().unwrap(),
         "--mode",
@@ -112,7 +113,24 @@ fn the_console_stop_then_resume_finishes_the_batch() {
         journal.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(String::from_utf8_lossy(&o.stdout).contains("batch done: 2 paths"));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("batch done: 2 paths"));
+    assert!(out.contains("resuming after path"), "{out}");
+    // Without a terminal the progress is a line every tenth segment and at the last.
+    let mut shown: Vec<(usize, usize)> = Vec::new();
+    for l in out.lines().filter(|l| l.contains("path 2/2")) {
+        let Some((_, rest)) = l.split_once(": segment ") else {
+            continue;
+        };
+        let (k, n) = rest.split_once(',').unwrap().0.split_once('/').unwrap();
+        shown.push((k.parse().unwrap(), n.parse().unwrap()));
+    }
+    let n = shown.last().expect("segment lines").1;
+    let want: Vec<(usize, usize)> = (1..=n)
+        .filter(|k| k % 10 == 0 || *k == n)
+        .map(|k| (k, n))
+        .collect();
+    assert_eq!(shown, want, "{out}");
     // Done is done.
     let o = run(&[
         seq.to_str().unwrap(),
@@ -298,4 +316,50 @@ fn a_port_another_windcell_holds_is_busy_bad_input() {
     drop(held);
     common::stop_cleanly(robot);
     common::stop_cleanly(indexer);
+}
+
+/// Simulated cell time of a finished batch, s (the summary line).
+fn cell_time_s(o: &std::process::Output) -> f64 {
+    let out = String::from_utf8_lossy(&o.stdout);
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("batch done:"))
+        .unwrap_or_else(|| panic!("no summary: {out}\n{}", stderr(o)));
+    let (_, rest) = line.split_once(", ").unwrap();
+    rest.split_once(" s of").unwrap().0.parse().unwrap()
+}
+
+/// The sync lines reach the PC through the cell file's opto delay (App. D). With a slow chain
+/// (0.5 s, the cell file allows up to 1 s) the in-position level the previous move left high is
+/// still seen after the next move's telegram: the coordinator waits it out instead of taking it
+/// for the move's end, and the fine run winds both paths. Each program then waits at least twice
+/// for the delay (its lowered line, and its raised line at the end), so the run takes at least
+/// 2 × 2 × 0.5 s longer than on the 20 µs cell.
+#[test]
+fn a_slow_opto_chain_is_waited_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(example("cell-sim.toml")).unwrap();
+    let slow = dir.path().join("slow-opto.toml");
+    std::fs::write(
+        &slow,
+        text.replace("opto_delay_s = 20e-6", "opto_delay_s = 0.5"),
+    )
+    .unwrap();
+    let times: Vec<f64> = [example("cell-sim.toml"), slow]
+        .iter()
+        .map(|cell| {
+            let o = run(&[
+                example("cylinder.toml").to_str().unwrap(),
+                "--mode",
+                "fine",
+                "--cell",
+                cell.to_str().unwrap(),
+                "--journal",
+                dir.path().join("run.journal").to_str().unwrap(),
+            ]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            cell_time_s(&o)
+        })
+        .collect();
+    assert!(times[1] - times[0] >= 2.0, "{times:?}");
 }

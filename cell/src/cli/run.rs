@@ -942,6 +942,16 @@ mod tests {
 
     use super::*;
 
+    /// Lines are counted from 1; a file that ends early differs at the line after its last.
+    #[test]
+    fn first_difference_names_the_line() {
+        assert_eq!(first_difference("a\nb\n", "a\nb\n"), None);
+        assert_eq!(first_difference("", ""), None);
+        assert_eq!(first_difference("a\nb\nc\n", "a\nb\nd\n"), Some(3));
+        assert_eq!(first_difference("a\nb\n", "a\nb\nc\n"), Some(3));
+        assert_eq!(first_difference("x\n", "y\n"), Some(1));
+    }
+
     /// `--live HOST:PORT`, an IPv6 host in brackets; no port or a port beyond 16 bits refused.
     #[test]
     fn live_addresses_are_host_and_port() {
