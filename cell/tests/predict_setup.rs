@@ -87,3 +87,39 @@ fn the_simulated_cell_has_the_jobs_drive() {
     assert!(a < 3.0 && b < 3.0, "13:60 {a} mm, 13:39 {b} mm");
     assert!((a - b).abs() < 1.0, "13:60 {a} mm, 13:39 {b} mm");
 }
+
+/// A drive the simulated motor cannot follow (50 mandrel rev/s² to 1 rev/s: at the motor
+/// 50 × 60/13 × 400 = 92 300 half-steps/s², a demand the M112 model's pull-out torque does not
+/// meet on the way to 1 rev/s) is reported by `windcell predict` in one line that names
+/// the stall and both of its possible causes, not a debug dump of the coordinator's halt.
+#[test]
+fn a_drive_the_motor_cannot_follow_is_reported_as_a_stall() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/cylinder.toml"),
+    )
+    .unwrap();
+    let fast = text
+        .replace("accel_rps2 = 1.0", "accel_rps2 = 50.0")
+        .replace("mandrel_speed_rps = 0.1 ", "mandrel_speed_rps = 1.0 ");
+    assert_ne!(fast, text);
+    let job = dir.path().join("fast.toml");
+    std::fs::write(&job, fast).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args([
+            "predict",
+            job.to_str().unwrap(),
+            "--mode",
+            "fine",
+            "--samples",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("stalled"), "{err}");
+    assert!(err.contains("pull-out torque"), "{err}");
+    assert!(!err.contains("Fault {"), "{err}");
+}

@@ -60,8 +60,12 @@ pub enum Error {
         /// The translator's limit.
         limit_pps: f64,
     },
-    /// The motor stalled: the start velocity exceeded the pull-in limit (seed 001 §5.3.2).
-    #[error("the mandrel motor stalled (start velocity above the pull-in limit); move failed")]
+    /// The motor stalled: it fell out of step, from a start velocity above its pull-in rate
+    /// (seed 001 §5.3.2) or a ramp or speed that asked for more than its pull-out torque
+    /// (`sim::motor`). The indexer's attention flag does not say which.
+    #[error(
+        "the mandrel motor stalled (out of step: a start velocity above its pull-in rate, or a ramp or speed beyond its pull-out torque); the move failed"
+    )]
     Stalled,
     /// The controller raised an alarm.
     #[error("controller alarm: {0}")]
