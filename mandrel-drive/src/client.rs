@@ -1007,4 +1007,347 @@ mod tests {
         let (host, _device) = Pipe::pair();
         assert_eq!(XClient::new(host, cfg.clone()).config(), &cfg);
     }
+
+    /// How long a test card waits for the client's next command before it ends.
+    const CARD_IDLE: Duration = Duration::from_secs(1);
+
+    /// An X-language card on the far end of a pipe, on a thread of its own: for each CR-ended
+    /// command line it receives (`1R`, `1PZ`), `answer` gives a pause and the bytes to write back
+    /// (echo and reply), or `None` to fall silent. It ends then, or when no command has come for
+    /// [`CARD_IDLE`], and returns the lines it received.
+    fn x_card<F>(mut card: Pipe, mut answer: F) -> std::thread::JoinHandle<Vec<String>>
+    where
+        F: FnMut(&str) -> Option<(Duration, String)> + Send + 'static,
+    {
+        std::thread::spawn(move || {
+            let (mut got, mut pending, mut buf) = (Vec::new(), Vec::new(), [0u8; 64]);
+            loop {
+                while let Some(i) = pending.iter().position(|b| *b == b'\r') {
+                    let raw: Vec<u8> = pending.drain(..=i).collect();
+                    let line = String::from_utf8_lossy(&raw[..i]).into_owned();
+                    let Some((pause, bytes)) = answer(&line) else {
+                        return got;
+                    };
+                    got.push(line);
+                    std::thread::sleep(pause);
+                    card.write_all(bytes.as_bytes()).unwrap();
+                }
+                let n = card.read_timeout(&mut buf, CARD_IDLE).unwrap();
+                if n == 0 {
+                    return got;
+                }
+                pending.extend_from_slice(&buf[..n]);
+            }
+        })
+    }
+
+    /// What a card with echo on writes back for `line`: nothing for the reset (`Z`), else the
+    /// echo, and for the status request (`R`) the status `status` after it (`R` ready, `B` busy).
+    fn echoed(line: &str, status: char) -> String {
+        match line {
+            "1Z" => String::new(),
+            "1R" => format!("1R\r*{status}\r"),
+            _ => format!("{line}\r"),
+        }
+    }
+
+    /// An X client at address 1 without the device-ID prefix, so that `init` sends `Z`, polls
+    /// `R`, then `MR400`, `LD3`, `PZ` and polls `R` again.
+    fn x_client(host: Pipe, reset_wait: Duration, reply_timeout: Duration) -> XClient<Pipe> {
+        XClient::new(
+            host,
+            IndexerConfig {
+                reset_wait,
+                reply_timeout,
+                device_id: false,
+                ..IndexerConfig::default()
+            },
+        )
+    }
+
+    /// The `R` polls among the lines a card received before the first set-up command (`MR`).
+    fn reset_polls(lines: &[String]) -> usize {
+        lines
+            .iter()
+            .take_while(|l| !l.starts_with("1MR"))
+            .filter(|l| *l == "1R")
+            .count()
+    }
+
+    /// A card that stays busy after its reset fails `init` once `RESET_LIMIT` and one reply
+    /// timeout (the last poll's full wait for its reply) have passed, and that is the wait it
+    /// reports.
+    #[test]
+    fn init_gives_up_on_a_card_busy_beyond_the_reset_limit() {
+        let reply = Duration::from_millis(100);
+        let (host, card) = Pipe::pair();
+        let _card = x_card(card, |line| Some((Duration::ZERO, echoed(line, 'B'))));
+        let mut c = x_client(host, Duration::from_millis(10), reply);
+        let t0 = Instant::now();
+        let e = c.init().unwrap_err();
+        let limit = RESET_LIMIT + reply;
+        assert!(t0.elapsed() >= limit, "{:?}", t0.elapsed());
+        assert!(
+            matches!(e, Error::MoveTimeout { waited_ms } if u128::from(waited_ms) == limit.as_millis()),
+            "{e:?}"
+        );
+    }
+
+    /// A ready reply that comes after its poll timed out is the answer to that poll: the wait
+    /// goes on until the later polls are answered too, so that their replies do not come in
+    /// front of the echo of the first set-up command (`MR400`). Here the first reply comes
+    /// three reply timeouts late.
+    #[test]
+    fn init_reads_the_replies_of_polls_that_timed_out() {
+        let reply = Duration::from_millis(100);
+        let (host, card) = Pipe::pair();
+        let mut first = true;
+        let card = x_card(card, move |line| {
+            let late = line == "1R" && std::mem::take(&mut first);
+            let pause = if late { 3 * reply } else { Duration::ZERO };
+            Some((pause, echoed(line, 'R')))
+        });
+        let mut c = x_client(host, Duration::ZERO, reply);
+        c.init().unwrap();
+        let lines = card.join().unwrap();
+        assert!(reset_polls(&lines) >= 2, "{lines:?}");
+    }
+
+    /// The wait ends at the ready reply to the last poll, not one reply timeout later.
+    #[test]
+    fn init_goes_on_at_the_ready_reply() {
+        let reply = Duration::from_secs(2);
+        let (host, card) = Pipe::pair();
+        let _card = x_card(card, |line| Some((Duration::ZERO, echoed(line, 'R'))));
+        let mut c = x_client(host, Duration::ZERO, reply);
+        let t0 = Instant::now();
+        c.init().unwrap();
+        assert!(t0.elapsed() < reply / 2, "{:?}", t0.elapsed());
+    }
+
+    /// While the card is busy after its reset it is polled once per `POLL_PERIOD`, not as fast
+    /// as it answers: a card busy for six poll periods from the first poll gets at most eight
+    /// polls (one at the start, six more a period apart, one of slack for the card's own clock).
+    #[test]
+    fn a_card_busy_resetting_is_polled_once_per_poll_period() {
+        let busy_for = 6 * POLL_PERIOD;
+        let (host, card) = Pipe::pair();
+        let mut first_poll: Option<Instant> = None;
+        let card = x_card(card, move |line| {
+            let busy =
+                line == "1R" && first_poll.get_or_insert_with(Instant::now).elapsed() < busy_for;
+            Some((Duration::ZERO, echoed(line, if busy { 'B' } else { 'R' })))
+        });
+        let mut c = x_client(host, Duration::ZERO, Duration::from_millis(150));
+        c.init().unwrap();
+        let lines = card.join().unwrap();
+        let polls = reset_polls(&lines);
+        assert!((2..=8).contains(&polls), "{polls} polls");
+    }
+
+    /// A card busy for `busy_after_zero` after `PZ` and silent `silent_after_zero` after it.
+    fn zeroing_card(
+        card: Pipe,
+        busy_after_zero: Duration,
+        silent_after_zero: Duration,
+    ) -> std::thread::JoinHandle<Vec<String>> {
+        let mut zeroed: Option<Instant> = None;
+        x_card(card, move |line| {
+            if line == "1PZ" {
+                zeroed = Some(Instant::now());
+            }
+            let since = zeroed.map(|t| t.elapsed());
+            if since.is_some_and(|t| t >= silent_after_zero) {
+                return None;
+            }
+            let busy = since.is_some_and(|t| t < busy_after_zero);
+            Some((Duration::ZERO, echoed(line, if busy { 'B' } else { 'R' })))
+        })
+    }
+
+    /// After `PZ` the card may stay busy for up to the reset wait plus one reply timeout (here
+    /// 200 + 400 ms): one busy for 400 ms is waited for.
+    #[test]
+    fn init_waits_for_the_zeroing_within_its_deadline() {
+        let (host, card) = Pipe::pair();
+        let card = zeroing_card(card, Duration::from_millis(400), Duration::from_secs(3));
+        let mut c = x_client(host, Duration::from_millis(200), Duration::from_millis(400));
+        c.init().unwrap();
+        let lines = card.join().unwrap();
+        let after_zero = lines
+            .iter()
+            .skip_while(|l| *l != "1PZ")
+            .filter(|l| *l == "1R");
+        assert!(after_zero.count() >= 2, "{lines:?}");
+    }
+
+    /// A card still busy after `PZ` once the reset wait and one reply timeout (200 + 400 ms)
+    /// have passed fails `init`, and that is the wait it reports.
+    #[test]
+    fn init_gives_up_on_a_zeroing_that_does_not_end() {
+        let (host, card) = Pipe::pair();
+        let _card = zeroing_card(card, Duration::from_secs(3), Duration::from_secs(3));
+        let mut c = x_client(host, Duration::from_millis(200), Duration::from_millis(400));
+        let e = c.init().unwrap_err();
+        assert!(matches!(e, Error::MoveTimeout { waited_ms: 600 }), "{e:?}");
+    }
+
+    /// GRBL's start-up banner, as it comes after a soft reset.
+    const BANNER: &str = "\r\nGrbl 1.1h ['$' for help]\r\n";
+
+    /// A GRBL client on a pipe whose controller end has already written `lines` (CRLF-ended);
+    /// the controller end comes back to read what the client wrote.
+    fn grbl_answered(lines: &str) -> (GrblClient<Pipe>, Pipe) {
+        let (host, mut card) = Pipe::pair();
+        card.write_all(lines.as_bytes()).unwrap();
+        let cfg = IndexerConfig {
+            reset_wait: Duration::from_millis(150),
+            reply_timeout: Duration::from_millis(150),
+            ..IndexerConfig::default()
+        };
+        (GrblClient::new(host, cfg), card)
+    }
+
+    /// Everything the client has written to the controller end so far.
+    fn written(card: &mut Pipe) -> Vec<u8> {
+        let (mut all, mut buf) = (Vec::new(), [0u8; 256]);
+        loop {
+            let n = card
+                .read_timeout(&mut buf, Duration::from_millis(20))
+                .unwrap();
+            if n == 0 {
+                return all;
+            }
+            all.extend_from_slice(&buf[..n]);
+        }
+    }
+
+    /// A GRBL 1.1 status report with the A axis (the fourth `MPos` field) at 12.5°.
+    fn report(state: &str, feed: u32) -> String {
+        format!("<{state}|MPos:0.000,0.000,0.000,12.500|FS:{feed},0>\r\n")
+    }
+
+    /// `init` soft-resets the controller (0x18) and waits for its banner, then sets the A axis'
+    /// steps per degree (400 steps per motor turn × 60/13 belt / 360° = 5.1282) and zeroes A.
+    #[test]
+    fn grbl_init_resets_and_sets_up_the_a_axis() {
+        let (host, mut card) = Pipe::pair();
+        let controller = std::thread::spawn(move || {
+            let (mut got, mut buf) = (Vec::new(), [0u8; 64]);
+            loop {
+                let n = card.read_timeout(&mut buf, CARD_IDLE).unwrap();
+                if n == 0 {
+                    return got;
+                }
+                for &b in &buf[..n] {
+                    got.push(b);
+                    match b {
+                        grbl::SOFT_RESET => card.write_all(BANNER.as_bytes()).unwrap(),
+                        b'\n' => card.write_all(b"ok\r\n").unwrap(),
+                        _ => {}
+                    }
+                }
+            }
+        });
+        let cfg = IndexerConfig {
+            reply_timeout: Duration::from_millis(150),
+            ..IndexerConfig::default()
+        };
+        GrblClient::new(host, cfg).init().unwrap();
+        assert_eq!(
+            String::from_utf8(controller.join().unwrap()).unwrap(),
+            "\u{18}$103=5.1282\nG92 A0\n"
+        );
+    }
+
+    /// An `ALARM:N` in place of a line's `ok`, or in front of a status report, is reported as
+    /// that alarm.
+    #[test]
+    fn grbl_alarms_are_reported() {
+        let (mut c, _card) = grbl_answered("ALARM:1\r\n");
+        let e = c.send(&grbl::Command::ZeroA).unwrap_err();
+        assert!(matches!(&e, Error::Alarm(m) if m == "ALARM:1"), "{e:?}");
+        let (mut c, _card) = grbl_answered(&format!("ALARM:1\r\n{}", report("Alarm", 0)));
+        let e = c.status().unwrap_err();
+        assert!(matches!(&e, Error::Alarm(m) if m == "ALARM:1"), "{e:?}");
+    }
+
+    /// A profile goes out in degrees at the mandrel: 0.5 rev/s × 360° × 60 s = 10 800 deg/min
+    /// as the A axis' maximum rate (`$113`), 2 rev/s² × 360° = 720 deg/s² as its acceleration
+    /// (`$123`).
+    #[test]
+    fn grbl_profile_goes_out_in_degrees() {
+        let (mut c, mut card) = grbl_answered("ok\r\nok\r\n");
+        c.set_profile(Profile {
+            accel_rps2: 2.0,
+            start_rps: 0.0,
+            max_rps: 0.5,
+        })
+        .unwrap();
+        assert_eq!(written(&mut card), b"$113=10800.000\n$123=720.000\n");
+    }
+
+    /// Constant velocity is a jog of a day's turning at the feed: 0.5 rev/s is 10 800 deg/min
+    /// and 0.5 × 360° × 86 400 s = 15 552 000°, negative for the negative direction. From rest
+    /// the jog goes out after the status request (`?`); a jog under way is cancelled first
+    /// (0x85) and the drive waited for until idle.
+    #[test]
+    fn grbl_constant_velocity_is_a_day_long_jog_at_the_feed() {
+        let idle = report("Idle", 0);
+        let (mut c, mut card) = grbl_answered(&format!("{idle}ok\r\n"));
+        c.run_constant(0.5, Direction::Positive).unwrap();
+        assert_eq!(written(&mut card), b"?$J=G91 A15552000.0000 F10800.000\n");
+        let (mut c, mut card) = grbl_answered(&format!("{idle}ok\r\n"));
+        c.run_constant(0.5, Direction::Negative).unwrap();
+        assert_eq!(written(&mut card), b"?$J=G91 A-15552000.0000 F10800.000\n");
+        let jog = report("Jog", 10_800);
+        let (mut c, mut card) = grbl_answered(&format!("{jog}{idle}ok\r\n"));
+        c.run_constant(0.25, Direction::Positive).unwrap();
+        assert_eq!(
+            written(&mut card),
+            b"?\x85?$J=G91 A7776000.0000 F5400.000\n"
+        );
+    }
+
+    /// A kill is a soft reset (0x18) and nothing else; the client waits for the banner.
+    #[test]
+    fn grbl_kill_is_a_soft_reset() {
+        let (mut c, mut card) = grbl_answered(BANNER);
+        c.stop(StopKind::Kill).unwrap();
+        assert_eq!(written(&mut card), [grbl::SOFT_RESET]);
+    }
+
+    /// A decelerating stop of a jog is a jog cancel (0x85), waited for until idle, without a
+    /// reset. Of a motion line it is a feed hold (`!`), then status requests (`?`) until the hold
+    /// is complete, `Hold:0` with the feed at 0 (either alone is waited past) or the drive idle,
+    /// then a soft reset (0x18) to drop the rest of the motion.
+    #[test]
+    fn grbl_decelerating_stop_holds_until_at_rest_then_resets() {
+        let (mut c, mut card) =
+            grbl_answered(&format!("{}{}", report("Jog", 10_800), report("Idle", 0)));
+        c.stop(StopKind::Decelerate).unwrap();
+        assert_eq!(written(&mut card), b"?\x85?");
+
+        let run = report("Run", 10_800);
+        let hold = |holding: &[(&str, u32)]| {
+            let mut lines = run.clone();
+            for (state, feed) in holding {
+                lines += &report(state, *feed);
+            }
+            lines + BANNER
+        };
+        // Decelerating, at feed 0 but the hold not yet complete, complete.
+        let (mut c, mut card) =
+            grbl_answered(&hold(&[("Hold:1", 2_400), ("Hold:1", 0), ("Hold:0", 0)]));
+        c.stop(StopKind::Decelerate).unwrap();
+        assert_eq!(written(&mut card), b"?!???\x18");
+        // Reported complete while the feed is not yet 0, then complete.
+        let (mut c, mut card) = grbl_answered(&hold(&[("Hold:0", 120), ("Hold:0", 0)]));
+        c.stop(StopKind::Decelerate).unwrap();
+        assert_eq!(written(&mut card), b"?!??\x18");
+        // The motion ended before the hold: idle.
+        let (mut c, mut card) = grbl_answered(&hold(&[("Idle", 0)]));
+        c.stop(StopKind::Decelerate).unwrap();
+        assert_eq!(written(&mut card), b"?!?\x18");
+    }
 }
