@@ -505,9 +505,10 @@ pub struct Paced<P> {
 }
 
 impl<P: Peer> Paced<P> {
-    /// A wire at `baud` (10 bits per byte) on `clock` to `peer`.
+    /// A wire at `baud` (the default character format's 10 bits per byte) on `clock` to `peer`.
     pub fn new(clock: VirtualClock, baud: u32, peer: P) -> Self {
-        let byte_time = Duration::from_secs_f64(10.0 / f64::from(baud.max(1)));
+        let bits = f64::from(bits_per_char(DEFAULT_CHAR_FORMAT));
+        let byte_time = Duration::from_secs_f64(bits / f64::from(baud.max(1)));
         Paced {
             clock,
             byte_time,
@@ -743,6 +744,102 @@ mod tests {
             a.read_timeout(&mut buf, Duration::from_millis(1)).unwrap(),
             0
         );
+    }
+
+    /// Start bit, data bits, parity bit and stop bit.
+    #[test]
+    fn both_character_formats_take_ten_bits() {
+        assert_eq!(bits_per_char(CharFormat::EightN1), 1 + 8 + 1);
+        assert_eq!(bits_per_char(CharFormat::SevenE1), 1 + 7 + 1 + 1);
+    }
+
+    /// Reads until `want` bytes came or a second passed.
+    fn read_all<L: Link>(l: &mut L, want: usize) -> Vec<u8> {
+        let mut got = Vec::new();
+        let mut buf = [0u8; 64];
+        let t0 = std::time::Instant::now();
+        while got.len() < want && t0.elapsed() < Duration::from_secs(1) {
+            let n = l.read_timeout(&mut buf, Duration::from_millis(20)).unwrap();
+            got.extend_from_slice(&buf[..n]);
+        }
+        got
+    }
+
+    /// Waits until `l` has bytes waiting (a pseudo-terminal passes them on asynchronously).
+    fn wait_for_input(l: &mut serialport::TTYPort) {
+        use serialport::SerialPort as _;
+        let t0 = std::time::Instant::now();
+        while l.bytes_to_read().unwrap() == 0 && t0.elapsed() < Duration::from_secs(1) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert!(l.bytes_to_read().unwrap() > 0, "nothing arrived");
+    }
+
+    /// The serial-port links on a pseudo-terminal pair (no hardware): bytes written on one end
+    /// are read on the other, a read with nothing waiting times out as 0 bytes, and input
+    /// waiting is discarded; the same through a boxed port (as `open_serial` returns it) and a
+    /// boxed link.
+    #[cfg(unix)]
+    #[test]
+    fn serial_ports_carry_bytes_time_out_and_discard_input() {
+        let (mut a, mut b) = serialport::TTYPort::pair().unwrap();
+        Link::write_all(&mut a, b"hello").unwrap();
+        assert_eq!(read_all(&mut b, 5), b"hello");
+        let mut buf = [0u8; 8];
+        assert_eq!(
+            b.read_timeout(&mut buf, Duration::from_millis(20)).unwrap(),
+            0
+        );
+        Link::write_all(&mut a, b"stale").unwrap();
+        wait_for_input(&mut b);
+        b.discard_input().unwrap();
+        assert_eq!(
+            b.read_timeout(&mut buf, Duration::from_millis(50)).unwrap(),
+            0
+        );
+
+        let (mut a, b) = serialport::TTYPort::pair().unwrap();
+        let mut boxed: Box<dyn serialport::SerialPort> = Box::new(b);
+        Link::write_all(&mut boxed, b"ping").unwrap();
+        assert_eq!(read_all(&mut a, 4), b"ping");
+        Link::write_all(&mut a, b"pong").unwrap();
+        assert_eq!(read_all(&mut boxed, 4), b"pong");
+        Link::write_all(&mut a, b"stale").unwrap();
+        let t0 = std::time::Instant::now();
+        while boxed.bytes_to_read().unwrap() == 0 && t0.elapsed() < Duration::from_secs(1) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        Link::discard_input(&mut boxed).unwrap();
+        assert_eq!(
+            boxed
+                .read_timeout(&mut buf, Duration::from_millis(50))
+                .unwrap(),
+            0
+        );
+
+        let (p, mut q) = Pipe::pair();
+        let mut link: Box<Pipe> = Box::new(p);
+        link.write_all(b"ab").unwrap();
+        assert_eq!(read_all(&mut q, 2), b"ab");
+        q.write_all(b"cd").unwrap();
+        assert_eq!(read_all(&mut link, 2), b"cd");
+        q.write_all(b"ef").unwrap();
+        link.discard_input().unwrap();
+        assert_eq!(
+            link.read_timeout(&mut buf, Duration::from_millis(1))
+                .unwrap(),
+            0
+        );
+    }
+
+    /// A port whose other end has gone is an error, not a quiet line.
+    #[cfg(unix)]
+    #[test]
+    fn a_serial_port_whose_other_end_closed_is_an_error() {
+        let (a, mut b) = serialport::TTYPort::pair().unwrap();
+        drop(a);
+        let mut buf = [0u8; 8];
+        assert!(b.read_timeout(&mut buf, Duration::from_millis(50)).is_err());
     }
 
     #[test]
