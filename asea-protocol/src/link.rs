@@ -842,6 +842,22 @@ mod tests {
         assert!(b.read_timeout(&mut buf, Duration::from_millis(50)).is_err());
     }
 
+    /// A read on an empty pipe waits for bytes written meanwhile from another thread, up to its
+    /// timeout.
+    #[test]
+    fn a_pipe_read_waits_for_bytes_to_come() {
+        let (mut a, mut b) = Pipe::pair();
+        let writer = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(20));
+            a.write_all(&[7]).unwrap();
+            a
+        });
+        let mut buf = [0u8; 4];
+        assert_eq!(b.read_timeout(&mut buf, Duration::from_secs(5)).unwrap(), 1);
+        assert_eq!(buf[0], 7);
+        drop(writer.join().unwrap());
+    }
+
     #[test]
     fn faults_are_seeded_and_near_their_rates() {
         let mut a = Faults::new(FaultRates::uniform(0.1), 7);
