@@ -667,7 +667,13 @@ pub struct GrblClient<L: Link> {
     cfg: IndexerConfig,
     reader: LineReader,
     feed_deg_per_min: f64,
+    stop_wait: Duration,
 }
+
+/// The longest a decelerating stop waits for the controller to come to rest (a jog cancelled, a
+/// feed hold complete) before it resets the controller anyway: a full-speed move of the slowest
+/// profile ends well within it.
+pub const GRBL_STOP_WAIT: Duration = Duration::from_secs(60);
 
 impl<L: Link> GrblClient<L> {
     /// A client on `link`; call [`Indexer::init`] before anything else.
@@ -677,7 +683,14 @@ impl<L: Link> GrblClient<L> {
             cfg,
             reader: LineReader::default(),
             feed_deg_per_min: 360.0,
+            stop_wait: GRBL_STOP_WAIT,
         }
+    }
+
+    /// The same client with another wait for a decelerating stop ([`GRBL_STOP_WAIT`]).
+    pub fn with_stop_wait(mut self, wait: Duration) -> Self {
+        self.stop_wait = wait;
+        self
     }
 
     fn line(&mut self, command: &str, timeout: Duration) -> Result<grbl::Line> {
@@ -825,11 +838,11 @@ impl<L: Link> Indexer for GrblClient<L> {
             let (state, _) = self.report()?;
             if state == grbl::State::Jog {
                 self.link.write_all(&[grbl::JOG_CANCEL])?;
-                self.wait_idle(Duration::from_secs(60))?;
+                self.wait_idle(self.stop_wait)?;
                 return Ok(());
             }
             self.link.write_all(&[grbl::FEED_HOLD])?;
-            let deadline = Instant::now() + Duration::from_secs(60);
+            let deadline = Instant::now() + self.stop_wait;
             loop {
                 self.link.write_all(&[grbl::STATUS])?;
                 let raw = self.reader.next_line(
@@ -1172,7 +1185,11 @@ mod tests {
     fn init_waits_for_the_zeroing_within_its_deadline() {
         let (host, card) = Pipe::pair();
         let card = zeroing_card(card, Duration::from_millis(400), Duration::from_secs(3));
-        let mut c = x_client(host, Duration::from_millis(200), Duration::from_millis(1000));
+        let mut c = x_client(
+            host,
+            Duration::from_millis(200),
+            Duration::from_millis(1000),
+        );
         c.init().unwrap();
         let lines = card.join().unwrap();
         let after_zero = lines
@@ -1348,6 +1365,12 @@ mod tests {
         assert_eq!(written(&mut card), b"?!??\x18");
         // The motion ended before the hold: idle.
         let (mut c, mut card) = grbl_answered(&hold(&[("Idle", 0)]));
+        c.stop(StopKind::Decelerate).unwrap();
+        assert_eq!(written(&mut card), b"?!?\x18");
+        // A hold that does not complete within the stop's wait: reset anyway, at the first
+        // report past the wait (here none is allowed), the later reports left unread.
+        let (c, mut card) = grbl_answered(&hold(&[("Hold:1", 2_400), ("Hold:1", 2_400)]));
+        let mut c = c.with_stop_wait(Duration::ZERO);
         c.stop(StopKind::Decelerate).unwrap();
         assert_eq!(written(&mut card), b"?!?\x18");
     }
