@@ -218,6 +218,25 @@ fn bad_input_is_one_line_and_exit_code_2_before_anything_is_sent() {
         &[&p("SBEND.SEQ"), "--cell", &p("cell.toml")],
         "/dev/windcell-none-r",
     );
+    // A cell whose drive is not the one the job's steps were planned for (quarter steps for the
+    // job's half steps), for the job and for its sequence checked against it.
+    let cell800 = d.join("cell800.toml");
+    std::fs::write(
+        &cell800,
+        std::fs::read_to_string(example("cell-sim.toml"))
+            .unwrap()
+            .replace("steps_per_rev = 400", "steps_per_rev = 800"),
+    )
+    .unwrap();
+    let sbend = example("sbend.toml");
+    for input in [
+        vec![sbend.to_str().unwrap()],
+        vec![&p("SBEND.SEQ"), "--job", sbend.to_str().unwrap()],
+    ] {
+        let mut args = input.clone();
+        args.extend(["--cell", cell800.to_str().unwrap(), "--force"]);
+        bad(&args, "800 steps/rev, 13:60 belt) is not the one");
+    }
     // --resume with no journal.
     bad(
         &[&p("SBEND.SEQ"), "--resume", &p("none.journal")],

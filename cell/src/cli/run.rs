@@ -427,10 +427,39 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
             .map_or_else(Reach::default, |c| envelope(&c.job));
         (loaded, None, reach, name, clearance)
     };
+    // The drive the job's steps were planned with: the job's own cell, or the job a sequence
+    // was checked against.
+    let planned = match (&job_cell, &clearance) {
+        (Some(c), _) => Some((c.drive, args.input.clone())),
+        (None, Some(c)) => Some((
+            Cell::of_job(&c.job, &c.path)
+                .map_err(Failure::from_cell)?
+                .drive,
+            c.path.clone(),
+        )),
+        (None, None) => None,
+    };
     let cell = match &args.cell {
         Some(p) => Cell::load(p).map_err(Failure::from_cell)?,
         None => job_cell.unwrap_or_else(Cell::simulated),
     };
+    if let Some((drive, job)) = planned
+        && drive.gearing != cell.drive.gearing
+    {
+        let describe = |g: paths::step::Gearing| {
+            format!(
+                "{} steps/rev, {}:{} belt",
+                g.steps_per_motor_rev, g.motor_teeth, g.mandrel_teeth
+            )
+        };
+        return Err(Failure::input(format!(
+            "{}: the drive ({}) is not the one {} was planned for ({}): its steps would turn the mandrel through other angles; plan the job with this drive",
+            cell.source,
+            describe(cell.drive.gearing),
+            job.display(),
+            describe(drive.gearing)
+        )));
+    }
     Ok((loaded, cell, reach, name, clearance))
 }
 
