@@ -123,3 +123,38 @@ fn a_drive_the_motor_cannot_follow_is_reported_as_a_stall() {
     assert!(err.contains("pull-out torque"), "{err}");
     assert!(!err.contains("Fault {"), "{err}");
 }
+
+/// `--cell` with a drive the job was not planned for (quarter steps for the job's half steps)
+/// is refused in one line, exit code 2: its simulated mandrel would turn through other angles.
+#[test]
+fn a_cell_with_another_drive_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    let cell = dir.path().join("cell800.toml");
+    std::fs::write(
+        &cell,
+        std::fs::read_to_string(examples.join("cell-sim.toml"))
+            .unwrap()
+            .replace("steps_per_rev = 400", "steps_per_rev = 800"),
+    )
+    .unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args([
+            "predict",
+            examples.join("cylinder.toml").to_str().unwrap(),
+            "--cell",
+            cell.to_str().unwrap(),
+            "--samples",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("800 steps/rev, 13:60 belt) is not the one"),
+        "{err}"
+    );
+    assert!(o.stdout.is_empty());
+}

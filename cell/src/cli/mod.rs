@@ -98,6 +98,31 @@ pub enum Command {
 }
 
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
+/// A cell (`--cell`) must drive the mandrel with the gearing `job` was planned for: the control
+/// files carry motor steps, and another gearing would turn the mandrel through other angles.
+pub fn same_drive(
+    cell: &cell::cellfile::Cell,
+    planned: mandrel_drive::units::Drive,
+    job: &std::path::Path,
+) -> Result<(), Failure> {
+    if planned.gearing == cell.drive.gearing {
+        return Ok(());
+    }
+    let describe = |g: paths::step::Gearing| {
+        format!(
+            "{} steps/rev, {}:{} belt",
+            g.steps_per_motor_rev, g.motor_teeth, g.mandrel_teeth
+        )
+    };
+    Err(Failure::input(format!(
+        "{}: the drive ({}) is not the one {} was planned for ({}): its steps would turn the mandrel through other angles; plan the job with this drive",
+        cell.source,
+        describe(cell.drive.gearing),
+        job.display(),
+        describe(planned.gearing)
+    )))
+}
+
 pub fn print(text: &str) -> Result<(), Failure> {
     use std::io::Write;
     let mut stdout = std::io::stdout().lock();

@@ -69,9 +69,14 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
         )));
     }
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    let own = Cell::of_job(&job, &args.job).map_err(Failure::from_cell)?;
     let cell = match &args.cell {
-        Some(p) => Cell::load(p).map_err(Failure::from_cell)?,
-        None => Cell::of_job(&job, &args.job).map_err(Failure::from_cell)?,
+        Some(p) => {
+            let cell = Cell::load(p).map_err(Failure::from_cell)?;
+            super::same_drive(&cell, own.drive, &args.job)?;
+            cell
+        }
+        None => own,
     };
     let mut modes: Vec<Mode> = args
         .modes

@@ -443,22 +443,8 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
         Some(p) => Cell::load(p).map_err(Failure::from_cell)?,
         None => job_cell.unwrap_or_else(Cell::simulated),
     };
-    if let Some((drive, job)) = planned
-        && drive.gearing != cell.drive.gearing
-    {
-        let describe = |g: paths::step::Gearing| {
-            format!(
-                "{} steps/rev, {}:{} belt",
-                g.steps_per_motor_rev, g.motor_teeth, g.mandrel_teeth
-            )
-        };
-        return Err(Failure::input(format!(
-            "{}: the drive ({}) is not the one {} was planned for ({}): its steps would turn the mandrel through other angles; plan the job with this drive",
-            cell.source,
-            describe(cell.drive.gearing),
-            job.display(),
-            describe(drive.gearing)
-        )));
+    if let Some((drive, job)) = planned {
+        super::same_drive(&cell, drive, &job)?;
     }
     Ok((loaded, cell, reach, name, clearance))
 }
