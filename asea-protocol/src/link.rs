@@ -858,6 +858,32 @@ mod tests {
         drop(writer.join().unwrap());
     }
 
+    /// SplitMix64's published outputs for seed 1 234 567 (the reference implementation's test
+    /// vector), and for seed 0.
+    #[test]
+    fn the_generator_is_splitmix64() {
+        let mut r = Rng::new(1_234_567);
+        let want = [
+            6_457_827_717_110_365_317,
+            3_203_168_211_198_807_973,
+            9_817_491_932_198_370_423,
+            4_593_380_528_125_082_431,
+            16_408_922_859_458_223_821,
+        ];
+        for w in want {
+            assert_eq!(r.next_u64(), w);
+        }
+        let mut r = Rng::new(0);
+        assert_eq!(r.next_u64(), 0xE220_A839_7B1D_CDAF);
+        assert_eq!(r.next_u64(), 0x6E78_9E6A_A1B9_65F4);
+        // unit() takes the top 53 bits.
+        let mut r = Rng::new(0);
+        assert_eq!(
+            r.unit(),
+            (0xE220_A839_7B1D_CDAFu64 >> 11) as f64 / 2f64.powi(53)
+        );
+    }
+
     #[test]
     fn faults_are_seeded_and_near_their_rates() {
         let mut a = Faults::new(FaultRates::uniform(0.1), 7);
