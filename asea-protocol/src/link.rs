@@ -884,6 +884,64 @@ mod tests {
         );
     }
 
+    /// Each kind of fault alone, at rate 1, does what it says to every byte and is counted; at
+    /// rate 0 nothing happens.
+    #[test]
+    fn each_fault_kind_alone_does_what_it_says() {
+        let only = |drop, corrupt, delay, duplicate| FaultRates {
+            drop,
+            corrupt,
+            delay,
+            duplicate,
+            max_delay: Duration::from_millis(300),
+        };
+        let n = 10_000u32;
+        // Corrupted: one to eight bits flipped, never none.
+        let mut f = Faults::new(only(0.0, 1.0, 0.0, 0.0), 3);
+        for i in 0..n {
+            let b = i as u8;
+            let fate = f.apply(b);
+            assert_ne!(fate.byte, b);
+            assert_eq!((fate.copies, fate.delay), (1, Duration::ZERO));
+        }
+        let c = f.counts();
+        assert_eq!(
+            (c.bytes, c.corrupted, c.dropped),
+            (u64::from(n), u64::from(n), 0)
+        );
+        // Dropped.
+        let mut f = Faults::new(only(1.0, 0.0, 0.0, 0.0), 3);
+        assert!((0..n).all(|i| f.apply(i as u8).copies == 0));
+        assert_eq!(f.counts().dropped, u64::from(n));
+        // Delayed by up to the longest stall, and not all by the same.
+        let mut f = Faults::new(only(0.0, 0.0, 1.0, 0.0), 3);
+        let delays: Vec<Duration> = (0..n).map(|i| f.apply(i as u8).delay).collect();
+        assert!(delays.iter().all(|d| *d <= Duration::from_millis(300)));
+        assert!(delays.iter().any(|d| *d > Duration::from_millis(150)));
+        assert!(delays.iter().any(|d| *d < Duration::from_millis(150)));
+        assert_eq!(f.counts().delayed, u64::from(n));
+        // Duplicated.
+        let mut f = Faults::new(only(0.0, 0.0, 0.0, 1.0), 3);
+        assert!((0..n).all(|i| f.apply(i as u8)
+            == Fate {
+                delay: Duration::ZERO,
+                copies: 2,
+                byte: i as u8
+            }));
+        assert_eq!(f.counts().duplicated, u64::from(n));
+        // None.
+        let mut f = Faults::new(only(0.0, 0.0, 0.0, 0.0), 3);
+        assert!((0..n).all(|i| f.apply(i as u8)
+            == Fate {
+                delay: Duration::ZERO,
+                copies: 1,
+                byte: i as u8
+            }));
+        let c = f.counts();
+        assert_eq!(c.dropped + c.corrupted + c.delayed + c.duplicated, 0);
+        assert_eq!(c.bytes, u64::from(n));
+    }
+
     #[test]
     fn faults_are_seeded_and_near_their_rates() {
         let mut a = Faults::new(FaultRates::uniform(0.1), 7);
