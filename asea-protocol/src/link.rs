@@ -940,6 +940,24 @@ mod tests {
         let c = f.counts();
         assert_eq!(c.dropped + c.corrupted + c.delayed + c.duplicated, 0);
         assert_eq!(c.bytes, u64::from(n));
+        // A NAK corrupted into an ACK (the one corruption that turns a refusal into an
+        // acceptance) is counted as such, and only that.
+        let mut f = Faults::new(only(0.0, 1.0, 0.0, 0.0), 5);
+        let mut naks_to_acks = 0;
+        for i in 0..100_000u32 {
+            let b = if i % 2 == 0 {
+                crate::frame::NAK
+            } else {
+                crate::frame::ACK
+            };
+            let fate = f.apply(b);
+            if b == crate::frame::NAK && fate.byte == crate::frame::ACK {
+                naks_to_acks += 1;
+            }
+        }
+        // 50 000 NAKs, one mask in 255 turns each into an ACK: about 196.
+        assert!((120..280).contains(&naks_to_acks), "{naks_to_acks}");
+        assert_eq!(f.counts().nak_to_ack, naks_to_acks);
     }
 
     #[test]
@@ -992,6 +1010,33 @@ mod tests {
             0
         );
         assert_eq!(clock.now(), w.byte_time() * 4 + Duration::from_millis(5));
+    }
+
+    /// The paced wire counts each direction's faults apart: every byte to the peer dropped, none
+    /// of the (absent) echoes faulted on the way back.
+    #[test]
+    fn paced_wire_counts_each_directions_faults() {
+        let clock = VirtualClock::new();
+        let drop_all = FaultRates {
+            drop: 1.0,
+            corrupt: 0.0,
+            delay: 0.0,
+            duplicate: 0.0,
+            max_delay: Duration::ZERO,
+        };
+        let mut w = Paced::new(clock, 9600, Echo::default()).with_faults(
+            Faults::new(drop_all, 1),
+            Faults::new(FaultRates::uniform(0.0), 2),
+        );
+        w.write_all(&[1, 2, 3]).unwrap();
+        let mut buf = [0u8; 8];
+        assert_eq!(
+            w.read_timeout(&mut buf, Duration::from_millis(5)).unwrap(),
+            0
+        );
+        let (to_peer, to_host) = w.fault_counts();
+        assert_eq!((to_peer.bytes, to_peer.dropped), (3, 3));
+        assert_eq!(to_host.bytes, 0);
     }
 }
 
