@@ -197,6 +197,34 @@ pub fn arm(job: &Job) -> Arm {
     arm
 }
 
+/// A continuous plan's speed advice is for the profile as the indexer runs it
+/// ([`as_the_indexer_runs`]): the job's figure that the indexer's 0.01 motor rev/s rounds to
+/// no more than that speed, down to the 0.1 mrev/s the message shows.
+fn as_the_job_says(job: &Job, e: paths::Error) -> paths::Error {
+    let paths::Error::SegmentTooShort {
+        segment,
+        duration_s,
+        instruction_s,
+        max_segments,
+        mandrel_rps_fit,
+    } = e
+    else {
+        return e;
+    };
+    let d = &job.cell.drive;
+    let [motor_teeth, mandrel_teeth] = *d.gear_ratio.get_ref();
+    let ratio = f64::from(mandrel_teeth) / f64::from(motor_teeth);
+    let on_grid = (mandrel_rps_fit * ratio * 100.0).floor() / 100.0 / ratio;
+    let shown = (on_grid * 1e4).floor() / 1e4;
+    paths::Error::SegmentTooShort {
+        segment,
+        duration_s,
+        instruction_s,
+        max_segments,
+        mandrel_rps_fit: shown,
+    }
+}
+
 /// The profile the indexer runs for `p`: the X-language gives acceleration, velocity and start
 /// velocity in motor rev/s (rev/s²) to two decimals (`A`, `V`, `VS`; the OEM guide's 0.01
 /// resolution), so a mandrel speed of 0.1 rev/s through 60:13 is sent as `V0.46` and turns the
@@ -528,6 +556,7 @@ fn plan_paths(
         };
         let plan = paths::plan::plan(&points, |p| tube.distance_to_surface_mm(p), &setup, &speeds)
             .map_err(|e| {
+                let e = as_the_job_says(job, e);
                 let span = culprit(job, &e).unwrap_or_else(|| error_span(job, spec, &e));
                 located(e, span)
             })?;

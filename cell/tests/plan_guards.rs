@@ -364,3 +364,57 @@ fn continuous_movement_refuses_more_segments_than_the_robot_can_take() {
     let rob = std::fs::read_to_string(out.join("CYL_1.ROB")).unwrap();
     assert!(rob.contains("movement continuous"), "{rob}");
 }
+
+/// A continuous S-bend too fast for the robot's time per instruction is refused with a mandrel
+/// speed to use instead, and that speed plans: the advice counts the ramps and the indexer's
+/// 0.01 motor rev/s (the S-bend's second segment, in the ramp, takes as long at 1 rev/s as at
+/// 0.5, so scaling one segment's time would advise a speed that still fails).
+#[test]
+fn the_continuous_speed_advice_plans() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml"),
+    )
+    .unwrap();
+    let job = |rps: &str| {
+        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+        for l in &mut lines {
+            if l.starts_with("mandrel_speed_rps") {
+                *l = format!("mandrel_speed_rps = {rps}");
+            }
+            if l.starts_with("movement") {
+                *l = "movement = \"continuous\"".to_string();
+            }
+        }
+        let p = dir.path().join(format!("sbend-{rps}.toml"));
+        std::fs::write(&p, lines.join("\n")).unwrap();
+        p
+    };
+    let plan = |p: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_windcell"))
+            .args([
+                "plan",
+                p.to_str().unwrap(),
+                "-o",
+                dir.path().join("out").to_str().unwrap(),
+            ])
+            .output()
+            .unwrap()
+    };
+    for rps in ["1.0", "0.3"] {
+        let o = plan(&job(rps));
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        let advice = err
+            .split("a mandrel speed of at most ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .unwrap_or_else(|| panic!("{err}"));
+        let o = plan(&job(advice));
+        assert!(
+            o.status.success(),
+            "{rps} → {advice}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}

@@ -142,10 +142,11 @@ pub enum Error {
         duration_s: f64,
         /// The robot's least time per instruction.
         instruction_s: f64,
-        /// The most segments of equal whole steps that each last the instruction time at full
-        /// speed.
+        /// About the most segments the path can have: the present count scaled by the shortest
+        /// segment's share of the instruction time.
         max_segments: usize,
-        /// The mandrel speed that scales this segment's time up to the robot's.
+        /// The fastest mandrel speed at which every segment, ramps included, lasts the robot's
+        /// time (0 when none down to the start speed does).
         mandrel_rps_fit: f64,
     },
     /// The arm cannot take a pose: out of reach, off the arm plane, a joint out of range or a

@@ -535,13 +535,31 @@ pub fn plan(
             // Segments of equal steps each last at least the instruction time at full speed
             // (the ramps only lengthen the first and last) when each has at least the whole
             // steps the mandrel turns in that time.
-            let cruise_steps = (speeds.mandrel.max_rps * steps_per_rev * instruction_s).ceil();
+            // Each segment's time scales with its share of the steps, about as 1/segments: the
+            // shortest segment of the whole move says how many fewer the path needs.
+            let shortest_s = {
+                let (mut covered, mut before, mut shortest) = (0u64, 0.0, f64::INFINITY);
+                for (_, s, _) in &poses {
+                    covered += s.unsigned_abs();
+                    let t = speeds
+                        .mandrel
+                        .time_at_step_s(covered, total_steps, steps_per_rev);
+                    shortest = shortest.min(t - before);
+                    before = t;
+                }
+                shortest
+            };
             return Err(Error::SegmentTooShort {
                 segment: k,
                 duration_s,
                 instruction_s,
-                max_segments: (total_steps as f64 / cruise_steps).floor() as usize,
-                mandrel_rps_fit: speeds.mandrel.max_rps * duration_s / instruction_s,
+                max_segments: (poses.len() as f64 * shortest_s / instruction_s).floor() as usize,
+                mandrel_rps_fit: continuous_fit_rps(
+                    &speeds.mandrel,
+                    poses.iter().map(|(_, s, _)| s.unsigned_abs()),
+                    steps_per_rev,
+                    instruction_s,
+                ),
             });
         }
         let speed_mm_s = if travel < 1e-9 || duration_s <= 0.0 {
@@ -570,6 +588,52 @@ pub fn plan(
         min_eye_clearance_mm: min_clearance,
         max_entry_angle_rad: max_entry,
     })
+}
+
+/// The fastest cruise speed (rev/s, down to the profile's start speed) at which every
+/// segment of one mandrel move through `steps` lasts at least `instruction_s`; 0 when none does.
+/// Found by bisection on the move's own timing, so segments in the ramps count with their ramp
+/// times: scaling one segment's time by the speed ratio is right only at cruise.
+fn continuous_fit_rps(
+    profile: &MandrelProfile,
+    steps: impl Iterator<Item = u64> + Clone,
+    steps_per_rev: f64,
+    instruction_s: f64,
+) -> f64 {
+    let total: u64 = steps.clone().sum();
+    let fits = |max_rps: f64| {
+        let m = MandrelProfile {
+            max_rps,
+            ..*profile
+        };
+        let (mut covered, mut before) = (0u64, 0.0);
+        steps.clone().all(|n| {
+            covered += n;
+            let t = m.time_at_step_s(covered, total, steps_per_rev);
+            let ok = t - before >= instruction_s;
+            before = t;
+            ok
+        })
+    };
+    let (mut lo, mut hi) = (profile.start_stop_rps.max(1e-9), profile.max_rps);
+    if !fits(lo) {
+        return 0.0;
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if fits(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    // Down to the 0.1 mrev/s the message shows, so that the figure shown fits too.
+    let shown = (lo * 1e4).floor() / 1e4;
+    if shown >= profile.start_stop_rps && fits(shown) {
+        shown
+    } else {
+        lo
+    }
 }
 
 #[cfg(test)]
@@ -874,8 +938,15 @@ mod tests {
                     "{duration_s}"
                 );
                 assert_eq!(instruction_s, 0.21);
-                assert_eq!(max_segments, 47);
-                assert!((mandrel_rps_fit - 0.1 * duration_s / 0.21).abs() < 1e-12);
+                // 1849 steps in 50 whole-step segments: 49 of 37 steps and one of 36, which at
+                // full speed (0.1 rev/s × 400 × 60/13 = 184.6 steps/s) lasts 0.195 s; scaled to
+                // 0.21 s: 50 × 0.195 / 0.21 = 46.4 segments.
+                let steps: Vec<i64> = fine.segments.iter().map(|s| s.steps.abs()).collect();
+                assert_eq!(steps.iter().filter(|n| **n == 36).count(), 1);
+                assert_eq!(max_segments, 46);
+                // The fastest speed at which the 36-step segment lasts 0.21 s: 36 / 0.21 steps/s
+                // = 0.092 857 rev/s, shown to 0.1 mrev/s (the ramp segments are longer).
+                assert_eq!(mandrel_rps_fit, 0.0928);
             }
             other => panic!("{other}"),
         }
