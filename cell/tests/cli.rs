@@ -187,7 +187,7 @@ fn bad_jobs_fail_cleanly_and_write_nothing() {
         (
             "[mandrel]",
             "[cell.robot]\nentry_angle_max_deg = 1.0\n\n[mandrel]",
-            "more than the 1° limit",
+            "more than the 1.00° limit",
         ),
         (
             "[mandrel]",

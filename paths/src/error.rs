@@ -92,7 +92,7 @@ pub enum Error {
     /// The tow line enters the eye at a larger angle to its roll axis than the eye accepts.
     #[error(
         "segment {segment}: the fibre enters the eye at {angle_deg:.2}° to its roll axis, more than \
-         the {limit_deg}° limit (entry_angle_max_deg)"
+         the {limit_deg:.2}° limit (entry_angle_max_deg)"
     )]
     EntryAngle {
         /// The segment end point index (0 = start point).
@@ -142,8 +142,8 @@ pub enum Error {
         duration_s: f64,
         /// The robot's least time per instruction.
         instruction_s: f64,
-        /// About the most segments the path can have: the present count scaled by the shortest
-        /// segment's share of the instruction time.
+        /// The most segments the path can be cut into with every one lasting the robot's time,
+        /// the path's steps spread along it as in the present cut (0 when not even one fits).
         max_segments: usize,
         /// The fastest mandrel speed at which every segment, ramps included, lasts the robot's
         /// time (0 when none down to the start speed does).

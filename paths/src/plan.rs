@@ -535,25 +535,17 @@ pub fn plan(
             // Segments of equal steps each last at least the instruction time at full speed
             // (the ramps only lengthen the first and last) when each has at least the whole
             // steps the mandrel turns in that time.
-            // Each segment's time scales with its share of the steps, about as 1/segments: the
-            // shortest segment of the whole move says how many fewer the path needs.
-            let shortest_s = {
-                let (mut covered, mut before, mut shortest) = (0u64, 0.0, f64::INFINITY);
-                for (_, s, _) in &poses {
-                    covered += s.unsigned_abs();
-                    let t = speeds
-                        .mandrel
-                        .time_at_step_s(covered, total_steps, steps_per_rev);
-                    shortest = shortest.min(t - before);
-                    before = t;
-                }
-                shortest
-            };
+            let steps: Vec<u64> = poses.iter().map(|(_, s, _)| s.unsigned_abs()).collect();
             return Err(Error::SegmentTooShort {
                 segment: k,
                 duration_s,
                 instruction_s,
-                max_segments: (poses.len() as f64 * shortest_s / instruction_s).floor() as usize,
+                max_segments: continuous_fit_segments(
+                    &speeds.mandrel,
+                    &steps,
+                    steps_per_rev,
+                    instruction_s,
+                ),
                 mandrel_rps_fit: continuous_fit_rps(
                     &speeds.mandrel,
                     poses.iter().map(|(_, s, _)| s.unsigned_abs()),
@@ -588,6 +580,54 @@ pub fn plan(
         min_eye_clearance_mm: min_clearance,
         max_entry_angle_rad: max_entry,
     })
+}
+
+/// The most segments (at least 1) into which the path can be cut, the same way, with every
+/// segment of one mandrel move lasting at least `instruction_s`. The path's steps are taken as
+/// spread along it as in the present cut (`steps`, piecewise linear between its ends), and a new
+/// cut into `n` parts gives each part the whole steps between its ends, as the planner's
+/// remainder carrying does. Found by bisection on `n`.
+fn continuous_fit_segments(
+    profile: &MandrelProfile,
+    steps: &[u64],
+    steps_per_rev: f64,
+    instruction_s: f64,
+) -> usize {
+    let total: u64 = steps.iter().sum();
+    let m = steps.len();
+    if m == 0 || total == 0 {
+        return m;
+    }
+    // Cumulative steps at path fraction x (0..=1).
+    let at = |x: f64| -> f64 {
+        let pos = x * m as f64;
+        let i = (pos.floor() as usize).min(m - 1);
+        let before: u64 = steps[..i].iter().sum();
+        before as f64 + (pos - i as f64) * steps[i] as f64
+    };
+    let fits = |n: usize| {
+        let mut before = 0.0;
+        (1..=n).all(|j| {
+            let covered = (at(j as f64 / n as f64) + 1e-9).floor().min(total as f64) as u64;
+            let t = profile.time_at_step_s(covered, total, steps_per_rev);
+            let ok = t - before >= instruction_s;
+            before = t;
+            ok
+        })
+    };
+    let (mut lo, mut hi) = (1usize, m);
+    if !fits(lo) {
+        return 0;
+    }
+    while lo < hi {
+        let mid = (lo + hi).div_ceil(2);
+        if fits(mid) {
+            lo = mid;
+        } else {
+            hi = mid - 1;
+        }
+    }
+    lo
 }
 
 /// The fastest cruise speed (rev/s, down to the profile's start speed) at which every
@@ -938,12 +978,12 @@ mod tests {
                     "{duration_s}"
                 );
                 assert_eq!(instruction_s, 0.21);
-                // 1849 steps in 50 whole-step segments: 49 of 37 steps and one of 36, which at
-                // full speed (0.1 rev/s × 400 × 60/13 = 184.6 steps/s) lasts 0.195 s; scaled to
-                // 0.21 s: 50 × 0.195 / 0.21 = 46.4 segments.
+                // At full speed (0.1 rev/s × 400 × 60/13 = 184.6 steps/s) 0.21 s is 38.8 steps:
+                // 1849 steps in 47 parts are parts of 39 or 40 whole steps (0.211 s and more);
+                // in 48 parts, some of 38 (0.206 s).
                 let steps: Vec<i64> = fine.segments.iter().map(|s| s.steps.abs()).collect();
                 assert_eq!(steps.iter().filter(|n| **n == 36).count(), 1);
-                assert_eq!(max_segments, 46);
+                assert_eq!(max_segments, 47);
                 // The fastest speed at which the 36-step segment lasts 0.21 s: 36 / 0.21 steps/s
                 // = 0.092 857 rev/s, shown to 0.1 mrev/s (the ramp segments are longer).
                 assert_eq!(mandrel_rps_fit, 0.0928);
