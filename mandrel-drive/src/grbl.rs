@@ -254,6 +254,27 @@ mod tests {
                 a_deg: 90.25
             })
         );
+        // GRBL 1.1's other machine states (its interface document): Alarm is its own, the
+        // door, check mode, homing and sleep are "other"; sub-states after ':' are ignored.
+        assert_eq!(
+            parse_line(b"<Alarm|MPos:0.000,0.000,0.000,-12.500|FS:0,0>"),
+            Ok(Line::Status {
+                state: State::Alarm,
+                a_deg: -12.5
+            })
+        );
+        for other in ["Door:1", "Check", "Home", "Sleep"] {
+            let line = format!("<{other}|MPos:0.000,0.000,0.000,1.000|FS:0,0>");
+            assert_eq!(
+                parse_line(line.as_bytes()),
+                Ok(Line::Status {
+                    state: State::Other,
+                    a_deg: 1.0
+                }),
+                "{line}"
+            );
+        }
+        assert!(parse_line(b"<Tool|MPos:0,0,0,0>").is_err());
         assert_eq!(parse_line(b"Grbl 1.1h ['$' for help]"), Ok(Line::Banner));
         assert!(parse_line(b"<Idle|MPos:0,0,0>").is_err());
         assert!(parse_line(b"<Idle|MPos:0,0,0,nan>").is_err());
