@@ -582,7 +582,7 @@ pub fn plan(
     })
 }
 
-/// The most segments (at least 1) into which the path can be cut, the same way, with every
+/// The most segments (0 if not even one) into which the path can be cut, the same way, with every
 /// segment of one mandrel move lasting at least `instruction_s`. The path's steps are taken as
 /// spread along it as in the present cut (`steps`, piecewise linear between its ends), and a new
 /// cut into `n` parts gives each part the whole steps between its ends, as the planner's
@@ -594,28 +594,37 @@ fn continuous_fit_segments(
     instruction_s: f64,
 ) -> usize {
     let total: u64 = steps.iter().sum();
-    let m = steps.len();
-    if m == 0 || total == 0 {
-        return m;
+    let m = steps.len() as u64;
+    if total == 0 {
+        // The mandrel does not turn: every segment lasts no time.
+        return 0;
     }
-    // Cumulative steps at path fraction x (0..=1).
-    let at = |x: f64| -> f64 {
-        let pos = x * m as f64;
-        let i = (pos.floor() as usize).min(m - 1);
-        let before: u64 = steps[..i].iter().sum();
-        before as f64 + (pos - i as f64) * steps[i] as f64
+    // Whole steps before each present segment.
+    let prefix: Vec<u64> = std::iter::once(0)
+        .chain(steps.iter().scan(0, |acc, n| {
+            *acc += n;
+            Some(*acc)
+        }))
+        .collect();
+    // Whole steps covered at path fraction j/n, in integers: the present segment i it falls in
+    // and the part r/n of it.
+    let covered_at = |j: u64, n: u64| -> u64 {
+        let p = j * m;
+        let i = (p / n).min(m - 1);
+        let r = p - i * n;
+        prefix[i as usize] + r * steps[i as usize] / n
     };
     let fits = |n: usize| {
         let mut before = 0.0;
-        (1..=n).all(|j| {
-            let covered = (at(j as f64 / n as f64) + 1e-9).floor().min(total as f64) as u64;
+        (1..=n as u64).all(|j| {
+            let covered = covered_at(j, n as u64);
             let t = profile.time_at_step_s(covered, total, steps_per_rev);
             let ok = t - before >= instruction_s;
             before = t;
             ok
         })
     };
-    let (mut lo, mut hi) = (1usize, m);
+    let (mut lo, mut hi) = (1usize, steps.len());
     if !fits(lo) {
         return 0;
     }
