@@ -449,6 +449,16 @@ pub enum Halt {
     },
 }
 
+impl Halt {
+    /// Why the run stopped, in words (the interruption's reason or the fault's message).
+    pub fn reason(&self) -> &str {
+        match self {
+            Halt::Interrupted { reason } => reason,
+            Halt::Fault { message } => message,
+        }
+    }
+}
+
 /// Where a stopped run stood.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stopped {
@@ -795,7 +805,7 @@ impl<'a> Coordinator<'a> {
                     "rec": "stopped",
                     "item": item,
                     "segments_done": self.segments_done,
-                    "reason": match &halt { Halt::Interrupted { reason } => reason.clone(), Halt::Fault { message } => message.clone() },
+                    "reason": halt.reason(),
                     "t_s": self.dev.time.now_s(),
                 }));
                 Err(Stopped {

@@ -37,7 +37,7 @@ use serde_json::{Value, json};
 use crate::Error;
 use crate::batch;
 use crate::cellfile::Cell;
-use crate::coordinator::{Batch, Coordinator, Event, Halt, Reach, ResumePoint, RunMode};
+use crate::coordinator::{Batch, Coordinator, Event, Reach, ResumePoint, RunMode};
 use crate::journal::Journal;
 use crate::simcell::{SimCell, SimCellConfig, Trace};
 use crate::tool::{self, PlannedPath};
@@ -316,16 +316,13 @@ fn wind(job: &Job, text: &str, file: &Path, cell: &Cell, mode: RunMode) -> Resul
     let outcome = c.run(&batch, &ResumePoint::default(), true, false, false);
     drop(c);
     if let Err(stopped) = outcome {
-        let why = match &stopped.halt {
-            Halt::Interrupted { reason } => reason,
-            Halt::Fault { message } => message,
-        };
         return Err(run_error(format!(
-            "the simulated {} run stopped at path {} ({}) after {} segments: {why}",
+            "the simulated {} run stopped at path {} ({}) after {} segments: {}",
             mode.keyword(),
             stopped.item,
             stopped.path,
             stopped.segments_done,
+            stopped.halt.reason()
         )));
     }
     let trace = sim

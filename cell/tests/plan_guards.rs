@@ -9,7 +9,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use common::{example, windcell};
+use common::{example, example_variant, stderr, windcell};
 
 /// The S-bend DXF job and its drawing, copied into a scratch folder so that they can be edited.
 struct Scratch {
@@ -372,49 +372,38 @@ fn continuous_movement_refuses_more_segments_than_the_robot_can_take() {
 #[test]
 fn the_continuous_speed_advice_plans() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml"),
-    )
-    .unwrap();
     let job = |rps: &str| {
-        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
-        for l in &mut lines {
-            if l.starts_with("mandrel_speed_rps") {
-                *l = format!("mandrel_speed_rps = {rps}");
-            }
-            if l.starts_with("movement") {
-                *l = "movement = \"continuous\"".to_string();
-            }
-        }
-        let p = dir.path().join(format!("sbend-{rps}.toml"));
-        std::fs::write(&p, lines.join("\n")).unwrap();
-        p
+        example_variant(
+            dir.path(),
+            "sbend.toml",
+            &format!("sbend-{rps}.toml"),
+            &[
+                (
+                    "mandrel_speed_rps = 0.1 ",
+                    &format!("mandrel_speed_rps = {rps} "),
+                ),
+                ("movement = \"fine\"", "movement = \"continuous\""),
+            ],
+        )
     };
-    let plan = |p: &std::path::Path| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_windcell"))
-            .args([
-                "plan",
-                p.to_str().unwrap(),
-                "-o",
-                dir.path().join("out").to_str().unwrap(),
-            ])
-            .output()
-            .unwrap()
+    let plan = |p: &Path| {
+        windcell(&[
+            "plan",
+            p.to_str().unwrap(),
+            "-o",
+            dir.path().join("out").to_str().unwrap(),
+        ])
     };
     for rps in ["1.0", "0.3"] {
         let o = plan(&job(rps));
         assert_eq!(o.status.code(), Some(2));
-        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        let err = stderr(&o);
         let advice = err
             .split("a mandrel speed of at most ")
             .nth(1)
             .and_then(|r| r.split(' ').next())
             .unwrap_or_else(|| panic!("{err}"));
         let o = plan(&job(advice));
-        assert!(
-            o.status.success(),
-            "{rps} → {advice}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        assert!(o.status.success(), "{rps} → {advice}: {}", stderr(&o));
     }
 }

@@ -3,11 +3,14 @@
 //! the mandrel axis displaced, or leaning, by up to 2 mm moves where the fibre lands by a
 //! comparable amount, while with every tolerance zero the samples do not spread at all.
 
+mod common;
+
 use std::path::Path;
 
 use cell::cellfile::Cell;
 use cell::coordinator::RunMode;
 use cell::predict::{self, Mode, Options, Tolerances};
+use common::{example, example_variant, stderr, windcell};
 use sequences::Job;
 
 /// (median, 95th percentile) of the first path's setup error, fine movement on the cylinder.
@@ -95,29 +98,25 @@ fn the_simulated_cell_has_the_jobs_drive() {
 #[test]
 fn a_drive_the_motor_cannot_follow_is_reported_as_a_stall() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/cylinder.toml"),
-    )
-    .unwrap();
-    let fast = text
-        .replace("accel_rps2 = 1.0", "accel_rps2 = 50.0")
-        .replace("mandrel_speed_rps = 0.1 ", "mandrel_speed_rps = 1.0 ");
-    assert_ne!(fast, text);
-    let job = dir.path().join("fast.toml");
-    std::fs::write(&job, fast).unwrap();
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args([
-            "predict",
-            job.to_str().unwrap(),
-            "--mode",
-            "fine",
-            "--samples",
-            "1",
-        ])
-        .output()
-        .unwrap();
+    let job = example_variant(
+        dir.path(),
+        "cylinder.toml",
+        "fast.toml",
+        &[
+            ("accel_rps2 = 1.0", "accel_rps2 = 50.0"),
+            ("mandrel_speed_rps = 0.1 ", "mandrel_speed_rps = 1.0 "),
+        ],
+    );
+    let o = windcell(&[
+        "predict",
+        job.to_str().unwrap(),
+        "--mode",
+        "fine",
+        "--samples",
+        "1",
+    ]);
     assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("stalled"), "{err}");
     assert!(err.contains("pull-out torque"), "{err}");
@@ -129,28 +128,22 @@ fn a_drive_the_motor_cannot_follow_is_reported_as_a_stall() {
 #[test]
 fn a_cell_with_another_drive_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let cell = dir.path().join("cell800.toml");
-    std::fs::write(
-        &cell,
-        std::fs::read_to_string(examples.join("cell-sim.toml"))
-            .unwrap()
-            .replace("steps_per_rev = 400", "steps_per_rev = 800"),
-    )
-    .unwrap();
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args([
-            "predict",
-            examples.join("cylinder.toml").to_str().unwrap(),
-            "--cell",
-            cell.to_str().unwrap(),
-            "--samples",
-            "1",
-        ])
-        .output()
-        .unwrap();
+    let cell = example_variant(
+        dir.path(),
+        "cell-sim.toml",
+        "cell800.toml",
+        &[("steps_per_rev = 400", "steps_per_rev = 800")],
+    );
+    let o = windcell(&[
+        "predict",
+        example("cylinder.toml").to_str().unwrap(),
+        "--cell",
+        cell.to_str().unwrap(),
+        "--samples",
+        "1",
+    ]);
     assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(
         err.contains("800 steps/rev, 13:60 belt) is not the one"),

@@ -6,7 +6,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{example, stderr, windcell};
+use common::{example, example_variant, stderr, windcell};
 
 fn record(dir: &Path) -> std::path::PathBuf {
     let mcap = dir.join("run.mcap");
@@ -229,14 +229,12 @@ fn laid_fibre_agrees_with_the_prediction(bytes: &[u8], job: &Path) {
 #[test]
 fn the_simulated_cell_runs_the_jobs_own_drive() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(example("cylinder.toml")).unwrap();
-    assert!(text.contains("steps_per_rev = 400"));
-    let job = dir.path().join("cylinder-800.toml");
-    std::fs::write(
-        &job,
-        text.replace("steps_per_rev = 400", "steps_per_rev = 800"),
-    )
-    .unwrap();
+    let job = example_variant(
+        dir.path(),
+        "cylinder.toml",
+        "cylinder-800.toml",
+        &[("steps_per_rev = 400", "steps_per_rev = 800")],
+    );
     let mcap = dir.path().join("run.mcap");
     let o = windcell(&[
         "run",
@@ -250,47 +248,6 @@ fn the_simulated_cell_runs_the_jobs_own_drive() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     laid_fibre_agrees_with_the_prediction(&std::fs::read(&mcap).unwrap(), &job);
-}
-
-/// …and from the job's own arm: with the robot 1300 mm from the mandrel and a forearm of
-/// 1000 mm the job plans and winds, where the IRB 6/2's own arm would need its shoulder at 82°,
-/// beyond its 60° (`windcell plan` of the same job without the `[cell.robot]` section says so).
-#[test]
-fn the_simulated_cell_runs_the_jobs_own_arm() {
-    let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(example("cylinder.toml")).unwrap();
-    let far = text.replace("robot_distance_mm = 800.0", "robot_distance_mm = 1300.0");
-    assert_ne!(far, text);
-    let short = dir.path().join("short.toml");
-    std::fs::write(&short, &far).unwrap();
-    let o = windcell(&[
-        "plan",
-        short.to_str().unwrap(),
-        "-o",
-        dir.path().join("s").to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("shoulder"), "{}", stderr(&o));
-    let long = dir.path().join("long.toml");
-    std::fs::write(
-        &long,
-        far.replacen(
-            "[mandrel]",
-            "[cell.robot]\nforearm_mm = 1000.0\n\n[mandrel]",
-            1,
-        ),
-    )
-    .unwrap();
-    let o = windcell(&[
-        "run",
-        long.to_str().unwrap(),
-        "--mode",
-        "fine",
-        "--journal",
-        dir.path().join("run.journal").to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert!(String::from_utf8_lossy(&o.stdout).contains("batch done: 2 paths"));
 }
 
 /// A discrete run's recording holds the wire and the lines as the coordinator saw them: every

@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use common::{example, stderr, windcell};
+use common::{example, example_variant, stderr, windcell};
 
 fn plan_sbend(dir: &Path) {
     let o = windcell(&[
@@ -220,14 +220,12 @@ fn bad_input_is_one_line_and_exit_code_2_before_anything_is_sent() {
     );
     // A cell whose drive is not the one the job's steps were planned for (quarter steps for the
     // job's half steps), for the job and for its sequence checked against it.
-    let cell800 = d.join("cell800.toml");
-    std::fs::write(
-        &cell800,
-        std::fs::read_to_string(example("cell-sim.toml"))
-            .unwrap()
-            .replace("steps_per_rev = 400", "steps_per_rev = 800"),
-    )
-    .unwrap();
+    let cell800 = example_variant(
+        d,
+        "cell-sim.toml",
+        "cell800.toml",
+        &[("steps_per_rev = 400", "steps_per_rev = 800")],
+    );
     let sbend = example("sbend.toml");
     for input in [
         vec![sbend.to_str().unwrap()],
@@ -357,13 +355,12 @@ fn cell_time_s(o: &std::process::Output) -> f64 {
 #[test]
 fn a_slow_opto_chain_is_waited_out() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(example("cell-sim.toml")).unwrap();
-    let slow = dir.path().join("slow-opto.toml");
-    std::fs::write(
-        &slow,
-        text.replace("opto_delay_s = 20e-6", "opto_delay_s = 0.5"),
-    )
-    .unwrap();
+    let slow = example_variant(
+        dir.path(),
+        "cell-sim.toml",
+        "slow-opto.toml",
+        &[("opto_delay_s = 20e-6", "opto_delay_s = 0.5")],
+    );
     let times: Vec<f64> = [example("cell-sim.toml"), slow]
         .iter()
         .map(|cell| {
@@ -381,4 +378,45 @@ fn a_slow_opto_chain_is_waited_out() {
         })
         .collect();
     assert!(times[1] - times[0] >= 2.0, "{times:?}");
+}
+
+/// The simulated cell is built from the job's own arm: with the robot 1300 mm from the mandrel
+/// and a forearm of 1000 mm the job plans and winds, where the IRB 6/2's own arm would need its
+/// shoulder at 82°, beyond its 60° (`windcell plan` of the same job without the `[cell.robot]`
+/// section says so).
+#[test]
+fn the_simulated_cell_runs_the_jobs_own_arm() {
+    let dir = tempfile::tempdir().unwrap();
+    let far = ("robot_distance_mm = 800.0", "robot_distance_mm = 1300.0");
+    let short = example_variant(dir.path(), "cylinder.toml", "short.toml", &[far]);
+    let o = windcell(&[
+        "plan",
+        short.to_str().unwrap(),
+        "-o",
+        dir.path().join("s").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("shoulder"), "{}", stderr(&o));
+    let long = example_variant(
+        dir.path(),
+        "cylinder.toml",
+        "long.toml",
+        &[
+            far,
+            (
+                "[mandrel]",
+                "[cell.robot]\nforearm_mm = 1000.0\n\n[mandrel]",
+            ),
+        ],
+    );
+    let o = windcell(&[
+        "run",
+        long.to_str().unwrap(),
+        "--mode",
+        "fine",
+        "--journal",
+        dir.path().join("run.journal").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("batch done: 2 paths"));
 }

@@ -548,7 +548,7 @@ pub fn plan(
                 ),
                 mandrel_rps_fit: continuous_fit_rps(
                     &speeds.mandrel,
-                    poses.iter().map(|(_, s, _)| s.unsigned_abs()),
+                    &steps,
                     steps_per_rev,
                     instruction_s,
                 ),
@@ -579,6 +579,24 @@ pub fn plan(
         max_drift_rad,
         min_eye_clearance_mm: min_clearance,
         max_entry_angle_rad: max_entry,
+    })
+}
+
+/// Whether every segment of one mandrel move through `total` steps, the segments ending at the
+/// step counts `covered`, lasts at least `instruction_s`.
+fn every_segment_lasts(
+    profile: &MandrelProfile,
+    mut covered: impl Iterator<Item = u64>,
+    total: u64,
+    steps_per_rev: f64,
+    instruction_s: f64,
+) -> bool {
+    let mut before = 0.0;
+    covered.all(|c| {
+        let t = profile.time_at_step_s(c, total, steps_per_rev);
+        let ok = t - before >= instruction_s;
+        before = t;
+        ok
     })
 }
 
@@ -615,14 +633,14 @@ fn continuous_fit_segments(
         prefix[i as usize] + r * steps[i as usize] / n
     };
     let fits = |n: usize| {
-        let mut before = 0.0;
-        (1..=n as u64).all(|j| {
-            let covered = covered_at(j, n as u64);
-            let t = profile.time_at_step_s(covered, total, steps_per_rev);
-            let ok = t - before >= instruction_s;
-            before = t;
-            ok
-        })
+        let n = n as u64;
+        every_segment_lasts(
+            profile,
+            (1..=n).map(|j| covered_at(j, n)),
+            total,
+            steps_per_rev,
+            instruction_s,
+        )
     };
     let (mut lo, mut hi) = (1usize, steps.len());
     if !fits(lo) {
@@ -645,24 +663,21 @@ fn continuous_fit_segments(
 /// times: scaling one segment's time by the speed ratio is right only at cruise.
 fn continuous_fit_rps(
     profile: &MandrelProfile,
-    steps: impl Iterator<Item = u64> + Clone,
+    steps: &[u64],
     steps_per_rev: f64,
     instruction_s: f64,
 ) -> f64 {
-    let total: u64 = steps.clone().sum();
+    let total: u64 = steps.iter().sum();
     let fits = |max_rps: f64| {
         let m = MandrelProfile {
             max_rps,
             ..*profile
         };
-        let (mut covered, mut before) = (0u64, 0.0);
-        steps.clone().all(|n| {
-            covered += n;
-            let t = m.time_at_step_s(covered, total, steps_per_rev);
-            let ok = t - before >= instruction_s;
-            before = t;
-            ok
-        })
+        let covered = steps.iter().scan(0, |acc, n| {
+            *acc += n;
+            Some(*acc)
+        });
+        every_segment_lasts(&m, covered, total, steps_per_rev, instruction_s)
     };
     let (mut lo, mut hi) = (profile.start_stop_rps.max(1e-9), profile.max_rps);
     if !fits(lo) {

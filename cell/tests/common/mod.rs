@@ -25,6 +25,19 @@ pub fn example(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// A copy of `examples/NAME` written into `dir` as `new_name`, each `(from, to)` replaced (every
+/// `from` must be in the example: a replacement that matches nothing fails the test).
+pub fn example_variant(dir: &Path, name: &str, new_name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(example(name)).expect("the example reads");
+    for (from, to) in edits {
+        assert!(text.contains(from), "{name} has no `{from}`");
+        text = text.replace(from, to);
+    }
+    let path = dir.join(new_name);
+    std::fs::write(&path, text).expect("the variant writes");
+    path
+}
+
 /// The process's standard error as text.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
