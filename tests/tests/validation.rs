@@ -594,3 +594,175 @@ fn scatter(
     );
     std::fs::write(path, s).unwrap();
 }
+
+/// One linear constraint `coef · x ≤ rhs`.
+type Constraint = (Vec<f64>, f64);
+
+/// Fourier–Motzkin elimination of variable `i`: the constraints on the other variables that
+/// hold exactly when some value of `i` satisfies all of `cons`.
+fn eliminate(cons: &[Constraint], i: usize) -> Vec<Constraint> {
+    let (mut lower, mut upper, mut out) = (Vec::new(), Vec::new(), Vec::new());
+    for c in cons {
+        if c.0[i] > 0.0 {
+            upper.push(c);
+        } else if c.0[i] < 0.0 {
+            lower.push(c);
+        } else {
+            out.push(c.clone());
+        }
+    }
+    for u in &upper {
+        for l in &lower {
+            let (wu, wl) = (-l.0[i], u.0[i]);
+            let coef: Vec<f64> = (0..u.0.len()).map(|k| u.0[k] * wu + l.0[k] * wl).collect();
+            let rhs = u.1 * wu + l.1 * wl;
+            // Scaled to its largest coefficient, so that the products stay near 1.
+            let s = coef.iter().fold(0.0_f64, |m, x| m.max(x.abs())).max(1e-300);
+            out.push((coef.iter().map(|x| x / s).collect(), rhs / s));
+        }
+    }
+    out
+}
+
+/// Per held-out configuration and direction, three measures of the robot's motion over a
+/// planned pass (1-rev reading, discrete, 1 rev/s): the eye's travel (mm), the joints' travel
+/// (the largest joint move of each segment, summed, degrees) and the robot's least time (the
+/// plan's, s).
+fn motion_measures(config: &str) -> [[f64; 3]; 2] {
+    let (job, text, file) = job(config, Reading::OneRev, 8.0);
+    let plan = cell::tool::plan(&job, &text, &file).unwrap();
+    let mut out = [[0.0; 3]; 2];
+    for p in &plan.paths {
+        let d = usize::from(p.program == 2);
+        let mut prev = &p.plan.start;
+        for s in &p.plan.segments {
+            out[d][0] += (s.pose.eye_mm - prev.eye_mm).norm();
+            let (a, b) = (s.pose.joints.to_array(), prev.joints.to_array());
+            out[d][1] += (0..5)
+                .map(|k| (a[k] - b[k]).abs().to_degrees())
+                .fold(0.0, f64::max);
+            out[d][2] += s.robot_time_s;
+            prev = &s.pose;
+        }
+    }
+    out
+}
+
+/// Why the discrete-time target is out of reach of a time model built on the robot's motion.
+/// App. B's held-out discrete times (26–54 s) vary with the configuration far more than the
+/// plans' motion does, and not in its order: for each of three measures `m` of the motion, no
+/// model `T = a + b·m + c/ω` with `b ≥ 0` (more motion never takes less time), whatever `a`, `b`
+/// and `c` — fitted on these very rows — puts every one of the 36 rows within ±20 % (exact
+/// Fourier–Motzkin elimination). The best such model a grid search finds is reported.
+#[test]
+fn discrete_times_follow_no_motion_model() {
+    let all = rows();
+    let held: Vec<&Row> = all
+        .iter()
+        .filter(|r| r.table > 2 && r.mode == "discrete")
+        .collect();
+    assert_eq!(held.len(), 36);
+    let mut measures: BTreeMap<&str, [[f64; 3]; 2]> = BTreeMap::new();
+    for r in &held {
+        measures
+            .entry(r.config.as_str())
+            .or_insert_with(|| motion_measures(&r.config));
+    }
+    let measure_of =
+        |r: &Row, k: usize| measures[r.config.as_str()][usize::from(r.direction == "up")][k];
+    let names = ["eye travel", "joint travel", "robot least time"];
+    for (k, name) in names.iter().enumerate() {
+        // Variables (a, b, c): 0.8 T ≤ a + b m + c/ω ≤ 1.2 T, and −b ≤ 0.
+        let mut cons: Vec<Constraint> = vec![(vec![0.0, -1.0, 0.0], 0.0)];
+        for r in &held {
+            let (m, u) = (measure_of(r, k), 1.0 / r.mandrel_rps);
+            cons.push((vec![1.0, m, u], 1.2 * r.time_s));
+            cons.push((vec![-1.0, -m, -u], -0.8 * r.time_s));
+        }
+        let on_b = eliminate(&eliminate(&cons, 0), 2);
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        let mut contradiction = false;
+        for (coef, rhs) in &on_b {
+            if coef[1] > 1e-12 {
+                hi = hi.min(rhs / coef[1]);
+            } else if coef[1] < -1e-12 {
+                lo = lo.max(rhs / coef[1]);
+            } else if *rhs < -1e-9 {
+                contradiction = true;
+            }
+        }
+        // The best model on a grid of (b, c): for each, the `a` that most rows admit.
+        let m_max = held.iter().map(|r| measure_of(r, k)).fold(0.0, f64::max);
+        let mut best = (0usize, 0.0, 0.0, 0.0);
+        for bi in 0..=400 {
+            let b = f64::from(bi) / 400.0 * 2.0 * 60.0 / m_max;
+            for ci in -100..=100 {
+                let c = f64::from(ci) * 0.1;
+                let mut ends: Vec<(f64, i32)> = Vec::new();
+                for r in &held {
+                    let x = b * measure_of(r, k) + c / r.mandrel_rps;
+                    ends.push((0.8 * r.time_s - x, -1));
+                    ends.push((1.2 * r.time_s - x, 1));
+                }
+                // Sorted with openings before closings at equal values.
+                ends.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+                let mut n = 0i32;
+                for (v, e) in ends {
+                    n -= e;
+                    if n as usize > best.0 {
+                        best = (n as usize, v, b, c);
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "discrete times against {name}: b must lie in [{lo:.4}, {hi:.4}] (empty); best on \
+             the grid: {}/36 rows with a = {:.2} s, b = {:.4}, c = {:.2} s·rev/s",
+            best.0, best.1, best.2, best.3
+        );
+        assert!(
+            contradiction || lo > hi,
+            "{name}: some model fits every row (b in [{lo}, {hi}])"
+        );
+        assert!(best.0 < 36);
+    }
+}
+
+/// Why the error target is out of reach of the setup Monte Carlo: the tolerance scale `k`
+/// fitted on the held-out rows themselves (in sample, which the held-out rule forbids) brings
+/// at most a few more rows into the band. Measured, not asserted: about 80 s in a release build
+/// (`cargo test --release -p tests --test validation -- --ignored --nocapture`);
+/// docs/validation.md quotes its figures.
+#[test]
+#[ignore = "measurement, 80 s"]
+fn setup_scale_fitted_in_sample() {
+    let all = rows();
+    let mut by_config: BTreeMap<&str, Vec<&Row>> = BTreeMap::new();
+    for r in all.iter().filter(|r| r.table > 2) {
+        by_config.entry(r.config.as_str()).or_default().push(r);
+    }
+    for reading in [Reading::OneRev, Reading::TwoRev] {
+        for k in [0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 9.0] {
+            let fit = Fitted {
+                accel_rps2: 8.0,
+                tol: Tolerances::default().scaled(k),
+            };
+            let (mut rs, mut ps) = (Vec::new(), Vec::new());
+            for list in by_config.values() {
+                ps.extend(predict_rows(list, reading, fit));
+                rs.extend(list.iter().copied());
+            }
+            let s = score(&rs, &ps);
+            eprintln!(
+                "{} k = {k}: error within the band on {}/{} held-out rows; order {}/{}; rise {}/{}",
+                reading.name(),
+                s.error_hits,
+                s.rows,
+                s.order_tables.0,
+                s.order_tables.1,
+                s.rise.0,
+                s.rise.1
+            );
+        }
+    }
+}
