@@ -151,3 +151,29 @@ fn a_cell_with_another_drive_is_refused() {
     );
     assert!(o.stdout.is_empty());
 }
+
+/// A prediction in which one mode asked for can wind and another cannot reports both and
+/// succeeds: the refusal is the prediction for that mode (on the 3-radius offset at 1 rev/s the
+/// fine program asks the arm for more than its speed; discrete movement waits for it). When
+/// no mode can wind, `bad_input`'s corpus holds the one-line refusal with exit code 2.
+#[test]
+fn a_mode_that_cannot_wind_is_reported_beside_one_that_can() {
+    let o = windcell(&[
+        "predict",
+        example("offset-3r.toml").to_str().unwrap(),
+        "--mandrel-rps",
+        "1",
+        "--mode",
+        "discrete",
+        "--mode",
+        "fine",
+        "--samples",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(out.contains("discrete at 1 rev/s: "), "{out}");
+    assert!(!out.contains("discrete at 1 rev/s: cannot wind"), "{out}");
+    assert!(out.contains("fine at 1 rev/s: cannot wind: "), "{out}");
+    assert!(out.contains("the eye would have to move at"), "{out}");
+}

@@ -41,7 +41,7 @@ impl MandrelProfile {
             return Err(Error::OutOfRange {
                 name: "start_stop_rps",
                 value: self.start_stop_rps,
-                expected: "must lie between 0 and the maximum velocity",
+                expected: "must lie between 0 and the mandrel speed (mandrel_speed_rps)",
             });
         }
         Ok(())

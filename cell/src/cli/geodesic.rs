@@ -33,7 +33,7 @@ pub struct GeodesicArgs {
     #[arg(long, value_parser = parse_triple, default_value = "0,0,1", allow_hyphen_values = true)]
     pub axis: [f64; 3],
     /// Longest path, mm (at most 100000).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
     pub length: f64,
     /// Stop at these heights along the axis (`LO,HI`, mm); the path stops at boundary and crease
     /// edges (end caps) anyway.
@@ -48,16 +48,16 @@ pub struct GeodesicArgs {
     )]
     pub lambda: f64,
     /// Friction coefficient μ; |λ| must not exceed it.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub mu: Option<f64>,
     /// Trace the polyhedron's straightest geodesic instead of the smooth surface's.
     #[arg(long)]
     pub exact: bool,
     /// Vertex welding tolerance, mm.
-    #[arg(long, default_value_t = DEFAULT_WELD_MM)]
+    #[arg(long, default_value_t = DEFAULT_WELD_MM, allow_negative_numbers = true)]
     pub weld_mm: f64,
     /// Edges sharper than this (degrees) are boundaries.
-    #[arg(long, default_value_t = DEFAULT_CREASE_DEG)]
+    #[arg(long, default_value_t = DEFAULT_CREASE_DEG, allow_negative_numbers = true)]
     pub crease_deg: f64,
     /// Smooth the traced path (B-spline) and print it cut into this many equal-length segments,
     /// end points projected onto the mesh, with the largest raw-to-smoothed distance (1–10000).

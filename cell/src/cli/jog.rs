@@ -40,25 +40,25 @@ pub struct JogArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub roll_deg: f64,
     /// Speed, % of the base speed.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub speed_pct: f64,
     /// Base speed, mm/s (§5.4.1).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
     pub base_speed_mm_s: f64,
     /// Maximum speed, mm/s.
-    #[arg(long, default_value_t = 2000.0)]
+    #[arg(long, default_value_t = 2000.0, allow_negative_numbers = true)]
     pub max_speed_mm_s: f64,
     /// Mandrel move, motor steps (0: none).
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub steps: i64,
     /// Mandrel acceleration, rev/s².
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub accel_rps2: f64,
     /// Mandrel start/stop velocity, rev/s.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     pub start_rps: f64,
     /// Mandrel maximum velocity, rev/s.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     pub max_rps: f64,
     /// The cell (default: the built-in simulated cell, powered up for this one move).
     #[arg(long, value_name = "CELL.toml")]
@@ -77,17 +77,46 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
         args.pitch_deg.to_radians(),
         args.roll_deg.to_radians(),
     ));
-    let speed = |name, v: f64| {
-        Speed::from_value(name, v)
-            .map_err(|e| Failure::input(format!("jog: {e}")))
+    // A speed flag in its own unit (`per_unit` of it make the telegram's 1.0): its range is
+    // the telegram's, told in that unit.
+    let speed = |name: &'static str, v: f64, per_unit: f64, unit: &str| {
+        let limit = f64::from(u16::MAX) / 8192.0 * per_unit;
+        Speed::from_value(name, v / per_unit)
+            .map_err(|_| {
+                Failure::input(format!(
+                    "jog: {name} {v}: out of range (0 to {limit:.2} {unit}, the telegram's)"
+                ))
+            })
             .and_then(|s| {
                 if s.0 == 0 {
-                    Err(Failure::input(format!("jog: {name} rounds to zero")))
+                    Err(Failure::input(format!("jog: {name} {v} rounds to zero")))
                 } else {
                     Ok(s)
                 }
             })
     };
+    // The mandrel's profile flags are checked whether or not this jog turns the mandrel.
+    for (name, v, ok, expected) in [
+        (
+            "--accel-rps2",
+            args.accel_rps2,
+            args.accel_rps2 > 0.0,
+            "> 0",
+        ),
+        ("--max-rps", args.max_rps, args.max_rps > 0.0, "> 0"),
+        (
+            "--start-rps",
+            args.start_rps,
+            (0.0..=args.max_rps).contains(&args.start_rps),
+            "between 0 and --max-rps",
+        ),
+    ] {
+        if !(ok && v.is_finite()) {
+            return Err(Failure::input(format!(
+                "jog: {name} {v}: must be {expected}"
+            )));
+        }
+    }
     let p = Positioning {
         flags: Flags {
             interpolation: if args.joint {
@@ -99,11 +128,11 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
             zone: Zone::Fine,
         },
         pose: Pose::from_mm([x, y, z], q).map_err(|e| Failure::input(format!("jog: {e}")))?,
-        speed: speed("--speed-pct", args.speed_pct / 100.0)?,
+        speed: speed("--speed-pct", args.speed_pct, 100.0, "%")?,
     };
     let speeds = (
-        speed("--base-speed-mm-s", args.base_speed_mm_s / 1000.0)?,
-        speed("--max-speed-mm-s", args.max_speed_mm_s / 1000.0)?,
+        speed("--base-speed-mm-s", args.base_speed_mm_s, 1000.0, "mm/s")?,
+        speed("--max-speed-mm-s", args.max_speed_mm_s, 1000.0, "mm/s")?,
     );
     let mandrel = (args.steps != 0).then_some(MandrelMove {
         accel_rps2: args.accel_rps2,

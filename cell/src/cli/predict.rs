@@ -34,7 +34,7 @@ pub struct PredictArgs {
     #[arg(long = "mode", value_enum)]
     pub modes: Vec<PredictMode>,
     /// Mandrel speed for every mode, rev/s (default: the job's).
-    #[arg(long, value_name = "R")]
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
     pub mandrel_rps: Option<f64>,
     /// The cell description (its `[tolerance]` drives the setup Monte Carlo).
     #[arg(long, value_name = "CELL.toml")]
@@ -103,6 +103,7 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
     };
     let prediction =
         predict::predict(&job, &text, &args.job, &cell, &opt).map_err(Failure::from_cell)?;
+    no_mode_winds(&prediction)?;
     if let Some(svg) = &args.svg {
         let tube = cell::tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
         let text = prediction
@@ -130,4 +131,31 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
     } else {
         super::print(&prediction.text())
     }
+}
+
+/// When no mode asked for can wind the job, there is nothing to predict: the first mode's reason
+/// in one line (its `FILE:LINE:COL` first), exit code 2, nothing written. A report with at least
+/// one mode predicted keeps the others' reasons in it.
+fn no_mode_winds(prediction: &predict::Prediction) -> Result<(), Failure> {
+    let mut refused = prediction.modes.iter().filter_map(|m| {
+        m.outcome
+            .as_ref()
+            .err()
+            .map(|e| (m.mode.keyword(), m.mandrel_rps, e))
+    });
+    let Some((mode, rps, reason)) = refused.next() else {
+        return Ok(());
+    };
+    let others: Vec<&str> = refused.map(|(m, _, _)| m).collect();
+    if others.len() + 1 < prediction.modes.len() {
+        return Ok(());
+    }
+    let also = if others.is_empty() {
+        String::new()
+    } else {
+        format!("; {} cannot either", others.join(", "))
+    };
+    Err(Failure::input(format!(
+        "{reason} ({mode} at {rps} rev/s{also})"
+    )))
 }
