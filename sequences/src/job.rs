@@ -391,7 +391,12 @@ impl Job {
     pub fn parse(text: &str) -> Result<Job, Error> {
         let job: Job = toml::from_str(text).map_err(|e| {
             let offset = e.span().map_or(0, |s| s.start);
-            Error::at_offset(text, offset, e.message().trim().to_string())
+            let message = e.message().trim();
+            Error::at_offset(
+                text,
+                offset,
+                format!("{message}{}", other_kind_of_file(message, text)),
+            )
         })?;
         job.validate(text)?;
         Ok(job)
@@ -821,6 +826,32 @@ impl Job {
     }
 }
 
+/// When the job refuses a top-level table that belongs to another of windcell's files, what
+/// that file is and where it goes: a cell file (docs/file-formats.md, "Cell file") is given with
+/// `--cell`, a vessel job (docs/lathe.md) is the lathe winder's. Empty otherwise.
+fn other_kind_of_file(message: &str, text: &str) -> &'static str {
+    let Some(key) = message
+        .strip_prefix("unknown field `")
+        .and_then(|rest| rest.split('`').next())
+    else {
+        return "";
+    };
+    let header = |l: &str| {
+        let l = l.split('#').next().unwrap_or_default().trim();
+        l == format!("[{key}]") || l == format!("[[{key}]]")
+    };
+    if !text.lines().any(header) {
+        return "";
+    }
+    match key {
+        "drive" | "ports" | "tolerance" => " (this looks like a cell file: give it with --cell)",
+        "layer" | "tow" | "machine" => {
+            " (this looks like a lathe winder's vessel job: `windcell lathe plan` takes it)"
+        }
+        _ => "",
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -962,5 +993,24 @@ segments = 50
             let err = error_for(from, to);
             assert!(err.contains(expected), "{err} should contain {expected}");
         }
+    }
+
+    /// A cell file or a vessel job given where a robot job goes is named as what it is; a key
+    /// of the same name inside one of the job's own tables is not.
+    #[test]
+    fn another_kind_of_file_is_named() {
+        let cell = "name = \"cell\"\n\n[drive]\nsteps_per_rev = 400\n";
+        let e = Job::parse(cell).unwrap_err().to_string();
+        assert!(e.starts_with("3:2: unknown field `drive`"), "{e}");
+        assert!(e.ends_with("(this looks like a cell file: give it with --cell)"), "{e}");
+        let vessel = "name = \"V\"\n[[layer]]  # hoop\nangle_deg = 89\n";
+        let e = Job::parse(vessel).unwrap_err().to_string();
+        assert!(e.contains("unknown field `layer`"), "{e}");
+        assert!(e.ends_with("`windcell lathe plan` takes it)"), "{e}");
+        // `drive` as a key of [mandrel] is a plain unknown field.
+        let nested = CYLINDER.replace("[mandrel]", "[mandrel]\ndrive = 1");
+        let e = Job::parse(&nested).unwrap_err().to_string();
+        assert!(e.contains("unknown field `drive`"), "{e}");
+        assert!(!e.contains("looks like"), "{e}");
     }
 }
