@@ -10,9 +10,12 @@
 use std::path::{Path, PathBuf};
 
 use mandrel_drive::lathe::{Controller, InterruptClock, LoopConfig};
-use mandrel_drive::servo::{Amplifier, AxisIo, LatheAxis, SimulatedAxes};
+use mandrel_drive::servo::{
+    Amplifier, AxisIo, DAC_MAX_CODE, DAC_ZERO_CODE, LatheAxis, SimulatedAxes,
+};
 use nalgebra::{SVector, Vector3};
 use paths::control::Pd;
+use paths::limits::{fixed, shown};
 use paths::trajectory::{AxisLimits, Interpolation, Planner, Trajectory, peaks};
 use sequences::part_program::{Location, MachineParameters, PartProgram, Position, Step};
 
@@ -102,6 +105,15 @@ impl Setup {
         })
     }
 
+    /// The fastest an axis can turn, encoder counts per interrupt: the plant's steady velocity
+    /// `K·u/p` with the DAC at its full positive output (`u` = 2047 codes above 0 V), over the
+    /// interrupt rate. With the thesis's voltage amplifier at K_amp 0.45 and 200 Hz, 174.8.
+    pub fn top_speed_counts_per_interrupt(&self) -> f64 {
+        let (gain, pole) = self.amplifier.plant();
+        let full = f64::from(DAC_MAX_CODE - DAC_ZERO_CODE);
+        gain * full / pole / self.interrupt_hz
+    }
+
     fn planner(&self) -> Planner<3> {
         Planner::new(
             self.interrupt_hz,
@@ -181,12 +193,27 @@ pub fn plan(program: &PartProgram, file: &Path, setup: &Setup) -> Result<Plan, E
         for (axis, v, travel) in [('X', x, setup.travel_mm[0]), ('Y', y, setup.travel_mm[1])] {
             if !(0.0..=travel).contains(&v) {
                 return Err(at_file(t.at.error(format!(
-                    "{axis} would reach {v:.2} mm from machine zero, beyond the limit switches \
-                     (0 … {travel} mm; part zero {axis} {:.2} mm)",
-                    if axis == 'X' { zero.x_mm } else { zero.y_mm }
+                    "{axis} would reach {} mm from machine zero, beyond the limit switches \
+                     (0 … {travel} mm; part zero {axis} {} mm)",
+                    fixed(v, 2),
+                    fixed(if axis == 'X' { zero.x_mm } else { zero.y_mm }, 2)
                 ))));
             }
         }
+    }
+    // A feed the axes cannot reach would be planned and then not followed: refused.
+    let top = setup.top_speed_counts_per_interrupt();
+    if !(0.0..=top).contains(&setup.feed) {
+        let (gain, pole) = setup.amplifier.plant();
+        return Err(Error::Run {
+            message: format!(
+                "feed {} counts/interrupt is above the axes' top speed of {top:.1} (the plant \
+                 {gain:.1}/(s (s + {pole})) at full DAC output, {} Hz)",
+                shown(setup.feed),
+                setup.interrupt_hz
+            ),
+            input: true,
+        });
     }
     let planner = setup.planner();
     let interpolation = if setup.single_block {
@@ -535,8 +562,9 @@ pub fn home(setup: &Setup, start_mm: [f64; 2], backoff: i64) -> Result<Vec<Homed
         if !(s > -5.0 && s < travel) {
             return Err(Error::Run {
                 message: format!(
-                    "start {} = {s} mm is outside the limit switches (−5 … {travel} mm)",
-                    ['X', 'Y'][i]
+                    "start {} = {} mm is outside the limit switches (−5 … {travel} mm)",
+                    ['X', 'Y'][i],
+                    shown(s)
                 ),
                 input: true,
             });
@@ -645,9 +673,12 @@ pub fn gear(
     let end_x = setup.part_zero.x_mm + ratio_mm_per_deg * angle_deg;
     if !(0.0..=setup.travel_mm[0]).contains(&end_x) {
         return Err(bad(format!(
-            "the carriage would reach {end_x:.2} mm from machine zero, beyond the limit switches \
-             (0 … {} mm): ratio {ratio_mm_per_deg} mm/° over {angle_deg}°",
-            setup.travel_mm[0]
+            "the carriage would reach {} mm from machine zero, beyond the limit switches \
+             (0 … {} mm): ratio {} mm/° over {}°",
+            fixed(end_x, 2),
+            setup.travel_mm[0],
+            shown(ratio_mm_per_deg),
+            shown(angle_deg)
         )));
     }
     // The master's profile: trapezoidal in speed (a triangle when the turns are few).
@@ -754,6 +785,35 @@ mod tests {
     const BSPLINE: Interpolation = Interpolation::BSpline {
         knots_per_segment: 4,
     };
+
+    /// The top speed is the Ch. 7 plant's steady velocity at full DAC output: 1772 × 0.45 ×
+    /// 2047 codes / 46.7 /s = 34 953 counts/s, 174.8 counts per interrupt at 200 Hz (and half
+    /// that at 400 Hz). A feed at it plans; one count per interrupt above it is refused.
+    #[test]
+    fn a_feed_above_the_axes_top_speed_is_refused() {
+        let s = setup(Interpolation::Linear, 30.0);
+        let top = 1772.0 * 0.45 * 2047.0 / 46.7 / 200.0;
+        assert!((s.top_speed_counts_per_interrupt() - top).abs() < 1e-9);
+        let doubled = Setup {
+            interrupt_hz: 400.0,
+            ..s
+        };
+        assert!((doubled.top_speed_counts_per_interrupt() - top / 2.0).abs() < 1e-9);
+        let f = Path::new("f.prg");
+        assert!(plan(&fig_9_1(), f, &setup(Interpolation::Linear, top)).is_ok());
+        for feed in [top + 1.0, 1e308, f64::INFINITY] {
+            match plan(&fig_9_1(), f, &setup(Interpolation::Linear, feed)) {
+                Err(Error::Run { message, input }) => {
+                    assert!(input);
+                    assert!(
+                        message.contains("above the axes' top speed of 174.8"),
+                        "{message}"
+                    );
+                }
+                other => panic!("{feed}: {other:?}"),
+            }
+        }
+    }
 
     #[test]
     fn fig_9_1_plans_three_circuits_of_113_knot_points() {

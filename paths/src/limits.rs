@@ -51,6 +51,17 @@ pub fn shown(value: f64) -> String {
     trim_zeros(&text).to_string()
 }
 
+/// A number to `decimals` places, as a report prints a measured figure, unless it is too large
+/// or too small for that to read (below 1e-4 or from 1e9, zero aside): then as [`shown`] writes it.
+pub fn fixed(value: f64, decimals: usize) -> String {
+    let magnitude = value.abs();
+    if value == 0.0 || (1e-4..1e9).contains(&magnitude) {
+        format!("{value:.decimals$}")
+    } else {
+        shown(value)
+    }
+}
+
 fn trim_zeros(text: &str) -> &str {
     if text.contains('.') {
         text.trim_end_matches('0').trim_end_matches('.')
@@ -62,6 +73,19 @@ fn trim_zeros(text: &str) -> &str {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fixed_places_unless_the_number_is_extreme() {
+        assert_eq!(fixed(1005.0, 2), "1005.00");
+        assert_eq!(fixed(0.021413, 5), "0.02141");
+        assert_eq!(fixed(0.0, 3), "0.000");
+        assert_eq!(fixed(-2.5, 1), "-2.5");
+        assert_eq!(fixed(1e308, 2), "1e308");
+        assert_eq!(fixed(1e-300, 3), "1e-300");
+        assert_eq!(fixed(f64::INFINITY, 2), "inf");
+        assert_eq!(fixed(999_999_999.0, 1), "999999999.0");
+        assert_eq!(fixed(1e9, 1), "1e9");
+    }
 
     #[test]
     fn numbers_read_short() {

@@ -278,10 +278,11 @@ impl<const D: usize> Planner<D> {
             };
             let t_cruise = (1.0 - v_top * t_acc) / v_top;
             let total = 2.0 * t_acc + t_cruise.max(0.0);
-            let steps = total.ceil() as usize;
-            if out.len() + steps > MAX_SETPOINTS {
+            // Compared as f64 first: a tiny feed makes `total` too large for any usize sum.
+            if !fits(out.len() as f64 + total.ceil()) {
                 return Err(too_long());
             }
+            let steps = total.ceil() as usize;
             for k in 1..=steps {
                 let t = k as f64;
                 let s = if k == steps {
@@ -318,11 +319,11 @@ impl<const D: usize> Planner<D> {
         let mut width = 1usize;
         for i in 0..D {
             let vmax = v.iter().map(|x| x[i].abs()).fold(0.0, f64::max);
-            let w = (2.0 * vmax / self.limits[i].max_acceleration).ceil() as usize;
-            width = width.max(w);
-        }
-        if linear.len() + width > MAX_SETPOINTS {
-            return Err(too_long());
+            let w = (2.0 * vmax / self.limits[i].max_acceleration).ceil();
+            if !fits(linear.len() as f64 + w) {
+                return Err(too_long());
+            }
+            width = width.max(w as usize);
         }
         v.extend(std::iter::repeat_n(SVector::zeros(), width - 1));
         let mut out = Vec::with_capacity(v.len() + 1);
@@ -405,10 +406,10 @@ impl<const D: usize> Planner<D> {
                 table_t.push(time);
             }
         }
-        let steps = time.ceil() as usize;
-        if steps + 1 > MAX_SETPOINTS {
+        if !fits(time.ceil() + 1.0) {
             return Err(too_long());
         }
+        let steps = time.ceil() as usize;
         let mut setpoints = Vec::with_capacity(steps + 1);
         let mut row = 0usize;
         for k in 0..=steps {
@@ -435,6 +436,12 @@ impl<const D: usize> Planner<D> {
     }
 }
 
+/// Whether `count` setpoints (a float, so that no cast saturates or sum wraps first; NaN does not
+/// fit) are within [`MAX_SETPOINTS`].
+fn fits(count: f64) -> bool {
+    (0.0..=MAX_SETPOINTS as f64).contains(&count)
+}
+
 fn too_long() -> Error {
     Error::OutOfRange {
         name: "trajectory_interrupts",
@@ -450,10 +457,10 @@ fn resample<const D: usize>(
     times: &[f64],
 ) -> Result<Vec<SVector<f64, D>>, Error> {
     let total: f64 = times.iter().sum();
-    let steps = total.ceil() as usize;
-    if steps + 1 > MAX_SETPOINTS {
+    if !fits(total.ceil() + 1.0) {
         return Err(too_long());
     }
+    let steps = total.ceil() as usize;
     let mut out = Vec::with_capacity(steps + 1);
     out.push(points[0]);
     let mut seg = 0usize;
@@ -805,6 +812,35 @@ mod tests {
         );
         let far = [Vector1::new(0.0), Vector1::new(1e12)];
         assert!(planner::<1>(1.0).plan(&far, Interpolation::Linear).is_err());
+    }
+
+    /// A feed so small that the trajectory's interrupt count overflows any integer is refused
+    /// as too long, by every interpolation, at once (it used to wrap the count and loop).
+    #[test]
+    fn a_vanishing_feed_is_too_long_for_every_interpolation() {
+        let pts = out_and_back();
+        let mut steep = planner::<1>(10.0);
+        steep.limits[0].max_acceleration = 1e-300;
+        for (pl, interpolation) in [
+            (planner::<1>(1e-300), Interpolation::Linear),
+            (planner::<1>(1e-300), Interpolation::PointToPoint),
+            (planner::<1>(1e-300), Interpolation::ParabolicBlend),
+            (steep, Interpolation::ParabolicBlend),
+            (steep, Interpolation::PointToPoint),
+            (
+                planner::<1>(1e-300),
+                Interpolation::BSpline {
+                    knots_per_segment: 4,
+                },
+            ),
+        ] {
+            match pl.plan(&pts, interpolation) {
+                Err(Error::OutOfRange { name, .. }) => {
+                    assert_eq!(name, "trajectory_interrupts", "{interpolation:?}")
+                }
+                other => panic!("{interpolation:?}: {other:?}"),
+            }
+        }
     }
 
     #[test]

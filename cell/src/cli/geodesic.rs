@@ -61,7 +61,7 @@ pub struct GeodesicArgs {
     pub crease_deg: f64,
     /// Smooth the traced path (B-spline) and print it cut into this many equal-length segments,
     /// end points projected onto the mesh, with the largest raw-to-smoothed distance (1–10000).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub segments: Option<usize>,
     /// Print one JSON document instead of text.
     #[arg(long)]

@@ -40,10 +40,10 @@ pub struct PredictArgs {
     #[arg(long, value_name = "CELL.toml")]
     pub cell: Option<PathBuf>,
     /// Monte Carlo samples of the setup error.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
     pub samples: usize,
     /// The Monte Carlo's seed.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// The report as one JSON document.
     #[arg(long)]

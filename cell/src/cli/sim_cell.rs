@@ -36,7 +36,7 @@ pub struct SimCellArgs {
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
     /// Duration of the robot's home synchronisation, seconds.
-    #[arg(long, default_value_t = MotionParams::default().home_s)]
+    #[arg(long, default_value_t = MotionParams::default().home_s, allow_negative_numbers = true)]
     pub home_s: f64,
 }
 

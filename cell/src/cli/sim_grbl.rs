@@ -28,7 +28,7 @@ pub struct SimGrblArgs {
     #[arg(long, value_name = "FILE")]
     pub log: Option<std::path::PathBuf>,
     /// Motion runs this many times faster than commanded (1 = real time).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub time_scale: f64,
 }
 

@@ -43,14 +43,14 @@ pub struct SimIndexerArgs {
     #[arg(long, value_enum, default_value = "x")]
     pub dialect: Dialect,
     /// X-language device address (1–255).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..), allow_negative_numbers = true)]
     pub address: u8,
     /// Log every move the indexer finishes as a JSON line (docs/file-formats.md, "Simulator
     /// logs"; X-language only).
     #[arg(long, value_name = "FILE")]
     pub log: Option<std::path::PathBuf>,
     /// Motor pull-in rate, steps/s: a start velocity above it stalls the motor.
-    #[arg(long, default_value_t = PULL_IN_SPS)]
+    #[arg(long, default_value_t = PULL_IN_SPS, allow_negative_numbers = true)]
     pub pull_in_sps: f64,
 }
 

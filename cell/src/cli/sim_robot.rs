@@ -52,7 +52,7 @@ pub struct SimRobotArgs {
     #[arg(long, requires = "log")]
     pub log_wire: bool,
     /// Duration of a home synchronisation, seconds.
-    #[arg(long, default_value_t = MotionParams::default().home_s)]
+    #[arg(long, default_value_t = MotionParams::default().home_s, allow_negative_numbers = true)]
     pub home_s: f64,
 }
 

@@ -22,7 +22,7 @@ pub struct SweepArgs {
     #[arg(short = 'o', long = "out", value_name = "DIR")]
     pub out: PathBuf,
     /// Number of paths, 1–255, at equal steps of start angle.
-    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u8).range(1..))]
+    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u8).range(1..), allow_negative_numbers = true)]
     pub paths: u8,
     /// Print the plan as one JSON document on standard output.
     #[arg(long)]

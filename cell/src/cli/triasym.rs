@@ -20,10 +20,10 @@ pub struct TriasymArgs {
     #[arg(short = 'o', long = "out", value_name = "FILE")]
     pub out: PathBuf,
     /// Facets per circumference.
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 128, allow_negative_numbers = true)]
     pub facets: usize,
     /// Section spacing along the spine, mm (at most; the sections are equally spaced).
-    #[arg(long, default_value_t = 2.5)]
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
     pub spacing_mm: f64,
     /// Write ASCII STL instead of binary (an output ending in `.obj` is written as OBJ).
     #[arg(long)]
@@ -60,7 +60,8 @@ pub fn run(args: TriasymArgs) -> Result<(), Failure> {
     let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(|e| {
         Failure::input(format!(
             "triasym --facets {} --spacing-mm {}: {e}",
-            args.facets, args.spacing_mm
+            args.facets,
+            paths::limits::shown(args.spacing_mm)
         ))
     })?;
     mesh.validate(Closure::Closed).map_err(Failure::runtime)?;

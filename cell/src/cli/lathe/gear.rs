@@ -4,6 +4,7 @@
 
 use clap::Args;
 use mandrel_drive::servo::Amplifier;
+use paths::limits::{fixed, shown};
 use serde_json::json;
 
 use crate::cli::{Failure, print};
@@ -15,19 +16,39 @@ pub struct LatheGearArgs {
     #[arg(long, value_name = "MM_PER_DEG", allow_hyphen_values = true)]
     pub ratio: f64,
     /// Mandrel turns.
-    #[arg(long, value_name = "N", default_value_t = 2.0)]
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 2.0,
+        allow_negative_numbers = true
+    )]
     pub turns: f64,
     /// Mandrel speed, degrees per second.
-    #[arg(long, value_name = "DEG_S", default_value_t = 90.0)]
+    #[arg(
+        long,
+        value_name = "DEG_S",
+        default_value_t = 90.0,
+        allow_negative_numbers = true
+    )]
     pub speed: f64,
     /// Time to reach the speed (and to stop), s.
-    #[arg(long, value_name = "S", default_value_t = 0.5)]
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0.5,
+        allow_negative_numbers = true
+    )]
     pub ramp: f64,
     /// Interrupt rate, Hz.
-    #[arg(long, value_name = "HZ", default_value_t = 200.0)]
+    #[arg(
+        long,
+        value_name = "HZ",
+        default_value_t = 200.0,
+        allow_negative_numbers = true
+    )]
     pub rate: f64,
     /// Servo amplifier gain K_amp.
-    #[arg(long, default_value_t = 0.45)]
+    #[arg(long, default_value_t = 0.45, allow_negative_numbers = true)]
     pub k_amp: f64,
     /// Report as JSON.
     #[arg(long)]
@@ -50,13 +71,13 @@ pub fn run(args: LatheGearArgs) -> Result<(), Failure> {
         return print(&format!("{text}\n"));
     }
     print(&format!(
-        "geared at {} mm/°: mandrel {:.3}°, carriage {:.3} mm (ratio × angle {:.3} mm), \
-         worst |X − ratio·A| {:.3} mm over {} interrupts\n",
-        g.ratio_mm_per_deg,
-        g.mandrel_deg,
-        g.carriage_mm,
-        g.ratio_mm_per_deg * g.mandrel_deg,
-        g.worst_error_mm,
+        "geared at {} mm/°: mandrel {}°, carriage {} mm (ratio × angle {} mm), \
+         worst |X − ratio·A| {} mm over {} interrupts\n",
+        shown(g.ratio_mm_per_deg),
+        fixed(g.mandrel_deg, 3),
+        fixed(g.carriage_mm, 3),
+        fixed(g.ratio_mm_per_deg * g.mandrel_deg, 3),
+        fixed(g.worst_error_mm, 3),
         g.interrupts
     ))
 }

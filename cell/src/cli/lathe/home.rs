@@ -12,16 +12,31 @@ use crate::cli::{Failure, print};
 #[derive(Debug, Args)]
 pub struct LatheHomeArgs {
     /// Power-on position of X and Y as X_MM,Y_MM (the home switch is made at −1 mm).
-    #[arg(long, value_name = "X,Y", default_value = "150,10")]
+    #[arg(
+        long,
+        value_name = "X,Y",
+        default_value = "150,10",
+        allow_hyphen_values = true
+    )]
     pub from: String,
     /// Whole encoder pulses beyond the switch's release edge.
-    #[arg(long, value_name = "PULSES", default_value_t = 100)]
+    #[arg(
+        long,
+        value_name = "PULSES",
+        default_value_t = 100,
+        allow_negative_numbers = true
+    )]
     pub backoff: i64,
     /// Power-on value of the 16-bit encoder counters.
-    #[arg(long, value_name = "RAW", default_value_t = 0)]
+    #[arg(
+        long,
+        value_name = "RAW",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
     pub counter_start: u16,
     /// Servo amplifier gain K_amp.
-    #[arg(long, default_value_t = 0.45)]
+    #[arg(long, default_value_t = 0.45, allow_negative_numbers = true)]
     pub k_amp: f64,
     /// Report as JSON.
     #[arg(long)]
@@ -59,7 +74,7 @@ pub fn run(args: LatheHomeArgs) -> Result<(), Failure> {
         out.push_str(&format!(
             "{}: from {} mm, machine zero at encoder count {} (counter {}), {} interrupts ({:.2} s)\n",
             h.axis,
-            h.start_mm,
+            paths::limits::shown(h.start_mm),
             h.machine_zero_count,
             h.raw_counter,
             h.interrupts,

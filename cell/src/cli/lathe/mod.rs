@@ -52,7 +52,8 @@ pub fn run(args: LatheArgs) -> Result<(), Failure> {
 fn check_rate(hz: f64) -> Result<(), Failure> {
     if !(1.0..=1000.0).contains(&hz) {
         return Err(Failure::input(format!(
-            "--rate: {hz} Hz is outside 1 … 1000 Hz"
+            "--rate: {} Hz is outside 1 … 1000 Hz",
+            paths::limits::shown(hz)
         )));
     }
     Ok(())
@@ -62,7 +63,8 @@ fn check_rate(hz: f64) -> Result<(), Failure> {
 fn check_k_amp(k_amp: f64) -> Result<(), Failure> {
     if !(k_amp > 0.0 && k_amp <= 8.0) {
         return Err(Failure::input(format!(
-            "--k-amp: {k_amp} is outside (0, 8] (Ch. 7)"
+            "--k-amp: {} is outside (0, 8] (Ch. 7)",
+            paths::limits::shown(k_amp)
         )));
     }
     Ok(())

@@ -49,7 +49,7 @@ pub struct LatheRunArgs {
     pub interp: InterpArg,
     /// Feed rate: the fastest axis's encoder counts per interrupt (default: the parameter
     /// file's feed rate limit).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
     pub feed: Option<f64>,
     /// FW-CNC.PAR (default: the thesis's values 20, 10, 30, 20, 4).
     #[arg(long, value_name = "FILE")]
@@ -67,31 +67,51 @@ pub struct LatheRunArgs {
     #[arg(long, value_enum, default_value_t = ClockArg::Sim)]
     pub clock: ClockArg,
     /// Interrupt rate, Hz (1 … 1000).
-    #[arg(long, value_name = "HZ", default_value_t = 200.0)]
+    #[arg(
+        long,
+        value_name = "HZ",
+        default_value_t = 200.0,
+        allow_negative_numbers = true
+    )]
     pub rate: f64,
     /// With `--clock real`: busy-wait this long before each interrupt instead of sleeping
     /// (default 150 µs; a whole period or more never sleeps, at the cost of a core).
-    #[arg(long, value_name = "MICROSECONDS", default_value_t = 150)]
+    #[arg(
+        long,
+        value_name = "MICROSECONDS",
+        default_value_t = 150,
+        allow_negative_numbers = true
+    )]
     pub spin_us: u64,
     /// Servo amplifier gain K_amp (voltage amplifier, Ch. 7).
-    #[arg(long, default_value_t = 0.45)]
+    #[arg(long, default_value_t = 0.45, allow_negative_numbers = true)]
     pub k_amp: f64,
     /// Part zero from machine zero as X_MM,Y_MM,A_DEG (default: the program's `(PART ZERO …)`
     /// comment, else 150,10,0).
-    #[arg(long, value_name = "X,Y,A")]
+    #[arg(long, value_name = "X,Y,A", allow_hyphen_values = true)]
     pub part_zero: Option<String>,
     /// Stop before every block and wait for Enter on standard input (seed 003 step-by-step).
     #[arg(long)]
     pub single_block: bool,
     /// Circuits per layer, for the layer counter of the progress display.
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 1,
+        allow_negative_numbers = true
+    )]
     pub circuits_per_layer: usize,
     /// Record the axes' commanded and actual positions and following error every interrupt
     /// (topic `/lathe/axes`) and the progress (`/log`) as MCAP for Foxglove.
     #[arg(long, value_name = "FILE.mcap")]
     pub record: Option<PathBuf>,
     /// Power-on value of the 16-bit encoder counters (they wrap from 65 535 to 0; seed 003 §4.1).
-    #[arg(long, value_name = "RAW", default_value_t = 0)]
+    #[arg(
+        long,
+        value_name = "RAW",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
     pub counter_start: u16,
 }
 
@@ -125,6 +145,7 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
         return Err(Failure::input(format!("--feed: {feed} must be > 0")));
     }
     super::check_rate(args.rate)?;
+    super::check_k_amp(args.k_amp)?;
     if args.circuits_per_layer == 0 {
         return Err(Failure::input("--circuits-per-layer: must be ≥ 1"));
     }

@@ -39,14 +39,14 @@ pub struct LatheStreamArgs {
     #[arg(long)]
     pub port: String,
     /// Baud rate.
-    #[arg(long, default_value_t = 115_200)]
+    #[arg(long, default_value_t = 115_200, allow_negative_numbers = true)]
     pub baud: u32,
     /// Flow control.
     #[arg(long, value_enum, default_value = "counting")]
     pub flow: FlowArg,
     /// Seconds without any byte from the controller (it is asked for status every 0.25 s) after
     /// which the link counts as lost.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     pub silence_s: f64,
 }
 

@@ -14,13 +14,18 @@ use crate::cli::{Failure, print};
 #[derive(Debug, Args)]
 pub struct LatheTuneArgs {
     /// Servo amplifier gain K_amp (Ch. 7 plant 1772·K_amp / (s (s + 46.7))).
-    #[arg(long, default_value_t = 0.45)]
+    #[arg(long, default_value_t = 0.45, allow_negative_numbers = true)]
     pub k_amp: f64,
     /// Interrupt rate, Hz (the sampling period T = 1/rate).
-    #[arg(long, value_name = "HZ", default_value_t = 200.0)]
+    #[arg(
+        long,
+        value_name = "HZ",
+        default_value_t = 200.0,
+        allow_negative_numbers = true
+    )]
     pub rate: f64,
     /// Mechanical time constant τ, s (default: the plant's, 1/46.7).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub tau: Option<f64>,
     /// Report as JSON.
     #[arg(long)]
@@ -30,8 +35,13 @@ pub struct LatheTuneArgs {
 /// Runs `windcell lathe tune`.
 pub fn run(args: LatheTuneArgs) -> Result<(), Failure> {
     super::check_k_amp(args.k_amp)?;
+    // Any rate: Eq. 8 is for any sampled axis (seed 003's worked value has T = π/2 s); the
+    // lathe controller's own 1 … 1000 Hz applies to `lathe run` and `lathe gear`.
     if !(args.rate > 0.0 && args.rate.is_finite()) {
-        return Err(Failure::input(format!("--rate: {} must be > 0", args.rate)));
+        return Err(Failure::input(format!(
+            "--rate: {} must be > 0",
+            paths::limits::shown(args.rate)
+        )));
     }
     let (plant_gain, pole) = Amplifier::Voltage { k_amp: args.k_amp }.plant();
     let tau = args.tau.unwrap_or(1.0 / pole);
@@ -68,16 +78,19 @@ pub fn run(args: LatheTuneArgs) -> Result<(), Failure> {
         return print(&format!("{text}\n"));
     }
     print(&format!(
-        "τ = {tau:.5} s, T = {period:.5} s, T/τ = {:.4}\n\
+        "τ = {} s, T = {period:.5} s, T/τ = {:.4}\n\
          Eq. 8 loop gain K = {gain:.4} /s (Routh first column {:?}: stable)\n\
-         K_p = {kp:.3} DAC codes per count for the plant {plant_gain:.1}/(s (s + {pole}))\n\
+         K_p = {} DAC codes per count for the plant {}/(s (s + {pole}))\n\
          step response with G_c = 1: overshoot {:.1} %, peak {:.0} ms, 5 % settling {:.0} ms, \
          2 % settling {:.0} ms\n",
+        paths::limits::fixed(tau, 5),
         period / tau,
         routh
             .iter()
             .map(|c| (c * 1e4).round() / 1e4)
             .collect::<Vec<_>>(),
+        paths::limits::fixed(kp, 3),
+        paths::limits::fixed(plant_gain, 1),
         m5.overshoot_pct,
         m5.peak_time_s * 1e3,
         m5.settling_time_s * 1e3,
