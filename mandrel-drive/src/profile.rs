@@ -107,6 +107,12 @@ mod tests {
             trapezoid_duration_s(200.0, p),
             2.0 * ((100.0f64 * 100.0 + 1000.0 * 200.0).sqrt() - 100.0) / 1000.0
         );
+        // 1000 steps lie between one ramp (600) and two (1200): a triangle, peak
+        // sqrt(100² + 1000·1000) = 1004.99 steps/s, 1.81 s; not a cruise of negative length.
+        assert_relative_eq!(
+            trapezoid_duration_s(1000.0, p),
+            2.0 * ((100.0f64 * 100.0 + 1000.0 * 1000.0).sqrt() - 100.0) / 1000.0
+        );
         let flat = StepProfile {
             v0_sps: 500.0,
             vmax_sps: 500.0,
@@ -143,6 +149,56 @@ mod tests {
         assert!(matches!(
             Profile { max_rps: 6.0, ..ok }.validate(&d),
             Err(Error::PulseRate { .. })
+        ));
+        // Each figure at, below and beyond its bounds: zero, negative and infinite acceleration
+        // or top speed are refused by name; a start speed of 0 and one equal to the top are not.
+        for bad in [0.0, -1.0, f64::INFINITY] {
+            let a = Profile {
+                accel_rps2: bad,
+                ..ok
+            };
+            assert!(
+                matches!(
+                    a.validate(&d),
+                    Err(Error::OutOfRange {
+                        name: "accel_rps2",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+            let m = Profile { max_rps: bad, ..ok };
+            assert!(
+                matches!(
+                    m.validate(&d),
+                    Err(Error::OutOfRange {
+                        name: "max_rps",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+        }
+        for good in [0.0, 1.0] {
+            assert!(
+                Profile {
+                    start_rps: good,
+                    ..ok
+                }
+                .validate(&d)
+                .is_ok()
+            );
+        }
+        assert!(matches!(
+            Profile {
+                start_rps: -0.1,
+                ..ok
+            }
+            .validate(&d),
+            Err(Error::OutOfRange {
+                name: "start_rps",
+                ..
+            })
         ));
     }
 }

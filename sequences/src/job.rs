@@ -1002,7 +1002,10 @@ segments = 50
         let cell = "name = \"cell\"\n\n[drive]\nsteps_per_rev = 400\n";
         let e = Job::parse(cell).unwrap_err().to_string();
         assert!(e.starts_with("3:2: unknown field `drive`"), "{e}");
-        assert!(e.ends_with("(this looks like a cell file: give it with --cell)"), "{e}");
+        assert!(
+            e.ends_with("(this looks like a cell file: give it with --cell)"),
+            "{e}"
+        );
         let vessel = "name = \"V\"\n[[layer]]  # hoop\nangle_deg = 89\n";
         let e = Job::parse(vessel).unwrap_err().to_string();
         assert!(e.contains("unknown field `layer`"), "{e}");
