@@ -164,4 +164,84 @@ mod tests {
             0
         );
     }
+
+    /// Reads from `link` until `n` bytes have come (or a second has passed).
+    fn read_all(link: &mut dyn Link, n: usize) -> Vec<u8> {
+        let mut got = Vec::new();
+        let t0 = Instant::now();
+        let mut buf = [0u8; 16];
+        while got.len() < n && t0.elapsed() < Duration::from_secs(1) {
+            let k = link
+                .read_timeout(&mut buf, Duration::from_millis(20))
+                .unwrap();
+            got.extend_from_slice(&buf[..k]);
+        }
+        got
+    }
+
+    /// Waits until input is waiting on `port` (a pty delivers a write a moment later).
+    #[cfg(unix)]
+    fn wait_for_input(port: &dyn serialport::SerialPort) {
+        let t0 = Instant::now();
+        while port.bytes_to_read().unwrap() == 0 && t0.elapsed() < Duration::from_secs(1) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert!(port.bytes_to_read().unwrap() > 0, "nothing arrived");
+    }
+
+    /// The serial-port links on a pseudo-terminal pair (no hardware): bytes written on one end
+    /// are read on the other, a read with nothing waiting times out as 0 bytes, and input
+    /// waiting is discarded, on the port itself and boxed (as `open_serial` returns it).
+    #[cfg(unix)]
+    #[test]
+    fn serial_ports_carry_bytes_time_out_and_discard_input() {
+        let (mut a, mut b) = serialport::TTYPort::pair().unwrap();
+        Link::write_all(&mut a, b"1R\r").unwrap();
+        assert_eq!(read_all(&mut b, 3), b"1R\r");
+        let mut buf = [0u8; 8];
+        assert_eq!(
+            b.read_timeout(&mut buf, Duration::from_millis(20)).unwrap(),
+            0
+        );
+        // More than one read's worth (256 bytes) waiting: every byte of it goes.
+        Link::write_all(&mut a, &[b'x'; 600]).unwrap();
+        let t0 = Instant::now();
+        while serialport::SerialPort::bytes_to_read(&b).unwrap() < 600
+            && t0.elapsed() < Duration::from_secs(1)
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert_eq!(serialport::SerialPort::bytes_to_read(&b).unwrap(), 600);
+        b.discard_input().unwrap();
+        assert_eq!(
+            b.read_timeout(&mut buf, Duration::from_millis(50)).unwrap(),
+            0
+        );
+
+        let (mut a, b) = serialport::TTYPort::pair().unwrap();
+        let mut boxed: Box<dyn serialport::SerialPort> = Box::new(b);
+        Link::write_all(&mut boxed, b"1G\r").unwrap();
+        assert_eq!(read_all(&mut a, 3), b"1G\r");
+        Link::write_all(&mut a, b"*\r").unwrap();
+        assert_eq!(read_all(&mut boxed, 2), b"*\r");
+        Link::write_all(&mut a, b"stale").unwrap();
+        wait_for_input(boxed.as_ref());
+        Link::discard_input(&mut boxed).unwrap();
+        assert_eq!(
+            boxed
+                .read_timeout(&mut buf, Duration::from_millis(50))
+                .unwrap(),
+            0
+        );
+    }
+
+    /// A port whose other end has gone is an error, not a quiet line.
+    #[cfg(unix)]
+    #[test]
+    fn a_serial_port_whose_other_end_closed_is_an_error() {
+        let (a, mut b) = serialport::TTYPort::pair().unwrap();
+        drop(a);
+        let mut buf = [0u8; 8];
+        assert!(b.read_timeout(&mut buf, Duration::from_millis(50)).is_err());
+    }
 }
