@@ -1461,6 +1461,22 @@ mod tests {
         }
     }
 
+    /// The advised speed never lies below the profile's start speed, where no indexer profile
+    /// exists: with a start speed of 0.10004 rev/s just under a top speed of 0.10005 rev/s and
+    /// every segment fitting, the bisection ends at the top, whose 0.1 mrev/s floor (0.1000)
+    /// lies below the start speed; the advice is then the unrounded speed.
+    #[test]
+    fn the_continuous_speed_advice_stays_above_the_start_speed() {
+        let profile = MandrelProfile {
+            accel_rps2: 1.0,
+            start_stop_rps: 0.10004,
+            max_rps: 0.10005,
+        };
+        let rps = continuous_fit_rps(&profile, &[100; 10], 400.0, 1e-3);
+        assert!(rps >= profile.start_stop_rps, "{rps}");
+        assert!(rps <= profile.max_rps, "{rps}");
+    }
+
     #[test]
     fn robot_too_close_gives_tangent_undefined() {
         let tube = Tube::cylinder(63.5, 178.0, 3.0 * R, 3.0 * R).unwrap();
