@@ -315,15 +315,30 @@ fn wind(job: &Job, text: &str, file: &Path, cell: &Cell, mode: RunMode) -> Resul
     );
     let outcome = c.run(&batch, &ResumePoint::default(), true, false, false);
     drop(c);
+    // A run the simulated cell stops (a motor the job's profile stalls, a limit) is this
+    // mode's prediction: the job cannot be wound so. It is the job's figures that are at fault,
+    // and the other modes are still predicted.
+    // A stall is placed at the drive profile's acceleration, the figure a gentler job changes
+    // first (the message names the start and top speeds too); any other stop at the file.
     if let Err(stopped) = outcome {
-        return Err(run_error(format!(
-            "the simulated {} run stopped at path {} ({}) after {} segments: {}",
-            mode.keyword(),
-            stopped.item,
-            stopped.path,
-            stopped.segments_done,
-            stopped.halt.reason()
-        )));
+        let reason = stopped.halt.reason();
+        let place = if reason.contains("stalled") {
+            let (line, column) =
+                sequences::error::line_column(text, job.cell.drive.accel_rps2.span().start);
+            format!("{}:{line}:{column}", file.display())
+        } else {
+            file.display().to_string()
+        };
+        return Err(Error::Run {
+            message: format!(
+                "{place}: the simulated {} run stopped at path {} ({}) after {} segments: {reason}",
+                mode.keyword(),
+                stopped.item,
+                stopped.path,
+                stopped.segments_done,
+            ),
+            input: true,
+        });
     }
     let trace = sim
         .with(|p| p.trace.take().unwrap_or_default())

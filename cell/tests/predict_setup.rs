@@ -115,9 +115,12 @@ fn a_drive_the_motor_cannot_follow_is_reported_as_a_stall() {
         "--samples",
         "1",
     ]);
-    assert!(!o.status.success());
+    // The job's profile is at fault: exit code 2, the line placed at its acceleration.
+    assert_eq!(o.status.code(), Some(2));
     let err = stderr(&o);
     assert_eq!(err.lines().count(), 1, "{err}");
+    let accel_at = format!("{}:17:14: ", job.display());
+    assert!(err.contains(&accel_at), "{err}");
     assert!(err.contains("stalled"), "{err}");
     assert!(err.contains("pull-out torque"), "{err}");
     assert!(!err.contains("Fault {"), "{err}");
@@ -176,4 +179,36 @@ fn a_mode_that_cannot_wind_is_reported_beside_one_that_can() {
     assert!(!out.contains("discrete at 1 rev/s: cannot wind"), "{out}");
     assert!(out.contains("fine at 1 rev/s: cannot wind: "), "{out}");
     assert!(out.contains("the eye would have to move at"), "{out}");
+}
+
+/// A stall is the prediction for the job's figures, not a fault of the prediction: the same
+/// 50 rev/s² ramp that stalls the motor on the way to 1 rev/s is predicted at 0.05 rev/s, where
+/// the ramp ends within the motor's pull-out torque.
+#[test]
+fn a_stall_depends_on_the_speed_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = example_variant(
+        dir.path(),
+        "cylinder.toml",
+        "steep.toml",
+        &[("accel_rps2 = 1.0", "accel_rps2 = 50.0")],
+    );
+    for (rps, stalls) in [("1.0", true), ("0.05", false)] {
+        let o = windcell(&[
+            "predict",
+            job.to_str().unwrap(),
+            "--mode",
+            "fine",
+            "--mandrel-rps",
+            rps,
+            "--samples",
+            "1",
+        ]);
+        assert_eq!(
+            o.status.code(),
+            Some(if stalls { 2 } else { 0 }),
+            "{rps}: {}",
+            stderr(&o)
+        );
+    }
 }
