@@ -1012,6 +1012,81 @@ mod tests {
         assert_eq!(clock.now(), w.byte_time() * 4 + Duration::from_millis(5));
     }
 
+    /// Bytes written later leave from the clock's time then, the line's busy time counts only
+    /// the bytes' own time, and the wire's clock is the one it was given.
+    #[test]
+    fn paced_wire_schedules_from_now_and_counts_busy_time() {
+        let clock = VirtualClock::new();
+        let mut w = Paced::new(clock.clone(), 9600, Echo::default());
+        let bt = w.byte_time();
+        w.run_for(Duration::from_millis(10));
+        w.write_all(&[1, 2, 3]).unwrap();
+        assert_eq!(clock.now(), Duration::from_millis(10) + bt * 3);
+        assert_eq!(w.clock().now(), clock.now());
+        assert_eq!(w.host_line_busy(), bt * 3);
+        w.run_for(Duration::from_millis(10));
+        w.write_all(&[4]).unwrap();
+        assert_eq!(w.host_line_busy(), bt * 4);
+    }
+
+    /// A read times out at its deadline even when a byte comes just after it, and a discard
+    /// drops a byte that arrives at the very moment it is made.
+    #[test]
+    fn paced_wire_reads_keep_their_deadline_and_discard_what_has_arrived() {
+        let clock = VirtualClock::new();
+        let mut w = Paced::new(clock.clone(), 9600, Echo::default());
+        let bt = w.byte_time();
+        let mut buf = [0u8; 8];
+        // The echo of a byte written at 0 arrives at 2 byte times; the clock stands at 1.
+        w.write_all(&[7]).unwrap();
+        assert_eq!(w.read_timeout(&mut buf, bt / 2).unwrap(), 0);
+        assert_eq!(clock.now(), bt + bt / 2);
+        assert_eq!(w.read_timeout(&mut buf, bt).unwrap(), 1);
+        assert_eq!((buf[0], clock.now()), (7, bt * 2));
+        // An echo arriving exactly now is in, and discarded.
+        let t0 = clock.now();
+        w.write_all(&[8]).unwrap();
+        w.run_for(bt);
+        assert_eq!(clock.now(), t0 + bt * 2);
+        w.discard_input().unwrap();
+        assert_eq!(
+            w.read_timeout(&mut buf, Duration::from_millis(5)).unwrap(),
+            0
+        );
+    }
+
+    /// A device that always wants polling now (its deadline never moves on) cannot hold the
+    /// wire: the peer loop gives up after a million polls and time goes on.
+    #[test]
+    fn a_device_stuck_at_its_deadline_does_not_hang_the_wire() {
+        #[derive(Debug, Default)]
+        struct Stuck {
+            now: Duration,
+            polls: u64,
+        }
+        impl Peer for Stuck {
+            fn receive(&mut self, _: &[u8], now: Duration) {
+                self.now = now;
+            }
+            fn poll(&mut self, now: Duration) {
+                self.now = now;
+                self.polls += 1;
+            }
+            fn take_output(&mut self) -> Vec<u8> {
+                Vec::new()
+            }
+            fn deadline(&self) -> Option<Duration> {
+                Some(self.now)
+            }
+        }
+        let clock = VirtualClock::new();
+        let mut w = Paced::new(clock.clone(), 9600, Stuck::default());
+        w.run_for(Duration::from_millis(1));
+        assert_eq!(clock.now(), Duration::from_millis(1));
+        // The guard's million polls, one more that breaks out, and the final poll at the end.
+        assert_eq!(w.peer.polls, 1_000_002);
+    }
+
     /// The paced wire counts each direction's faults apart: every byte to the peer dropped, none
     /// of the (absent) echoes faulted on the way back.
     #[test]
