@@ -6,7 +6,7 @@
 #[non_exhaustive]
 pub enum EncodeError {
     /// A number outside its wire range (or not finite).
-    #[error("{name} = {value} out of range ({expected})")]
+    #[error("{name} = {} out of range ({expected})", paths::limits::shown(*value))]
     OutOfRange {
         /// The field.
         name: &'static str,

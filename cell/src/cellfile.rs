@@ -188,7 +188,7 @@ impl Cell {
         };
         let file: CellFile = toml::from_str(text).map_err(|e| {
             let offset = e.span().map_or(0, |s| s.start);
-            at(offset, e.message().to_string())
+            at(offset, sequences::error::short_numbers(e.message()))
         })?;
         let locate = |key: &str| text.find(key).unwrap_or(0);
         let drive = match &file.drive {
@@ -204,7 +204,10 @@ impl Cell {
         if !(0.0..=1.0).contains(&opto_delay_s) {
             return Err(at(
                 locate("opto_delay_s"),
-                format!("opto_delay_s = {opto_delay_s}: expected 0–1 s"),
+                format!(
+                    "opto_delay_s = {}: expected 0–1 s",
+                    sequences::error::shown(opto_delay_s)
+                ),
             ));
         }
         let mut tolerances = crate::predict::Tolerances::default();

@@ -79,7 +79,7 @@ pub enum Error {
         feature: &'static str,
     },
     /// A value outside what the dialect or the drive accepts.
-    #[error("{name} = {value} out of range ({expected})")]
+    #[error("{name} = {} out of range ({expected})", paths::limits::shown(*value))]
     OutOfRange {
         /// The parameter.
         name: &'static str,

@@ -2,7 +2,7 @@
 
 use thiserror::Error;
 
-use crate::limits::shown;
+use crate::limits::{fixed, shown};
 use crate::robot::ArmFault;
 
 /// Everything that can go wrong while building mandrel models and planning paths.
@@ -58,8 +58,9 @@ pub enum Error {
     /// Eq 3.7 has no solution: the robot is too close for the tangent line to reach the point.
     #[error(
         "robot distance b = {} mm makes eq 3.7 undefined at segment {segment} \
-         (|(-r - R cos Ψ)/b| = {argument:.4} > 1)",
-        shown(*robot_distance_mm)
+         (|(-r - R cos Ψ)/b| = {} > 1)",
+        shown(*robot_distance_mm),
+        fixed(*argument, 4)
     )]
     TangentUndefined {
         /// b, the robot pedestal to rotation axis distance.

@@ -177,6 +177,26 @@ pub fn shown(value: f64) -> String {
     }
 }
 
+/// A parser's message with every back-quoted number longer than 20 characters written as
+/// [`shown`] writes it: the TOML reader quotes a value it refuses in full
+/// (`` invalid type: floating point `1000…000` ``, 309 digits for 1e308).
+pub fn short_numbers(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut parts = message.split('`');
+    if let Some(first) = parts.next() {
+        out.push_str(first);
+    }
+    for (k, part) in parts.enumerate() {
+        out.push('`');
+        // Odd pieces (k even here) lie between a pair of back quotes.
+        match part.parse::<f64>() {
+            Ok(v) if k % 2 == 0 && part.len() > 20 => out.push_str(&shown(v)),
+            _ => out.push_str(part),
+        }
+    }
+    out
+}
+
 /// 1-based line and character column of byte `offset` in `text`.
 pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let mut offset = offset.min(text.len());
@@ -192,6 +212,25 @@ pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Long quoted numbers are shortened; short ones, words and text outside the quotes are
+    /// kept as they are.
+    #[test]
+    fn long_quoted_numbers_are_shortened() {
+        let big = format!("1{}", "0".repeat(308));
+        let m = format!("invalid type: floating point `{big}`, expected u32");
+        assert_eq!(
+            short_numbers(&m),
+            "invalid type: floating point `1e308`, expected u32"
+        );
+        let tiny = format!("0.{}1", "0".repeat(299));
+        assert_eq!(short_numbers(&format!("`{tiny}`")), "`1e-300`");
+        let kept = "unknown field `drive`, expected `12345678901234567890` or `1.5`";
+        assert_eq!(short_numbers(kept), kept);
+        // Digits outside a pair of quotes are not touched.
+        let outside = format!("{big} `x` {big}");
+        assert_eq!(short_numbers(&outside), outside);
+    }
 
     #[test]
     fn offsets_map_to_lines_and_columns() {

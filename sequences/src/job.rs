@@ -391,11 +391,11 @@ impl Job {
     pub fn parse(text: &str) -> Result<Job, Error> {
         let job: Job = toml::from_str(text).map_err(|e| {
             let offset = e.span().map_or(0, |s| s.start);
-            let message = e.message().trim();
+            let message = crate::error::short_numbers(e.message().trim());
             Error::at_offset(
                 text,
                 offset,
-                format!("{message}{}", other_kind_of_file(message, text)),
+                format!("{message}{}", other_kind_of_file(&message, text)),
             )
         })?;
         job.validate(text)?;

@@ -196,7 +196,11 @@ impl VesselFile {
     pub fn parse(text: &str) -> Result<Loaded, Error> {
         let file: VesselFile = toml::from_str(text).map_err(|e| {
             let offset = e.span().map_or(0, |s| s.start);
-            Error::at_offset(text, offset, e.message().trim().to_string())
+            Error::at_offset(
+                text,
+                offset,
+                crate::error::short_numbers(e.message().trim()),
+            )
         })?;
         file.convert(text)
     }
