@@ -665,6 +665,51 @@ mod tests {
         assert!(v[k - 1].abs() < 2.0 + 1e-9 && v[k].abs() < 2.0 + 1e-9);
     }
 
+    /// The point-to-point profile's length against its closed forms (counts and interrupts, the
+    /// acceleration limit A = 2): a leg of d = 10 000 at feed 80 is a trapezoid of
+    /// d/v + v/A = 125 + 40 = 165 interrupts; a leg of d = 100 never reaches the feed and is a
+    /// triangle of 2·√(d/A) = 14.14, so 15 interrupts, peaking at √(A·d) = 14.1 counts per
+    /// interrupt. Both start from rest: the first step is at most one acceleration's worth.
+    #[test]
+    fn point_to_point_legs_take_their_closed_form_time() {
+        let trapezoid = planner::<1>(80.0)
+            .plan(&out_and_back(), Interpolation::PointToPoint)
+            .unwrap();
+        assert_eq!(trapezoid.setpoints.len(), 2 * 165 + 1);
+        let short = [0.0, 100.0].map(Vector1::new);
+        let triangle = planner::<1>(80.0)
+            .plan(&short, Interpolation::PointToPoint)
+            .unwrap();
+        assert_eq!(triangle.setpoints.len(), 15 + 1);
+        for t in [&trapezoid, &triangle] {
+            let v: Vec<f64> = t.setpoints.windows(2).map(|w| w[1].x - w[0].x).collect();
+            assert!(v[0].abs() <= 2.0 + 1e-9, "{}", v[0]);
+            for w in v.windows(2) {
+                assert!((w[1] - w[0]).abs() <= 2.0 + 1e-6, "{w:?}");
+            }
+        }
+        let peak = triangle
+            .setpoints
+            .windows(2)
+            .map(|w| w[1].x - w[0].x)
+            .fold(0.0, f64::max);
+        assert!(
+            peak <= (2.0f64 * 100.0).sqrt() + 1e-9 && peak > 12.0,
+            "{peak}"
+        );
+    }
+
+    /// Two legs of 3001 interrupts each fit well within the setpoint limit: the check adds the
+    /// setpoints so far to the next leg's (a product of the two, 9 million, would refuse them).
+    #[test]
+    fn point_to_point_counts_the_setpoints_it_has() {
+        let pts = [0.0, 3000.0, 0.0].map(Vector1::new);
+        let t = planner::<1>(1.0)
+            .plan(&pts, Interpolation::PointToPoint)
+            .unwrap();
+        assert_eq!(t.setpoints.len(), 2 * 3001 + 1);
+    }
+
     #[test]
     fn parabolic_blends_respect_the_acceleration_limit_and_end_exactly() {
         let pts = [0.0, 3000.0, 4000.0, -2000.0].map(Vector1::new);
