@@ -710,6 +710,62 @@ mod tests {
         assert_eq!(t.setpoints.len(), 2 * 3001 + 1);
     }
 
+    /// Linear resampling across legs, by hand: out to 10 000 and back at feed 80 is 125
+    /// interrupts each way; at interrupt 125 the setpoint is the turning point, at 200 it is
+    /// 75 × 80 counts back (4000), and the last is 0. The parabolic blend of the same moves adds
+    /// one box filter's width less one, ⌈2 v / A⌉ − 1 = 79 interrupts at v = 80, at rest.
+    #[test]
+    fn linear_and_blended_moves_across_legs_by_hand() {
+        let linear = planner::<1>(80.0)
+            .plan(&out_and_back(), Interpolation::Linear)
+            .unwrap();
+        assert_eq!(linear.interrupts(), 250);
+        assert_abs_diff_eq!(linear.setpoints[125].x, 10000.0, epsilon = 1e-9);
+        assert_abs_diff_eq!(linear.setpoints[200].x, 4000.0, epsilon = 1e-9);
+        assert_abs_diff_eq!(linear.setpoints[62].x, 62.0 * 80.0, epsilon = 1e-9);
+        assert_eq!(linear.setpoints[250].x, 0.0);
+        let blended = planner::<1>(80.0)
+            .plan(&out_and_back(), Interpolation::ParabolicBlend)
+            .unwrap();
+        // The resampled speed is 80 to within rounding, which the width's ceiling can take up
+        // (80 + 1e-14 makes it 81: the filter errs wide, the acceleration low).
+        let v = linear
+            .setpoints
+            .windows(2)
+            .map(|w| (w[1].x - w[0].x).abs())
+            .fold(0.0, f64::max);
+        assert_abs_diff_eq!(v, 80.0, epsilon = 1e-9);
+        let width = (2.0 * v / 2.0).ceil() as usize;
+        assert!(width == 80 || width == 81);
+        assert_eq!(blended.interrupts(), 250 + width - 1);
+    }
+
+    /// The setpoint limit is exact: a linear move of 3 999 999 interrupts (4 000 000 setpoints,
+    /// the limit) plans, one of 4 000 000 does not.
+    #[test]
+    fn the_setpoint_limit_is_exact() {
+        let at = [0.0, (MAX_SETPOINTS - 1) as f64].map(Vector1::new);
+        let t = planner::<1>(1.0).plan(&at, Interpolation::Linear).unwrap();
+        assert_eq!(t.setpoints.len(), MAX_SETPOINTS);
+        let over = [0.0, MAX_SETPOINTS as f64].map(Vector1::new);
+        assert!(matches!(
+            planner::<1>(1.0).plan(&over, Interpolation::Linear),
+            Err(Error::OutOfRange {
+                name: "trajectory_interrupts",
+                ..
+            })
+        ));
+        // The blend adds its filter's width (2 × 1 / 0.01 = 200 interrupts at A = 0.01) to the
+        // linear samples: 3 999 901 + 200 is over the limit, 100 000 + 200 well under it.
+        let mut gentle = planner::<1>(1.0);
+        gentle.limits[0].max_acceleration = 0.01;
+        let near = [0.0, (MAX_SETPOINTS - 100) as f64].map(Vector1::new);
+        assert!(gentle.plan(&near, Interpolation::ParabolicBlend).is_err());
+        let short = [0.0, 99_999.0].map(Vector1::new);
+        let t = gentle.plan(&short, Interpolation::ParabolicBlend).unwrap();
+        assert!((100_000 + 199..=100_000 + 200).contains(&t.setpoints.len()));
+    }
+
     #[test]
     fn parabolic_blends_respect_the_acceleration_limit_and_end_exactly() {
         let pts = [0.0, 3000.0, 4000.0, -2000.0].map(Vector1::new);
