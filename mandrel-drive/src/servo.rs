@@ -485,6 +485,25 @@ mod tests {
         assert!(fast.settling_time_s < 0.5 && fast.settling_time_s < m.settling_time_s);
     }
 
+    /// The machine's sub-steps split each interval evenly: with 4 sub-steps an axis held at a
+    /// DAC code lands where one exact step of the whole interval puts it (the zero-order hold
+    /// composes), and the machine's clock counts whole intervals.
+    #[test]
+    fn sub_steps_split_the_interval_and_the_clock_counts_it() {
+        let mut m = SimulatedAxes::lathe(0.45, 1000.0, 200.0).unwrap();
+        m.substeps = 4;
+        let mut one = m.axes[0].clone();
+        m.write_dac(0, 2548);
+        one.code = 2548;
+        for _ in 0..3 {
+            m.elapse(0.005);
+            one.advance(0.005);
+        }
+        assert_abs_diff_eq!(m.axes[0].position(), one.position(), epsilon = 1e-9);
+        assert_abs_diff_eq!(m.axes[0].velocity(), one.velocity(), epsilon = 1e-9);
+        assert_abs_diff_eq!(m.time_s, 0.015, epsilon = 1e-15);
+    }
+
     #[test]
     fn exact_integration_matches_fine_steps() {
         let mut a = ServoAxis::new(Amplifier::Voltage { k_amp: 0.45 }).unwrap();
