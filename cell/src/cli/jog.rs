@@ -95,28 +95,26 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
                 }
             })
     };
-    // The mandrel's profile flags are checked whether or not this jog turns the mandrel.
-    for (name, v, ok, expected) in [
-        (
-            "--accel-rps2",
-            args.accel_rps2,
-            args.accel_rps2 > 0.0,
-            "> 0",
-        ),
-        ("--max-rps", args.max_rps, args.max_rps > 0.0, "> 0"),
-        (
-            "--start-rps",
-            args.start_rps,
-            (0.0..=args.max_rps).contains(&args.start_rps),
-            "between 0 and --max-rps",
-        ),
-    ] {
-        if !(ok && v.is_finite()) {
-            return Err(Failure::input(format!(
-                "jog: {name} {v}: must be {expected}"
-            )));
-        }
+    // The mandrel's profile flags are checked whether or not this jog turns the mandrel, by the
+    // indexer profile's own validation, and named as the flags they came from.
+    mandrel_drive::Profile {
+        accel_rps2: args.accel_rps2,
+        start_rps: args.start_rps,
+        max_rps: args.max_rps,
     }
+    .validate(&cell.drive)
+    .map_err(|e| match e {
+        mandrel_drive::Error::OutOfRange {
+            name,
+            value,
+            expected,
+        } => Failure::input(format!(
+            "jog: --{} {}: must be {expected}",
+            name.replace('_', "-"),
+            paths::limits::shown(value)
+        )),
+        other => Failure::input(format!("jog: {other}")),
+    })?;
     let p = Positioning {
         flags: Flags {
             interpolation: if args.joint {
