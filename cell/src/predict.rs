@@ -322,7 +322,9 @@ fn wind(job: &Job, text: &str, file: &Path, cell: &Cell, mode: RunMode) -> Resul
     // first (the message names the start and top speeds too); any other stop at the file.
     if let Err(stopped) = outcome {
         let reason = stopped.halt.reason();
-        let place = if reason.contains("stalled") {
+        // The halt carries the indexer's error as text; its stall is known by that error's own
+        // wording, not by a word picked out of it.
+        let place = if reason.contains(&mandrel_drive::Error::Stalled.to_string()) {
             let (line, column) =
                 sequences::error::line_column(text, job.cell.drive.accel_rps2.span().start);
             format!("{}:{line}:{column}", file.display())
