@@ -187,8 +187,8 @@ impl Cell {
             }
         };
         let file: CellFile = toml::from_str(text).map_err(|e| {
-            let offset = e.span().map_or(0, |s| s.start);
-            at(offset, sequences::error::short_numbers(e.message()))
+            let (offset, message) = sequences::error::toml_refusal(&e);
+            at(offset, message)
         })?;
         let locate = |key: &str| text.find(key).unwrap_or(0);
         let drive = match &file.drive {

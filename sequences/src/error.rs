@@ -177,6 +177,16 @@ pub fn shown(value: f64) -> String {
     }
 }
 
+/// Where a TOML reader's refusal points (byte offset, the start of the file when it names no
+/// place) and its message, trimmed, with long quoted numbers shortened ([`short_numbers`]): the
+/// one reading of a TOML error for every file windcell parses as TOML.
+pub fn toml_refusal(e: &toml::de::Error) -> (usize, String) {
+    (
+        e.span().map_or(0, |s| s.start),
+        short_numbers(e.message().trim()),
+    )
+}
+
 /// A parser's message with every back-quoted number longer than 20 characters written as
 /// [`shown`] writes it: the TOML reader quotes a value it refuses in full
 /// (`` invalid type: floating point `1000…000` ``, 309 digits for 1e308).

@@ -390,13 +390,9 @@ impl Job {
     /// Parses and checks the text of a job file.
     pub fn parse(text: &str) -> Result<Job, Error> {
         let job: Job = toml::from_str(text).map_err(|e| {
-            let offset = e.span().map_or(0, |s| s.start);
-            let message = crate::error::short_numbers(e.message().trim());
-            Error::at_offset(
-                text,
-                offset,
-                format!("{message}{}", other_kind_of_file(&message, text)),
-            )
+            let (offset, message) = crate::error::toml_refusal(&e);
+            let hint = other_kind_of_file(&message, text);
+            Error::at_offset(text, offset, format!("{message}{hint}"))
         })?;
         job.validate(text)?;
         Ok(job)

@@ -195,12 +195,8 @@ impl VesselFile {
     /// Parses the text of a job file into the planner's job (values checked, not yet planned).
     pub fn parse(text: &str) -> Result<Loaded, Error> {
         let file: VesselFile = toml::from_str(text).map_err(|e| {
-            let offset = e.span().map_or(0, |s| s.start);
-            Error::at_offset(
-                text,
-                offset,
-                crate::error::short_numbers(e.message().trim()),
-            )
+            let (offset, message) = crate::error::toml_refusal(&e);
+            Error::at_offset(text, offset, message)
         })?;
         file.convert(text)
     }
