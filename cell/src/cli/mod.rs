@@ -97,7 +97,6 @@ pub enum Command {
     Lathe(lathe::LatheArgs),
 }
 
-/// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
 /// A cell (`--cell`) must drive the mandrel with the gearing `job` was planned for: the control
 /// files carry motor steps, and another gearing would turn the mandrel through other angles.
 pub fn same_drive(
@@ -123,6 +122,7 @@ pub fn same_drive(
     )))
 }
 
+/// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
 pub fn print(text: &str) -> Result<(), Failure> {
     use std::io::Write;
     let mut stdout = std::io::stdout().lock();

@@ -142,7 +142,10 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     };
     let feed = args.feed.unwrap_or(f64::from(params.feed_limit));
     if !(feed > 0.0 && feed.is_finite()) {
-        return Err(Failure::input(format!("--feed: {feed} must be > 0")));
+        return Err(Failure::input(format!(
+            "--feed: {} must be > 0",
+            paths::limits::shown(feed)
+        )));
     }
     super::check_rate(args.rate)?;
     super::check_k_amp(args.k_amp)?;
