@@ -240,6 +240,9 @@ mod tests {
         // Digits outside a pair of quotes are not touched.
         let outside = format!("{big} `x` {big}");
         assert_eq!(short_numbers(&outside), outside);
+        // Nor those between two quoted words: only every other piece lies inside a pair.
+        let between = format!("`x`{big}`y`");
+        assert_eq!(short_numbers(&between), between);
     }
 
     #[test]
