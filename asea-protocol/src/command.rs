@@ -21,6 +21,32 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 0.01;
 /// Number of robot output lines and input lines (seed 001 §4.1.2: "six inputs/outputs").
 pub const IO_LINES: u8 = 6;
 
+// The robot computer's facts that a host program must respect (its memory and its I/O
+// assignment, seed 001 §4.1.2, App. D): the simulator in `crate::sim` models them, and the host
+// side (transfer, coordinator) plans against them, both from here.
+
+/// Memory units of the robot computer's program store. With [`POSITION_UNITS`] and
+/// [`CONTROL_UNITS`] it holds exactly 470 positioning instructions, or 300 positioning and 200
+/// control instructions (seed 001 §4.1.2: 6 KB).
+pub const MEMORY_UNITS: u32 = 9400;
+/// Memory units of one positioning instruction.
+pub const POSITION_UNITS: u32 = 20;
+/// Memory units of one control instruction.
+pub const CONTROL_UNITS: u32 = 17;
+/// The output line that tells the PC "in position" (seed 001 App. D, §5.6.4 steps 10–11): raised at
+/// the end of a discrete move, and by a winding program only at its last point. A program run
+/// lowers it first; STOP leaves it low.
+pub const IN_POSITION_OUTPUT: u8 = 1;
+/// The input line on which the PC's "start" reaches the robot (seed 001 App. D: one opto-isolated
+/// signal to the robot computer and the mandrel driver together). A winding program waits on it.
+pub const START_INPUT: u8 = 1;
+/// Interpretation time of a flying move of a stored program, per zone (fine, medium, coarse), s.
+/// Seed 001 App. B: the fastest windings of the 50-segment cylinder paths that still kept the
+/// path ran fine at 0.20 rev/s (10.0 s, 0.20 s per instruction) and medium at 0.30 rev/s (6.7 s,
+/// 0.134 s per instruction); fine asks the servos to come within 1 mm before the next instruction
+/// is taken, so it needs more time per instruction. Coarse is not used for winding (§5.4.2); ours.
+pub const INTERPRETATION_S: [f64; 3] = [0.20, 0.13, 0.10];
+
 fn out_of_range(name: &'static str, value: f64, expected: &'static str) -> EncodeError {
     EncodeError::OutOfRange {
         name,

@@ -8,12 +8,12 @@
 
 use std::time::Duration;
 
-use cell::device::Timebase as _;
-use cell::simcell::SimCell;
+use cell::run::device::Timebase as _;
+use cell::sim::SimCell;
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use mandrel_drive::sim::Frontend as _;
 
-#[path = "../tests/support/strokes.rs"]
+#[path = "../tests/it/support/strokes.rs"]
 mod strokes;
 
 const POINTS: u16 = 420;

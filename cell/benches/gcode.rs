@@ -87,7 +87,7 @@ fn lathe(c: &mut Criterion) {
     let path = dir.path().join("casing.nc");
     let (_, lines) = {
         let f = std::fs::File::create(&path).unwrap();
-        let (s, _) = cell::gcode::write_program(
+        let (s, _) = cell::lathe::gcode::write_program(
             &plan,
             AxisSet::Four,
             Dialect::Grbl,
@@ -140,7 +140,7 @@ fn lathe(c: &mut Criterion) {
         };
         20
     ];
-    let (polar_summary, _) = cell::gcode::write_program(
+    let (polar_summary, _) = cell::lathe::gcode::write_program(
         &polar.check().unwrap(),
         AxisSet::Four,
         Dialect::Grbl,
@@ -152,7 +152,7 @@ fn lathe(c: &mut Criterion) {
     group.bench_function("plan_and_write_grbl_polar_20_layers_to_sink", |b| {
         b.iter(|| {
             let plan = polar.check().unwrap();
-            let (s, _) = cell::gcode::write_program(
+            let (s, _) = cell::lathe::gcode::write_program(
                 &plan,
                 AxisSet::Four,
                 Dialect::Grbl,
@@ -173,7 +173,7 @@ fn lathe(c: &mut Criterion) {
     });
     group.bench_function("write_grbl_casing_20_layers_to_sink", |b| {
         b.iter(|| {
-            let (s, _) = cell::gcode::write_program(
+            let (s, _) = cell::lathe::gcode::write_program(
                 &plan,
                 AxisSet::Four,
                 Dialect::Grbl,
@@ -190,7 +190,7 @@ fn lathe(c: &mut Criterion) {
             |b| {
                 b.iter(|| {
                     let f = std::fs::File::create(&path).unwrap();
-                    let (s, _) = cell::gcode::write_program(
+                    let (s, _) = cell::lathe::gcode::write_program(
                         &plan,
                         AxisSet::Four,
                         dialect,

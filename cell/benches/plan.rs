@@ -1,6 +1,6 @@
 //! The whole TOOL step for each example job, through the library path `windcell plan` takes
-//! (`sequences::Job::load`, `cell::tool::plan`, `cell::tool::control_files`,
-//! `cell::check::check`, `cell::output::write_all`): `plan/NAME` parses, traces, segments, plans
+//! (`sequences::Job::load`, `cell::plan::tool::plan`, `cell::plan::tool::control_files`,
+//! `cell::plan::check::check`, `cell::plan::output::write_all`): `plan/NAME` parses, traces, segments, plans
 //! (the arm's inverse kinematics, limits and speeds included), checks the job for collisions and
 //! snags, and writes the control files, as `windcell plan` does; `plan_only/NAME` stops after
 //! planning (target: under 50 ms each). Run with `cargo bench -p cell --bench plan`.
@@ -28,7 +28,7 @@ fn plan_examples(c: &mut Criterion) {
         group.bench_function(name, |b| {
             b.iter(|| {
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
-                cell::tool::plan(&job, &text, &job_path).unwrap()
+                cell::plan::tool::plan(&job, &text, &job_path).unwrap()
             })
         });
     }
@@ -40,15 +40,15 @@ fn plan_examples(c: &mut Criterion) {
         group.bench_function(name, |b| {
             b.iter(|| {
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
-                let plan = cell::tool::plan(&job, &text, &job_path).unwrap();
-                let files = cell::tool::control_files(&job, &plan).unwrap();
-                let checked = cell::check::check(&job, &text, &job_path, plan).unwrap();
+                let plan = cell::plan::tool::plan(&job, &text, &job_path).unwrap();
+                let files = cell::plan::tool::control_files(&job, &plan).unwrap();
+                let checked = cell::plan::check::check(&job, &text, &job_path, plan).unwrap();
                 assert!(checked.report.is_clear());
-                cell::output::write_all(
+                cell::plan::output::write_all(
                     &out.path().join("plan"),
                     &files,
                     job.name.get_ref(),
-                    cell::output::Stale::Refuse,
+                    cell::plan::output::Stale::Refuse,
                 )
                 .unwrap();
             })

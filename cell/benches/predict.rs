@@ -6,8 +6,8 @@
 use std::hint::black_box;
 use std::path::Path;
 
-use cell::cellfile::Cell;
 use cell::predict::{self, Options};
+use cell::run::cellfile::Cell;
 use criterion::{Criterion, criterion_group, criterion_main};
 use sequences::Job;
 

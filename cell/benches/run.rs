@@ -8,15 +8,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use cell::batch;
-use cell::coordinator::{
+use cell::plan::tool;
+use cell::run::batch;
+use cell::run::coordinator::{
     Batch, Coordinator, Devices, Event, Reach, ResumePoint, RunMode, StopRequest,
 };
-use cell::device::{NoSync, ProtocolRobot, WallClock, XIndexer};
-use cell::journal::Journal;
-use cell::simcell::{SimCell, SimCellConfig};
-use cell::tool;
-use cell::wiretap::{IndexerTap, StopPattern, StopTap, unix_now_s};
+use cell::run::device::{NoSync, ProtocolRobot, WallClock, XIndexer};
+use cell::run::journal::Journal;
+use cell::sim::wiretap::{IndexerTap, StopPattern, StopTap, unix_now_s};
+use cell::sim::{SimCell, SimCellConfig};
 use criterion::{Criterion, criterion_group, criterion_main};
 use mandrel_drive::Drive;
 use sequences::Job;
@@ -98,7 +98,7 @@ fn thread_cpu() -> Duration {
 /// Real time: both simulators served on in-memory serial lines by their own threads (as
 /// `sim-robot --pty` and `sim-indexer --pty` serve a pty); a discrete run stopped 0.5 s in; the
 /// time from the stop request (what the Ctrl-C handler makes) until both stop commands have
-/// arrived at the simulators' ends of the lines (`cell::wiretap`).
+/// arrived at the simulators' ends of the lines (`cell::sim::wiretap`).
 fn stop_latency(c: &mut Criterion) {
     let b = batch(RunMode::Discrete);
     let dir = tempfile::tempdir().unwrap();
@@ -143,7 +143,7 @@ fn stop_latency(c: &mut Criterion) {
                     let clock = mandrel_drive::sim::RealClock::new();
                     let _ = mandrel_drive::sim::serve(x_dev, &c2, &clock, &h2);
                 });
-                let setup = cell::transfer::IndexerSetup {
+                let setup = cell::run::transfer::IndexerSetup {
                     drive: Drive::default(),
                     start_velocity_command: true,
                 };

@@ -1,28 +1,23 @@
-//! The windcell coordinator library: the TOOL step that turns a job into control files, and the
-//! pieces the `windcell` command line is built from.
+//! The windcell coordinator library, cut by stage:
+//!
+//! - [`plan`]: the TOOL step, the collision and snag check, the plan's files and report;
+//! - [`run`]: the batch, the cell file, the transfer to device commands, the journal, the devices
+//!   and the coordinator;
+//! - [`sim`]: the simulated cell (both device simulators and the sync lines on one clock);
+//! - [`record`]: MCAP recording and the live Foxglove view, and the taps that feed them;
+//! - [`predict`]: time and placement error, from runs on the simulated cell;
+//! - [`lathe`]: the lathe-type winder (seed 000) and its G-code.
+//!
+//! The stages depend on each other in that order only (`plan` ← `run` ← `record` ← `sim` ←
+//! `predict`; `lathe` stands alone); `tests/it/layering.rs` keeps it so. The `windcell` command
+//! line (`src/cli/`) is built on them.
 
-pub mod batch;
-pub mod cellfile;
-pub mod check;
-pub mod coordinator;
-pub mod device;
 pub mod error;
-pub mod figure;
-pub mod gcode;
-pub mod imported;
-pub mod journal;
 pub mod lathe;
-pub mod linktap;
-pub mod mesh;
-pub mod output;
+pub mod plan;
 pub mod predict;
 pub mod record;
-pub mod report;
-pub mod scene;
-pub mod simcell;
-pub mod tool;
-pub mod trace_plot;
-pub mod transfer;
-pub mod wiretap;
+pub mod run;
+pub mod sim;
 
 pub use error::Error;

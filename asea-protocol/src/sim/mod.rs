@@ -18,29 +18,15 @@ pub use motion::{EyePose, MotionParams, Move, Speeds, Trajectory};
 
 use crate::clock::Clock;
 use crate::command::{
-    Command, Control, Instruction, Length, Mode, Pose, Positioning, QUATERNION_NORM_TOLERANCE,
-    Quaternion, Reply, RobotError, Selector, State, Status,
+    CONTROL_UNITS, Command, Control, IN_POSITION_OUTPUT, Instruction, Length, MEMORY_UNITS, Mode,
+    POSITION_UNITS, Pose, Positioning, QUATERNION_NORM_TOLERANCE, Quaternion, Reply, RobotError,
+    Selector, State, Status,
 };
 use crate::error::Result;
 use crate::frame::{Frame, FrameConfig};
 use crate::link::{Link, Peer};
 use crate::session::{RobotSession, Timers};
 
-/// Memory units of the robot computer's program store. With [`POSITION_UNITS`] and
-/// [`CONTROL_UNITS`] it holds exactly 470 positioning instructions, or 300 positioning and 200
-/// control instructions (seed 001 §4.1.2: 6 KB).
-pub const MEMORY_UNITS: u32 = 9400;
-/// Memory units of one positioning instruction.
-pub const POSITION_UNITS: u32 = 20;
-/// Memory units of one control instruction.
-pub const CONTROL_UNITS: u32 = 17;
-/// The output line that tells the PC "in position" (seed 001 App. D, §5.6.4 steps 10–11): raised at
-/// the end of a discrete move, and by a winding program only at its last point. A program run
-/// lowers it first; STOP leaves it low.
-pub const IN_POSITION_OUTPUT: u8 = 1;
-/// The input line on which the PC's "start" reaches the robot (seed 001 App. D: one opto-isolated
-/// signal to the robot computer and the mandrel driver together). A winding program waits on it.
-pub const START_INPUT: u8 = 1;
 /// Longest [`Machine::executed`] and [`Machine::trace`]; beyond it the older half is dropped, so
 /// that a simulator serving for days stays bounded.
 pub const RECORD_LIMIT: usize = 100_000;
@@ -880,7 +866,7 @@ pub fn serve<L: Link>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::command::{Flags, Reference, Speed, Zone};
+    use crate::command::{Flags, Reference, START_INPUT, Speed, Zone};
 
     fn frame(cmd: Command) -> Frame {
         cmd.to_frame()

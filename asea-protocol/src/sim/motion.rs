@@ -27,6 +27,7 @@
 //!   [`super::kinematics`]).
 //! - The speed changes between flying moves without a ramp.
 
+use crate::command::INTERPRETATION_S;
 use crate::command::{Interpolation, Positioning, Reference, Zone};
 
 /// A payout-eye pose in numbers: position (mm) and quaternion (w, x, y, z).
@@ -102,13 +103,6 @@ pub const PLATEAU_MIN_SPEED_MM_S: f64 = 500.0;
 /// "an intercept of 550 msec" for both modes (seed 001 §6.7); the time then grows with the
 /// segment length from the first millimetres on.
 pub const LOW_SPEED_FLOOR_S: f64 = 0.55;
-
-/// Interpretation time of a flying move of a stored program, per zone (fine, medium, coarse), s.
-/// Seed 001 App. B: the fastest windings of the 50-segment cylinder paths that still kept the
-/// path ran fine at 0.20 rev/s (10.0 s, 0.20 s per instruction) and medium at 0.30 rev/s (6.7 s,
-/// 0.134 s per instruction); fine asks the servos to come within 1 mm before the next instruction
-/// is taken, so it needs more time per instruction. Coarse is not used for winding (§5.4.2); ours.
-pub const INTERPRETATION_S: [f64; 3] = [0.20, 0.13, 0.10];
 
 fn zone_index(z: Zone) -> usize {
     match z {

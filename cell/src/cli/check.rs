@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use cell::check;
+use cell::plan::check;
 use clap::Args;
 use sequences::Job;
 
@@ -34,12 +34,12 @@ pub fn run(args: CheckArgs) -> Result<(), Failure> {
     let checked = check::run(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     if let Some(svg) = &args.svg {
-        files.push((svg.clone(), cell::figure::svg(&checked).into_bytes()));
+        files.push((svg.clone(), cell::plan::figure::svg(&checked).into_bytes()));
     }
     if let Some(record) = &args.record {
         files.push((
             record.clone(),
-            cell::scene::mcap(&checked).map_err(Failure::from_cell)?,
+            cell::record::scene::mcap(&checked).map_err(Failure::from_cell)?,
         ));
     }
     for (path, bytes) in files {

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use cell::mesh;
+use cell::plan::mesh;
 use clap::Args;
 use nalgebra::{Point3, Vector3};
 use paths::mesh::trace::{

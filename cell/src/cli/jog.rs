@@ -7,9 +7,9 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use asea_protocol::{Flags, Interpolation, Pose, Positioning, Reference, Speed, Zone};
-use cell::cellfile::Cell;
-use cell::coordinator::{Coordinator, Event, Halt, Reach};
-use cell::journal::Journal;
+use cell::run::cellfile::Cell;
+use cell::run::coordinator::{Coordinator, Event, Halt, Reach};
+use cell::run::journal::Journal;
 use clap::Args;
 use sequences::MandrelMove;
 
@@ -139,9 +139,9 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
         steps: args.steps,
     });
     if let Some(m) = &mandrel {
-        cell::transfer::indexer_move(
+        cell::run::transfer::indexer_move(
             m,
-            &cell::transfer::IndexerSetup {
+            &cell::run::transfer::IndexerSetup {
                 drive: cell.drive,
                 start_velocity_command: true,
             },
@@ -158,7 +158,8 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
             )));
         }
     }
-    let (devices, _sim) = super::run::devices(&cell, None, &cell::linktap::RecordSlot::default())?;
+    let (devices, _sim) =
+        super::run::devices(&cell, None, &cell::record::linktap::RecordSlot::default())?;
     let mut sink = |_e: Event| {};
     let mut c = Coordinator::new(
         devices,

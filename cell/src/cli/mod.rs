@@ -100,7 +100,7 @@ pub enum Command {
 /// A cell (`--cell`) must drive the mandrel with the gearing `job` was planned for: the control
 /// files carry motor steps, and another gearing would turn the mandrel through other angles.
 pub fn same_drive(
-    cell: &cell::cellfile::Cell,
+    cell: &cell::run::cellfile::Cell,
     planned: mandrel_drive::units::Drive,
     job: &std::path::Path,
 ) -> Result<(), Failure> {

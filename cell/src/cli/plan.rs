@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use cell::report::PlanReport;
-use cell::{output, tool};
+use cell::plan::report::PlanReport;
+use cell::plan::{output, tool};
 use clap::Args;
 use sequences::Job;
 
@@ -35,9 +35,9 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
     let files = tool::control_files(&job, &plan).map_err(Failure::from_cell)?;
     // The collision and snag check's one line (`windcell check` shows every segment; the plan
     // is written either way, and `windcell run` refuses it while the check finds anything).
-    let checked =
-        cell::check::check(&job, &text, &args.job, plan.clone()).map_err(Failure::from_cell)?;
-    let check_line = cell::check::summary(&checked);
+    let checked = cell::plan::check::check(&job, &text, &args.job, plan.clone())
+        .map_err(Failure::from_cell)?;
+    let check_line = cell::plan::check::summary(&checked);
     output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
         .map_err(Failure::from_cell)?;
     let mut out = String::new();

@@ -4,9 +4,9 @@
 
 use std::path::PathBuf;
 
-use cell::cellfile::Cell;
-use cell::coordinator::RunMode;
 use cell::predict::{self, Mode, Options};
+use cell::run::cellfile::Cell;
+use cell::run::coordinator::RunMode;
 use clap::{Args, ValueEnum};
 use sequences::Job;
 
@@ -105,7 +105,8 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
         predict::predict(&job, &text, &args.job, &cell, &opt).map_err(Failure::from_cell)?;
     no_mode_winds(&prediction)?;
     if let Some(svg) = &args.svg {
-        let tube = cell::tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
+        let tube =
+            cell::plan::tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
         let text = prediction
             .svg(&tube)
             .map_err(|e| Failure::runtime(format!("{}: {e}", svg.display())))?;

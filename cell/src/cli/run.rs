@@ -10,14 +10,14 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
-use cell::batch::{self, Loaded};
-use cell::cellfile::{self, Cell};
-use cell::coordinator::{
+use cell::record::linktap::{LinkTap, RecordSlot, SyncTap};
+use cell::run::batch::{self, Loaded};
+use cell::run::cellfile::{self, Cell};
+use cell::run::coordinator::{
     Batch, Coordinator, Devices, Event, Halt, Reach, ResumePoint, RunMode, StopRequest,
 };
-use cell::journal::Journal;
-use cell::linktap::{LinkTap, RecordSlot, SyncTap};
-use cell::simcell::{SimCell, SimCellConfig};
+use cell::run::journal::Journal;
+use cell::sim::{SimCell, SimCellConfig};
 use clap::{Args, ValueEnum};
 use nalgebra::Point3;
 use paths::wrist::from_components;
@@ -123,7 +123,7 @@ fn recorder(
     let origin = sequences::Job::load(&args.input).ok().map_or(
         nalgebra::Vector3::new(800.0, 0.0, 300.0),
         |(job, _)| {
-            let (setup, _) = cell::tool::setup(&job);
+            let (setup, _) = cell::plan::tool::setup(&job);
             setup
                 .calibration
                 .transform(setup.robot_distance_mm, setup.mandrel_height_mm)
@@ -135,7 +135,7 @@ fn recorder(
         let mut next = 0.0;
         let mut commanded = None;
         sim.with(|p| {
-            p.observer = Some(cell::simcell::Observer(Box::new(move |o| {
+            p.observer = Some(cell::sim::Observer(Box::new(move |o| {
                 // The commanded pose whenever the move under way changes (a stored program's
                 // points; a MOVE_IMMEDIATE is recorded from its telegram by the link's tap).
                 if let Some(c) = o.target
@@ -182,16 +182,16 @@ fn clearance_gate(
     job: &sequences::Job,
     text: &str,
     path: &Path,
-    plan: cell::tool::JobPlan,
+    plan: cell::plan::tool::JobPlan,
     force: bool,
 ) -> Result<(), Failure> {
-    let checked = cell::check::check(job, text, path, plan).map_err(Failure::from_cell)?;
+    let checked = cell::plan::check::check(job, text, path, plan).map_err(Failure::from_cell)?;
     if !checked.report.is_clear() && !force {
         return Err(Failure {
             message: format!(
                 "{}: {} (windcell check {} shows where; --force winds anyway)",
                 path.display(),
-                cell::check::summary(&checked),
+                cell::plan::check::summary(&checked),
                 path.display()
             ),
             exit_code: super::check::EXIT_FINDING,
@@ -203,7 +203,7 @@ fn clearance_gate(
 /// The arm's envelope: the eye is at most the two links and the eye mechanism from the shoulder
 /// (the full five-axis check is the plan's).
 fn envelope(job: &sequences::Job) -> Reach {
-    let arm = cell::tool::arm(job);
+    let arm = cell::plan::tool::arm(job);
     let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
     Reach {
         max_radius_mm: stretch,
@@ -225,9 +225,10 @@ fn sequence_gate(args: &RunArgs, loaded: &Loaded) -> Result<Option<Clearance>, F
         return Ok(None);
     };
     let (job, text) = sequences::Job::load(job_path).map_err(Failure::input)?;
-    let plan = cell::tool::plan(&job, &text, job_path).map_err(Failure::from_cell)?;
-    let planned =
-        batch::files_of_job(&cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?);
+    let plan = cell::plan::tool::plan(&job, &text, job_path).map_err(Failure::from_cell)?;
+    let planned = batch::files_of_job(
+        &cell::plan::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+    );
     let dir = args.input.parent().unwrap_or(Path::new("."));
     let run_path = args
         .run_file
@@ -291,11 +292,11 @@ struct Scene {
     job: sequences::Job,
     tube: paths::Tube,
     triangles: Vec<[Point3<f64>; 3]>,
-    paths: Vec<cell::tool::PlannedPath>,
+    paths: Vec<cell::plan::tool::PlannedPath>,
 }
 
 fn scene(c: &Clearance) -> Option<Scene> {
-    let tube = cell::tool::mandrel_in(&c.job, &c.text, &c.path).ok()?;
+    let tube = cell::plan::tool::mandrel_in(&c.job, &c.text, &c.path).ok()?;
     let mesh = paths::mesh::triasym::tube(&tube, SCENE_FACETS, SCENE_SPACING_MM, true).ok()?;
     let triangles = (0..mesh.triangles().len())
         .map(|t| mesh.corners(t))
@@ -323,7 +324,7 @@ impl Scene {
         &self,
         rec: &cell::record::Recorder,
         name: &str,
-        trace: &cell::simcell::Trace,
+        trace: &cell::sim::Trace,
         after_s: f64,
         done_s: f64,
     ) {
@@ -342,7 +343,7 @@ struct Clearance {
     job: sequences::Job,
     text: String,
     path: PathBuf,
-    plan: cell::tool::JobPlan,
+    plan: cell::plan::tool::JobPlan,
 }
 
 /// The collision gate, after every exit-code-2 check: the job's check (exit 3 on a finding), or
@@ -392,9 +393,9 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
             let span = job.cell.movement.span();
             job.cell.movement = toml::Spanned::new(span, m.movement());
         }
-        let plan = cell::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
+        let plan = cell::plan::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
         let files = batch::files_of_job(
-            &cell::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+            &cell::plan::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
         );
         let dir = args.input.parent().unwrap_or(Path::new("."));
         let mut loaded =
@@ -489,25 +490,26 @@ pub fn devices(
             use mandrel_drive::sync::{ModemLine, Pin};
             let robot_port = open_port(robot)?;
             let indexer_port = open_port(indexer)?;
-            let sync: Box<dyn cell::device::SyncLines> = match sync {
+            let sync: Box<dyn cell::run::device::SyncLines> = match sync {
                 Some(path) if path.starts_with("unix:") => {
                     let p = Path::new(path.trim_start_matches("unix:"));
                     Box::new(
-                        cell::device::SocketSync::connect(p)
+                        cell::run::device::SocketSync::connect(p)
                             .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
                     )
                 }
                 Some(path) => {
                     let port = Arc::new(Mutex::new(open_port(path)?));
-                    Box::new(cell::device::WiredSync {
+                    Box::new(cell::run::device::WiredSync {
                         start: Box::new(ModemLine::new(port.clone(), Pin::Rts, false)),
                         in_position: Box::new(ModemLine::new(port.clone(), Pin::Cts, false)),
                         estop: Some(Box::new(ModemLine::new(port, Pin::Dsr, false))),
                     })
                 }
-                None => Box::new(cell::device::NoSync),
+                None => Box::new(cell::run::device::NoSync),
             };
-            let time: Arc<dyn cell::device::Timebase> = Arc::new(cell::device::WallClock::new());
+            let time: Arc<dyn cell::run::device::Timebase> =
+                Arc::new(cell::run::device::WallClock::new());
             let client_cfg = asea_protocol::ClientConfig::default();
             let robot_port =
                 LinkTap::robot(robot_port, client_cfg.frame, slot.clone(), time.clone());
@@ -519,14 +521,14 @@ pub fn devices(
                     ..mandrel_drive::IndexerConfig::default()
                 },
             );
-            let setup = cell::transfer::IndexerSetup {
+            let setup = cell::run::transfer::IndexerSetup {
                 drive: cell.drive,
                 start_velocity_command: true,
             };
             Ok((
                 Devices {
-                    robot: Box::new(cell::device::ProtocolRobot::new(client)),
-                    mandrel: Box::new(cell::device::XIndexer::new(x, setup)),
+                    robot: Box::new(cell::run::device::ProtocolRobot::new(client)),
+                    mandrel: Box::new(cell::run::device::XIndexer::new(x, setup)),
                     sync: Box::new(SyncTap::new(sync, slot.clone(), time.clone())),
                     time,
                 },
@@ -700,8 +702,8 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                 )));
             }
             let (j, records) = Journal::resume(p).map_err(Failure::input)?;
-            let from =
-                cell::coordinator::resume_point(&batch, &records).map_err(Failure::from_cell)?;
+            let from = cell::run::coordinator::resume_point(&batch, &records)
+                .map_err(Failure::from_cell)?;
             if records
                 .last()
                 .is_some_and(|r| r.get("rec").and_then(|v| v.as_str()) == Some("done"))
@@ -784,7 +786,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     // The laid fibre needs the recorder, the simulated cell's trace and the job's scene.
     let laying = match (&rec, &sim, scene) {
         (Some(r), Some(sim), Some(sc)) => {
-            sim.with(|p| p.trace = Some(cell::simcell::Trace::default()))
+            sim.with(|p| p.trace = Some(cell::sim::Trace::default()))
                 .map_err(Failure::runtime)?;
             Some((r.clone(), sim.clone(), sc))
         }
@@ -823,7 +825,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                 if let (Event::PathDone { path, .. }, Some((r, sim, sc))) = (&e, &laying) {
                     // The trace restarts with each path: its memory is one path's.
                     if let Ok(Some(trace)) =
-                        sim.with(|p| p.trace.replace(cell::simcell::Trace::default()))
+                        sim.with(|p| p.trace.replace(cell::sim::Trace::default()))
                     {
                         sc.record_laid(r, path, &trace, after_s, t);
                     }
@@ -990,7 +992,7 @@ mod tests {
     fn the_envelope_is_the_arm_stretched_out() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/cylinder.toml");
         let (job, _) = sequences::Job::load(&path).unwrap();
-        let arm = cell::tool::arm(&job);
+        let arm = cell::plan::tool::arm(&job);
         let reach = envelope(&job);
         let eye = |shoulder_rad: f64, elbow_rad: f64, pitch_rad: f64| {
             arm.forward(&Joints {

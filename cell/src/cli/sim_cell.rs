@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 
 use asea_protocol::clock::Clock as _;
 use asea_protocol::sim::MotionParams;
-use cell::device::{SyncLines, Timebase};
-use cell::simcell::{SimCell, SimCellConfig, SimSync};
+use cell::run::device::{SyncLines, Timebase};
+use cell::sim::{SimCell, SimCellConfig, SimSync};
 use clap::Args;
 use serialport::{SerialPort, TTYPort};
 

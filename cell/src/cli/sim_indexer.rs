@@ -93,9 +93,11 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
                 None => None,
             };
             // The log notes when each `S` arrives (wall clock), for the stop latency.
-            let (tap, stops) =
-                cell::wiretap::StopTap::new(master, cell::wiretap::StopPattern::IndexerStop);
-            let master = cell::wiretap::IndexerTap(tap);
+            let (tap, stops) = cell::sim::wiretap::StopTap::new(
+                master,
+                cell::sim::wiretap::StopPattern::IndexerStop,
+            );
+            let master = cell::sim::wiretap::IndexerTap(tap);
             std::thread::scope(|scope| {
                 // Fault injection: SIGUSR1 weakens the motor, SIGUSR2 restores it.
                 {

@@ -115,7 +115,7 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
     let clock = RealClock::new();
     // The log notes when each STOP telegram arrives (wall clock), for the stop latency.
     let (master, stops) =
-        cell::wiretap::StopTap::new(master, cell::wiretap::StopPattern::robot(&frame));
+        cell::sim::wiretap::StopTap::new(master, cell::sim::wiretap::StopPattern::robot(&frame));
     let (master, traces) = if args.log_wire {
         let (m, t) = master.with_trace();
         (m, Some(t))
@@ -134,7 +134,7 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
             scope.spawn(move || {
                 use asea_protocol::clock::Clock as _;
                 use std::io::Write as _;
-                let mut watch = cell::simcell::RobotWatch::default();
+                let mut watch = cell::sim::RobotWatch::default();
                 while !stop.load(std::sync::atomic::Ordering::Relaxed) {
                     let records = match robot.lock() {
                         Ok(r) => watch.watch(&r.machine, clock.now_s()),
@@ -155,13 +155,13 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
                                 "t_s": clock.now_s(), "unix_s": unix_s})
                         );
                     }
-                    let wire: Vec<Vec<cell::wiretap::WireEvent>> = traces
+                    let wire: Vec<Vec<cell::sim::wiretap::WireEvent>> = traces
                         .as_ref()
                         .and_then(|t| t.lock().ok().map(|mut t| t.drain(..).collect()))
                         .unwrap_or_default();
                     for w in wire {
                         let events: Vec<serde_json::Value> =
-                            w.iter().map(cell::wiretap::WireEvent::json).collect();
+                            w.iter().map(cell::sim::wiretap::WireEvent::json).collect();
                         let _ = writeln!(
                             file,
                             "{}",

@@ -4,8 +4,8 @@
 
 use std::path::PathBuf;
 
-use cell::report::PlanReport;
-use cell::{output, tool};
+use cell::plan::report::PlanReport;
+use cell::plan::{output, tool};
 use clap::Args;
 use sequences::Job;
 use toml::Spanned;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use cell::{output, tool};
+use cell::plan::{output, tool};
 use clap::Args;
 use paths::mesh::{Closure, stl, triasym};
 use sequences::Job;

@@ -68,7 +68,7 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::runtime(format!("{}: {e}", args.out.display())))?;
     let out = std::io::BufWriter::with_capacity(1 << 16, staged);
     let (summary, out) =
-        cell::gcode::write_program(&plan, job.machine.axes, args.dialect, &name, out)
+        cell::lathe::gcode::write_program(&plan, job.machine.axes, args.dialect, &name, out)
             .map_err(Failure::runtime)?;
     let staged = out
         .into_inner()
@@ -112,7 +112,7 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
             summary.circuits,
             summary.lines,
             summary.tow_length_mm / 1000.0,
-            cell::gcode::clock(summary.time_s),
+            cell::lathe::gcode::clock(summary.time_s),
             summary.time_s,
             summary.nominal_time_s,
             target.display()

@@ -311,7 +311,7 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
             args.program.display(),
             args.interp
         );
-        cell::trace_plot::write_svg(path, &trace, &title).map_err(Failure::from_cell)?;
+        cell::lathe::trace_plot::write_svg(path, &trace, &title).map_err(Failure::from_cell)?;
     }
     if let Some(path) = &args.trace {
         let interval = u64::from(setup.params.record_interval);

@@ -1,0 +1,169 @@
+//! The batch as the operator has it (seed 001 §5.6.3): a sequence file naming robot control files
+//! (and their mandrel files), a run file naming program numbers; or a job file planned in memory.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use sequences::{MandrelFile, RobotFile, RunFile, SequenceFile};
+
+use crate::Error;
+use crate::run::coordinator::{Item, RunMode};
+use crate::run::journal::{FNV_BASIS, fnv1a};
+
+/// Control files in memory: name (without extension) and extension → text.
+pub type FileSet = BTreeMap<String, String>;
+
+/// What a batch is made of before the pre-run check.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// Items in winding order for `mode`.
+    pub items: Vec<Item>,
+    /// The mode: `--mode`, else the first control file's movement.
+    pub mode: RunMode,
+    /// Hash of every file's text.
+    pub job_id: String,
+    /// The sequence file's path (journal default beside it).
+    pub sequence_path: PathBuf,
+}
+
+/// Reads a control, sequence or run file with the size cap of `sequences::source`.
+fn read(path: &Path) -> Result<String, Error> {
+    Ok(sequences::source::read_text(
+        path,
+        sequences::source::MAX_CONTROL_FILE_BYTES,
+    )?)
+}
+
+/// Loads `DIR/NAME.SEQ`, its run file (`run`, default `DIR/NAME.RUN`) and the control files it
+/// names.
+pub fn load(seq: &Path, run: Option<&Path>, mode: Option<RunMode>) -> Result<Loaded, Error> {
+    let dir = seq.parent().unwrap_or(Path::new("."));
+    let seq_text = read(seq)?;
+    let sequence = SequenceFile::parse(&seq_text).map_err(|e| Error::File(e.in_file(seq)))?;
+    let mut files = FileSet::new();
+    files.insert("SEQ".into(), seq_text);
+    let run_path = run.map_or_else(|| seq.with_extension("RUN"), Path::to_path_buf);
+    for name in sequence.distinct() {
+        let rob = dir.join(format!("{name}.ROB"));
+        files.insert(format!("{name}.ROB"), read(&rob)?);
+        let ind = dir.join(format!("{name}.IND"));
+        if ind.exists() {
+            files.insert(format!("{name}.IND"), read(&ind)?);
+        }
+    }
+    let needs_run = |m: RunMode| m != RunMode::Discrete;
+    if run.is_some() || run_path.exists() {
+        files.insert("RUN".into(), read(&run_path)?);
+    }
+    let loaded = from_files(&files, mode, dir, &run_path)?;
+    if needs_run(loaded.mode) && !files.contains_key("RUN") {
+        return Err(Error::Run {
+            message: format!(
+                "{}: missing (program mode runs the run file's programs)",
+                run_path.display()
+            ),
+            input: true,
+        });
+    }
+    Ok(Loaded {
+        sequence_path: seq.to_path_buf(),
+        ..loaded
+    })
+}
+
+/// Makes the batch from control-file texts (`SEQ`, `RUN`, `NAME.ROB`, `NAME.IND`); `dir` and
+/// `run_path` only name files in errors.
+pub fn from_files(
+    files: &FileSet,
+    mode: Option<RunMode>,
+    dir: &Path,
+    run_path: &Path,
+) -> Result<Loaded, Error> {
+    let seq_text = files.get("SEQ").map(String::as_str).unwrap_or("");
+    let sequence = SequenceFile::parse(seq_text).map_err(Error::File)?;
+    let mut robs: BTreeMap<&str, (RobotFile, Option<MandrelFile>)> = BTreeMap::new();
+    let mut hash = fnv1a(FNV_BASIS, seq_text.as_bytes());
+    for name in sequence.distinct() {
+        let rob_path = dir.join(format!("{name}.ROB"));
+        let text = files
+            .get(&format!("{name}.ROB"))
+            .ok_or_else(|| Error::Run {
+                message: format!("{}: missing (named in the sequence)", rob_path.display()),
+                input: true,
+            })?;
+        hash = fnv1a(hash, text.as_bytes());
+        let rob = RobotFile::parse(text).map_err(|e| Error::File(e.in_file(&rob_path)))?;
+        let ind = match files.get(&format!("{name}.IND")) {
+            Some(t) => {
+                hash = fnv1a(hash, t.as_bytes());
+                let p = dir.join(format!("{name}.IND"));
+                Some(MandrelFile::parse(t).map_err(|e| Error::File(e.in_file(&p)))?)
+            }
+            None => None,
+        };
+        robs.insert(name, (rob, ind));
+    }
+    let first = robs
+        .get(sequence.names[0].as_str())
+        .map(|(r, _)| r.header.movement);
+    let mode = mode
+        .or(first.map(RunMode::from_movement))
+        .unwrap_or(RunMode::Discrete);
+    let item = |name: &str| -> Item {
+        let (rob, ind) = robs[name].clone();
+        Item {
+            name: name.to_string(),
+            rob,
+            ind,
+        }
+    };
+    let items = if mode == RunMode::Discrete {
+        sequence.names.iter().map(|n| item(n)).collect()
+    } else {
+        let run_text = files.get("RUN").map(String::as_str).unwrap_or("");
+        hash = fnv1a(hash, run_text.as_bytes());
+        let run = RunFile::parse(run_text).map_err(|e| Error::File(e.in_file(run_path)))?;
+        let mut items = Vec::new();
+        for (line, p) in run.programs.iter().enumerate() {
+            let name = robs
+                .iter()
+                .find(|(_, (r, _))| r.header.program == *p)
+                .map(|(n, _)| *n)
+                .ok_or_else(|| Error::Run {
+                    message: format!(
+                        "{}:{}:1: program {p} is not loaded by the sequence",
+                        run_path.display(),
+                        line + 1
+                    ),
+                    input: true,
+                })?;
+            items.push(item(name));
+        }
+        items
+    };
+    Ok(Loaded {
+        items,
+        mode,
+        job_id: format!("{hash:016x}"),
+        sequence_path: dir.join("SEQ"),
+    })
+}
+
+/// Control files of a planned job, in memory, as [`from_files`] reads them.
+pub fn files_of_job(files: &[(PathBuf, String)]) -> FileSet {
+    let mut set = FileSet::new();
+    for (path, text) in files {
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default()
+            .to_string();
+        let key = match path.extension().and_then(|e| e.to_str()) {
+            Some("SEQ") => "SEQ".to_string(),
+            Some("RUN") => "RUN".to_string(),
+            _ => name,
+        };
+        set.insert(key, text.clone());
+    }
+    set
+}

@@ -1,0 +1,351 @@
+//! The cell description a run uses (docs/file-formats.md, "Cell file"): serial ports (none: the
+//! simulated cell), the mandrel drive's gearing, the sync lines. It comes from the job's `[cell]`
+//! or from `--cell CELL.toml`, which wins.
+
+use std::path::Path;
+
+use mandrel_drive::Drive;
+use paths::Gearing;
+use serde::Deserialize;
+
+use crate::Error;
+
+/// `CELL.toml`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct CellFile {
+    /// A name for the operator.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Serial ports; none named: the simulated cell.
+    #[serde(default)]
+    pub ports: PortsSection,
+    /// The mandrel drive.
+    #[serde(default)]
+    pub drive: Option<DriveSection>,
+    /// Opto-isolator delay of the simulated sync lines, s.
+    #[serde(default)]
+    pub opto_delay_s: Option<f64>,
+    /// Calibration tolerances (`windcell predict`'s setup Monte Carlo).
+    #[serde(default)]
+    pub tolerance: Option<ToleranceSection>,
+}
+
+/// `[tolerance]`: half-widths of how far the true cell may lie from its calibration; absent
+/// fields take the thesis cell's figures ([`Tolerances::default`]).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToleranceSection {
+    /// Rotation axis position `[x, y]`, mm.
+    pub axis_offset_mm: Option<[f64; 2]>,
+    /// Rotation axis lean toward `+x` and `+y`, degrees.
+    pub axis_tilt_deg: Option<[f64; 2]>,
+    /// The drive's zero angle, degrees.
+    pub zero_angle_deg: Option<f64>,
+    /// The mandrel's diameter, mm.
+    pub diameter_mm: Option<f64>,
+}
+
+/// `[ports]`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PortsSection {
+    /// The robot computer's link.
+    pub robot: Option<String>,
+    /// The indexer's link.
+    pub indexer: Option<String>,
+    /// The port whose modem-control pins carry the sync lines (RTS start out, CTS in position
+    /// in, DSR e-stop in; docs/hardware.md).
+    pub sync: Option<String>,
+}
+
+/// `[drive]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSection {
+    /// Motor steps per motor revolution.
+    pub steps_per_rev: u32,
+    /// `[motor pulley teeth, mandrel pulley teeth]`.
+    pub gear_ratio: [u32; 2],
+}
+
+/// Where the devices are.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Devices {
+    /// The simulated cell, in process.
+    Simulated,
+    /// Serial ports.
+    Serial {
+        /// Robot port.
+        robot: String,
+        /// Indexer port.
+        indexer: String,
+        /// Sync-line port (none: discrete mode only).
+        sync: Option<String>,
+    },
+}
+
+/// The cell as a run uses it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cell {
+    /// Where the description came from (`--cell FILE`, or the job).
+    pub source: String,
+    /// The devices.
+    pub devices: Devices,
+    /// The drive.
+    pub drive: Drive,
+    /// Opto delay of the simulated lines, s.
+    pub opto_delay_s: f64,
+    /// The arm the simulated robot checks every pose against (the job's `[cell.robot]` and eye
+    /// mechanism; `paths::robot::Arm::default()` for a cell file or the built-in cell).
+    pub arm: paths::robot::Arm,
+    /// Calibration tolerances.
+    pub tolerances: Tolerances,
+}
+
+fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, String> {
+    Drive::new(
+        Gearing {
+            steps_per_motor_rev: steps_per_rev,
+            motor_teeth: motor,
+            mandrel_teeth: mandrel,
+        },
+        mandrel_drive::units::TRANSLATOR_LIMIT_PPS,
+    )
+    .map_err(|e| e.to_string())
+}
+
+fn devices_of(p: &PortsSection) -> Result<Devices, String> {
+    match (&p.robot, &p.indexer, &p.sync) {
+        (None, None, None) => Ok(Devices::Simulated),
+        (Some(r), Some(i), s) => Ok(Devices::Serial {
+            robot: r.clone(),
+            indexer: i.clone(),
+            sync: s.clone(),
+        }),
+        _ => Err(
+            "name the robot and indexer ports (and the sync port for program mode) or none (the simulated cell)"
+                .into(),
+        ),
+    }
+}
+
+impl Cell {
+    /// The cell of a job file's `[cell]`.
+    pub fn of_job(job: &sequences::Job, file: &Path) -> Result<Cell, Error> {
+        let c = &job.cell;
+        let bad = |m: String| Error::Run {
+            message: format!("{}: [cell]: {m}", file.display()),
+            input: true,
+        };
+        let drive = drive_of(
+            *c.drive.steps_per_rev.get_ref(),
+            *c.drive.gear_ratio.get_ref(),
+        )
+        .map_err(bad)?;
+        let devices = devices_of(&PortsSection {
+            robot: c.ports.robot.clone(),
+            indexer: c.ports.indexer.clone(),
+            sync: c.ports.sync.clone(),
+        })
+        .map_err(bad)?;
+        Ok(Cell {
+            source: format!("{} [cell]", file.display()),
+            devices,
+            drive,
+            opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+            arm: crate::plan::tool::arm(job),
+            tolerances: Tolerances::default(),
+        })
+    }
+
+    /// The simulated cell with the thesis drive (a sequence run without `--cell`).
+    pub fn simulated() -> Cell {
+        Cell {
+            source: "the built-in simulated cell".into(),
+            devices: Devices::Simulated,
+            drive: Drive::default(),
+            opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
+            arm: paths::robot::Arm::default(),
+            tolerances: Tolerances::default(),
+        }
+    }
+
+    /// Reads `CELL.toml`; errors name the file, line and column.
+    pub fn load(path: &Path) -> Result<Cell, Error> {
+        let text = sequences::source::read_text(path, sequences::source::MAX_JOB_BYTES)?;
+        Cell::parse(&text, path)
+    }
+
+    /// Parses the text of a cell file read from `path`.
+    pub fn parse(text: &str, path: &Path) -> Result<Cell, Error> {
+        let at = |offset: usize, m: String| {
+            let (line, column) = sequences::error::line_column(text, offset);
+            Error::Run {
+                message: format!("{}:{line}:{column}: {m}", path.display()),
+                input: true,
+            }
+        };
+        let file: CellFile = toml::from_str(text).map_err(|e| {
+            let (offset, message) = sequences::error::toml_refusal(&e);
+            at(offset, message)
+        })?;
+        let locate = |key: &str| text.find(key).unwrap_or(0);
+        let drive = match &file.drive {
+            Some(d) => {
+                drive_of(d.steps_per_rev, d.gear_ratio).map_err(|m| at(locate("[drive]"), m))?
+            }
+            None => Drive::default(),
+        };
+        let devices = devices_of(&file.ports).map_err(|m| at(locate("[ports]"), m))?;
+        let opto_delay_s = file
+            .opto_delay_s
+            .unwrap_or(mandrel_drive::sync::OPTO_DELAY_S);
+        if !(0.0..=1.0).contains(&opto_delay_s) {
+            return Err(at(
+                locate("opto_delay_s"),
+                format!(
+                    "opto_delay_s = {}: expected 0–1 s",
+                    sequences::error::shown(opto_delay_s)
+                ),
+            ));
+        }
+        let mut tolerances = Tolerances::default();
+        if let Some(t) = &file.tolerance {
+            let figures = [
+                t.axis_offset_mm.map(|v| v[0]),
+                t.axis_offset_mm.map(|v| v[1]),
+                t.axis_tilt_deg.map(|v| v[0]),
+                t.axis_tilt_deg.map(|v| v[1]),
+                t.zero_angle_deg,
+                t.diameter_mm,
+            ];
+            if figures
+                .iter()
+                .flatten()
+                .any(|v| !(v.is_finite() && (0.0..=100.0).contains(v)))
+            {
+                return Err(at(
+                    locate("[tolerance]"),
+                    "[tolerance]: every figure must be finite and 0–100".into(),
+                ));
+            }
+            if let Some(v) = t.axis_offset_mm {
+                tolerances.axis_offset_mm = v;
+            }
+            if let Some(v) = t.axis_tilt_deg {
+                tolerances.axis_tilt_rad = v.map(f64::to_radians);
+            }
+            if let Some(v) = t.zero_angle_deg {
+                tolerances.zero_angle_rad = v.to_radians();
+            }
+            if let Some(v) = t.diameter_mm {
+                tolerances.diameter_mm = v;
+            }
+        }
+        Ok(Cell {
+            source: path.display().to_string(),
+            devices,
+            drive,
+            opto_delay_s,
+            arm: paths::robot::Arm::default(),
+            tolerances,
+        })
+    }
+}
+
+/// Calibration tolerances of the cell: each figure is the half-width of a uniform distribution
+/// the Monte Carlo draws the true cell's deviation from (docs/file-formats.md, "Cell file").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerances {
+    /// Rotation axis position, cell frame `[x, y]`, mm.
+    pub axis_offset_mm: [f64; 2],
+    /// Rotation axis lean toward `+x` and `+y`, rad.
+    pub axis_tilt_rad: [f64; 2],
+    /// Where the drive's zero lies, rad.
+    pub zero_angle_rad: f64,
+    /// Mandrel diameter, mm.
+    pub diameter_mm: f64,
+}
+
+impl Default for Tolerances {
+    /// The thesis's cell (seed 001 §6.2.1 item 2, §6.1, §6.4.1): the drive axis found 0.1 mm
+    /// (x–z) and 0.15 mm (y–z) out along the 178 mm mandrel, the mandrel repeatable within 0.2°,
+    /// the cylinder's diameter ±0.05 mm.
+    fn default() -> Self {
+        Tolerances {
+            axis_offset_mm: [0.1, 0.15],
+            axis_tilt_rad: [(0.1f64 / 178.0).atan(), (0.15f64 / 178.0).atan()],
+            zero_angle_rad: 0.2f64.to_radians(),
+            diameter_mm: 0.05,
+        }
+    }
+}
+
+impl Tolerances {
+    /// Every figure multiplied by `k`.
+    pub fn scaled(&self, k: f64) -> Tolerances {
+        Tolerances {
+            axis_offset_mm: self.axis_offset_mm.map(|v| v * k),
+            axis_tilt_rad: self.axis_tilt_rad.map(|v| v * k),
+            zero_angle_rad: self.zero_angle_rad * k,
+            diameter_mm: self.diameter_mm * k,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn simulated_and_serial_cells_parse_and_half_named_ports_are_refused() {
+        let p = Path::new("C.toml");
+        let c = Cell::parse(
+            "name = \"sim\"\n[drive]\nsteps_per_rev = 400\ngear_ratio = [13, 60]\n",
+            p,
+        )
+        .unwrap();
+        assert_eq!(c.devices, Devices::Simulated);
+        assert_eq!(c.drive, Drive::default());
+        let c = Cell::parse(
+            "[ports]\nrobot = \"/dev/ttyS0\"\nindexer = \"/dev/ttyS1\"\nsync = \"/dev/ttyS0\"\n",
+            p,
+        )
+        .unwrap();
+        assert!(matches!(c.devices, Devices::Serial { .. }));
+        let e = Cell::parse("\n[ports]\nrobot = \"/dev/ttyS0\"\n", p).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("C.toml:2:1: name the robot and indexer ports"),
+            "{e}"
+        );
+        let e = Cell::parse("[drive]\nsteps = 400\n", p).unwrap_err();
+        assert!(e.to_string().starts_with("C.toml:2:1:"), "{e}");
+        assert!(e.is_input());
+    }
+
+    #[test]
+    fn the_example_cell_files_parse() {
+        let sim = Cell::parse(
+            include_str!("../../../examples/cell-sim.toml"),
+            Path::new("s"),
+        )
+        .unwrap();
+        assert_eq!(sim.devices, Devices::Simulated);
+        assert_eq!(sim.opto_delay_s, 20e-6);
+        let serial = Cell::parse(
+            include_str!("../../../examples/cell-serial.toml"),
+            Path::new("r"),
+        )
+        .unwrap();
+        assert_eq!(
+            serial.devices,
+            Devices::Serial {
+                robot: "/dev/ttyS0".into(),
+                indexer: "/dev/ttyS1".into(),
+                sync: Some("/dev/ttyS0".into())
+            }
+        );
+    }
+}
