@@ -175,6 +175,92 @@ pub enum Error {
         /// True for bad input.
         input: bool,
     },
+    /// A control file planned for another movement, wound in continuous mode (its timing is a
+    /// property of the plan: docs/continuous.md).
+    #[error(
+        "{path}: planned for {movement} movement; continuous mode needs files planned for it \
+         (movement = \"continuous\" in the job)"
+    )]
+    NotPlannedForContinuous {
+        /// The control file's name.
+        path: String,
+        /// The movement it was planned for.
+        movement: &'static str,
+    },
+    /// A relative position in a robot control file: the coordinator resumes to absolute ones.
+    #[error(
+        "{path}: instruction {instruction}: relative positions cannot be resumed; the \
+         coordinator needs absolute ones"
+    )]
+    RelativePosition {
+        /// The control file's name.
+        path: String,
+        /// The file's instruction number.
+        instruction: u16,
+    },
+    /// An instruction's eye target outside the arm's working range (checked before anything is
+    /// sent).
+    #[error(
+        "{path}: instruction {instruction}: the eye at ({:.1}, {:.1}, {:.1}) mm is out of the \
+         arm's reach ({:.0}–{:.0} mm from the axis, height {:.0}–{:.0} mm)",
+        eye_mm[0], eye_mm[1], eye_mm[2], radius_mm.0, radius_mm.1, height_mm.0, height_mm.1
+    )]
+    OutOfReach {
+        /// The control file's name.
+        path: String,
+        /// The file's instruction number.
+        instruction: u16,
+        /// The target, cell frame, mm.
+        eye_mm: [f64; 3],
+        /// Least and greatest horizontal distance from the pedestal axis, mm.
+        radius_mm: (f64, f64),
+        /// Lowest and highest height, mm.
+        height_mm: (f64, f64),
+    },
+    /// A robot control file with no instruction.
+    #[error("{path}: the robot control file has no instruction")]
+    EmptyProgram {
+        /// The control file's name.
+        path: String,
+    },
+    /// A file the batch needs is not there.
+    #[error("{}: missing ({why})", file.display())]
+    MissingFile {
+        /// The file.
+        file: PathBuf,
+        /// Why it is needed.
+        why: &'static str,
+    },
+    /// A mandrel file whose move does not turn what its robot file's instructions turn.
+    #[error("{path}.IND: the move turns {ind_steps} steps, the .ROB's instructions {rob_steps}")]
+    MandrelSteps {
+        /// The control files' name.
+        path: String,
+        /// Steps of the `.IND` move.
+        ind_steps: i64,
+        /// Steps of the `.ROB` instructions together.
+        rob_steps: i64,
+    },
+    /// The batch's programs do not fit the robot's memory with room to resume the longest
+    /// (seed 001 §4.1.2).
+    #[error(
+        "the batch needs {} memory units of the robot's {capacity_units} ({programs_units} for \
+         {programs} programs + {reserve_units} kept free to resume the longest): it does not fit",
+        programs_units + reserve_units
+    )]
+    BatchMemory {
+        /// Units the batch's programs take.
+        programs_units: u32,
+        /// Distinct programs.
+        programs: usize,
+        /// Units kept free for a resumed program.
+        reserve_units: u32,
+        /// The robot's memory, units.
+        capacity_units: u32,
+    },
+    /// A journal that is not this batch's (`--resume`).
+    #[error("{0}")]
+    JournalMismatch(JournalMismatch),
     /// A recording (MCAP file or live server) could not be opened or finished.
     #[error("{}: recording failed: {message}", path.display())]
     Record {
@@ -231,8 +317,52 @@ impl Error {
                     source: mandrel_drive::Error::OutOfRange { .. }
                 }
                 | Error::Run { input: true, .. }
+                | Error::NotPlannedForContinuous { .. }
+                | Error::RelativePosition { .. }
+                | Error::OutOfReach { .. }
+                | Error::EmptyProgram { .. }
+                | Error::MissingFile { .. }
+                | Error::MandrelSteps { .. }
+                | Error::BatchMemory { .. }
+                | Error::JournalMismatch(_)
         )
     }
+}
+
+/// How a journal given to `--resume` fails to be the batch's.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum JournalMismatch {
+    /// Its first record is not `begin`.
+    #[error("the journal does not start with its begin record")]
+    NoBegin,
+    /// It names another job's files.
+    #[error("the journal belongs to another job (its control files differ)")]
+    OtherJob,
+    /// A record's number does not fit the batch (a path or segment it does not have, a
+    /// counter beyond the batch's travel, a record out of order).
+    #[error(
+        "record {record} (line {record}): {field} = {value} does not fit this batch ({min} … {max})"
+    )]
+    OutOfRange {
+        /// 1-based record, which is the journal's line.
+        record: usize,
+        /// The field.
+        field: &'static str,
+        /// Its value as written (empty when missing).
+        value: String,
+        /// Least value that fits.
+        min: i64,
+        /// Greatest value that fits.
+        max: i64,
+    },
+    /// It was written in another mode.
+    #[error("the journal was written in {journal} mode, this run is {run}")]
+    OtherMode {
+        /// The journal's mode keyword.
+        journal: String,
+        /// This run's mode keyword.
+        run: &'static str,
+    },
 }
 
 /// A length for a message: plain below a million, in exponent form above (`1e308`, not 309

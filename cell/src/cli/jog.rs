@@ -177,7 +177,13 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
                 message: format!("jog interrupted ({reason})"),
                 exit_code: super::run::EXIT_INTERRUPTED,
             },
-            Halt::Fault { message } => Failure::runtime(format!("jog: {message}")),
+            // A target the arm or the telegram cannot take is the input's fault, found before
+            // the robot moved; anything else happened at the devices.
+            Halt::Fault(f) if f.is_input() => Failure {
+                message: format!("jog: {f}"),
+                exit_code: super::EXIT_INPUT,
+            },
+            Halt::Fault(f) => Failure::runtime(format!("jog: {f}")),
         }),
     }
 }

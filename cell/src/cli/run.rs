@@ -55,9 +55,15 @@ pub struct RunArgs {
     /// The cell description (wins over the job's `[cell]`).
     #[arg(long, value_name = "CELL.toml")]
     pub cell: Option<PathBuf>,
-    /// The journal to write (default: beside the sequence or job, `NAME.journal`).
+    /// The journal to write (default: `NAME.journal` beside the sequence, or in the current
+    /// folder for a job planned in memory). A journal of an unfinished batch is never
+    /// overwritten: resume it, or start over with `--restart`.
     #[arg(long, value_name = "FILE")]
     pub journal: Option<PathBuf>,
+    /// Start the batch over although the journal records it unfinished: the old journal is kept
+    /// as `NAME.journal.N` (the first free N) and the mandrel is zeroed where it stands.
+    #[arg(long, conflicts_with = "resume")]
+    pub restart: bool,
     /// Resume the batch this journal records.
     #[arg(long, value_name = "JOURNAL")]
     pub resume: Option<PathBuf>,
@@ -83,6 +89,93 @@ pub struct RunArgs {
     /// Serve the run live over Foxglove's WebSocket protocol (default 127.0.0.1:8765).
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_LIVE)]
     pub live: Option<String>,
+}
+
+/// The command that resumes the batch `args` started, from `journal`.
+fn resume_command(args: &RunArgs, mode: RunMode, journal: &Path) -> String {
+    let mut resume = format!("windcell run {}", args.input.display());
+    if args.mode.is_some() {
+        resume += &format!(" --mode {}", mode.keyword());
+    }
+    if let Some(r) = &args.run_file {
+        resume += &format!(" --run {}", r.display());
+    }
+    if let Some(c) = &args.cell {
+        resume += &format!(" --cell {}", c.display());
+    }
+    if let Some(j) = &args.job {
+        resume += &format!(" --job {}", j.display());
+    }
+    if args.force {
+        resume += " --force";
+    }
+    resume + &format!(" --resume {}", journal.display())
+}
+
+/// The journal's place when `--journal` is not given: beside the control files of a sequence
+/// (the plan's folder, which the operator wrote), in the current folder for a job planned in
+/// memory (never into the folder a job file came from, such as `examples/`).
+fn default_journal(args: &RunArgs, sequence_path: &Path, name: &str) -> PathBuf {
+    let is_job = args
+        .input
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    if is_job {
+        PathBuf::from(format!("{name}.journal"))
+    } else {
+        sequence_path.with_file_name(format!("{name}.journal"))
+    }
+}
+
+/// A fresh run over a journal that records an unfinished batch would lose the only record of
+/// where the half-wound mandrel stands: refused (exit 2, nothing sent), naming the `--resume`
+/// command. With `--restart` the name the old journal is to be kept under, `NAME.journal.N`
+/// (never an existing file), is returned: it is moved there just before the new journal is
+/// written. A journal whose batch is done may be replaced.
+fn keep_unfinished_journal(
+    args: &RunArgs,
+    mode: RunMode,
+    journal: &Path,
+) -> Result<Option<PathBuf>, Failure> {
+    if !journal.exists() {
+        return Ok(None);
+    }
+    let state = match cell::run::journal::read(journal) {
+        Ok(records) => {
+            if records
+                .last()
+                .is_some_and(|r| r.get("rec").and_then(|v| v.as_str()) == Some("done"))
+            {
+                return Ok(None);
+            }
+            let items = records
+                .iter()
+                .filter(|r| r.get("rec").and_then(|v| v.as_str()) == Some("item_done"))
+                .count();
+            format!("an unfinished batch, {items} paths done")
+        }
+        Err(e) => format!("a batch this run cannot read ({e})"),
+    };
+    if !args.restart {
+        return Err(Failure::input(format!(
+            "{}: the journal records {state}; nothing was sent. Resume it with: {}; or start \
+             over with --restart (the journal is kept as {}.N)",
+            journal.display(),
+            resume_command(args, mode, journal),
+            journal.display()
+        )));
+    }
+    let kept = (1..10_000)
+        .map(|n| PathBuf::from(format!("{}.{n}", journal.display())))
+        .find(|p| !p.exists())
+        .ok_or_else(|| {
+            Failure::input(format!(
+                "{}: no free name to keep the old journal under",
+                journal.display()
+            ))
+        })?;
+    Ok(Some(kept))
 }
 
 /// Where `--live` serves when no address is named: loopback only.
@@ -688,11 +781,24 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         .resume
         .clone()
         .or(args.journal.clone())
-        .unwrap_or_else(|| {
-            loaded
-                .sequence_path
-                .with_file_name(format!("{name}.journal"))
-        });
+        .unwrap_or_else(|| default_journal(&args, &loaded.sequence_path, &name));
+    // Everything `run` can know before it moves is refused here, before the journal is written
+    // or a device touched: program mode needs the sync lines.
+    if batch.mode != RunMode::Discrete
+        && let cell::run::cellfile::Devices::Serial { sync: None, .. } = &cell.devices
+    {
+        return Err(Failure::input(format!(
+            "{}: {} mode needs the sync lines (App. D: the start and in-position lines pace a \
+             stored program): name a sync port in the cell file (examples/cell-serial.toml), or \
+             wind in discrete mode",
+            cell.source,
+            batch.mode.keyword()
+        )));
+    }
+    let keep_as = match args.resume {
+        None => keep_unfinished_journal(&args, batch.mode, &journal_path)?,
+        Some(_) => None,
+    };
     let resumed = match &args.resume {
         Some(p) => {
             if !p.exists() {
@@ -729,7 +835,18 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     let (journal, from, fresh) = match resumed {
         Some((j, from)) => (j, from, false),
         None => (
-            Journal::create(&journal_path).map_err(Failure::runtime)?,
+            {
+                if let Some(kept) = &keep_as {
+                    std::fs::rename(&journal_path, kept).map_err(|e| {
+                        Failure::input(format!(
+                            "{}: cannot keep the old journal as {}: {e}",
+                            journal_path.display(),
+                            kept.display()
+                        ))
+                    })?;
+                }
+                Journal::create(&journal_path).map_err(Failure::input)?
+            },
             ResumePoint::default(),
             true,
         ),
@@ -906,43 +1023,33 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         Err(stopped) => {
             let (why, code, event) = match &stopped.halt {
                 Halt::Interrupted { reason } => (reason.clone(), EXIT_INTERRUPTED, "stopped"),
-                Halt::Fault { message } => (message.clone(), super::EXIT_RUNTIME, "fault"),
+                Halt::Fault(fault) => (fault.to_string(), super::EXIT_RUNTIME, "fault"),
             };
-            let mut resume = format!("windcell run {}", args.input.display());
-            if args.mode.is_some() {
-                resume += &format!(" --mode {}", batch.mode.keyword());
-            }
-            if let Some(r) = &args.run_file {
-                resume += &format!(" --run {}", r.display());
-            }
-            if let Some(c) = &args.cell {
-                resume += &format!(" --cell {}", c.display());
-            }
-            if let Some(j) = &args.job {
-                resume += &format!(" --job {}", j.display());
-            }
-            if args.force {
-                resume += " --force";
-            }
-            resume += &format!(" --resume {}", journal_path.display());
+            let resume = resume_command(&args, batch.mode, &journal_path);
+            let stop_errors: Vec<String> =
+                stopped.stop_errors.iter().map(|e| e.to_string()).collect();
             if display.json {
                 display.line(
                     &json!({"event": event, "item": stopped.item, "path": stopped.path,
                         "segments_done": stopped.segments_done, "reason": why,
-                        "stop_errors": stopped.stop_errors, "resume": resume})
+                        "stop_errors": stop_errors, "resume": resume})
                     .to_string(),
                 );
             }
             Err(Failure {
                 message: format!(
-                    "stopped at path {} ({}) after {} segments ({why}){}; both axes told to stop; resume with: {resume}",
+                    "stopped at path {} ({}) after {} segments ({why}); {}; resume with: {resume}",
                     stopped.item,
                     stopped.path,
                     stopped.segments_done,
                     if stopped.stop_errors.is_empty() {
-                        String::new()
+                        "both axes told to stop".to_string()
                     } else {
-                        format!("; stop failed: {}", stopped.stop_errors.join(", "))
+                        // Only the stops that went through are claimed.
+                        format!(
+                            "stop failed: {}; see that both axes stand still before resuming",
+                            stop_errors.join(", ")
+                        )
                     }
                 ),
                 exit_code: code,

@@ -284,9 +284,8 @@ fn wind(job: &Job, text: &str, file: &Path, cell: &Cell, mode: RunMode) -> Resul
     // first (the message names the start and top speeds too); any other stop at the file.
     if let Err(stopped) = outcome {
         let reason = stopped.halt.reason();
-        // The halt carries the indexer's error as text; its stall is known by that error's own
-        // wording, not by a word picked out of it.
-        let place = if reason.contains(&mandrel_drive::Error::Stalled.to_string()) {
+        // A stall is known by the indexer's error the halt carries.
+        let place = if stopped.halt.fault().is_some_and(|f| f.is_stall()) {
             let (line, column) =
                 sequences::error::line_column(text, job.cell.drive.accel_rps2.span().start);
             format!("{}:{line}:{column}", file.display())

@@ -420,3 +420,91 @@ fn the_simulated_cell_runs_the_jobs_own_arm() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("batch done: 2 paths"));
 }
+
+/// A re-run never loses the batch's resume record: over a journal of an unfinished batch the
+/// same command is refused before anything is sent (exit 2, one line naming the `--resume`
+/// command), the journal byte for byte as it was; `--restart` keeps the old journal as
+/// `NAME.journal.1` and winds the batch over; a finished journal may be replaced.
+#[test]
+fn a_rerun_over_an_unfinished_journal_changes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("SBEND.journal");
+    let job = example("sbend.toml");
+    // An unfinished batch: its begin record, the mandrel zeroed, path 1 under way.
+    {
+        let mut j = cell::run::journal::Journal::create(&journal).unwrap();
+        j.append(serde_json::json!({"rec": "begin", "job": "x", "mode": "fine"}))
+            .unwrap();
+        j.append(serde_json::json!({"rec": "mandrel_zero", "counter_before": 0}))
+            .unwrap();
+        j.append(serde_json::json!({"rec": "item", "item": 0, "name": "SBEND_1"}))
+            .unwrap();
+    }
+    let before = std::fs::read(&journal).unwrap();
+    let args = [
+        "run",
+        job.to_str().unwrap(),
+        "--journal",
+        journal.to_str().unwrap(),
+    ];
+    let o = windcell(&args);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("unfinished batch, 0 paths done"), "{err}");
+    assert!(
+        err.contains(&format!("--resume {}", journal.display())),
+        "{err}"
+    );
+    assert!(
+        o.stdout.is_empty(),
+        "nothing wound: {}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert_eq!(std::fs::read(&journal).unwrap(), before);
+    // Starting over keeps the old record under a new name.
+    let mut restart = args.to_vec();
+    restart.push("--restart");
+    let o = windcell(&restart);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(dir.path().join("SBEND.journal.1")).unwrap(),
+        before
+    );
+    let done = std::fs::read_to_string(&journal).unwrap();
+    assert!(done.trim_end().ends_with('}') && done.contains("\"rec\":\"done\""));
+    // A finished batch's journal is replaced by the next run.
+    let o = windcell(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!dir.path().join("SBEND.journal.2").exists());
+}
+
+/// Program mode on serial ports without a sync port is refused before the journal is written
+/// or a port opened (the ports named here do not exist: a refusal after opening them would say
+/// so instead).
+#[test]
+fn program_mode_without_sync_lines_is_refused_before_anything() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell_file = dir.path().join("cell.toml");
+    std::fs::write(
+        &cell_file,
+        "[ports]\nrobot = \"/dev/windcell-no-robot\"\nindexer = \"/dev/windcell-no-indexer\"\n",
+    )
+    .unwrap();
+    let journal = dir.path().join("run.journal");
+    let o = windcell(&[
+        "run",
+        example("sbend.toml").to_str().unwrap(),
+        "--mode",
+        "fine",
+        "--cell",
+        cell_file.to_str().unwrap(),
+        "--journal",
+        journal.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("fine mode needs the sync lines"), "{err}");
+    assert!(!err.contains("windcell-no-robot"), "{err}");
+    assert!(!journal.exists());
+}

@@ -1,0 +1,284 @@
+//! The pre-run check (seed 001 §5.6.4, §4.1.2): every control file converted to the devices'
+//! units and ranges, held to the arm's reach and the robot's memory, before anything is sent;
+//! what it makes is the [`Batch`] the coordinator winds.
+
+use super::*;
+
+/// One path of the batch: a robot control file and, for program mode, its mandrel file.
+#[derive(Debug, Clone)]
+pub struct Item {
+    /// Control-file name (`SBEND_1`).
+    pub name: String,
+    /// The robot control file.
+    pub rob: RobotFile,
+    /// The mandrel control file (program mode).
+    pub ind: Option<MandrelFile>,
+}
+
+/// What the pre-run check made of one item.
+#[derive(Debug, Clone)]
+pub(super) struct Prepared {
+    /// Absolute robot target of each instruction, mm.
+    pub(super) targets_mm: Vec<[f64; 3]>,
+    /// Each instruction as an immediate move.
+    pub(super) immediate: Vec<Positioning>,
+    /// The mandrel move of each instruction.
+    pub(super) mandrel: Vec<MandrelMove>,
+    /// Steps from the path's start after each instruction (index 0 = before the first).
+    pub(super) cumulative_steps: Vec<i64>,
+    /// The stored program with the handshake (program mode).
+    pub(super) program: Option<Vec<Instruction>>,
+}
+
+/// The robot's working range the pre-run check holds every instruction to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reach {
+    /// Greatest horizontal distance from the pedestal axis, mm.
+    pub max_radius_mm: f64,
+    /// Least horizontal distance, mm.
+    pub min_radius_mm: f64,
+    /// Lowest and highest height, mm.
+    pub z_range_mm: (f64, f64),
+}
+
+impl Reach {
+    /// True when the eye target `t` (cell frame, mm) lies in the range.
+    pub fn holds(&self, t: [f64; 3]) -> bool {
+        let radius = t[0].hypot(t[1]);
+        radius <= self.max_radius_mm
+            && radius >= self.min_radius_mm
+            && t[2] >= self.z_range_mm.0
+            && t[2] <= self.z_range_mm.1
+    }
+}
+
+impl Default for Reach {
+    /// The robot computer's own range check (`asea_protocol::sim::MotionParams`: 1600 mm,
+    /// ±2047.9375 mm of height).
+    fn default() -> Self {
+        Reach {
+            max_radius_mm: 1600.0,
+            min_radius_mm: 0.0,
+            z_range_mm: (-2047.9375, 2047.9375),
+        }
+    }
+}
+
+/// A checked batch, ready to wind.
+#[derive(Debug, Clone)]
+pub struct Batch {
+    /// Items in winding order.
+    pub items: Vec<Item>,
+    /// The mode.
+    pub mode: RunMode,
+    /// Identifies the job's files (a hash of their texts): a journal names it.
+    pub job_id: String,
+    /// Motor, belt and translator.
+    pub drive: Drive,
+    pub(super) prepared: Vec<Prepared>,
+}
+
+/// The App. D handshake around a stored program's positions: lower "in position", wait for the
+/// PC's start, the positions, raise "in position", End. Control instructions already in
+/// `instructions` are replaced, so a program that has its own handshake is not wrapped twice.
+pub fn handshake_program(instructions: &[Instruction]) -> Vec<Instruction> {
+    let mut out = vec![
+        Instruction::Control(Control::SetOutput {
+            line: IN_POSITION_OUTPUT,
+            on: false,
+        }),
+        Instruction::Control(Control::WaitInput {
+            line: START_INPUT,
+            on: true,
+        }),
+    ];
+    out.extend(
+        instructions
+            .iter()
+            .filter(|i| matches!(i, Instruction::Position(_)))
+            .copied(),
+    );
+    out.push(Instruction::Control(Control::SetOutput {
+        line: IN_POSITION_OUTPUT,
+        on: true,
+    }));
+    out.push(Instruction::Control(Control::End));
+    out
+}
+
+/// Memory units a program takes in the robot computer (seed 001 §4.1.2).
+pub fn program_units(instructions: &[Instruction]) -> u32 {
+    instructions
+        .iter()
+        .map(|i| match i {
+            Instruction::Position(_) => POSITION_UNITS,
+            Instruction::Control(_) => CONTROL_UNITS,
+        })
+        .sum()
+}
+
+impl Batch {
+    /// The pre-run check (every file as the plan checks it: conversion to the devices' units and
+    /// ranges, reach, memory) and the batch it makes. Nothing is sent.
+    pub fn new(
+        items: Vec<Item>,
+        mode: RunMode,
+        job_id: String,
+        drive: Drive,
+        reach: Reach,
+    ) -> Result<Batch, Error> {
+        let setup = transfer::IndexerSetup {
+            drive,
+            start_velocity_command: true,
+        };
+        let prepared = items
+            .iter()
+            .map(|item| Prepared::of(item, mode, &setup, &reach))
+            .collect::<Result<Vec<_>, Error>>()?;
+        if mode != RunMode::Discrete {
+            check_memory(&items, &prepared)?;
+        }
+        Ok(Batch {
+            items,
+            mode,
+            job_id,
+            drive,
+            prepared,
+        })
+    }
+}
+
+impl Prepared {
+    /// One item checked and converted for `mode`.
+    fn of(
+        item: &Item,
+        mode: RunMode,
+        setup: &transfer::IndexerSetup,
+        reach: &Reach,
+    ) -> Result<Prepared, Error> {
+        // Continuous mode's timing is a property of the plan (every segment at least the
+        // robot's time per instruction): files planned for another movement are refused.
+        if mode == RunMode::Continuous && item.rob.header.movement != Movement::Continuous {
+            return Err(Error::NotPlannedForContinuous {
+                path: item.name.clone(),
+                movement: item.rob.header.movement.keyword(),
+            });
+        }
+        let mut rob = item.rob.clone();
+        rob.header.movement = mode.movement();
+        let immediate: Vec<Positioning> = transfer::immediate_moves(&rob)?
+            .into_iter()
+            .filter_map(|c| match c {
+                asea_protocol::Command::MoveImmediate(p) => Some(p),
+                _ => None,
+            })
+            .collect();
+        let mut targets_mm = Vec::with_capacity(rob.instructions.len());
+        let mut cumulative_steps = vec![0i64];
+        let mut mandrel = Vec::new();
+        for (i, p) in rob.instructions.iter().zip(&immediate) {
+            if i.reference != Reference::Absolute {
+                return Err(Error::RelativePosition {
+                    path: item.name.clone(),
+                    instruction: i.number,
+                });
+            }
+            let t = p.pose.xyz_mm();
+            if !reach.holds(t) {
+                return Err(Error::OutOfReach {
+                    path: item.name.clone(),
+                    instruction: i.number,
+                    eye_mm: t,
+                    radius_mm: (reach.min_radius_mm, reach.max_radius_mm),
+                    height_mm: reach.z_range_mm,
+                });
+            }
+            transfer::indexer_move(&i.mandrel, setup, Some(i.number))?;
+            targets_mm.push(t);
+            mandrel.push(i.mandrel);
+            let last = cumulative_steps.last().copied().unwrap_or(0);
+            cumulative_steps.push(last + i.mandrel.steps);
+        }
+        if targets_mm.is_empty() {
+            return Err(Error::EmptyProgram {
+                path: item.name.clone(),
+            });
+        }
+        let program = if mode == RunMode::Discrete {
+            None
+        } else {
+            let total = cumulative_steps.last().copied().unwrap_or(0);
+            Some(stored_program(item, &rob, mode, setup, total)?)
+        };
+        Ok(Prepared {
+            targets_mm,
+            immediate,
+            mandrel,
+            cumulative_steps,
+            program,
+        })
+    }
+}
+
+/// The stored program of a program-mode item, its `.IND` checked against the `.ROB`'s `total`
+/// steps.
+fn stored_program(
+    item: &Item,
+    rob: &RobotFile,
+    mode: RunMode,
+    setup: &transfer::IndexerSetup,
+    total: i64,
+) -> Result<Vec<Instruction>, Error> {
+    let ind = item.ind.as_ref().ok_or_else(|| Error::MissingFile {
+        file: format!("{}.IND", item.name).into(),
+        why: "program mode needs it",
+    })?;
+    transfer::indexer_program(ind, setup)?;
+    if ind.path_move.steps != total {
+        return Err(Error::MandrelSteps {
+            path: item.name.clone(),
+            ind_steps: ind.path_move.steps,
+            rob_steps: total,
+        });
+    }
+    let positions = transfer::robot_program(rob)?.instructions;
+    Ok(handshake_program(
+        &positions
+            .iter()
+            .filter(|i| matches!(i, Instruction::Position(_)))
+            .skip(mode.points_before_program())
+            .copied()
+            .collect::<Vec<_>>(),
+    ))
+}
+
+/// The batch's distinct programs in the robot's memory, with room for a resumed program as long
+/// as the longest path (seed 001 §4.1.2).
+fn check_memory(items: &[Item], prepared: &[Prepared]) -> Result<(), Error> {
+    let mut seen: Vec<u8> = Vec::new();
+    let mut units = 0u32;
+    for (item, prep) in items.iter().zip(prepared) {
+        let program = item.rob.header.program;
+        if let Some(list) = &prep.program
+            && !seen.contains(&program)
+        {
+            seen.push(program);
+            units += program_units(list);
+        }
+    }
+    let longest = prepared
+        .iter()
+        .filter_map(|p| p.program.as_ref())
+        .map(|p| program_units(p))
+        .max()
+        .unwrap_or(0);
+    if units + longest > MEMORY_UNITS {
+        return Err(Error::BatchMemory {
+            programs_units: units,
+            programs: seen.len(),
+            reserve_units: longest,
+            capacity_units: MEMORY_UNITS,
+        });
+    }
+    Ok(())
+}
