@@ -72,8 +72,8 @@ pub enum Fault {
     JogTelegram {
         /// Which conversion.
         what: &'static str,
-        /// The telegram's range error.
-        source: asea_protocol::EncodeError,
+        /// The telegram's range error (boxed: a halt travels in every run's result).
+        source: Box<asea_protocol::EncodeError>,
     },
     /// A jog's eye target outside the arm's working range.
     #[error(

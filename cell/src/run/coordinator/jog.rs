@@ -33,7 +33,7 @@ impl Coordinator<'_> {
                     asea_protocol::Pose::from_mm(target, p.pose.q.wxyz()).map_err(|source| {
                         Fault::JogTelegram {
                             what: "the relative move leaves the telegram's range",
-                            source,
+                            source: Box::new(source),
                         }
                     })?;
                 p.flags.reference = asea_protocol::Reference::Absolute;
@@ -49,7 +49,7 @@ impl Coordinator<'_> {
                 asea_protocol::Pose::from_mm(target, [q.w, q.i, q.j, q.k]).map_err(|source| {
                     Fault::JogTelegram {
                         what: "the jog's pose",
-                        source,
+                        source: Box::new(source),
                     }
                 })?;
             if !reach.holds(target) {
