@@ -767,7 +767,76 @@ impl Display {
 
 /// Runs `windcell run`.
 pub fn run(args: RunArgs) -> Result<(), Failure> {
-    let (loaded, cell, reach, name, clearance) = load(&args)?;
+    let checked = check(&args)?;
+    let Checked {
+        batch,
+        cell,
+        journal_path,
+        keep_as,
+        resumed,
+        devices,
+        sim,
+        slot,
+        scene,
+    } = checked;
+    let (journal, from, fresh) = open_journal(&journal_path, keep_as, resumed)?;
+    let rec = recorder(&args, sim.as_ref())?;
+    if let Some(r) = &rec {
+        slot.set(r.clone());
+        if let Some(sc) = &scene {
+            sc.record_start(r);
+        }
+    }
+    let display = Display::new(args.json, std::io::stdout().is_terminal(), &batch, &from);
+    announce(&display, &args, &batch, &cell, &journal_path, fresh, &from);
+    let wound = wind(
+        &args,
+        &batch,
+        devices,
+        sim.as_ref(),
+        rec.clone(),
+        scene,
+        journal,
+        from,
+        fresh,
+        display,
+    )?;
+    if let Some(r) = rec {
+        // Detach the simulated cell's observer, then finalise (summary and indexes).
+        if let Some(sim) = &sim {
+            let _ = sim.with(|p| p.observer = None);
+        }
+        if let Ok(r) = Arc::try_unwrap(r) {
+            r.finish().map_err(Failure::from_cell)?;
+        }
+    }
+    let cell_time_s = sim.as_ref().map(|s| {
+        use asea_protocol::clock::Clock as _;
+        s.clock().now_s()
+    });
+    report(&args, &batch, &journal_path, wound, cell_time_s)
+}
+
+/// What the checks hand to the winding: everything decided before a byte is sent.
+struct Checked {
+    batch: Batch,
+    cell: Cell,
+    journal_path: PathBuf,
+    /// Where an unfinished journal is kept when `--restart` starts over.
+    keep_as: Option<PathBuf>,
+    /// The journal to resume and where it stands.
+    resumed: Option<(Journal, ResumePoint)>,
+    devices: Devices,
+    sim: Option<SimCell>,
+    slot: RecordSlot,
+    scene: Option<Scene>,
+}
+
+/// Every refusal `run` can make before it moves (exit 2: the files, the pre-run check of every
+/// instruction, the sync lines for the mode, the journal; exit 3: the collision gate), then the
+/// devices made (nothing sent yet).
+fn check(args: &RunArgs) -> Result<Checked, Failure> {
+    let (loaded, cell, reach, name, clearance) = load(args)?;
     // The pre-run check: every file converted and checked before anything is sent.
     let batch = Batch::new(
         loaded.items.clone(),
@@ -781,7 +850,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         .resume
         .clone()
         .or(args.journal.clone())
-        .unwrap_or_else(|| default_journal(&args, &loaded.sequence_path, &name));
+        .unwrap_or_else(|| default_journal(args, &loaded.sequence_path, &name));
     // Everything `run` can know before it moves is refused here, before the journal is written
     // or a device touched: program mode needs the sync lines.
     if batch.mode != RunMode::Discrete
@@ -796,7 +865,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         )));
     }
     let keep_as = match args.resume {
-        None => keep_unfinished_journal(&args, batch.mode, &journal_path)?,
+        None => keep_unfinished_journal(args, batch.mode, &journal_path)?,
         Some(_) => None,
     };
     let resumed = match &args.resume {
@@ -831,35 +900,52 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         None
     };
     // Every exit-code-2 check has passed: the collision gate (exit 3 unless --force).
-    gate(&args, clearance)?;
-    let (journal, from, fresh) = match resumed {
-        Some((j, from)) => (j, from, false),
-        None => (
-            {
-                if let Some(kept) = &keep_as {
-                    std::fs::rename(&journal_path, kept).map_err(|e| {
-                        Failure::input(format!(
-                            "{}: cannot keep the old journal as {}: {e}",
-                            journal_path.display(),
-                            kept.display()
-                        ))
-                    })?;
-                }
-                Journal::create(&journal_path).map_err(Failure::input)?
-            },
-            ResumePoint::default(),
-            true,
-        ),
-    };
-    let rec = recorder(&args, sim.as_ref())?;
-    if let Some(r) = &rec {
-        slot.set(r.clone());
-        if let Some(sc) = &scene {
-            sc.record_start(r);
-        }
+    gate(args, clearance)?;
+    Ok(Checked {
+        batch,
+        cell,
+        journal_path,
+        keep_as,
+        resumed,
+        devices,
+        sim,
+        slot,
+        scene,
+    })
+}
+
+/// The journal: the resumed one, or a new one (an unfinished one kept first under `keep_as`).
+fn open_journal(
+    journal_path: &Path,
+    keep_as: Option<PathBuf>,
+    resumed: Option<(Journal, ResumePoint)>,
+) -> Result<(Journal, ResumePoint, bool), Failure> {
+    if let Some((j, from)) = resumed {
+        return Ok((j, from, false));
     }
-    let rec_events = rec.clone();
-    let display = Display::new(args.json, std::io::stdout().is_terminal(), &batch, &from);
+    if let Some(kept) = &keep_as {
+        std::fs::rename(journal_path, kept).map_err(|e| {
+            Failure::input(format!(
+                "{}: cannot keep the old journal as {}: {e}",
+                journal_path.display(),
+                kept.display()
+            ))
+        })?;
+    }
+    let journal = Journal::create(journal_path).map_err(Failure::input)?;
+    Ok((journal, ResumePoint::default(), true))
+}
+
+/// The run's first line (or `started` event).
+fn announce(
+    display: &Display,
+    args: &RunArgs,
+    batch: &Batch,
+    cell: &Cell,
+    journal_path: &Path,
+    fresh: bool,
+    from: &ResumePoint,
+) {
     if args.json {
         display.line(
             &json!({"event": "started", "job": args.input.display().to_string(),
@@ -889,7 +975,31 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
             ));
         }
     }
+}
 
+/// What the winding left: the coordinator's result and wall time, the paths done, the display.
+struct Wound {
+    result: Result<(), cell::run::coordinator::Stopped>,
+    wall: std::time::Duration,
+    paths: Vec<(String, u8, f64)>,
+    display: Display,
+}
+
+/// The work: the coordinator on its own thread owning the devices, the Ctrl-C and console tasks
+/// that stop it, and the display of its events (docs/ARCHITECTURE.md, "`windcell run`").
+#[allow(clippy::too_many_arguments)]
+fn wind(
+    args: &RunArgs,
+    batch: &Batch,
+    devices: Devices,
+    sim: Option<&SimCell>,
+    rec: Option<Arc<cell::record::Recorder>>,
+    scene: Option<Scene>,
+    journal: Journal,
+    from: ResumePoint,
+    fresh: bool,
+    display: Display,
+) -> Result<Wound, Failure> {
     // One stop request for the signal, the console and the coordinator: making it abandons the
     // exchange under way on both links and wakes the coordinator, which sends the stops at once.
     let stop = StopRequest::new(&devices);
@@ -898,10 +1008,11 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         .enable_all()
         .build()
         .map_err(Failure::runtime)?;
+    let rec_events = rec.clone();
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<(f64, Event)>();
     let clock = devices.time.clone();
     // The laid fibre needs the recorder, the simulated cell's trace and the job's scene.
-    let laying = match (&rec, &sim, scene) {
+    let laying = match (&rec, sim, scene) {
         (Some(r), Some(sim), Some(sc)) => {
             sim.with(|p| p.trace = Some(cell::sim::Trace::default()))
                 .map_err(Failure::runtime)?;
@@ -979,19 +1090,29 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     display.finish();
     let (result, wall) =
         joined.map_err(|e| Failure::runtime(format!("the coordinator thread failed: {e}")))?;
-    if let Some(r) = rec {
-        // Detach the simulated cell's observer, then finalise (summary and indexes).
-        if let Some(sim) = &sim {
-            let _ = sim.with(|p| p.observer = None);
-        }
-        if let Ok(r) = Arc::try_unwrap(r) {
-            r.finish().map_err(Failure::from_cell)?;
-        }
-    }
-    let cell_time = sim.as_ref().map(|s| {
-        use asea_protocol::clock::Clock as _;
-        s.clock().now_s()
-    });
+    Ok(Wound {
+        result,
+        wall,
+        paths,
+        display,
+    })
+}
+
+/// The run's last lines: each path's time and the batch's, or where it stopped and the resume
+/// command (exit 130 for the operator's stop, 1 for a fault).
+fn report(
+    args: &RunArgs,
+    batch: &Batch,
+    journal_path: &Path,
+    wound: Wound,
+    cell_time: Option<f64>,
+) -> Result<(), Failure> {
+    let Wound {
+        result,
+        wall,
+        paths,
+        display,
+    } = wound;
     match result {
         Ok(()) => {
             if display.json {
