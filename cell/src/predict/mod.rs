@@ -473,6 +473,134 @@ fn mandrel_series(trace: &Trace, cal: &Calibration) -> Vec<(f64, f64)> {
 }
 
 #[allow(clippy::too_many_arguments)]
+/// The largest error of the robot's own path (the simulated trace between the planned eye
+/// points) laid in proportion with the commanded mandrel angles: each planned eye point's nearest
+/// trace sample marks the segment's ends on the robot's path. `quantised` when the trace has
+/// fewer than two samples in the window.
+#[allow(clippy::too_many_arguments)]
+fn robot_path_error(
+    tube: &Tube,
+    start: &Point3<f64>,
+    poses: &[&paths::Pose],
+    trace: &Trace,
+    window: (f64, f64),
+    transform: &paths::calibration::CellTransform,
+    desired: &[Point3<f64>],
+    quantised: f64,
+) -> Result<f64, Error> {
+    let (t0, t1) = window;
+    let lo = trace.eye_mm.partition_point(|s| s.0 < t0);
+    let hi = trace.eye_mm.partition_point(|s| s.0 <= t1);
+    let robot = &trace.eye_mm[lo..hi];
+    Ok(if robot.len() >= 2 {
+        let mut marks = Vec::with_capacity(poses.len());
+        let mut cursor = 0usize;
+        for p in poses {
+            let want = p.eye_mm;
+            let mut best = (f64::INFINITY, cursor);
+            for (i, s) in robot.iter().enumerate().skip(cursor) {
+                let d = (Point3::from(s.1) - want).norm();
+                if d < best.0 {
+                    best = (d, i);
+                }
+                // Once well past the point (farther than the zone and the chord), stop looking.
+                if d > best.0 + 50.0 {
+                    break;
+                }
+            }
+            cursor = best.1;
+            marks.push(best.1);
+        }
+        let mut eye = Vec::new();
+        let mut mandrel = Vec::new();
+        for k in 0..poses.len() {
+            mandrel.push((k as f64, poses[k].mandrel_rad));
+            if k + 1 == poses.len() {
+                eye.push((k as f64, robot[marks[k]].1));
+                break;
+            }
+            let (a, b) = (marks[k], marks[k + 1].max(marks[k]));
+            let seg = &robot[a..=b];
+            let lengths: Vec<f64> = seg
+                .windows(2)
+                .map(|w| (Point3::from(w[1].1) - Point3::from(w[0].1)).norm())
+                .collect();
+            let total: f64 = lengths.iter().sum();
+            let mut s = 0.0;
+            eye.push((k as f64, seg[0].1));
+            for (i, l) in lengths.iter().enumerate() {
+                s += l;
+                if total > 0.0 && i + 1 < lengths.len() {
+                    eye.push((k as f64 + s / total, seg[i + 1].1));
+                }
+            }
+        }
+        // Times must increase strictly for the interpolation.
+        eye.dedup_by(|b, a| b.0 <= a.0);
+        max_error(
+            &lay_model(
+                tube,
+                start,
+                &eye,
+                &mandrel,
+                transform,
+                MODEL_STEPS_PER_SEGMENT,
+            )?,
+            desired,
+        )
+    } else {
+        quantised
+    })
+}
+
+/// The largest error of each Monte Carlo sample of the setup (seed 001 §6.2.1 item 2): the true
+/// cell's axis offset and lean, the drive's zero and the mandrel's diameter drawn within the
+/// tolerances, the same simulated motion laid on that cell.
+#[allow(clippy::too_many_arguments)]
+fn setup_errors(
+    path: &PlannedPath,
+    tube: &Tube,
+    cal: &Calibration,
+    trace: &Trace,
+    mandrel: &[(f64, f64)],
+    window: (f64, f64),
+    opt: &Options,
+    setup_info: (f64, f64, usize),
+) -> Result<Vec<f64>, Error> {
+    let (t0, t1) = window;
+    let start = path.plan.start.tangent_point_mm;
+    let desired = &path.desired_mm;
+    let (b, h, sample_index) = setup_info;
+    let mut setup = Vec::with_capacity(opt.samples);
+    let mut rng = SplitMix(opt.seed ^ (sample_index as u64).wrapping_mul(0x9E37_79B9));
+    let tol = &opt.tolerances;
+    for _ in 0..opt.samples {
+        let true_cal = Calibration {
+            axis_offset_mm: [
+                cal.axis_offset_mm[0] + tol.axis_offset_mm[0] * rng.symmetric(),
+                cal.axis_offset_mm[1] + tol.axis_offset_mm[1] * rng.symmetric(),
+            ],
+            axis_tilt_rad: [
+                cal.axis_tilt_rad[0] + tol.axis_tilt_rad[0] * rng.symmetric(),
+                cal.axis_tilt_rad[1] + tol.axis_tilt_rad[1] * rng.symmetric(),
+            ],
+            ..*cal
+        };
+        let zero = tol.zero_angle_rad * rng.symmetric();
+        let radius = tube.radius_mm() + 0.5 * tol.diameter_mm * rng.symmetric();
+        let true_tube = tube
+            .with_radius(radius)
+            .map_err(|e| run_error(format!("setup sample: {e}")))?;
+        let true_transform = true_cal.transform(b, h);
+        let track =
+            SampledEye::new(&trace.eye_mm, mandrel, &true_transform).with_mandrel_offset(zero);
+        let laid = placement::lay_on_tube(&true_tube, &track, &start, t0, t1, opt.sample_step_s)
+            .map_err(|e| run_error(format!("{}: setup sample: {e}", path.name)))?;
+        setup.push(max_error(&laid, desired));
+    }
+    Ok(setup)
+}
+
 fn predict_path(
     path: &PlannedPath,
     tube: &Tube,
@@ -526,100 +654,10 @@ fn predict_path(
     };
     let chords = max_error(&model(&|p| p.ideal_mandrel_rad)?, desired);
     let quantised = max_error(&model(&|p| p.mandrel_rad)?, desired);
-    // The robot's own path, in proportion with the commanded mandrel: each planned eye point's
-    // nearest trace sample marks the segment's ends on the robot's path.
-    let lo = trace.eye_mm.partition_point(|s| s.0 < t0);
-    let hi = trace.eye_mm.partition_point(|s| s.0 <= t1);
-    let robot = &trace.eye_mm[lo..hi];
-    let corners = if robot.len() >= 2 {
-        let mut marks = Vec::with_capacity(poses.len());
-        let mut cursor = 0usize;
-        for p in &poses {
-            let want = p.eye_mm;
-            let mut best = (f64::INFINITY, cursor);
-            for (i, s) in robot.iter().enumerate().skip(cursor) {
-                let d = (Point3::from(s.1) - want).norm();
-                if d < best.0 {
-                    best = (d, i);
-                }
-                // Once well past the point (farther than the zone and the chord), stop looking.
-                if d > best.0 + 50.0 {
-                    break;
-                }
-            }
-            cursor = best.1;
-            marks.push(best.1);
-        }
-        let mut eye = Vec::new();
-        let mut mandrel = Vec::new();
-        for k in 0..poses.len() {
-            mandrel.push((k as f64, poses[k].mandrel_rad));
-            if k + 1 == poses.len() {
-                eye.push((k as f64, robot[marks[k]].1));
-                break;
-            }
-            let (a, b) = (marks[k], marks[k + 1].max(marks[k]));
-            let seg = &robot[a..=b];
-            let lengths: Vec<f64> = seg
-                .windows(2)
-                .map(|w| (Point3::from(w[1].1) - Point3::from(w[0].1)).norm())
-                .collect();
-            let total: f64 = lengths.iter().sum();
-            let mut s = 0.0;
-            eye.push((k as f64, seg[0].1));
-            for (i, l) in lengths.iter().enumerate() {
-                s += l;
-                if total > 0.0 && i + 1 < lengths.len() {
-                    eye.push((k as f64 + s / total, seg[i + 1].1));
-                }
-            }
-        }
-        // Times must increase strictly for the interpolation.
-        eye.dedup_by(|b, a| b.0 <= a.0);
-        max_error(
-            &lay_model(
-                tube,
-                &start,
-                &eye,
-                &mandrel,
-                transform,
-                MODEL_STEPS_PER_SEGMENT,
-            )?,
-            desired,
-        )
-    } else {
-        quantised
-    };
-
-    // Setup: Monte Carlo over the tolerances.
-    let (b, h, sample_index) = setup_info;
-    let mut setup = Vec::with_capacity(opt.samples);
-    let mut rng = SplitMix(opt.seed ^ (sample_index as u64).wrapping_mul(0x9E37_79B9));
-    let tol = &opt.tolerances;
-    for _ in 0..opt.samples {
-        let true_cal = Calibration {
-            axis_offset_mm: [
-                cal.axis_offset_mm[0] + tol.axis_offset_mm[0] * rng.symmetric(),
-                cal.axis_offset_mm[1] + tol.axis_offset_mm[1] * rng.symmetric(),
-            ],
-            axis_tilt_rad: [
-                cal.axis_tilt_rad[0] + tol.axis_tilt_rad[0] * rng.symmetric(),
-                cal.axis_tilt_rad[1] + tol.axis_tilt_rad[1] * rng.symmetric(),
-            ],
-            ..*cal
-        };
-        let zero = tol.zero_angle_rad * rng.symmetric();
-        let radius = tube.radius_mm() + 0.5 * tol.diameter_mm * rng.symmetric();
-        let true_tube = tube
-            .with_radius(radius)
-            .map_err(|e| run_error(format!("setup sample: {e}")))?;
-        let true_transform = true_cal.transform(b, h);
-        let track =
-            SampledEye::new(&trace.eye_mm, &mandrel, &true_transform).with_mandrel_offset(zero);
-        let laid = placement::lay_on_tube(&true_tube, &track, &start, t0, t1, opt.sample_step_s)
-            .map_err(|e| run_error(format!("{}: setup sample: {e}", path.name)))?;
-        setup.push(max_error(&laid, desired));
-    }
+    let corners = robot_path_error(
+        tube, &start, &poses, trace, window, transform, desired, quantised,
+    )?;
+    let mut setup = setup_errors(path, tube, cal, trace, &mandrel, window, opt, setup_info)?;
     setup.sort_by(f64::total_cmp);
     let quantile = |q: f64| -> Option<f64> {
         (!setup.is_empty()).then(|| {
