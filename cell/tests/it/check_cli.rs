@@ -3,7 +3,7 @@
 
 use crate::common;
 
-use common::{example, windcell};
+use common::{example, stderr, windcell};
 
 #[test]
 fn the_analytic_examples_check_clear() {
@@ -163,4 +163,67 @@ fn run_of_a_sequence_is_gated_by_the_plan_and_the_check_of_its_job() {
     let first = std::fs::read_to_string(&journal).unwrap();
     let begin: serde_json::Value = serde_json::from_str(first.lines().next().unwrap()).unwrap();
     assert_eq!(begin["force"], true);
+}
+
+/// `check --svg` draws Figure 5.9 as a document another reader accepts: Python's XML parser
+/// reads it, and finds the two views with their mm axes (a tick at 0 mm), the rotation axis,
+/// a legend entry per path, and the findings in red only where the check found some.
+#[test]
+fn check_svg_is_a_figure_with_axes_legend_and_findings() {
+    let dir = tempfile::tempdir().unwrap();
+    let reader = r##"
+import sys, xml.etree.ElementTree as ET
+ns = {"s": "http://www.w3.org/2000/svg"}
+root = ET.parse(sys.argv[1]).getroot()
+texts = [t.text or "" for t in root.iter("{http://www.w3.org/2000/svg}text")]
+red = [e for e in root.iter() if e.get("stroke") == "#d62728"]
+clips = root.findall(".//s:clipPath", ns)
+axis = [e for e in root.iter() if e.get("stroke-dasharray") == "10 3 2 3"]
+print(len(clips), len(red), len(axis), "0" in texts,
+      sum("side view" in t for t in texts), "|".join(t for t in texts if t.startswith("eye path")))
+"##;
+    let read = |svg: &std::path::Path| -> String {
+        let o = std::process::Command::new("python3")
+            .args(["-c", reader, svg.to_str().unwrap()])
+            .output()
+            .expect("python3 runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).trim().to_string()
+    };
+    let hit = dir.path().join("hit.svg");
+    let o = windcell(&[
+        "check",
+        example("arm-hits-frame.toml").to_str().unwrap(),
+        "--svg",
+        hit.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    let seen = read(&hit);
+    let fields: Vec<&str> = seen.splitn(6, ' ').collect();
+    assert_eq!(fields[0], "2", "two clipped views: {seen}");
+    assert!(
+        fields[1].parse::<usize>().unwrap() > 2,
+        "findings in red: {seen}"
+    );
+    // The rotation axis in the side view and the legend's sample of it.
+    assert_eq!(fields[2], "2", "{seen}");
+    assert_eq!(fields[3], "True", "a tick at 0 mm: {seen}");
+    assert_eq!(fields[4], "1", "{seen}");
+    assert_eq!(
+        fields[5], "eye path, CYLFRAME_1|eye path, CYLFRAME_2",
+        "{seen}"
+    );
+    let clean = dir.path().join("clean.svg");
+    let o = windcell(&[
+        "check",
+        example("sbend.toml").to_str().unwrap(),
+        "--svg",
+        clean.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let seen = read(&clean);
+    let fields: Vec<&str> = seen.splitn(6, ' ').collect();
+    // Only the legend's sample is red where nothing was found.
+    assert_eq!(fields[1], "1", "{seen}");
+    assert_eq!(fields[5], "eye path, SBEND_1|eye path, SBEND_2", "{seen}");
 }
