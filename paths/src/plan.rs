@@ -264,6 +264,10 @@ fn start_tangent(points: &[SurfacePoint]) -> Vector3<f64> {
 
 /// Plans one path through `points` (equal-length segment ends on the mandrel, mandrel frame).
 /// `clearance_mm` gives a point's distance to the mandrel surface (negative inside).
+///
+/// Three passes: the eye and eq 3.7's angle at every point ([`eyes_and_angles`]); the steps with
+/// the remainder carried, the commanded angle and the arm's pose ([`Poser`]); the segments'
+/// times and speeds ([`timed_segments`]).
 pub fn plan(
     points: &[SurfacePoint],
     clearance_mm: impl Fn(&Point3<f64>) -> f64,
@@ -282,8 +286,58 @@ pub fn plan(
     let cell: CellTransform = setup
         .calibration
         .transform(setup.robot_distance_mm, setup.mandrel_height_mm);
-    let b = cell.robot_distance_mm;
+    let prepared = eyes_and_angles(points, setup, cell.robot_distance_mm)?;
 
+    // Pass 2: steps (remainder carried), the commanded angle, the cell-frame pose, the arm.
+    let step_angle = setup.gearing.step_angle_rad();
+    let phi0 = prepared[0].ideal;
+    let mut poser = Poser {
+        points,
+        prepared: &prepared,
+        cell: &cell,
+        setup,
+        clearance_mm: &clearance_mm,
+        min_clearance: f64::INFINITY,
+        max_entry: 0.0,
+    };
+    // The elbow branch: up if it takes the start pose within the ranges, else down; kept.
+    let ((start, start_trig), elbow) = match poser.pose(0, phi0, ElbowBranch::Up, None) {
+        Ok(pose) => (pose, ElbowBranch::Up),
+        Err(up) => match poser.pose(0, phi0, ElbowBranch::Down, None) {
+            Ok(pose) => (pose, ElbowBranch::Down),
+            Err(_) => return Err(up),
+        },
+    };
+    let mut carrier = RemainderCarrier::default();
+    let mut max_drift_rad = 0.0f64;
+    let mut poses: Vec<(Pose, i64, JointTrig)> = Vec::with_capacity(points.len() - 1);
+    for (k, prep) in prepared.iter().enumerate().skip(1) {
+        let steps = carrier.next(setup.gearing.steps(prep.ideal - phi0));
+        let commanded = phi0 + carrier.commanded as f64 * step_angle;
+        max_drift_rad = max_drift_rad.max((commanded - prep.ideal).abs());
+        let prev = poses.last().map_or(&start, |(p, _, _)| p);
+        let (pose, trig) = poser.pose(k, commanded, elbow, Some(prev))?;
+        poses.push((pose, steps, trig));
+    }
+    let (min_clearance, max_entry) = (poser.min_clearance, poser.max_entry);
+
+    // Pass 3: the segments' times and speeds.
+    let segments = timed_segments(&start, &start_trig, &poses, setup, speeds)?;
+    Ok(PathPlan {
+        sync_drive_rad: setup.calibration.drive_angle_rad(start.mandrel_rad),
+        start,
+        segments,
+        elbow,
+        max_drift_rad,
+        min_eye_clearance_mm: min_clearance,
+        max_entry_angle_rad: max_entry,
+    })
+}
+
+/// Pass 1: the eye in the mandrel frame (eqs 3.8–3.14; the start eye on the path's tangent) and
+/// eq 3.7's angle at every point, unwrapped by the path's own angle around the spine, on the
+/// flank that keeps the eye between the robot (at `b` mm) and the mandrel.
+fn eyes_and_angles(points: &[SurfacePoint], setup: &Setup, b: f64) -> Result<Vec<Prepared>, Error> {
     // The flank that keeps the eye between the robot and the mandrel: the fibre must travel toward
     // the robot, i.e. along the counter-clockwise horizontal tangent on the left flank.
     let n0 = points[0].normal;
@@ -297,9 +351,6 @@ pub fn plan(
         Flank::Left => FRAC_PI_2,
         Flank::Right => -FRAC_PI_2,
     };
-
-    // Pass 1: the eye in the mandrel frame (eqs 3.8–3.14; the start eye on the path's tangent) and
-    // eq 3.7's angle at every point, unwrapped by the path's own angle around the spine.
     let mut prepared: Vec<Prepared> = Vec::with_capacity(points.len());
     for (k, p) in points.iter().enumerate() {
         let eye = if k == 0 {
@@ -341,19 +392,33 @@ pub fn plan(
         });
     }
 
-    // Pass 2: steps (remainder carried), the commanded angle, the cell-frame pose, the arm.
-    let step_angle = setup.gearing.step_angle_rad();
-    let arm = &setup.arm;
-    let phi0 = prepared[0].ideal;
-    let mut min_clearance = f64::INFINITY;
-    let mut max_entry = 0.0f64;
-    let pose_at = |k: usize,
-                   commanded: f64,
-                   branch: ElbowBranch,
-                   previous: Option<&Pose>,
-                   min_clearance: &mut f64,
-                   max_entry: &mut f64| {
-        let prep = &prepared[k];
+    Ok(prepared)
+}
+
+/// Pass 2's pose at one point: the eye and the tow line in the cell frame at the commanded
+/// mandrel angle, the arm through them (eq 3.7's plane, App. A's wrist), every check of the
+/// pose; it keeps the least eye clearance and the largest entry angle of the poses it made.
+struct Poser<'a, F> {
+    points: &'a [SurfacePoint],
+    prepared: &'a [Prepared],
+    cell: &'a CellTransform,
+    setup: &'a Setup,
+    clearance_mm: &'a F,
+    min_clearance: f64,
+    max_entry: f64,
+}
+
+impl<F: Fn(&Point3<f64>) -> f64> Poser<'_, F> {
+    /// The pose at point `k` with the mandrel at `commanded` rad, on `branch`, continuous with
+    /// `previous`.
+    fn pose(
+        &mut self,
+        k: usize,
+        commanded: f64,
+        branch: ElbowBranch,
+        previous: Option<&Pose>,
+    ) -> Result<(Pose, JointTrig), Error> {
+        let prep = &self.prepared[k];
         // R_z(commanded) = R_z(ideal) R_z(δ), |δ| ≤ half a step: sin δ, cos δ by their series
         // (the next terms are below 1e-17 for a step of 0.2°).
         let delta = commanded - prep.ideal;
@@ -363,10 +428,12 @@ pub fn plan(
             prep.cos * cos_d - prep.sin * sin_d,
             prep.sin * cos_d + prep.cos * sin_d,
         );
-        let rotate =
-            |p: &Point3<f64>| cell.to_cell(&Point3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z));
+        let rotate = |p: &Point3<f64>| {
+            self.cell
+                .to_cell(&Point3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z))
+        };
         let eye_mm = rotate(&prep.eye);
-        let tow = (rotate(&points[k].point) - eye_mm).normalize();
+        let tow = (rotate(&self.points[k].point) - eye_mm).normalize();
         // The arm plane through the pedestal axis and the eye; the roll axis is the tow line's
         // projection onto it.
         let radial = eye_mm.coords.xy();
@@ -381,6 +448,7 @@ pub fn plan(
         let out = tow.dot(&normal);
         let roll_axis = Unit::new_normalize(tow - normal * out);
         let entry_angle_rad = out.abs().min(1.0).asin();
+        let arm = &self.setup.arm;
         let (joints, trig) = arm
             .inverse_with_trig(&eye_mm, &roll_axis, FRAC_PI_2, branch)
             .and_then(|(j, t)| arm.check_joints(&j).map(|()| (j, t)))
@@ -389,30 +457,30 @@ pub fn plan(
             arm.check_continuity(&prev.joints, &joints)
                 .map_err(|e| arm_error(e, k))?;
         }
-        if entry_angle_rad > setup.entry_angle_max_rad {
+        if entry_angle_rad > self.setup.entry_angle_max_rad {
             return Err(Error::EntryAngle {
                 segment: k,
                 angle_deg: entry_angle_rad.to_degrees(),
-                limit_deg: setup.entry_angle_max_rad.to_degrees(),
+                limit_deg: self.setup.entry_angle_max_rad.to_degrees(),
             });
         }
-        let clearance = clearance_mm(&prep.eye);
+        let clearance = (self.clearance_mm)(&prep.eye);
         if clearance <= 0.0 || clearance.is_nan() {
             return Err(Error::EyeInsideMandrel {
                 segment: k,
                 clearance_mm: clearance,
             });
         }
-        *min_clearance = min_clearance.min(clearance);
-        *max_entry = max_entry.max(entry_angle_rad);
+        self.min_clearance = self.min_clearance.min(clearance);
+        self.max_entry = self.max_entry.max(entry_angle_rad);
         // A continuous function of the joints (half-angle sines and cosines, never wrapped), so
         // joints checked for continuity give quaternions that never flip sign between poses.
         let wrist_q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), joints.base_yaw_rad)
             * wrist::from_pitch_roll(joints.app_a_pitch_rad(), joints.roll_rad);
         Ok::<(Pose, JointTrig), Error>((
             Pose {
-                tangent_point_mm: points[k].point,
-                normal: points[k].normal,
+                tangent_point_mm: self.points[k].point,
+                normal: self.points[k].normal,
                 eye_mandrel_mm: prep.eye,
                 eye_mm,
                 joints,
@@ -423,49 +491,19 @@ pub fn plan(
             },
             trig,
         ))
-    };
-    // The elbow branch: up if it takes the start pose within the ranges, else down; kept.
-    let ((start, start_trig), elbow) = match pose_at(
-        0,
-        phi0,
-        ElbowBranch::Up,
-        None,
-        &mut min_clearance,
-        &mut max_entry,
-    ) {
-        Ok(pose) => (pose, ElbowBranch::Up),
-        Err(up) => match pose_at(
-            0,
-            phi0,
-            ElbowBranch::Down,
-            None,
-            &mut min_clearance,
-            &mut max_entry,
-        ) {
-            Ok(pose) => (pose, ElbowBranch::Down),
-            Err(_) => return Err(up),
-        },
-    };
-    let mut carrier = RemainderCarrier::default();
-    let mut max_drift_rad = 0.0f64;
-    let mut poses: Vec<(Pose, i64, JointTrig)> = Vec::with_capacity(points.len() - 1);
-    for (k, prep) in prepared.iter().enumerate().skip(1) {
-        let steps = carrier.next(setup.gearing.steps(prep.ideal - phi0));
-        let commanded = phi0 + carrier.commanded as f64 * step_angle;
-        max_drift_rad = max_drift_rad.max((commanded - prep.ideal).abs());
-        let prev = poses.last().map_or(&start, |(p, _, _)| p);
-        let (pose, trig) = pose_at(
-            k,
-            commanded,
-            elbow,
-            Some(prev),
-            &mut min_clearance,
-            &mut max_entry,
-        )?;
-        poses.push((pose, steps, trig));
     }
+}
 
-    // Pass 3: the segments' times and speeds.
+/// Pass 3: each segment's time (the mandrel's profile; in discrete movement slowed to the robot,
+/// in program movement refused where the robot cannot keep up) and the robot's speed.
+fn timed_segments(
+    start: &Pose,
+    start_trig: &JointTrig,
+    poses: &[(Pose, i64, JointTrig)],
+    setup: &Setup,
+    speeds: &Speeds,
+) -> Result<Vec<Segment>, Error> {
+    let arm = &setup.arm;
     let steps_per_rev = setup.gearing.steps_per_mandrel_rev();
     let total_steps: u64 = poses.iter().map(|(_, s, _)| s.unsigned_abs()).sum();
     let mut covered = 0u64;
@@ -474,7 +512,7 @@ pub fn plan(
     for (i, (pose, steps, trig)) in poses.iter().enumerate() {
         let k = i + 1;
         let (prev, prev_trig) = if i == 0 {
-            (&start, &start_trig)
+            (start, start_trig)
         } else {
             (&poses[i - 1].0, &poses[i - 1].2)
         };
@@ -571,15 +609,7 @@ pub fn plan(
             robot_paced,
         });
     }
-    Ok(PathPlan {
-        sync_drive_rad: setup.calibration.drive_angle_rad(start.mandrel_rad),
-        start,
-        segments,
-        elbow,
-        max_drift_rad,
-        min_eye_clearance_mm: min_clearance,
-        max_entry_angle_rad: max_entry,
-    })
+    Ok(segments)
 }
 
 /// Whether every segment of one mandrel move through `total` steps, the segments ending at the
