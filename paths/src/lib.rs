@@ -5,6 +5,7 @@
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
+pub mod arm;
 pub mod calibration;
 pub mod clearance;
 pub mod control;
