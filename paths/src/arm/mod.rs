@@ -531,6 +531,18 @@ impl SixAxisArm {
         }
     }
 
+    /// A built-in OPW arm by model name (`docs/arms.md`) with the tool, default radii and margins.
+    pub fn opw_preset(model: &str, tool: Tool) -> Result<Self, Error> {
+        let p = opw::named(model)?;
+        Ok(SixAxisArm::new(SixAxisKind::Opw(p.opw), p.limits(), tool))
+    }
+
+    /// A built-in UR arm by model name with the tool, default radii and margins.
+    pub fn ur_preset(model: &str, tool: Tool) -> Result<Self, Error> {
+        let p = ur::named(model)?;
+        Ok(SixAxisArm::new(SixAxisKind::Ur(p.ur), p.limits(), tool))
+    }
+
     /// Checks the kinematics, limits, tool, radii and margins.
     pub fn validate(&self) -> Result<(), Error> {
         self.kind.validate()?;

@@ -164,6 +164,15 @@ pub fn preset(model: &str) -> Option<&'static OpwPreset> {
         .find(|p| p.model.eq_ignore_ascii_case(model))
 }
 
+/// The built-in arm of that model name, or [`Error::UnknownArmModel`] listing the known ones.
+pub fn named(model: &str) -> Result<&'static OpwPreset, Error> {
+    preset(model).ok_or_else(|| Error::UnknownArmModel {
+        kind: "opw",
+        model: model.to_string(),
+        known: preset_names(),
+    })
+}
+
 /// The built-in model names, for messages.
 pub fn preset_names() -> String {
     OPW_PRESETS

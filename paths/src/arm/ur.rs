@@ -25,7 +25,9 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
-use super::{Config, Elbow, Joints6, Pose6, Shoulder, SixAxisFault, Solutions, Wrist, wrap};
+use super::{
+    Config, Elbow, JointLimits6, Joints6, Pose6, Shoulder, SixAxisFault, Solutions, Wrist, wrap,
+};
 use crate::Error;
 
 /// A UR arm's DH lengths, mm (signs as in UR's table).
@@ -111,6 +113,15 @@ pub fn preset(model: &str) -> Option<&'static UrPreset> {
         .find(|p| p.model.eq_ignore_ascii_case(model))
 }
 
+/// The built-in arm of that model name, or [`Error::UnknownArmModel`] listing the known ones.
+pub fn named(model: &str) -> Result<&'static UrPreset, Error> {
+    preset(model).ok_or_else(|| Error::UnknownArmModel {
+        kind: "ur",
+        model: model.to_string(),
+        known: preset_names(),
+    })
+}
+
 /// The built-in model names, for messages.
 pub fn preset_names() -> String {
     UR_PRESETS
@@ -118,6 +129,17 @@ pub fn preset_names() -> String {
         .map(|p| format!("\"{}\"", p.model))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+impl UrPreset {
+    /// ±[`UR_JOINT_RANGE_DEG`] on every joint, with the preset's speeds.
+    pub fn limits(&self) -> JointLimits6 {
+        JointLimits6::degrees(
+            [-UR_JOINT_RANGE_DEG; 6],
+            [UR_JOINT_RANGE_DEG; 6],
+            Some(self.joint_speed_deg_s),
+        )
+    }
 }
 
 const ALPHA: [f64; 6] = [FRAC_PI_2, 0.0, 0.0, FRAC_PI_2, -FRAC_PI_2, 0.0];
@@ -324,8 +346,9 @@ mod tests {
         );
     }
 
-    /// All joints zero: UR's zero pose stretches the arm along base −x (a2 + a3), the wrist
-    /// `d4` along −y... the flange sits at `(a2 + a3, −(d4 + d6), d1 − d5)` (UR's DH figure).
+    /// All joints zero: UR's zero pose stretches the arm along the base `x` by `a2 + a3` (both
+    /// negative), offsets the wrist by `d4` and the flange by `d6` along −y and lowers it by
+    /// `d5`: the flange at `(a2 + a3, −(d4 + d6), d1 − d5)` (UR's DH figure).
     #[test]
     fn zero_pose_matches_the_dh_figure() {
         let u = UR_PRESETS[0].ur;
