@@ -647,10 +647,15 @@ impl ArmModel {
     }
 }
 
-/// Wraps an angle into (−π, π].
+/// Wraps an angle into (−π, π] (one add for angles within two turns, which is what sums of
+/// arctangents give; a floating remainder otherwise).
 pub(crate) fn wrap(a: f64) -> f64 {
     if a > -PI && a <= PI {
         a
+    } else if a > PI && a <= PI + TAU {
+        a - TAU
+    } else if a <= -PI && a > -PI - TAU {
+        a + TAU
     } else {
         let w = a.rem_euclid(TAU);
         if w > PI { w - TAU } else { w }

@@ -357,9 +357,9 @@ impl Opw {
         };
         for c in [0, 2, 4, 6] {
             let config = super::Config::from_index(c);
-            if let Ok((q, flip)) = self.inverse_pair(flange, config) {
-                s.joints[c] = q;
-                s.joints[c + 1] = flip;
+            if let Ok(m) = self.model_solution(flange, config) {
+                s.joints[c] = self.joints(&m);
+                s.joints[c + 1] = self.joints(&flipped(&m));
                 s.valid[c] = true;
                 s.valid[c + 1] = true;
             }
@@ -369,23 +369,26 @@ impl Opw {
 
     /// One branch.
     pub fn inverse_branch(&self, flange: &Pose6, config: Config) -> Result<Joints6, SixAxisFault> {
-        let (q, flip) = self.inverse_pair(flange, config)?;
+        let m = self.model_solution(flange, config)?;
         Ok(match config.wrist {
-            Wrist::NoFlip => q,
-            Wrist::Flip => flip,
+            Wrist::NoFlip => self.joints(&m),
+            Wrist::Flip => self.joints(&flipped(&m)),
         })
     }
 
-    /// The no-flip and flip solutions of the configuration's shoulder and elbow.
-    fn inverse_pair(
-        &self,
-        flange: &Pose6,
-        config: Config,
-    ) -> Result<(Joints6, Joints6), SixAxisFault> {
+    /// The controller's angles from model angles, each wrapped into (−π, π].
+    fn joints(&self, m: &Joints6) -> Joints6 {
+        std::array::from_fn(|i| self.joint(m[i], i))
+    }
+
+    /// The model angles of the configuration's shoulder and elbow with the wrist's no-flip
+    /// solution (`q5 ∈ [0, π]`). Sines and cosines are carried as unit complex numbers (sums of
+    /// angles as products), so that each angle costs one arctangent.
+    fn model_solution(&self, flange: &Pose6, config: Config) -> Result<Joints6, SixAxisFault> {
         let r = &flange.rotation;
         let z = r.column(2);
         let c = flange.translation_mm - z * self.c4_mm;
-        let (k, psi3) = self.forearm();
+        let k = (self.a2_mm * self.a2_mm + self.c3_mm * self.c3_mm).sqrt();
         let rho2 = c.x * c.x + c.y * c.y - self.b_mm * self.b_mm;
         let cz1 = c.z - self.c1_mm;
         let out_of_reach = |distance_mm: f64| SixAxisFault::OutOfReach {
@@ -394,17 +397,21 @@ impl Opw {
             min_mm: (self.c2_mm - k).abs(),
             max_mm: self.c2_mm + k,
         };
-        if rho2 < 0.0 {
-            // The wrist centre lies inside the cylinder of radius |b| about axis 1.
+        if rho2 < 0.0 || (rho2 == 0.0 && self.b_mm == 0.0) {
+            // The wrist centre lies inside the cylinder of radius |b| about axis 1 (or on axis
+            // 1, where q1 is undefined).
             return Err(out_of_reach(cz1.hypot(self.a1_mm)));
         }
         let rho = rho2.sqrt();
-        let heading = c.y.atan2(c.x);
-        // The wrist centre in the arm plane, from axis 2: (x, z) with x along the arm's own +x.
-        let (q1, x) = match config.shoulder {
-            Shoulder::Front => (heading - self.b_mm.atan2(rho), rho - self.a1_mm),
-            Shoulder::Back => (heading + self.b_mm.atan2(rho) - PI, -rho - self.a1_mm),
+        // Rz(q1)·(±ρ, b) = (cx, cy): (cos q1, sin q1) = (cx, cy)·(±ρ, −b) / (ρ² + b²).
+        let (sign, x) = match config.shoulder {
+            Shoulder::Front => (1.0, rho - self.a1_mm),
+            Shoulder::Back => (-1.0, -rho - self.a1_mm),
         };
+        let n2 = rho2 + self.b_mm * self.b_mm;
+        let (ux, uy) = (sign * rho, self.b_mm);
+        let c1 = (c.x * ux + c.y * uy) / n2;
+        let s1 = (c.y * ux - c.x * uy) / n2;
         let s2 = x * x + cz1 * cz1;
         let cos_b = (s2 - self.c2_mm * self.c2_mm - k * k) / (2.0 * self.c2_mm * k);
         if !(-1.0..=1.0).contains(&cos_b) {
@@ -414,14 +421,17 @@ impl Opw {
             Elbow::Up => ((1.0 - cos_b) * (1.0 + cos_b)).sqrt(),
             Elbow::Down => -((1.0 - cos_b) * (1.0 + cos_b)).sqrt(),
         };
-        // β = q3 + ψ3, the forearm's turn from the upper arm's line; the wrist direction from
-        // axis 2 (measured from z toward x) is q2 + atan2(k sin β, c2 + k cos β).
-        let beta = sin_b.atan2(cos_b);
-        let q3 = beta - psi3;
-        let q2 = x.atan2(cz1) - (k * sin_b).atan2(self.c2_mm + k * cos_b);
-        let q23 = q2 + q3;
-        let (s1, c1) = q1.sin_cos();
-        let (s23, c23) = q23.sin_cos();
+        // β = q3 + ψ3, the forearm's turn from the upper arm's line (ψ3 = atan2(a2, c3)); the
+        // wrist direction from axis 2, measured from z toward x, is q2 + atan2(k sin β,
+        // c2 + k cos β): q2 = arg(cz1 + i·x) − arg(c2 + k cos β + i·k sin β).
+        let (sp, cp) = (self.a2_mm / k, self.c3_mm / k);
+        let (s3, c3) = (sin_b * cp - cos_b * sp, cos_b * cp + sin_b * sp);
+        let (wr, wi) = (cz1, x);
+        let (tr, ti) = (self.c2_mm + k * cos_b, k * sin_b);
+        let (q2r, q2i) = (wr * tr + wi * ti, wi * tr - wr * ti);
+        let q2n = (q2r * q2r + q2i * q2i).sqrt();
+        let (c2, s2_) = (q2r / q2n, q2i / q2n);
+        let (c23, s23) = (c2 * c3 - s2_ * s3, s2_ * c3 + c2 * s3);
         // M = (Rz(q1)·Ry(q23))ᵀ·R: its third column and third row give the wrist angles.
         let col1 = Vector3::new(c1 * c23, s1 * c23, -s23);
         let col2 = Vector3::new(-s1, c1, 0.0);
@@ -431,7 +441,7 @@ impl Opw {
         let m33 = col3.dot(&z);
         let m31 = col3.dot(&r.column(0));
         let m32 = col3.dot(&r.column(1));
-        let sin5 = m13.hypot(m23);
+        let sin5 = (m13 * m13 + m23 * m23).sqrt();
         let (q4, q5, q6) = if sin5 > 1e-12 {
             (m23.atan2(m13), sin5.atan2(m33), m32.atan2(-m31))
         } else {
@@ -444,13 +454,13 @@ impl Opw {
                 (0.0, PI, m21.atan2(-m11))
             }
         };
-        let model = [q1, q2, q3, q4, q5, q6];
-        let flipped = [q1, q2, q3, q4 + PI, -q5, q6 + PI];
-        Ok((
-            std::array::from_fn(|i| self.joint(model[i], i)),
-            std::array::from_fn(|i| self.joint(flipped[i], i)),
-        ))
+        Ok([s1.atan2(c1), q2i.atan2(q2r), s3.atan2(c3), q4, q5, q6])
     }
+}
+
+/// The wrist's other solution: `q4 + π, −q5, q6 + π`.
+fn flipped(m: &Joints6) -> Joints6 {
+    [m[0], m[1], m[2], m[3] + PI, -m[4], m[5] + PI]
 }
 
 #[cfg(test)]

@@ -12,9 +12,14 @@
 //! # Method
 //! The tool's `x` axis is carried from pose to pose by the least rotation that takes the previous
 //! tow direction onto the next (its part perpendicular to the new direction, normalised); the
-//! free turn `Δ` is measured from there. At each pose the solver evaluates `Δ = 0` and `±1°`,
-//! walks (doubling the step) in the direction in which the joint time falls while it falls, and
-//! only when none of the three is admissible scans the whole turn in 5° steps. The first pose's
+//! free turn `Δ` is measured from there. The least joint time is tracked along the path: each
+//! pose starts from the turn the previous pose took (`Δ_g`) and probes one step ahead in the
+//! direction that last helped (`Δ_g ± s`); a probe that lowers the joint time is taken and the
+//! step doubles (up to 15°), otherwise the other side is probed, and if neither helps `Δ_g` is
+//! kept and the step halves (down to 0.25°). Two or three inverse kinematics per pose; since the
+//! best turn moves smoothly along a smooth path, the tracked turn follows it (a test compares it
+//! with a fine scan). Only when none of the probes is admissible is the whole turn scanned in 5°
+//! steps. The first pose's
 //! turn is the one (in 10° steps) with the greatest least margin, to the limits and to the wrist
 //! singularity; the configurations are tried in the order of that margin at up to five poses
 //! spread along the path (a `prefer`red one first), each from up to three starting turns, and
@@ -131,12 +136,37 @@ const RANK_STEPS: usize = 12;
 const RANK_POSES: usize = 5;
 const STARTS: usize = 3;
 
-/// A candidate pose: the joints and the tool `x` axis that gave them.
+/// A candidate pose: the joints, the tool `x` axis that gave them, their joint time from the
+/// previous pose and the turn from the carried `x` axis.
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
     q: Joints6,
     x: Vector3<f64>,
     cost: f64,
+    delta: f64,
+}
+
+/// The least and greatest probe of the tracking search, rad.
+const MIN_TRACK_STEP_RAD: f64 = PI / 720.0;
+const MAX_TRACK_STEP_RAD: f64 = PI / 12.0;
+
+/// The tracking search's state: the turn taken at the last pose (beyond the carried `x` axis),
+/// the probe and its direction.
+#[derive(Debug, Clone, Copy)]
+struct Tracker {
+    turn: f64,
+    step: f64,
+    sign: f64,
+}
+
+impl Default for Tracker {
+    fn default() -> Self {
+        Tracker {
+            turn: 0.0,
+            step: LOCAL_STEP_RAD,
+            sign: 1.0,
+        }
+    }
 }
 
 /// A unit vector perpendicular to `d`.
@@ -196,11 +226,28 @@ impl SixAxisArm {
                 Some(r) => r[i],
                 None => 0.5 * (self.limits.min_rad[i] + self.limits.max_rad[i]),
             };
-            let near = raw[i] + ((target - raw[i]) / TAU).round() * TAU;
-            let best = [near, near - TAU, near + TAU]
-                .into_iter()
-                .filter(|v| *v >= lo && *v <= hi)
-                .min_by(|a, b| (a - target).abs().total_cmp(&(b - target).abs()));
+            // The whole-turn shift of the angle nearest the target, then the in-range one of
+            // it and its neighbours nearest the target.
+            let mut near = raw[i];
+            let gap = target - near;
+            if gap > PI || gap < -PI {
+                near += (gap / TAU).round() * TAU;
+            }
+            let best = if near >= lo && near <= hi {
+                Some(near)
+            } else {
+                let (below, above) = (near - TAU, near + TAU);
+                match (below >= lo && below <= hi, above >= lo && above <= hi) {
+                    (true, true) => Some(if target - below < above - target {
+                        below
+                    } else {
+                        above
+                    }),
+                    (true, false) => Some(below),
+                    (false, true) => Some(above),
+                    (false, false) => None,
+                }
+            };
             match best {
                 Some(v) => q[i] = v,
                 None => {
@@ -352,8 +399,8 @@ impl SixAxisArm {
         order
     }
 
-    /// The next pose after `prev` (joints) with tool `x` axis `x_prev`: the least joint time
-    /// among admissible turns (module documentation).
+    /// The next pose after `prev` (joints) with tool `x` axis `x_prev`: the admissible turn
+    /// that needs the least joint time, tracked from pose to pose (module documentation).
     fn next_pose(
         &self,
         t: &EyeTarget,
@@ -361,6 +408,7 @@ impl SixAxisArm {
         config: Config,
         prev: &Joints6,
         x_prev: &Vector3<f64>,
+        track: &mut Tracker,
     ) -> Result<Candidate, SixAxisFault> {
         let d = t.tow.into_inner();
         let x0 = transported(x_prev, &d);
@@ -373,47 +421,40 @@ impl SixAxisArm {
                 q,
                 x,
                 cost: self.step_cost(prev, &q),
+                delta,
             })
         };
-        let centre = eval(0.0);
-        let plus = eval(LOCAL_STEP_RAD);
-        let minus = eval(-LOCAL_STEP_RAD);
-        let mut best: Option<(f64, Candidate)> = None;
-        for (delta, c) in [
-            (0.0, &centre),
-            (LOCAL_STEP_RAD, &plus),
-            (-LOCAL_STEP_RAD, &minus),
-        ] {
-            if let Ok(c) = c
-                && best.is_none_or(|(_, b)| c.cost < b.cost)
+        let better =
+            |a: &Result<Candidate, SixAxisFault>, b: &Result<Candidate, SixAxisFault>| match (a, b)
             {
-                best = Some((delta, *c));
+                (Ok(a), Ok(b)) => a.cost < b.cost,
+                (Ok(_), Err(_)) => true,
+                _ => false,
+            };
+        let guess = eval(track.turn);
+        let ahead = eval(track.turn + track.sign * track.step);
+        let chosen = if better(&ahead, &guess) {
+            track.step = (track.step * 2.0).min(MAX_TRACK_STEP_RAD);
+            ahead
+        } else {
+            let behind = eval(track.turn - track.sign * track.step);
+            if better(&behind, &guess) {
+                track.sign = -track.sign;
+                behind
+            } else {
+                track.step = (track.step * 0.5).max(MIN_TRACK_STEP_RAD);
+                guess
             }
-        }
-        if let Some((delta, mut b)) = best {
-            if delta != 0.0 {
-                // Walk on while the joint time falls.
-                let mut step = delta;
-                let mut at = delta;
-                while step.abs() < PI {
-                    step *= 2.0;
-                    match eval(at + step) {
-                        Ok(c) if c.cost < b.cost => {
-                            b = c;
-                            at += step;
-                        }
-                        _ => break,
-                    }
-                }
+        };
+        let fault = match chosen {
+            Ok(c) => {
+                track.turn = c.delta;
+                return Ok(c);
             }
-            return Ok(b);
-        }
-        let fault = match centre {
             Err(f) => f,
-            Ok(c) => return Ok(c),
         };
         let mut scanned: Option<Candidate> = None;
-        for k in 1..SCAN_STEPS {
+        for k in 0..SCAN_STEPS {
             let delta = k as f64 * TAU / SCAN_STEPS as f64;
             if let Ok(c) = eval(delta)
                 && scanned.is_none_or(|b| c.cost < b.cost)
@@ -421,7 +462,13 @@ impl SixAxisArm {
                 scanned = Some(c);
             }
         }
-        scanned.ok_or(fault)
+        match scanned {
+            Some(c) => {
+                *track = Tracker::default();
+                Ok(c)
+            }
+            None => Err(fault),
+        }
     }
 
     /// Solves a whole path (module documentation): one configuration, joints within the margins
@@ -522,10 +569,11 @@ impl SixAxisArm {
         let mut joints = Vec::with_capacity(targets.len());
         joints.push(q0);
         let mut x = *x_start;
+        let mut track = Tracker::default();
         for (i, t) in targets.iter().enumerate().skip(1) {
             let prev = joints[i - 1];
             let c = self
-                .next_pose(t, tool, config, &prev, &x)
+                .next_pose(t, tool, config, &prev, &x, &mut track)
                 .map_err(|f| (i, f))?;
             joints.push(c.q);
             x = c.x;

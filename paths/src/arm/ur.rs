@@ -21,7 +21,7 @@
 //!   down);
 //! - `θ2 + θ3 + θ4` is the angle of `x4 = cos θ5·x5 − sin θ5·z6` in that plane.
 
-use std::f64::consts::{FRAC_PI_2, PI};
+use std::f64::consts::FRAC_PI_2;
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
@@ -271,13 +271,15 @@ impl Ur {
         if rho < self.d4_mm.abs() || rho == 0.0 {
             return Err(out_of_reach((p5.z - self.d1_mm).abs()));
         }
-        let psi = p5.y.atan2(p5.x);
-        let phi = (self.d4_mm / rho).asin();
-        let t1 = match config.shoulder {
-            Shoulder::Front => psi + phi,
-            Shoulder::Back => psi + PI - phi,
+        // θ1 = ψ + φ (front) or ψ + π − φ (back), sin φ = d4/ρ, cos φ ≥ 0: as complex numbers.
+        let (cpsi, spsi) = (p5.x / rho, p5.y / rho);
+        let sphi = self.d4_mm / rho;
+        let cphi = ((1.0 - sphi) * (1.0 + sphi)).sqrt();
+        let cphi = match config.shoulder {
+            Shoulder::Front => cphi,
+            Shoulder::Back => -cphi,
         };
-        let (s1, c1) = t1.sin_cos();
+        let (c1, s1) = (cpsi * cphi - spsi * sphi, spsi * cphi + cpsi * sphi);
         let z1 = Vector3::new(s1, -c1, 0.0);
         let x1 = Vector3::new(c1, s1, 0.0);
         let c5 = z6.dot(&z1).clamp(-1.0, 1.0);
@@ -286,13 +288,13 @@ impl Ur {
             Wrist::NoFlip => s5_abs,
             Wrist::Flip => -s5_abs,
         };
-        let t5 = s5.atan2(c5);
-        let t6 = if s5_abs > 1e-12 {
-            (-y6.dot(&z1) / s5).atan2(x6.dot(&z1) / s5)
+        let (s6, c6) = if s5_abs > 1e-12 {
+            let (a, b) = (-y6.dot(&z1) / s5, x6.dot(&z1) / s5);
+            let n = (a * a + b * b).sqrt();
+            (a / n, b / n)
         } else {
-            0.0
+            (0.0, 1.0)
         };
-        let (s6, c6) = t6.sin_cos();
         let x5 = x6 * c6 - y6 * s6;
         let z4 = -(x6 * s6 + y6 * c6);
         let x4 = x5 * c5 - z6 * s5;
@@ -309,10 +311,21 @@ impl Ur {
             Elbow::Up => s3_abs,
             Elbow::Down => -s3_abs,
         };
+        // θ2 = arg(px + i·py) − arg(a2 + a3 cos θ3 + i·a3 sin θ3); θ4 = arg(x4 in (x1, y1)) −
+        // θ2 − θ3.
+        let (tr, ti) = (a2 + a3 * c3, a3 * s3);
+        let (q2r, q2i) = (px * tr + py * ti, py * tr - px * ti);
+        let n2 = (q2r * q2r + q2i * q2i).sqrt();
+        let (c2, s2) = (q2r / n2, q2i / n2);
+        let (c23, s23) = (c2 * c3 - s2 * s3, s2 * c3 + c2 * s3);
+        let (xr, xi) = (x4.dot(&x1), x4.z);
+        let (q4r, q4i) = (xr * c23 + xi * s23, xi * c23 - xr * s23);
+        let t1 = s1.atan2(c1);
+        let t2 = q2i.atan2(q2r);
         let t3 = s3.atan2(c3);
-        let t2 = py.atan2(px) - (a3 * s3).atan2(a2 + a3 * c3);
-        let t234 = x4.z.atan2(x4.dot(&x1));
-        let t4 = t234 - t2 - t3;
+        let t4 = q4i.atan2(q4r);
+        let t5 = s5.atan2(c5);
+        let t6 = s6.atan2(c6);
         Ok([t1, t2, t3, t4, t5, t6].map(wrap))
     }
 }
