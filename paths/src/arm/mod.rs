@@ -647,6 +647,53 @@ impl ArmModel {
     }
 }
 
+/// `atan(k/8)` for k = 0..8 (correctly rounded).
+const ATAN_EIGHTHS: [f64; 9] = [
+    0.0,
+    0.124_354_994_546_761_44,
+    0.244_978_663_126_864_14,
+    0.358_770_670_270_572_25,
+    0.463_647_609_000_806_1,
+    0.558_599_315_343_562_4,
+    0.643_501_108_793_284_4,
+    0.718_829_999_621_624_5,
+    0.785_398_163_397_448_3,
+];
+
+/// `atan2(y, x)` for the inverse kinematics, within a few units in the last place of the
+/// library's (tested against it): the ratio of the smaller to the larger magnitude `t ∈ [0, 1]`
+/// is reduced by the nearest eighth `c` to `u = (t − c)/(1 + t·c)`, `|u| ≤ 1/16`, and
+/// `atan t = atan c + atan u` with the Taylor series of `atan u` to `u¹⁵` (remainder below
+/// `16⁻¹⁷/17 ≈ 2·10⁻²²`). A third of the library's instructions; zeros, infinities and NaN go
+/// to the library.
+#[inline]
+pub(crate) fn atan2(y: f64, x: f64) -> f64 {
+    let (ax, ay) = (x.abs(), y.abs());
+    if !(ax.max(ay) > 0.0 && ax.max(ay) < f64::INFINITY) {
+        return y.atan2(x);
+    }
+    let swap = ay > ax;
+    let t = if swap { ax / ay } else { ay / ax };
+    let k = (t * 8.0 + 0.5) as usize;
+    let c = k as f64 * 0.125;
+    let u = (t - c) / (1.0 + t * c);
+    let u2 = u * u;
+    let series = u
+        * (1.0
+            + u2 * (-1.0 / 3.0
+                + u2 * (1.0 / 5.0
+                    + u2 * (-1.0 / 7.0
+                        + u2 * (1.0 / 9.0 + u2 * (-1.0 / 11.0 + u2 * (1.0 / 13.0 - u2 / 15.0)))))));
+    let mut a = ATAN_EIGHTHS[k.min(8)] + series;
+    if swap {
+        a = std::f64::consts::FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = PI - a;
+    }
+    if y < 0.0 { -a } else { a }
+}
+
 /// Wraps an angle into (−π, π] (one add for angles within two turns, which is what sums of
 /// arctangents give; a floating remainder otherwise).
 pub(crate) fn wrap(a: f64) -> f64 {
@@ -676,6 +723,41 @@ mod tests {
             Config::from_index(5).to_string(),
             "back / elbow up / wrist flip"
         );
+    }
+
+    /// The fast arctangent against the library's over every octant and the edges.
+    #[test]
+    fn atan2_matches_the_library() {
+        let mut seed = 0x1234_5678_9abc_def0u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut worst: f64 = 0.0;
+        for _ in 0..200_000 {
+            let (y, x) = (next() * 1e3, next() * 1e3);
+            worst = worst.max((atan2(y, x) - y.atan2(x)).abs());
+        }
+        for (y, x) in [
+            (1.0, 1.0),
+            (-1.0, 1.0),
+            (1.0, -1.0),
+            (-1.0, -1.0),
+            (0.0, 1.0),
+            (0.0, -1.0),
+            (1.0, 0.0),
+            (-1.0, 0.0),
+            (1e-300, 1.0),
+            (1.0, 1e-300),
+            (3.0, 7.0 / 8.0 * 3.0),
+        ] {
+            worst = worst.max((atan2(y, x) - y.atan2(x)).abs());
+        }
+        assert!(worst < 2e-15, "{worst}");
+        assert!(atan2(f64::NAN, 1.0).is_nan());
+        assert_eq!(atan2(0.0, 0.0), 0.0);
     }
 
     #[test]

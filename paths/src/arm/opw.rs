@@ -21,7 +21,7 @@ use std::f64::consts::PI;
 use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::{Config, Elbow, JointLimits6, Joints6, Pose6, Shoulder, SixAxisFault, Solutions};
-use super::{Wrist, wrap};
+use super::{Wrist, atan2, wrap};
 use crate::Error;
 
 /// The geometry of an OPW arm, mm and rad.
@@ -443,18 +443,18 @@ impl Opw {
         let m32 = col3.dot(&r.column(1));
         let sin5 = (m13 * m13 + m23 * m23).sqrt();
         let (q4, q5, q6) = if sin5 > 1e-12 {
-            (m23.atan2(m13), sin5.atan2(m33), m32.atan2(-m31))
+            (atan2(m23, m13), atan2(sin5, m33), atan2(m32, -m31))
         } else {
             // Axes 4 and 6 in line: only q4 ± q6 is defined; q4 = 0.
             let m11 = col1.dot(&r.column(0));
             let m21 = col2.dot(&r.column(0));
             if m33 > 0.0 {
-                (0.0, 0.0, m21.atan2(m11))
+                (0.0, 0.0, atan2(m21, m11))
             } else {
-                (0.0, PI, m21.atan2(-m11))
+                (0.0, PI, atan2(m21, -m11))
             }
         };
-        Ok([s1.atan2(c1), q2i.atan2(q2r), s3.atan2(c3), q4, q5, q6])
+        Ok([atan2(s1, c1), atan2(q2i, q2r), atan2(s3, c3), q4, q5, q6])
     }
 }
 

@@ -169,6 +169,15 @@ impl Default for Tracker {
     }
 }
 
+/// The tool frame with its rotation transposed, as the pose search uses it (`R_flange =
+/// R_tool · R_toolᵀ-in-flange` once per candidate without a transpose).
+fn inverted_tool(tool: &Pose6) -> Pose6 {
+    Pose6 {
+        rotation: tool.rotation.transpose(),
+        translation_mm: tool.translation_mm,
+    }
+}
+
 /// A unit vector perpendicular to `d`.
 fn perpendicular(d: &Vector3<f64>) -> Vector3<f64> {
     let r = if d.x.abs() < 0.9 {
@@ -187,7 +196,8 @@ fn transported(x: &Vector3<f64>, d: &Vector3<f64>) -> Vector3<f64> {
 }
 
 impl SixAxisArm {
-    /// The flange pose that puts the tool frame at `eye` with axes `x`, `d × x`, `d`.
+    /// The flange pose that puts the tool frame at `eye` with axes `x`, `d × x`, `d`; `tool` is
+    /// the eye in the flange frame with its rotation **transposed** ([`inverted_tool`]).
     fn flange_for(
         &self,
         eye: &Point3<f64>,
@@ -197,7 +207,7 @@ impl SixAxisArm {
     ) -> Pose6 {
         let y = d.cross(x);
         let r_tool = Matrix3::from_columns(&[*x, y, *d]);
-        let rotation = r_tool * tool.rotation.transpose();
+        let rotation = r_tool * tool.rotation;
         Pose6 {
             translation_mm: eye.coords - rotation * tool.translation_mm,
             rotation,
@@ -494,7 +504,7 @@ impl SixAxisArm {
                 return Err(Error::NonFinitePoint { index: i });
             }
         }
-        let tool = self.tool.frame();
+        let tool = inverted_tool(&self.tool.frame());
         let mut furthest: Option<(usize, Config, SixAxisFault)> = None;
         for config in self.ranked_configs(targets, &tool, prefer) {
             let starts = self.starts(&targets[0], &tool, config);

@@ -26,7 +26,8 @@ use std::f64::consts::FRAC_PI_2;
 use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::{
-    Config, Elbow, JointLimits6, Joints6, Pose6, Shoulder, SixAxisFault, Solutions, Wrist, wrap,
+    Config, Elbow, JointLimits6, Joints6, Pose6, Shoulder, SixAxisFault, Solutions, Wrist, atan2,
+    wrap,
 };
 use crate::Error;
 
@@ -320,12 +321,12 @@ impl Ur {
         let (c23, s23) = (c2 * c3 - s2 * s3, s2 * c3 + c2 * s3);
         let (xr, xi) = (x4.dot(&x1), x4.z);
         let (q4r, q4i) = (xr * c23 + xi * s23, xi * c23 - xr * s23);
-        let t1 = s1.atan2(c1);
-        let t2 = q2i.atan2(q2r);
-        let t3 = s3.atan2(c3);
-        let t4 = q4i.atan2(q4r);
-        let t5 = s5.atan2(c5);
-        let t6 = s6.atan2(c6);
+        let t1 = atan2(s1, c1);
+        let t2 = atan2(q2i, q2r);
+        let t3 = atan2(s3, c3);
+        let t4 = atan2(q4i, q4r);
+        let t5 = atan2(s5, c5);
+        let t6 = atan2(s6, c6);
         Ok([t1, t2, t3, t4, t5, t6].map(wrap))
     }
 }
