@@ -13,13 +13,12 @@
 //! The tool's `x` axis is carried from pose to pose by the least rotation that takes the previous
 //! tow direction onto the next (its part perpendicular to the new direction, normalised); the
 //! free turn `Δ` is measured from there. The least joint time is tracked along the path: each
-//! pose starts from the turn the previous pose took (`Δ_g`) and probes one step ahead in the
-//! direction that last helped (`Δ_g ± s`); a probe that lowers the joint time is taken and the
-//! step doubles (up to 15°), otherwise the other side is probed, and if neither helps `Δ_g` is
-//! kept and the step halves (down to 0.25°). Two or three inverse kinematics per pose; since the
-//! best turn moves smoothly along a smooth path, the tracked turn follows it (a test compares it
-//! with a fine scan). Only when none of the probes is admissible is the whole turn scanned in 5°
-//! steps. The first pose's
+//! pose evaluates the turn the previous pose took (`Δ_g`) and one probe `Δ_g + s`; a probe that
+//! lowers the joint time is taken and its step doubles (up to 15°), otherwise `Δ_g` is kept and
+//! the next probe goes the other way with half the step (down to 0.25°). Two inverse kinematics
+//! per pose; since the best turn moves smoothly along a smooth path, the tracked turn follows it
+//! (a test compares every pose with a fine scan of the whole turn). When `Δ_g` is not admissible
+//! the other side is probed, and when no probe is, the whole turn is scanned in 5° steps. The first pose's
 //! turn is the one (in 10° steps) with the greatest least margin, to the limits and to the wrist
 //! singularity; the configurations are tried in the order of that margin at up to five poses
 //! spread along the path (a `prefer`red one first), each from up to three starting turns, and
@@ -143,28 +142,70 @@ struct Candidate {
     q: Joints6,
     x: Vector3<f64>,
     cost: f64,
-    delta: f64,
+    turn: Turn,
 }
 
-/// The least and greatest probe of the tracking search, rad.
-const MIN_TRACK_STEP_RAD: f64 = PI / 720.0;
-const MAX_TRACK_STEP_RAD: f64 = PI / 12.0;
+/// A turn as a unit complex number `(cos, sin)`: the tracking search composes, doubles and
+/// halves its turns without evaluating a sine.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Turn {
+    c: f64,
+    s: f64,
+}
 
-/// The tracking search's state: the turn taken at the last pose (beyond the carried `x` axis),
-/// the probe and its direction.
+impl Turn {
+    const ZERO: Turn = Turn { c: 1.0, s: 0.0 };
+
+    fn of(rad: f64) -> Turn {
+        let (s, c) = rad.sin_cos();
+        Turn { c, s }
+    }
+
+    fn then(self, o: Turn) -> Turn {
+        Turn {
+            c: self.c * o.c - self.s * o.s,
+            s: self.s * o.c + self.c * o.s,
+        }
+    }
+
+    fn back(self) -> Turn {
+        Turn {
+            c: self.c,
+            s: -self.s,
+        }
+    }
+
+    fn double(self) -> Turn {
+        self.then(self)
+    }
+
+    /// Half the turn (for turns within ±π/2, which the steps are).
+    fn half(self) -> Turn {
+        let c = (0.5 * (1.0 + self.c)).sqrt();
+        Turn {
+            c,
+            s: self.s / (2.0 * c),
+        }
+    }
+}
+
+/// The cosines of the least (0.25°) and greatest (15°) probe of the tracking search.
+const COS_MIN_TRACK_STEP: f64 = 0.999_990_480_720_734_5;
+const COS_MAX_TRACK_STEP: f64 = 0.965_925_826_289_068_3;
+
+/// The tracking search's state: the turn taken at the last pose (beyond the carried `x` axis)
+/// and the probe, signed in the direction that last helped.
 #[derive(Debug, Clone, Copy)]
 struct Tracker {
-    turn: f64,
-    step: f64,
-    sign: f64,
+    turn: Turn,
+    step: Turn,
 }
 
 impl Default for Tracker {
     fn default() -> Self {
         Tracker {
-            turn: 0.0,
-            step: LOCAL_STEP_RAD,
-            sign: 1.0,
+            turn: Turn::ZERO,
+            step: Turn::of(LOCAL_STEP_RAD),
         }
     }
 }
@@ -309,13 +350,17 @@ impl SixAxisArm {
     /// the largest joint change when no speeds are known.
     fn step_cost(&self, a: &Joints6, b: &Joints6) -> f64 {
         let mut worst = 0.0f64;
-        for i in 0..6 {
-            let d = (b[i] - a[i]).abs();
-            let t = match &self.limits.speed_rad_s {
-                Some(s) => d / s[i],
-                None => d,
-            };
-            worst = worst.max(t);
+        match &self.limits.speed_rad_s {
+            Some(s) => {
+                for i in 0..6 {
+                    worst = worst.max((b[i] - a[i]).abs() / s[i]);
+                }
+            }
+            None => {
+                for i in 0..6 {
+                    worst = worst.max((b[i] - a[i]).abs());
+                }
+            }
         }
         worst
     }
@@ -423,15 +468,14 @@ impl SixAxisArm {
         let d = t.tow.into_inner();
         let x0 = transported(x_prev, &d);
         let y0 = d.cross(&x0);
-        let eval = |delta: f64| -> Result<Candidate, SixAxisFault> {
-            let (s, c) = delta.sin_cos();
-            let x = x0 * c + y0 * s;
+        let eval = |turn: Turn| -> Result<Candidate, SixAxisFault> {
+            let x = x0 * turn.c + y0 * turn.s;
             let q = self.admissible(&t.eye_mm, &x, &d, tool, config, Some(prev))?;
             Ok(Candidate {
                 q,
                 x,
                 cost: self.step_cost(prev, &q),
-                delta,
+                turn,
             })
         };
         let better =
@@ -442,31 +486,40 @@ impl SixAxisArm {
                 _ => false,
             };
         let guess = eval(track.turn);
-        let ahead = eval(track.turn + track.sign * track.step);
+        let ahead = eval(track.turn.then(track.step));
         let chosen = if better(&ahead, &guess) {
-            track.step = (track.step * 2.0).min(MAX_TRACK_STEP_RAD);
-            ahead
-        } else {
-            let behind = eval(track.turn - track.sign * track.step);
-            if better(&behind, &guess) {
-                track.sign = -track.sign;
-                behind
-            } else {
-                track.step = (track.step * 0.5).max(MIN_TRACK_STEP_RAD);
-                guess
+            let doubled = track.step.double();
+            if doubled.c >= COS_MAX_TRACK_STEP {
+                track.step = doubled;
             }
+            ahead
+        } else if guess.is_ok() {
+            // The probe overshot or went the wrong way: keep the guess, probe the other way
+            // next time, with half the step.
+            let halved = track.step.half();
+            track.step = if halved.c <= COS_MIN_TRACK_STEP {
+                halved.back()
+            } else {
+                track.step.back()
+            };
+            guess
+        } else {
+            let behind = eval(track.turn.then(track.step.back()));
+            if behind.is_ok() {
+                track.step = track.step.back();
+            }
+            behind
         };
         let fault = match chosen {
             Ok(c) => {
-                track.turn = c.delta;
+                track.turn = c.turn;
                 return Ok(c);
             }
             Err(f) => f,
         };
         let mut scanned: Option<Candidate> = None;
         for k in 0..SCAN_STEPS {
-            let delta = k as f64 * TAU / SCAN_STEPS as f64;
-            if let Ok(c) = eval(delta)
+            if let Ok(c) = eval(Turn::of(k as f64 * TAU / SCAN_STEPS as f64))
                 && scanned.is_none_or(|b| c.cost < b.cost)
             {
                 scanned = Some(c);
