@@ -13,6 +13,9 @@
 //! reproduces the pose (< 1e-9 mm, < 1e-9 rad), the drawn joints' own branch is among them, and
 //! for OPW arms the number of branches equals the number the reach admits.
 
+// Per-axis arrays (joints, limits, speeds) are indexed together by axis.
+#![allow(clippy::needless_range_loop)]
+
 use std::f64::consts::{PI, TAU};
 
 use nalgebra::{Isometry3, Matrix3, Matrix4, Point3, Translation3, Unit, Vector3};

@@ -657,7 +657,7 @@ const ATAN_EIGHTHS: [f64; 9] = [
     0.558_599_315_343_562_4,
     0.643_501_108_793_284_4,
     0.718_829_999_621_624_5,
-    0.785_398_163_397_448_3,
+    std::f64::consts::FRAC_PI_4,
 ];
 
 /// `atan2(y, x)` for the inverse kinematics, within a few units in the last place of the

@@ -213,7 +213,7 @@ impl Opw {
                 });
             }
         }
-        if !(self.c2_mm > 0.0) {
+        if self.c2_mm.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return Err(Error::OutOfRange {
                 name: "c2_mm",
                 value: self.c2_mm,

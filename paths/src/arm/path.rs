@@ -281,7 +281,7 @@ impl SixAxisArm {
             // it and its neighbours nearest the target.
             let mut near = raw[i];
             let gap = target - near;
-            if gap > PI || gap < -PI {
+            if !(-PI..=PI).contains(&gap) {
                 near += (gap / TAU).round() * TAU;
             }
             let best = if near >= lo && near <= hi {
@@ -337,8 +337,13 @@ impl SixAxisArm {
     /// The least distance of the joints from their range ends (rad) and its axis index.
     fn limit_margin(&self, q: &Joints6) -> (f64, usize) {
         let mut least = (f64::INFINITY, 0);
-        for i in 0..6 {
-            let d = (q[i] - self.limits.min_rad[i]).min(self.limits.max_rad[i] - q[i]);
+        for (i, ((v, lo), hi)) in q
+            .iter()
+            .zip(&self.limits.min_rad)
+            .zip(&self.limits.max_rad)
+            .enumerate()
+        {
+            let d = (v - lo).min(hi - v);
             if d < least.0 {
                 least = (d, i);
             }
