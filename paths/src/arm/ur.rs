@@ -261,7 +261,7 @@ impl Ur {
         let r = &flange.rotation;
         let (x6, y6, z6) = (r.column(0), r.column(1), r.column(2));
         let p5 = flange.translation_mm - z6 * self.d6_mm;
-        let rho = p5.x.hypot(p5.y);
+        let rho = (p5.x * p5.x + p5.y * p5.y).sqrt();
         let (la, lb) = (self.a2_mm.abs(), self.a3_mm.abs());
         let out_of_reach = |distance_mm: f64| SixAxisFault::OutOfReach {
             config,
