@@ -537,3 +537,89 @@ fn the_chosen_turn_needs_no_more_joint_time_than_a_fine_scan() {
     }
     eprintln!("largest ratio of chosen to scanned joint time: {worst:.4}");
 }
+
+/// The link capsules join the arm's joint origins: the wrist capsule ends at the flange and the
+/// tool capsule at the eye, both as the independent forward kinematics puts them; the upper arm
+/// is `c2` long (OPW) or `|a2|` (UR).
+#[test]
+fn link_capsules_follow_the_arm() {
+    let tool = Tool {
+        tcp_mm: [10.0, -20.0, 150.0],
+        rpy_deg: [0.0, 90.0, 0.0],
+    };
+    let arm = SixAxisArm::opw_preset("kr16-2", tool).unwrap();
+    let o = match arm.kind {
+        SixAxisKind::Opw(o) => o,
+        SixAxisKind::Ur(_) => unreachable!(),
+    };
+    let mut rng = Rng(99);
+    for _ in 0..200 {
+        let q: Joints6 =
+            std::array::from_fn(|i| rng.between(arm.limits.min_rad[i], arm.limits.max_rad[i]));
+        let links = arm.links(&q);
+        let f = opw_fk(&o, &q);
+        let eye = f.rotation * Vector3::from(tool.tcp_mm) + f.translation_mm;
+        let centre = f.translation_mm - f.rotation.column(2) * o.c4_mm;
+        assert!((links[5].a.coords - centre).norm() < 1e-9);
+        assert!((links[5].b.coords - f.translation_mm).norm() < 1e-9);
+        assert!((links[6].b.coords - eye).norm() < 1e-9);
+        assert!(((links[2].b - links[2].a).norm() - o.c2_mm).abs() < 1e-9);
+        assert_eq!(links[0].a, Point3::origin());
+        for (l, r) in links.iter().zip(arm.link_radii_mm) {
+            assert_eq!(l.radius_mm, r);
+        }
+    }
+    let ur = SixAxisArm::ur_preset("ur16e", tool).unwrap();
+    let table = UR_TABLE_M[2].1;
+    for _ in 0..200 {
+        let q: Joints6 = std::array::from_fn(|_| rng.between(-PI, PI));
+        let links = ur.links(&q);
+        let f = ur_fk(&table, &q);
+        assert!((links[5].b.coords - f.translation_mm).norm() < 1e-9);
+        assert!(((links[1].b - links[1].a).norm() - 478.4).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn bad_arm_parameters_are_refused() {
+    use paths::arm::JointLimits6;
+    let e = SixAxisArm::opw_preset("kr1000", Tool::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown opw model \"kr1000\""), "{e}");
+    let e = SixAxisArm::ur_preset("ur3", Tool::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("unknown ur model \"ur3\" (known: \"ur5e\", \"ur10e\", \"ur16e\")"),
+        "{e}"
+    );
+    let mut min = [-1.0; 6];
+    let max = [1.0; 6];
+    min[3] = 1.0;
+    assert!(JointLimits6::degrees(min, max, None).validate().is_err());
+    assert!(
+        JointLimits6::degrees([f64::NAN; 6], max, None)
+            .validate()
+            .is_err()
+    );
+    assert!(
+        JointLimits6::degrees([-1.0; 6], max, Some([0.0; 6]))
+            .validate()
+            .is_err()
+    );
+    let mut arm = SixAxisArm::ur_preset("ur5e", Tool::default()).unwrap();
+    arm.validate().unwrap();
+    arm.link_radii_mm[2] = -1.0;
+    assert!(arm.validate().is_err());
+    let mut arm = SixAxisArm::ur_preset("ur5e", Tool::default()).unwrap();
+    arm.margins.wrist_rad = f64::NAN;
+    assert!(arm.validate().is_err());
+    let arm = SixAxisArm::ur_preset("ur5e", Tool::default()).unwrap();
+    assert!(arm.solve_path(&[], None).is_err());
+    let bad = EyeTarget {
+        eye_mm: Point3::new(f64::NAN, 0.0, 0.0),
+        tow: Vector3::z_axis(),
+    };
+    assert!(arm.solve_path(&[bad], None).is_err());
+}
