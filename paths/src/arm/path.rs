@@ -18,9 +18,10 @@
 //! the next probe goes the other way with half the step (down to 0.25°). Two inverse kinematics
 //! per pose; since the best turn moves smoothly along a smooth path, the tracked turn follows it
 //! (a test compares every pose with a fine scan of the whole turn). When `Δ_g` is not admissible
-//! the other side is probed, and when no probe is, the whole turn is scanned in 5° steps. The first pose's
-//! turn is the one (in 10° steps) with the greatest least margin, to the limits and to the wrist
-//! singularity; the configurations are tried in the order of that margin at up to five poses
+//! the other side is probed, and when no probe is, the whole turn is scanned in 5° steps.
+//!
+//! The first pose's turn is the one (in 10° steps) with the greatest least margin, to the limits
+//! and to the wrist singularity; the configurations are tried in the order of that margin at up to five poses
 //! spread along the path (a `prefer`red one first), each from up to three starting turns, and
 //! the first that keeps the whole path is taken. Where none does, the error names the pose at
 //! which the configuration that went furthest stopped, and why.
