@@ -2,6 +2,7 @@
 
 use thiserror::Error;
 
+use crate::arm::SixAxisFault;
 use crate::limits::{fixed, shown};
 use crate::robot::ArmFault;
 
@@ -158,6 +159,24 @@ pub enum Error {
         segment: Option<usize>,
         /// What the arm cannot do.
         fault: ArmFault,
+    },
+    /// A six-axis arm cannot take a pose or keep one configuration along a path.
+    #[error("{}{fault}", segment.map(|s| format!("segment {s}: ")).unwrap_or_default())]
+    SixAxis {
+        /// The pose index (0 = the path's start pose), when the pose belongs to a path.
+        segment: Option<usize>,
+        /// What the arm cannot do.
+        fault: SixAxisFault,
+    },
+    /// An arm model name that windcell does not know.
+    #[error("unknown {kind} model \"{model}\" (known: {known})")]
+    UnknownArmModel {
+        /// The arm kind (`opw`, `ur`).
+        kind: &'static str,
+        /// The name asked for.
+        model: String,
+        /// The names windcell knows, quoted, comma-separated.
+        known: String,
     },
     /// Two consecutive segment end points coincide, so the fibre direction is undefined.
     #[error("segment {segment} has zero length")]

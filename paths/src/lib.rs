@@ -1,10 +1,12 @@
 //! Mandrel geometry and motion maths for windcell: analytic mandrels, fibre paths, equal-length
 //! segmentation, the tangent angle (seed 001 eq 3.7), payout-eye poses (eqs 3.8–3.14), wrist
-//! quaternions (App. A), the five-axis arm's kinematics and limits, mandrel step planning and
-//! timing, and the cell's calibration. No I/O.
+//! quaternions (App. A), the five-axis arm's kinematics and limits, six-axis arms (OPW and UR
+//! kinematics, the winding pose search, the mandrel axis in the robot base frame: [`arm`]),
+//! mandrel step planning and timing, and the cell's calibration. No I/O.
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
+pub mod arm;
 pub mod calibration;
 pub mod clearance;
 pub mod control;

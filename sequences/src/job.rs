@@ -12,6 +12,8 @@ use toml::Spanned;
 
 use crate::{Error, Movement};
 
+mod arm;
+
 /// A whole job file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -64,6 +66,67 @@ pub struct Cell {
     /// Obstacles in the cell frame (floor, mandrel-drive frame, fences), `[[cell.obstacle]]`.
     #[serde(default, rename = "obstacle", skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<Obstacle>,
+    /// A six-axis arm's payout eye on its flange (`[cell.tool]`); required for `kind = "opw"`
+    /// and `"ur"`, refused for the IRB 6/2 (whose eye sits on its roll axis).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tool: Option<Tool>,
+    /// Where the mandrel's rotation axis is and who turns it (`[cell.mandrel]`); absent means
+    /// the thesis cell: vertical through `(robot_distance_mm, 0, start_height_mm)`, the indexer.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mandrel: Option<MandrelPlacement>,
+}
+
+/// A six-axis arm's payout eye (`[cell.tool]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tool {
+    /// The eye in the flange frame, mm.
+    pub tcp_mm: Spanned<[f64; 3]>,
+    /// The tool frame's turn in the flange frame: roll, pitch, yaw about the flange's fixed
+    /// `x`, `y`, `z`, degrees (absent: axes parallel to the flange's). The tool's `z` is the
+    /// eye's axis, from the eye along the free fibre.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rpy_deg: Option<Spanned<[f64; 3]>>,
+}
+
+/// Who turns the mandrel (`[cell.mandrel] drive`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MandrelDrive {
+    /// windcell's indexer (decoupled; the default).
+    Indexer,
+    /// The robot controller, as an external axis (coupled; `kind = "opw"` only).
+    Robot,
+}
+
+/// The mandrel's rotation axis in the robot base frame (`[cell.mandrel]`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MandrelPlacement {
+    /// A point of the axis, the mandrel's start (spine distance 0), base frame, mm (default
+    /// `[robot_distance_mm, 0, start_height_mm]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_origin_mm: Option<Spanned<[f64; 3]>>,
+    /// The axis direction, base frame, any length (default `[0, 0, 1]`, vertical).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_direction: Option<Spanned<[f64; 3]>>,
+    /// `"indexer"` (default) or `"robot"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive: Option<Spanned<MandrelDrive>>,
+}
+
+/// The arm's kind (`[cell.robot] kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RobotKind {
+    /// The five-axis ASEA IRB 6/2 of seed 001 (the default).
+    #[serde(rename = "irb6-2")]
+    Irb6,
+    /// A 6R arm with an ortho-parallel base and a spherical wrist.
+    #[serde(rename = "opw")]
+    Opw,
+    /// A Universal Robots arm.
+    #[serde(rename = "ur")]
+    Ur,
 }
 
 /// The payout-eye mechanism as the clearance check sees it (seed 001 §5.7): a capsule from the
@@ -144,12 +207,81 @@ pub struct Robot {
     /// Wrist roll range, degrees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub roll_deg: Option<Spanned<[f64; 2]>>,
-    /// Joint speed limits in axis order (base yaw, shoulder, elbow, pitch, roll), degrees/s.
+    /// Joint speed limits in axis order, degrees/s: five for the IRB 6/2 (base yaw, shoulder,
+    /// elbow, pitch, roll), six for a six-axis arm.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub joint_speed_deg_s: Option<Spanned<[f64; 5]>>,
-    /// Largest fibre entry angle (tow line to the eye's roll axis), degrees.
+    pub joint_speed_deg_s: Option<Spanned<Vec<f64>>>,
+    /// Largest fibre entry angle (tow line to the eye's roll axis), degrees (IRB 6/2 only: a
+    /// six-axis eye takes the tow line exactly).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub entry_angle_max_deg: Option<Spanned<f64>>,
+    /// `"irb6-2"` (default), `"opw"` or `"ur"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kind: Option<Spanned<RobotKind>>,
+    /// A built-in arm of the kind (`docs/arms.md`); the keys below override its values one by one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<Spanned<String>>,
+    /// OPW: axis 2's offset from axis 1, mm. UR: not used (see `a2_mm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a1_mm: Option<Spanned<f64>>,
+    /// OPW: the forearm's offset, mm. UR: the DH `a2` (upper arm, negative), mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a2_mm: Option<Spanned<f64>>,
+    /// OPW: the wrist centre's lateral offset, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub b_mm: Option<Spanned<f64>>,
+    /// OPW: height of axis 2 above the base, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c1_mm: Option<Spanned<f64>>,
+    /// OPW: axis 2 to axis 3, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c2_mm: Option<Spanned<f64>>,
+    /// OPW: axis 3 to the wrist centre, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c3_mm: Option<Spanned<f64>>,
+    /// OPW: wrist centre to the flange, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c4_mm: Option<Spanned<f64>>,
+    /// OPW: the six model angle offsets, degrees (`q = sign · joint − offset`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offsets_deg: Option<Spanned<Vec<f64>>>,
+    /// OPW: the six sign corrections, each 1 or -1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub signs: Option<Spanned<Vec<i64>>>,
+    /// UR: the DH `d1`, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d1_mm: Option<Spanned<f64>>,
+    /// UR: the DH `a3` (forearm, negative), mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a3_mm: Option<Spanned<f64>>,
+    /// UR: the DH `d4`, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d4_mm: Option<Spanned<f64>>,
+    /// UR: the DH `d5`, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d5_mm: Option<Spanned<f64>>,
+    /// UR: the DH `d6`, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d6_mm: Option<Spanned<f64>>,
+    /// Six-axis: least joint angles, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_min_deg: Option<Spanned<Vec<f64>>>,
+    /// Six-axis: greatest joint angles, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_max_deg: Option<Spanned<Vec<f64>>>,
+    /// Six-axis: the seven link capsule radii (base, shoulder, upper arm, elbow, forearm, wrist,
+    /// tool), mm (defaults in `paths::arm::default_link_radii_mm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link_radii_mm: Option<Spanned<Vec<f64>>>,
+    /// Six-axis: distance kept from either end of every joint range, degrees (default 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub limit_margin_deg: Option<Spanned<f64>>,
+    /// Six-axis: least distance of the wrist bend from its singularity, degrees (default 5).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wrist_margin_deg: Option<Spanned<f64>>,
+    /// Six-axis: largest turn of any joint between consecutive poses, degrees (default 45).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_step_max_deg: Option<Spanned<f64>>,
 }
 
 /// The measured cell (`[cell.calibration]`, seed 001 §6.2.1 item 2); absent fields are nominal.
@@ -501,6 +633,10 @@ impl Job {
                 return Err(error_at(text, h.span(), "home_mm must be finite"));
             }
         }
+        if c.robot.is_none() {
+            arm::validate_robot(text, &Robot::default(), c)?;
+        }
+        arm::validate_placement(text, c)?;
         for o in &c.obstacles {
             let (lo, hi) = (o.min_mm.get_ref(), o.max_mm.get_ref());
             if !lo.iter().chain(hi).all(|v| v.is_finite()) || (0..3).any(|k| lo[k] > hi[k]) {
@@ -555,6 +691,7 @@ impl Job {
                     "joint speeds must be finite and > 0 degrees/s",
                 ));
             }
+            arm::validate_robot(text, r, c)?;
             if let Some(a) = &r.entry_angle_max_deg {
                 check(
                     text,
