@@ -133,6 +133,7 @@ fn every_dialect_file_reads_back_to_the_plan() {
             "--dialect",
             dialect.name(),
             "--json",
+            "--force",
         ]);
         assert!(out.status.success(), "{dialect}: {}", stderr(&out));
         let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -290,6 +291,7 @@ fn reads_back_in_every_dialect(job: &std::path::Path, plan: &paths::vessel::Plan
             "--dialect",
             dialect.name(),
             "--json",
+            "--force",
         ]);
         if axes == 4 && dialect == Dialect::FwCnc {
             // FW-CNC has no fourth axis: refused before anything is written.

@@ -8,27 +8,51 @@ use sequences::gcode::Dialect;
 use sequences::vessel::VesselFile;
 
 use super::Failure;
+use super::out_file;
+
+/// The refusal of a dialect without an axis the job uses, pointing at what to change: a `.wind`
+/// job has no axes field (its machine turns the delivery eye), a vessel file has `axes`.
+fn axes_refusal(job: &Path, dialect: Dialect, e: &sequences::Error) -> String {
+    if job.extension().is_some_and(|e| e == "wind") {
+        format!(
+            "{}: the {dialect} dialect has no eye-rotation axis, which a .wind job turns: choose \
+             grbl, linuxcnc, marlin, mach3 or fanuc (`windcell lathe plan --help`)",
+            job.display()
+        )
+    } else {
+        format!(
+            "{}: {e}, set in the file's [machine] table (docs/file-formats.md)",
+            job.display()
+        )
+    }
+}
 
 /// Plan a lathe winding job (vessel TOML or FiberPath/Cyclone `.wind`) and write its G-code.
 #[derive(Debug, Args)]
 pub struct LathePlanArgs {
     /// The job: a vessel file (TOML) or a `.wind` file.
     pub job: PathBuf,
-    /// Directory to write `NAME.EXT` into (created if missing; nothing is written on bad input).
-    #[arg(short = 'o', long = "out", value_name = "DIR")]
+    /// Folder to write `NAME.EXT` into (created if missing; nothing is written on bad input).
+    /// Always a folder: `-o part.gcode` is refused.
+    #[arg(short = 'o', long = "out", value_name = "FOLDER")]
     pub out: PathBuf,
-    /// fw-cnc, mach3, grbl, linuxcnc, marlin or fanuc.
+    /// The controller's G-code: fw-cnc, mach3, grbl, linuxcnc, marlin or fanuc
+    /// (docs/lathe.md, "Dialects").
     #[arg(long, value_parser = parse_dialect)]
     pub dialect: Dialect,
+    /// Replace an earlier output of the same name (refused otherwise).
+    #[arg(long)]
+    pub force: bool,
     /// Print the summary as one JSON document.
     #[arg(long)]
     pub json: bool,
 }
 
-fn parse_dialect(name: &str) -> Result<Dialect, String> {
+/// `--dialect`: one of the six, the message naming them and the help that describes them.
+pub fn parse_dialect(name: &str) -> Result<Dialect, String> {
     Dialect::from_name(name).ok_or_else(|| {
         let names: Vec<&str> = Dialect::ALL.iter().map(|d| d.name()).collect();
-        format!("unknown dialect `{name}` ({})", names.join(", "))
+        format!("unknown dialect `{name}`: one of {}", names.join(", "))
     })
 }
 
@@ -50,6 +74,7 @@ pub fn load(path: &Path) -> Result<(String, paths::vessel::Job, paths::vessel::P
 
 /// Runs `windcell lathe plan`.
 pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
+    out_file::check_out_dir(&args.out)?;
     let (name, job, plan) = load(&args.job)?;
     // The dialect must carry every axis the machine uses: refuse before creating anything.
     sequences::gcode::Writer::new(
@@ -58,24 +83,19 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
         job.machine.axes,
         &Default::default(),
     )
-    .map_err(|e| Failure::input(format!("{}: {e}", args.job.display())))?;
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| Failure::runtime(format!("{}: {e}", args.out.display())))?;
+    .map_err(|e| Failure::input(axes_refusal(&args.job, args.dialect, &e)))?;
     let target = args
         .out
         .join(format!("{name}.{}", args.dialect.extension()));
-    let staged = tempfile::NamedTempFile::new_in(&args.out)
-        .map_err(|e| Failure::runtime(format!("{}: {e}", args.out.display())))?;
-    let out = std::io::BufWriter::with_capacity(1 << 16, staged);
+    out_file::check_target(&target, args.force)?;
+    let mut staged = out_file::Staged::new(&args.out, target.clone())?;
+    let out = std::io::BufWriter::with_capacity(1 << 16, staged.file());
     let (summary, out) =
         cell::gcode::write_program(&plan, job.machine.axes, args.dialect, &name, out)
             .map_err(Failure::runtime)?;
-    let staged = out
-        .into_inner()
+    out.into_inner()
         .map_err(|e| Failure::runtime(format!("{}: {}", target.display(), e.error())))?;
-    staged
-        .persist(&target)
-        .map_err(|e| Failure::runtime(format!("{}: {}", target.display(), e.error)))?;
+    staged.persist()?;
     let text = if args.json {
         let mut value = serde_json::to_value(&summary).map_err(Failure::runtime)?;
         value["file"] = target.display().to_string().into();
