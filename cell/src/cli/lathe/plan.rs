@@ -4,27 +4,35 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use sequences::gcode::Dialect;
+use sequences::gcode::{Dialect, Frame, Header};
+use sequences::machine::{Extent, Refusal};
 use sequences::vessel::VesselFile;
 
 use super::Failure;
-use super::out_file;
+use super::{machine, out_file};
 
-/// The refusal of a dialect without an axis the job uses, pointing at what to change: a `.wind`
-/// job has no axes field (its machine turns the delivery eye), a vessel file has `axes`.
-fn axes_refusal(job: &Path, dialect: Dialect, e: &sequences::Error) -> String {
-    if job.extension().is_some_and(|e| e == "wind") {
-        format!(
-            "{}: the {dialect} dialect has no eye-rotation axis, which a .wind job turns: choose \
-             grbl, linuxcnc, marlin, mach3 or fanuc (`windcell lathe plan --help`)",
-            job.display()
-        )
-    } else {
-        format!(
-            "{}: {e}, set in the file's [machine] table (docs/file-formats.md)",
-            job.display()
-        )
+/// A machine's refusal as one line: at the profile's field when it came from a file, else at the
+/// job, with what to change when the machine was the dialect's default (a `.wind` job has no axes
+/// field: its machine turns the delivery eye; a vessel file has `axes`).
+fn refusal(args: &LathePlanArgs, r: &Refusal) -> String {
+    if let Some(place) = &r.place {
+        return format!("{place}: {}", r.message);
     }
+    let hint = match (
+        &args.machine,
+        args.job.extension().is_some_and(|e| e == "wind"),
+    ) {
+        (Some(_), _) => String::new(),
+        (None, true) => format!(
+            " (a .wind job turns the delivery eye, which the {} dialect's default machine lacks: \
+             choose grbl, linuxcnc, marlin, mach3 or fanuc; `windcell lathe plan --help`)",
+            args.dialect
+        ),
+        (None, false) => " (or set `axes` in the vessel file's [machine] table; \
+                          docs/file-formats.md)"
+            .to_string(),
+    };
+    format!("{}: {}{hint}", args.job.display(), r.message)
 }
 
 /// Plan a lathe winding job (vessel TOML or FiberPath/Cyclone `.wind`) and write its G-code.
@@ -40,6 +48,12 @@ pub struct LathePlanArgs {
     /// (docs/lathe.md, "Dialects").
     #[arg(long, value_parser = parse_dialect)]
     pub dialect: Dialect,
+    /// The machine the program is written for: a built-in (fiberpath-xab, fw-cnc, grbl-4axis,
+    /// linuxcnc-4axis, marlin-4axis, mach3-4axis, fanuc-4axis) or a profile file (FILE.toml;
+    /// docs/lathe.md, "Machine coordinates"). Default: fiberpath-xab for a .wind job in Marlin,
+    /// fw-cnc for fw-cnc, else the dialect's 4-axis winder.
+    #[arg(long, value_name = "NAME|FILE.toml")]
+    pub machine: Option<String>,
     /// Replace an earlier output of the same name (refused otherwise).
     #[arg(long)]
     pub force: bool,
@@ -76,22 +90,30 @@ pub fn load(path: &Path) -> Result<(String, paths::vessel::Job, paths::vessel::P
 pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
     out_file::check_out_dir(&args.out)?;
     let (name, job, plan) = load(&args.job)?;
-    // The dialect must carry every axis the machine uses: refuse before creating anything.
-    sequences::gcode::Writer::new(
-        std::io::sink(),
-        args.dialect,
-        job.machine.axes,
-        &Default::default(),
-    )
-    .map_err(|e| Failure::input(axes_refusal(&args.job, args.dialect, &e)))?;
+    let profile = machine::resolve(args.machine.as_deref(), args.dialect, &args.job)?;
+    let offset = profile.carriage_offset_mm(machine::mandrel_start_mm(&job));
+    let frame = Frame::of_machine(&profile, offset);
+    // The machine must have every axis the plan moves, within its travel: refuse before
+    // creating anything.
+    let axes = job.machine.axes;
+    let used = [true, true, axes.cross_feed(), axes.eye_rotation()];
+    let mut extent = Extent::new(frame);
+    let Ok(()) = plan.emit(&mut extent);
+    profile
+        .admits(&extent, used)
+        .map_err(|r| Failure::input(refusal(&args, &r)))?;
     let target = args
         .out
         .join(format!("{name}.{}", args.dialect.extension()));
     out_file::check_target(&target, args.force)?;
     let mut staged = out_file::Staged::new(&args.out, target.clone())?;
     let out = std::io::BufWriter::with_capacity(1 << 16, staged.file());
+    let header = Header {
+        title: name.clone(),
+        parameters: Some(machine::parameters(&job)),
+    };
     let (summary, out) =
-        cell::gcode::write_program(&plan, job.machine.axes, args.dialect, &name, out)
+        cell::gcode::write_in_frame(&plan, axes, args.dialect, frame, &header, out)
             .map_err(Failure::runtime)?;
     out.into_inner()
         .map_err(|e| Failure::runtime(format!("{}: {}", target.display(), e.error())))?;
@@ -99,6 +121,10 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
     let text = if args.json {
         let mut value = serde_json::to_value(&summary).map_err(Failure::runtime)?;
         value["file"] = target.display().to_string().into();
+        value["machine"] = serde_json::json!({
+            "name": profile.name,
+            "carriage_offset_mm": offset,
+        });
         let mut t = serde_json::to_string_pretty(&value).map_err(Failure::runtime)?;
         t.push('\n');
         t
@@ -127,7 +153,7 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
         }
         t += &format!(
             "{} layers, {} circuits, {} lines, tow {:.1} m, time {} ({:.1} s; {:.1} s at the \
-             velocity limits alone)\nwrote {}\n",
+             velocity limits alone)\nwrote {} for machine {}\n",
             summary.layers,
             summary.circuits,
             summary.lines,
@@ -135,7 +161,8 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
             cell::gcode::clock(summary.time_s),
             summary.time_s,
             summary.nominal_time_s,
-            target.display()
+            target.display(),
+            profile.name
         );
         t
     };
