@@ -65,7 +65,7 @@ pub enum FeedMode {
     /// (Mach3, seed 002 Appendix A).
     AllWords,
     /// G94: F is the distance over the linear axes per minute; the rotary axes' when no linear
-    /// axis moves (Marlin 2.1's `get_move_distance` with rotary axes).
+    /// axis moves (Marlin 2.1's planner with rotational axes).
     LinearWords,
 }
 

@@ -11,6 +11,15 @@ use sequences::vessel::VesselFile;
 use super::Failure;
 use super::{machine, out_file};
 
+/// How the summary's tow and time differ from FiberPath's for the same `.wind` file, and why
+/// (docs/fiberpath.md: the passes and their tow are FiberPath's; the end turns and the time
+/// model are not).
+pub const FIBERPATH_DIFFERENCE: &str = "against FiberPath: the same passes; the tow differs at \
+    the ends (the mandrel turns forward only, by the least turn that keeps the pattern, each end \
+    turn counted at its own radius; FiberPath spins back and counts every arc at the base \
+    diameter) and the time is at the axes' velocity and acceleration limits (FiberPath's: \
+    surface distance over the feed)";
+
 /// A machine's refusal as one line: at the profile's field when it came from a file, else at the
 /// job, with what to change when the machine was the dialect's default (a `.wind` job has no axes
 /// field: its machine turns the delivery eye; a vessel file has `axes`).
@@ -90,6 +99,7 @@ pub fn load(path: &Path) -> Result<(String, paths::vessel::Job, paths::vessel::P
 pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
     out_file::check_out_dir(&args.out)?;
     let (name, job, plan) = load(&args.job)?;
+    let is_wind = args.job.extension().is_some_and(|e| e == "wind");
     let profile = machine::resolve(args.machine.as_deref(), args.dialect, &args.job)?;
     let offset = profile.carriage_offset_mm(machine::mandrel_start_mm(&job));
     let frame = Frame::of_machine(&profile, offset);
@@ -121,6 +131,9 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
     let text = if args.json {
         let mut value = serde_json::to_value(&summary).map_err(Failure::runtime)?;
         value["file"] = target.display().to_string().into();
+        if is_wind {
+            value["fiberpath_difference"] = FIBERPATH_DIFFERENCE.into();
+        }
         value["machine"] = serde_json::json!({
             "name": profile.name,
             "carriage_offset_mm": offset,
@@ -164,6 +177,10 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
             target.display(),
             profile.name
         );
+        if is_wind {
+            t += FIBERPATH_DIFFERENCE;
+            t.push('\n');
+        }
         t
     };
     crate::cli::print(&text)
