@@ -96,10 +96,12 @@ def one(windcell: str, fiberpath: str, src: pathlib.Path, f: pathlib.Path, work:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--windcell", required=True)
+    ap.add_argument("--windcell", default=None)
     ap.add_argument("--cache", default=None)
     ap.add_argument("--markdown", default=None)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--setup-only", action="store_true",
+                    help="install (or find) FiberPath, print its `fiberpath` path and stop")
     args = ap.parse_args()
 
     fc = compare_module()
@@ -113,6 +115,9 @@ def main() -> int:
             return SKIP
         raise
     fiberpath = str(py.parent / "fiberpath")
+    if args.setup_only:
+        print(fiberpath)
+        return 0
     files = sorted((src / "examples").rglob("*.wind")) + sorted(
         (src / "conformance" / "valid").glob("*.wind"))
     failures, rows = [], []

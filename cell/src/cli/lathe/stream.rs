@@ -184,7 +184,9 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
             );
             announced_pause = true;
         }
-        if last_status.elapsed() >= STATUS_PERIOD {
+        // `?` is GRBL's real-time status request; a Marlin controller (one line per `ok`) would
+        // take it as part of the next line.
+        if args.flow == FlowArg::Counting && last_status.elapsed() >= STATUS_PERIOD {
             port.write_all(&[STATUS]).map_err(link_failure)?;
             last_status = Instant::now();
         }
