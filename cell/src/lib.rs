@@ -20,6 +20,7 @@ pub mod record;
 pub mod report;
 pub mod scene;
 pub mod simcell;
+pub mod stream_watch;
 pub mod tool;
 pub mod trace_plot;
 pub mod transfer;

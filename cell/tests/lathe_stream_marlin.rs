@@ -190,3 +190,159 @@ fn bad_arguments_exit_2_in_one_line() {
         assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
     }
 }
+
+#[test]
+fn progress_is_shown_as_plain_lines_and_json_events() {
+    let d = tempfile::tempdir().unwrap();
+    let program = program(d.path());
+    let layers = std::fs::read_to_string(&program)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("; layer "))
+        .count();
+    assert_eq!(layers, 3);
+    let log = d.path().join("marlin.log");
+    let (child, pty) = serve_on_pty(&[
+        "sim-marlin",
+        "--log",
+        log.to_str().unwrap(),
+        "--time-scale",
+        "300",
+    ]);
+    // Not a terminal: plain lines every 0.2 s, the last at 100 %.
+    let out = windcell(&[
+        "lathe",
+        "stream",
+        program.to_str().unwrap(),
+        "--port",
+        &pty,
+        "--flow",
+        "ok-per-line",
+        "--progress-every-s",
+        "0.2",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    let total = commands(&program).len();
+    let progress: Vec<&str> = err.lines().filter(|l| l.contains("lines sent,")).collect();
+    assert!(progress.len() >= 3, "{err}");
+    assert!(
+        progress.last().unwrap().contains(&format!(
+            "{total}/{total} lines sent, {total} acknowledged (100 %), layer 3/3"
+        )),
+        "{err}"
+    );
+    assert!(progress.iter().any(|l| l.contains("left ")), "{err}");
+    // JSON: start, one event per layer in order, progress, done.
+    let out = windcell(&[
+        "lathe",
+        "stream",
+        program.to_str().unwrap(),
+        "--port",
+        &pty,
+        "--flow",
+        "ok-per-line",
+        "--json",
+    ]);
+    stop_cleanly(child);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let events: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(events[0]["event"], "start");
+    assert_eq!(events[0]["lines"].as_u64(), Some(total as u64));
+    let layer_events: Vec<u64> = events
+        .iter()
+        .filter(|e| e["event"] == "layer")
+        .map(|e| e["layer"].as_u64().unwrap())
+        .collect();
+    assert_eq!(layer_events, [1, 2, 3]);
+    assert_eq!(events.last().unwrap()["event"], "done");
+    assert!(
+        events
+            .iter()
+            .any(|e| e["event"] == "progress" && e["acknowledged"].as_u64() == Some(total as u64))
+    );
+}
+
+#[test]
+fn a_bad_line_anywhere_is_refused_before_the_first_line_is_sent() {
+    let d = tempfile::tempdir().unwrap();
+    let program = program(d.path());
+    let text = std::fs::read_to_string(&program).unwrap();
+    let n = text.lines().count();
+    // A bad number near the end.
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let at = n - 3;
+    lines[at] = "G1 X12.5.1 A3".to_string();
+    let bad = d.path().join("bad.gcode");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let log = d.path().join("marlin.log");
+    let (child, pty) = serve_on_pty(&["sim-marlin", "--log", log.to_str().unwrap()]);
+    let out = windcell(&["lathe", "stream", bad.to_str().unwrap(), "--port", &pty]);
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    stop_cleanly(child);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains(&format!("bad.gcode:{}:5: word X has no number", at + 1)),
+        "{err}"
+    );
+    assert!(std::fs::read_to_string(&log).unwrap().is_empty());
+}
+
+#[test]
+fn a_stop_names_the_line_to_restart_from() {
+    let d = tempfile::tempdir().unwrap();
+    let program = program(d.path());
+    let log = d.path().join("marlin.log");
+    // Real time: the program takes minutes, the stop comes after a second.
+    let (child, pty) = serve_on_pty(&["sim-marlin", "--log", log.to_str().unwrap()]);
+    let stream = Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args([
+            "lathe",
+            "stream",
+            program.to_str().unwrap(),
+            "--port",
+            &pty,
+            "--flow",
+            "ok-per-line",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .stdin(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    Command::new("kill")
+        .args(["-INT", &stream.id().to_string()])
+        .status()
+        .unwrap();
+    let out = stream.wait_with_output().unwrap();
+    stop_cleanly(child);
+    assert_eq!(out.status.code(), Some(130), "{}", stderr(&out));
+    let err = stderr(&out);
+    let last = err.lines().last().unwrap();
+    let restart: usize = last
+        .split("restart from ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|r| r.rsplit(':').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{err}"));
+    // The restart line is a line to send, and every line before it was executed.
+    let text = std::fs::read_to_string(&program).unwrap();
+    let file_lines: Vec<&str> = text.lines().collect();
+    let line = file_lines[restart - 1];
+    assert!(!line.is_empty() && !line.starts_with(';'), "{line}");
+    let before = file_lines[..restart - 1]
+        .iter()
+        .filter(|l| !l.is_empty() && !l.starts_with(';'))
+        .count();
+    let (ran, _) = executed(&log);
+    assert!(ran.len() >= before && before > 0, "{} {before}", ran.len());
+    assert!(last.contains("layer "), "{last}");
+}

@@ -211,6 +211,11 @@ impl Streamer {
         self.next
     }
 
+    /// Lines acknowledged so far (sent and no longer in flight).
+    pub fn acknowledged(&self) -> usize {
+        self.next - self.in_flight.len()
+    }
+
     /// Every line sent and acknowledged.
     pub fn is_done(&self) -> bool {
         self.next >= self.program.lines.len() && self.in_flight.is_empty()
