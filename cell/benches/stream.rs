@@ -92,9 +92,21 @@ fn streaming(c: &mut Criterion) {
     g.finish();
 }
 
+fn layup_svg(c: &mut Criterion) {
+    let (job, plan) = plan();
+    let start = -(1460.0 / 2.0);
+    let mut g = c.benchmark_group("lathe_plan_svg");
+    // The whole drawing: the plan emitted again, every pass cut where it wraps, the thickness
+    // at 401 stations, the text.
+    g.bench_function("carbon_motor_tube_size", |b| {
+        b.iter(|| cell::layup_svg::draw(&job, &plan, start, "tube").0.len())
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20).measurement_time(Duration::from_secs(3));
-    targets = streaming
+    targets = streaming, layup_svg
 }
 criterion_main!(benches);

@@ -63,6 +63,10 @@ pub struct LathePlanArgs {
     /// fw-cnc for fw-cnc, else the dialect's 4-axis winder.
     #[arg(long, value_name = "NAME|FILE.toml")]
     pub machine: Option<String>,
+    /// Also draw the layup as SVG: the unwrapped mandrel with every pass of every layer, the
+    /// turnarounds, a legend of the layers and the thickness along the mandrel.
+    #[arg(long, value_name = "FILE.svg")]
+    pub svg: Option<PathBuf>,
     /// Replace an earlier output of the same name (refused otherwise).
     #[arg(long)]
     pub force: bool,
@@ -116,6 +120,15 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
         .out
         .join(format!("{name}.{}", args.dialect.extension()));
     out_file::check_target(&target, args.force)?;
+    if let Some(svg) = &args.svg {
+        cell::output::check_file(svg).map_err(Failure::from_cell)?;
+        if svg.exists() && !args.force {
+            return Err(Failure::input(format!(
+                "{}: exists; --force replaces it",
+                svg.display()
+            )));
+        }
+    }
     let mut staged = out_file::Staged::new(&args.out, target.clone())?;
     let out = std::io::BufWriter::with_capacity(1 << 16, staged.file());
     let header = Header {
@@ -128,11 +141,30 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
     out.into_inner()
         .map_err(|e| Failure::runtime(format!("{}: {}", target.display(), e.error())))?;
     staged.persist()?;
+    let layup = match &args.svg {
+        Some(svg) => {
+            let (text, layup) =
+                cell::layup_svg::draw(&job, &plan, machine::mandrel_start_mm(&job), &name);
+            cell::output::write_file(svg, text.as_bytes()).map_err(Failure::from_cell)?;
+            Some((svg, layup))
+        }
+        None => None,
+    };
     let text = if args.json {
         let mut value = serde_json::to_value(&summary).map_err(Failure::runtime)?;
         value["file"] = target.display().to_string().into();
         if is_wind {
             value["fiberpath_difference"] = FIBERPATH_DIFFERENCE.into();
+        }
+        if let Some((svg, l)) = &layup {
+            let mid = l.thickness[l.thickness.len() / 2];
+            value["svg"] = serde_json::json!({
+                "file": svg.display().to_string(),
+                "passes": l.passes_drawn,
+                "turnarounds": l.turns_drawn,
+                "thickness_mm": l.thickness,
+                "thickness_middle_mm": mid.1,
+            });
         }
         value["machine"] = serde_json::json!({
             "name": profile.name,
@@ -177,6 +209,9 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
             target.display(),
             profile.name
         );
+        if let Some((svg, _)) = &layup {
+            t += &format!("drew {}\n", svg.display());
+        }
         if is_wind {
             t += FIBERPATH_DIFFERENCE;
             t.push('\n');
