@@ -120,11 +120,16 @@ def main() -> int:
         return 0
     files = sorted((src / "examples").rglob("*.wind")) + sorted(
         (src / "conformance" / "valid").glob("*.wind"))
+    # windcell's own examples too.
+    own = sorted((HERE.parent / "examples").glob("*.wind"))
     failures, rows = [], []
     with tempfile.TemporaryDirectory(prefix="fp-accepts-") as tmp:
         work = pathlib.Path(tmp)
         with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
             results = list(pool.map(lambda f: one(args.windcell, fiberpath, src, f, work), files))
+            results += list(pool.map(
+                lambda f: one(args.windcell, fiberpath, HERE.parent, f, work), own))
+    files += own
     for name, failure, figures in results:
         if failure:
             failures.append(f"{name}: {failure}")

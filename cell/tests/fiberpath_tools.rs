@@ -26,9 +26,9 @@ fn fiberpath_simulate_and_plot_accept_every_example_program() {
         return;
     }
     assert!(out.status.success(), "{stdout}\n{stderr}");
-    // FiberPath 0.11's examples/ (10) and conformance/valid/ (7).
+    // FiberPath 0.11's examples/ (10) and conformance/valid/ (7), and ours (2).
     assert!(
-        stdout.contains("17 files: 17 accepted by fiberpath simulate and plot, 0 not"),
+        stdout.contains("19 files: 19 accepted by fiberpath simulate and plot, 0 not"),
         "{stdout}"
     );
 }
