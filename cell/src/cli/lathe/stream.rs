@@ -1,6 +1,7 @@
-//! `windcell lathe stream FILE --port PATH [--baud B] [--flow counting|ok-per-line]`: streams a
-//! planned G-code program to a GRBL-class controller over a serial port (docs/lathe.md,
-//! "Streaming to a GRBL controller").
+//! `windcell lathe stream FILE --port PATH [--baud B] [--flow counting|ok-per-line] [--json]`:
+//! streams a planned G-code program to a GRBL-class or Marlin controller over a serial port
+//! (docs/lathe.md, "Streaming to a GRBL controller", "Watching a stream"): the whole file checked
+//! first, progress shown while it streams, the line to restart from after a stop.
 //!
 //! Character counting keeps the controller's 128-byte receive buffer full; `ok-per-line` (Marlin,
 //! and the fallback) waits for each `ok`. Ctrl-C sends feed hold and soft reset and exits 130.
