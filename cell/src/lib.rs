@@ -12,6 +12,7 @@ pub mod gcode;
 pub mod imported;
 pub mod journal;
 pub mod lathe;
+pub mod layup_scene;
 pub mod layup_svg;
 pub mod linktap;
 pub mod mesh;

@@ -126,3 +126,53 @@ fn a_bad_svg_path_writes_nothing() {
         assert!(!out_dir.exists());
     }
 }
+
+#[test]
+fn the_layup_is_recorded_in_3d_on_the_mandrels_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let wind = dir.path().join("tube.wind");
+    std::fs::write(&wind, TUBE).unwrap();
+    let record = dir.path().join("tube.mcap");
+    let out = windcell(&[
+        "lathe",
+        "plan",
+        wind.to_str().unwrap(),
+        "-o",
+        dir.path().join("out").to_str().unwrap(),
+        "--dialect",
+        "marlin",
+        "--record",
+        record.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let bytes = std::fs::read(&record).unwrap();
+    let messages: Vec<_> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .collect();
+    // The mandrel, then one message per layer, in time order.
+    assert_eq!(messages.len(), 3);
+    let mut last = 0;
+    for (k, m) in messages.iter().enumerate() {
+        assert_eq!(m.channel.topic, "/lathe/layup");
+        assert!(m.log_time >= last);
+        last = m.log_time;
+        let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+        let entity = &v["entities"][0];
+        assert_eq!(entity["frame_id"], "mandrel");
+        if k > 0 {
+            assert_eq!(entity["id"], format!("layer {k}"));
+        }
+        // Every point on the 70 mm mandrel between its ends, in metres.
+        for p in entity["lines"][0]["points"].as_array().unwrap() {
+            let (x, y, z) = (
+                p["x"].as_f64().unwrap(),
+                p["y"].as_f64().unwrap(),
+                p["z"].as_f64().unwrap(),
+            );
+            assert!((x.hypot(y) - 0.035).abs() < 1e-9, "{p}");
+            assert!((-1e-9..=0.5 + 1e-9).contains(&z), "{p}");
+        }
+    }
+    assert!(messages[2].log_time > 0);
+}

@@ -67,6 +67,10 @@ pub struct LathePlanArgs {
     /// turnarounds, a legend of the layers and the thickness along the mandrel.
     #[arg(long, value_name = "FILE.svg")]
     pub svg: Option<PathBuf>,
+    /// Also write the layup in 3-D for Foxglove (MCAP, `/lathe/layup`): the mandrel, then each
+    /// layer's tow path at the time the layer starts.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
     /// Replace an earlier output of the same name (refused otherwise).
     #[arg(long)]
     pub force: bool,
@@ -120,12 +124,12 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
         .out
         .join(format!("{name}.{}", args.dialect.extension()));
     out_file::check_target(&target, args.force)?;
-    if let Some(svg) = &args.svg {
-        cell::output::check_file(svg).map_err(Failure::from_cell)?;
-        if svg.exists() && !args.force {
+    for extra in [&args.svg, &args.record].into_iter().flatten() {
+        cell::output::check_file(extra).map_err(Failure::from_cell)?;
+        if extra.exists() && !args.force {
             return Err(Failure::input(format!(
                 "{}: exists; --force replaces it",
-                svg.display()
+                extra.display()
             )));
         }
     }
@@ -150,6 +154,11 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
         }
         None => None,
     };
+    if let Some(record) = &args.record {
+        let bytes = cell::layup_scene::mcap(&job, &plan, machine::mandrel_start_mm(&job))
+            .map_err(Failure::from_cell)?;
+        cell::output::write_file(record, &bytes).map_err(Failure::from_cell)?;
+    }
     let text = if args.json {
         let mut value = serde_json::to_value(&summary).map_err(Failure::runtime)?;
         value["file"] = target.display().to_string().into();
