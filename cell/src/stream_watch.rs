@@ -306,11 +306,14 @@ pub struct Watch<'a> {
 impl<'a> Watch<'a> {
     /// A display starting now.
     pub fn new(outline: &'a Outline, show: Show) -> Watch<'a> {
+        let started = Instant::now();
         Watch {
             outline,
             show,
-            started: Instant::now(),
-            last: None,
+            started,
+            // Plain lines begin one period in: a short stream (or one stopped at once) prints
+            // only its outcome.
+            last: matches!(show, Show::Plain(_)).then_some(started),
             layer: None,
         }
     }
