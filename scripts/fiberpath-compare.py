@@ -327,7 +327,7 @@ def main() -> int:
         fp_json = json.loads(fp.stdout)
         our_json = json.loads(ours.stdout)
         fp_layers = read_gcode(fp_out, 0.0, r"^; Layer \d+ of", r"Circuit:", True)
-        our_layers = read_gcode(pathlib.Path(our_json["file"]), -mandrel.length / 2.0,
+        our_layers = read_gcode(pathlib.Path(our_json["file"]), 0.0,
                                 r"^; layer \d+ ", None, False)
         inproc = subprocess.run([str(py), "-c", IN_PROCESS, str(f), str(args.repeat)],
                                 capture_output=True, text=True, check=True)

@@ -158,7 +158,10 @@ impl Streamer {
             self.in_flight_bytes -= self.program.lines[i].len();
             return Ok(());
         }
-        if reply.starts_with("error:") || reply.starts_with("ALARM:") {
+        // GRBL's `error:N` and `ALARM:N`; Marlin's `Error:` (a halt: this streamer sends no line
+        // numbers, so Marlin has no resend to ask for).
+        if reply.starts_with("error:") || reply.starts_with("ALARM:") || reply.starts_with("Error:")
+        {
             let line = self.in_flight.front().copied().unwrap_or(self.next);
             self.stopped = true;
             return Err(StreamError::Refused {
@@ -206,6 +209,11 @@ impl Streamer {
     /// Lines sent so far.
     pub fn sent(&self) -> usize {
         self.next
+    }
+
+    /// Lines acknowledged so far (sent and no longer in flight).
+    pub fn acknowledged(&self) -> usize {
+        self.next - self.in_flight.len()
     }
 
     /// Every line sent and acknowledged.

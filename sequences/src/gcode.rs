@@ -25,6 +25,7 @@
 //!   reader and the streamer use for pausing at a layer boundary.
 
 use crate::Error;
+use crate::machine::{FeedMode as Feed, LinearUnit, MachineProfile};
 use paths::motion::{Axes, AxisSet, LayerKind, LayerMark, MotionSink, Move, MoveKind, Recording};
 use std::io::{self, Write};
 
@@ -49,14 +50,6 @@ pub enum Dialect {
     Marlin,
     /// FANUC-style (0i/30i class).
     Fanuc,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Feed {
-    None,
-    InverseTime,
-    AllWords,
-    LinearWords,
 }
 
 impl Dialect {
@@ -99,8 +92,8 @@ impl Dialect {
         }
     }
 
-    /// Axis letters: mandrel, carriage, cross-feed, eye.
-    fn letters(self) -> [Option<u8>; 4] {
+    /// Axis letters of the dialect's usual winder: mandrel, carriage, cross-feed, eye.
+    pub fn letters(self) -> [Option<u8>; 4] {
         match self {
             Dialect::FwCnc => [Some(b'A'), Some(b'X'), Some(b'Y'), None],
             Dialect::Mach3 => [Some(b'X'), Some(b'Y'), Some(b'Z'), Some(b'A')],
@@ -116,7 +109,8 @@ impl Dialect {
         matches!(self, Dialect::Grbl | Dialect::Marlin)
     }
 
-    fn feed(self) -> Feed {
+    /// How the dialect's usual controller reads F on a multi-axis move.
+    pub fn feed(self) -> Feed {
         match self {
             Dialect::FwCnc => Feed::None,
             Dialect::Mach3 => Feed::AllWords,
@@ -227,6 +221,86 @@ fn duration_from(feed: Feed, delta: &[f64; 4], f: f64) -> f64 {
 pub struct Header {
     /// One-line title (the job file's name).
     pub title: String,
+    /// The mandrel and tow for FiberPath's `; Parameters` header (written when the machine
+    /// asks for it, [`MachineProfile::fiberpath_header`]).
+    pub parameters: Option<Parameters>,
+}
+
+/// What FiberPath's `; Parameters {…}` header line carries: its reader refuses a program
+/// without it (FiberPath 0.11, `fiberpath.gcode.reader`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Parameters {
+    /// The mandrel's diameter at the carriage's start, mm.
+    pub diameter_mm: f64,
+    /// The wound length, mm.
+    pub wind_length_mm: f64,
+    /// Tow (band) width, mm.
+    pub tow_width_mm: f64,
+    /// Tow thickness, mm.
+    pub tow_thickness_mm: f64,
+}
+
+/// How the planner's frame maps onto a machine's written coordinates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    /// Axis letters: mandrel, carriage, cross-feed, eye (`None`: not written).
+    pub letters: [Option<u8>; 4],
+    /// How F is read.
+    pub feed: Feed,
+    /// Written value = (planner value + offset) / unit, per axis.
+    pub offset: [f64; 4],
+    /// Planner units (mm or degrees) per written unit, per axis.
+    pub unit: [f64; 4],
+    /// Linear units (G21 / G20).
+    pub units: LinearUnit,
+    /// FiberPath's header and no M-codes.
+    pub fiberpath: bool,
+}
+
+impl Frame {
+    /// The dialect's usual winder in the planner's own frame (carriage 0 at the mandrel's
+    /// middle, millimetres).
+    pub fn of_dialect(dialect: Dialect) -> Frame {
+        Frame {
+            letters: dialect.letters(),
+            feed: dialect.feed(),
+            offset: [0.0; 4],
+            unit: [1.0; 4],
+            units: LinearUnit::Mm,
+            fiberpath: false,
+        }
+    }
+
+    /// A machine profile's frame, the carriage's written zero `carriage_offset_mm` from the
+    /// planner's (see [`MachineProfile::carriage_offset_mm`]).
+    pub fn of_machine(machine: &MachineProfile, carriage_offset_mm: f64) -> Frame {
+        let u = machine.units.mm();
+        Frame {
+            letters: std::array::from_fn(|i| machine.letter(i)),
+            feed: machine.feed,
+            offset: [0.0, carriage_offset_mm, 0.0, 0.0],
+            unit: [1.0, u, u, 1.0],
+            units: machine.units,
+            fiberpath: machine.fiberpath_header,
+        }
+    }
+
+    /// A planner value of axis `i` as written (before rounding).
+    pub fn to_machine(&self, i: usize, planner: f64) -> f64 {
+        (planner + self.offset[i]) / self.unit[i]
+    }
+
+    /// A written value of axis `i` in the planner's frame.
+    pub fn to_planner(&self, i: usize, written: f64) -> f64 {
+        written * self.unit[i] - self.offset[i]
+    }
+
+    fn units_word(&self) -> &'static str {
+        match self.units {
+            LinearUnit::Mm => "G21",
+            LinearUnit::Inch => "G20",
+        }
+    }
 }
 
 /// Writes a plan as G-code while it is being made ([`MotionSink`]): memory stays bounded
@@ -235,6 +309,7 @@ pub struct Header {
 pub struct Writer<W: Write> {
     out: W,
     dialect: Dialect,
+    frame: Frame,
     axes: [bool; 4],
     /// The last written position, in LSB of the machine's (unwrapped) coordinates.
     written: [i64; 4],
@@ -259,10 +334,24 @@ impl<W: Write> Writer<W> {
                  (axes = 3 or 2)"
             )));
         }
+        Writer::in_frame(out, dialect, Frame::of_dialect(dialect), used, header)
+    }
+
+    /// Starts a program in a machine's `frame`, writing the axes that are both `used` by the plan
+    /// and in the frame (an axis the machine lacks must stay where it is: checked beforehand by
+    /// [`crate::machine::Extent`]).
+    pub fn in_frame(
+        out: W,
+        dialect: Dialect,
+        frame: Frame,
+        used: [bool; 4],
+        header: &Header,
+    ) -> Result<Self, Error> {
         let mut w = Writer {
             out,
             dialect,
-            axes: used,
+            frame,
+            axes: std::array::from_fn(|i| used[i] && frame.letters[i].is_some()),
             written: [0; 4],
             mandrel_offset: 0,
             line: Vec::with_capacity(128),
@@ -304,6 +393,18 @@ impl<W: Write> Writer<W> {
 
     fn prologue(&mut self, header: &Header) -> io::Result<()> {
         let title = format!("windcell lathe plan: {} ({})", header.title, self.dialect);
+        if self.frame.fiberpath {
+            self.comment(&title)?;
+            let p = header.parameters.unwrap_or_default();
+            self.raw(&format!(
+                "; Parameters {{\"mandrel\": {{\"diameter\": {}, \"windLength\": {}}}, \
+                 \"tow\": {{\"width\": {}, \"thickness\": {}}}}}\n",
+                p.diameter_mm, p.wind_length_mm, p.tow_width_mm, p.tow_thickness_mm
+            ))?;
+            let units = self.frame.units_word();
+            return self.raw(&format!("{units}\nG90\nG94\n"));
+        }
+        let units = self.frame.units_word();
         match self.dialect {
             Dialect::FwCnc => {
                 self.raw("%\n")?;
@@ -313,30 +414,47 @@ impl<W: Write> Writer<W> {
             }
             Dialect::Mach3 => {
                 self.comment(&title)?;
-                self.raw("G21 G19 G94 G90\n")
+                self.raw(&format!("{units} G19 G94 G90\n"))
             }
             Dialect::Grbl => {
                 self.comment(&title)?;
-                self.raw("G21 G90 G93\n")
+                self.raw(&format!("{units} G90 {}\n", self.feed_mode_word()))
             }
             Dialect::LinuxCnc => {
                 self.comment(&title)?;
-                self.raw("G21 G90 G93 G64 P0.01\n")
+                self.raw(&format!(
+                    "{units} G90 {} G64 P0.01\n",
+                    self.feed_mode_word()
+                ))
             }
             Dialect::Marlin => {
                 self.comment(&title)?;
-                self.raw("G21\nG90\nG94\n")
+                self.raw(&format!("{units}\nG90\n{}\n", self.feed_mode_word()))
             }
             Dialect::Fanuc => {
                 self.raw("%\nO0001\n")?;
                 self.comment(&title)?;
-                self.raw("G21 G90 G93\n")
+                self.raw(&format!("{units} G90 {}\n", self.feed_mode_word()))
             }
+        }
+    }
+
+    /// G93 when the machine reads F as an inverse time, else G94.
+    fn feed_mode_word(&self) -> &'static str {
+        if self.frame.feed == Feed::InverseTime {
+            "G93"
+        } else {
+            "G94"
         }
     }
 
     /// Writes the epilogue and flushes; returns the output and the number of lines written.
     pub fn finish(mut self) -> io::Result<(W, u64)> {
+        if self.frame.fiberpath {
+            // FiberPath's reader takes G0, G1, G21, G90, G92 and G94 only: no program end.
+            self.out.flush()?;
+            return Ok((self.out, self.lines));
+        }
         match self.dialect {
             Dialect::FwCnc => {
                 self.block("M30")?;
@@ -373,8 +491,10 @@ impl<W: Write> MotionSink for Writer<W> {
     }
 
     fn motion(&mut self, m: &Move) -> io::Result<()> {
-        let target = m.to.to_array().map(quantise);
-        let letters = self.dialect.letters();
+        let planned = m.to.to_array();
+        let target: [i64; 4] =
+            std::array::from_fn(|i| quantise(self.frame.to_machine(i, planned[i])));
+        let letters = self.frame.letters;
         let mut line = std::mem::take(&mut self.line);
         line.clear();
         // Mode switches for the incremental dialects: the first (absolute) positioning, then G91.
@@ -439,7 +559,7 @@ impl<W: Write> MotionSink for Writer<W> {
                     0.0
                 }
             });
-            if let Some(f) = feed_value(self.dialect.feed(), &words, m.duration_s) {
+            if let Some(f) = feed_value(self.frame.feed, &words, m.duration_s) {
                 line.extend_from_slice(b" F");
                 push_feed(&mut line, f);
             }
@@ -457,8 +577,14 @@ impl<W: Write> MotionSink for Writer<W> {
 /// A program read back: its moves (absolute, unwrapped, with durations from the feed words) and
 /// its layer boundaries.
 pub fn read(text: &str, dialect: Dialect) -> Result<Recording, Error> {
-    let letters = dialect.letters();
-    let feed_mode = dialect.feed();
+    read_in_frame(text, dialect, &Frame::of_dialect(dialect))
+}
+
+/// A program written in a machine's `frame` read back into the planner's frame (moves of the
+/// axes the machine lacks keep the value they had, 0 from the start).
+pub fn read_in_frame(text: &str, dialect: Dialect, frame: &Frame) -> Result<Recording, Error> {
+    let letters = frame.letters;
+    let feed_mode = frame.feed;
     let mut rec = Recording::default();
     let mut pos = [0.0f64; 4];
     let mut offset = 0.0f64;
@@ -553,7 +679,7 @@ pub fn read(text: &str, dialect: Dialect) -> Result<Recording, Error> {
                     92 => set_position = true,
                     93 => inverse_time = true,
                     94 => inverse_time = false,
-                    17 | 18 | 19 | 21 => {}
+                    17..=21 => {}
                     64 => {}
                     _ => return Err(bad(&format!("G{value} is not written"))),
                 },
@@ -616,7 +742,7 @@ pub fn read(text: &str, dialect: Dialect) -> Result<Recording, Error> {
         pos = next;
         rec.moves.push(Move {
             kind,
-            to: Axes::from_array(pos),
+            to: Axes::from_array(std::array::from_fn(|i| frame.to_planner(i, pos[i]))),
             duration_s,
         });
     }

@@ -11,6 +11,7 @@ pub mod error;
 pub mod gcode;
 pub mod ind;
 pub mod job;
+pub mod machine;
 pub mod part_program;
 pub mod rob;
 pub mod run;

@@ -20,14 +20,23 @@ fn context(error: &clap::Error, kind: ContextKind) -> Option<String> {
     }
 }
 
-/// `windcell plan` when the command line names a subcommand, else `windcell`.
+/// `windcell plan` (or `windcell lathe plan`, as deep as the command line names subcommands)
+/// when the command line names a subcommand, else `windcell`.
 fn command(args: &[String]) -> String {
     use clap::CommandFactory;
     let cli = crate::cli::Cli::command();
-    match args.get(1) {
-        Some(name) if cli.find_subcommand(name).is_some() => format!("windcell {name}"),
-        _ => "windcell".to_string(),
+    let mut name = "windcell".to_string();
+    let mut at = &cli;
+    for arg in args.iter().skip(1) {
+        match at.find_subcommand(arg) {
+            Some(sub) => {
+                name = format!("{name} {arg}");
+                at = sub;
+            }
+            None => break,
+        }
     }
+    name
 }
 
 /// The one-line message for a parser error (without the `windcell: ` prefix); `args` is the

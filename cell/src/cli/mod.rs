@@ -13,6 +13,7 @@ pub mod run;
 pub mod sim_cell;
 pub mod sim_grbl;
 pub mod sim_indexer;
+pub mod sim_marlin;
 pub mod sim_robot;
 pub mod sweep;
 pub mod triasym;
@@ -83,6 +84,8 @@ pub enum Command {
     SimCell(sim_cell::SimCellArgs),
     /// Run the multi-axis GRBL controller simulator (lathe winder) on a pseudo-terminal.
     SimGrbl(sim_grbl::SimGrblArgs),
+    /// Run the Marlin controller simulator (lathe winder) on a pseudo-terminal.
+    SimMarlin(sim_marlin::SimMarlinArgs),
     /// Run the mandrel indexer simulator on a pseudo-terminal.
     SimIndexer(sim_indexer::SimIndexerArgs),
     /// Run the ASEA robot-computer simulator on a pseudo-terminal.
@@ -145,6 +148,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Jog(args) => jog::run(args),
         Command::SimCell(args) => sim_cell::run(args),
         Command::SimGrbl(args) => sim_grbl::run(args),
+        Command::SimMarlin(args) => sim_marlin::run(args),
         Command::SimIndexer(args) => sim_indexer::run(args),
         Command::SimRobot(args) => sim_robot::run(args),
         Command::Geodesic(args) => geodesic::run(args),

@@ -7,7 +7,7 @@ use std::io::Write;
 use paths::motion::{AxisSet, Estimate, LayerMark, MotionSink, Move};
 use paths::pattern::Pattern;
 use paths::vessel::Plan;
-use sequences::gcode::{Dialect, Header, Writer};
+use sequences::gcode::{Dialect, Frame, Header, Writer};
 use serde::Serialize;
 
 /// What a written plan amounts to.
@@ -72,14 +72,39 @@ pub fn write_program<W: Write>(
     title: &str,
     out: W,
 ) -> Result<(Summary, W), sequences::Error> {
-    let mut writer = Writer::new(
+    let writer = Writer::new(
         out,
         dialect,
         axes,
         &Header {
             title: title.to_string(),
+            parameters: None,
         },
     )?;
+    write_with(plan, dialect, writer)
+}
+
+/// Writes `plan` as `dialect` G-code in a machine's `frame` (its letters, origin, units and feed,
+/// [`sequences::gcode::Frame::of_machine`]); the plan must have been checked against the
+/// machine ([`sequences::machine::MachineProfile::admits`]).
+pub fn write_in_frame<W: Write>(
+    plan: &Plan,
+    axes: AxisSet,
+    dialect: Dialect,
+    frame: Frame,
+    header: &Header,
+    out: W,
+) -> Result<(Summary, W), sequences::Error> {
+    let used = [true, true, axes.cross_feed(), axes.eye_rotation()];
+    let writer = Writer::in_frame(out, dialect, frame, used, header)?;
+    write_with(plan, dialect, writer)
+}
+
+fn write_with<W: Write>(
+    plan: &Plan,
+    dialect: Dialect,
+    mut writer: Writer<W>,
+) -> Result<(Summary, W), sequences::Error> {
     let mut estimate = Estimate::new(plan.limits(), plan.start());
     let mut tee = Tee {
         writer: &mut writer,

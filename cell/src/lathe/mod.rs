@@ -8,6 +8,9 @@
 //! its main program's first block.
 
 pub mod gcode;
+pub mod layup_scene;
+pub mod layup_svg;
+pub mod stream_watch;
 pub mod trace_plot;
 
 use std::path::{Path, PathBuf};
@@ -329,6 +332,10 @@ pub struct Report {
     pub circuits: usize,
     /// Program stops (M00) passed.
     pub stops: usize,
+    /// The run before which the progress hook stopped the program (the axes at rest at the end
+    /// of the run before), if it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub halted_before_run: Option<usize>,
 }
 
 /// Progress events while running.
@@ -343,7 +350,9 @@ pub enum Progress {
     },
     /// An M00 was reached.
     Stop,
-    /// A run (one trajectory) is about to start (single-block hook).
+    /// A run (one trajectory) is about to start (single-block hook): the hook's
+    /// [`ControlFlow::Break`](std::ops::ControlFlow::Break) stops the program there, the axes
+    /// at rest.
     RunStart {
         /// Index of the run.
         run: usize,
@@ -364,7 +373,8 @@ pub type TickHook<'a> = &'a mut dyn FnMut(u64, &[f64; 3], &[i64; 3]);
 
 /// Runs `plan` on `controller` paced by `clock`. The controller's origin must be machine zero.
 /// `trace_every` > 0 records a [`TraceRow`] every that many interrupts into `trace`;
-/// `on_progress` sees circuits and stops; `on_tick` sees every interrupt (desired and measured
+/// `on_progress` sees circuits and stops, and may stop the program before a run;
+/// `on_tick` sees every interrupt (desired and measured
 /// counts from machine zero, for a recorder).
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 pub fn execute<I: AxisIo>(
@@ -374,7 +384,7 @@ pub fn execute<I: AxisIo>(
     clock: &mut dyn InterruptClock,
     trace_every: u64,
     trace: &mut Vec<TraceRow>,
-    on_progress: &mut dyn FnMut(Progress),
+    on_progress: &mut dyn FnMut(Progress) -> std::ops::ControlFlow<()>,
     on_tick: TickHook<'_>,
 ) -> Result<Report, Error> {
     let scale: [f64; 3] = LatheAxis::ALL.map(|a| a.counts_per_unit());
@@ -390,8 +400,12 @@ pub fn execute<I: AxisIo>(
     let mut peak_a = [0.0f64; 3];
     let mut peak_j = [0.0f64; 3];
     let transfer = |e: mandrel_drive::Error| Error::Lathe { source: e };
+    let mut halted_before_run = None;
     for (r, run) in plan.runs.iter().enumerate() {
-        on_progress(Progress::RunStart { run: r });
+        if on_progress(Progress::RunStart { run: r }).is_break() {
+            halted_before_run = Some(r);
+            break;
+        }
         let p = run.trajectory.peaks();
         for i in 0..3 {
             planned_peak[i] = planned_peak[i].max(p.velocity[i]);
@@ -443,7 +457,7 @@ pub fn execute<I: AxisIo>(
         if let Some(c) = run.circuit {
             let last_of_circuit = plan.runs.get(r + 1).is_none_or(|n| n.circuit != Some(c));
             if last_of_circuit {
-                on_progress(Progress::Circuit {
+                let _ = on_progress(Progress::Circuit {
                     done: c,
                     total: plan.circuits,
                 });
@@ -451,7 +465,7 @@ pub fn execute<I: AxisIo>(
         }
         if run.stop_after {
             stops += 1;
-            on_progress(Progress::Stop);
+            let _ = on_progress(Progress::Stop);
         }
     }
     controller.stop();
@@ -477,6 +491,7 @@ pub fn execute<I: AxisIo>(
         completion_time_s: k as f64 / hz,
         circuits: plan.circuits,
         stops,
+        halted_before_run,
     })
 }
 
@@ -497,7 +512,7 @@ pub fn simulate(
         &mut mandrel_drive::lathe::SimulatedClock,
         trace_every,
         &mut trace,
-        &mut |_| {},
+        &mut |_| std::ops::ControlFlow::Continue(()),
         &mut |_, _, _| {},
     )?;
     Ok((report, trace))
@@ -938,10 +953,13 @@ mod tests {
             &mut mandrel_drive::lathe::SimulatedClock,
             0,
             &mut Vec::new(),
-            &mut |p| match p {
-                Progress::RunStart { .. } => starts += 1,
-                Progress::Circuit { done, total } => circuits.push((done, total)),
-                Progress::Stop => {}
+            &mut |p| {
+                match p {
+                    Progress::RunStart { .. } => starts += 1,
+                    Progress::Circuit { done, total } => circuits.push((done, total)),
+                    Progress::Stop => {}
+                }
+                std::ops::ControlFlow::Continue(())
             },
             &mut |_, _, _| {},
         )

@@ -217,6 +217,37 @@ fn single_block_waits_for_the_operator_before_every_block() {
 }
 
 #[test]
+fn single_block_stops_when_standard_input_closes() {
+    let dir = tempfile::tempdir().unwrap();
+    let prg = dir.path().join("three.prg");
+    std::fs::write(
+        &prg,
+        "%\nO 1 G91;\nN 10 X 10;\nN 20 Y 5 A 90;\nN 30 X -10 Y -5;\nM30;\n",
+    )
+    .unwrap();
+    // One Enter, then end of input: the first block runs, the second is not started.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .args(["lathe", "run", prg.to_str().unwrap(), "--single-block"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(b"\n").unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert_eq!(err.matches("press Enter").count(), 2, "{err}");
+    let last = err.lines().last().unwrap();
+    assert!(
+        last.contains("three.prg:4:") && last.contains("standard input closed"),
+        "{err}"
+    );
+    assert!(last.contains("1 of 3 blocks run"), "{err}");
+    assert!(out.stdout.is_empty());
+}
+
+#[test]
 fn progress_counts_layers() {
     let out = windcell(&[
         "lathe",

@@ -4,6 +4,7 @@
 pub mod clock;
 pub mod grbl;
 pub mod machine;
+pub mod marlin;
 pub mod motion;
 pub mod motor;
 pub mod serial;

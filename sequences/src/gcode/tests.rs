@@ -95,6 +95,7 @@ fn write(job: &Job, dialect: Dialect) -> (Recording, String) {
         job.machine.axes,
         &Header {
             title: "test".into(),
+            parameters: None,
         },
     )
     .unwrap();

@@ -7,6 +7,8 @@ use super::Failure;
 
 pub mod gear;
 pub mod home;
+pub mod machine;
+pub mod out_file;
 pub mod plan;
 pub mod run;
 pub mod stream;

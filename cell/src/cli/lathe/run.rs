@@ -257,38 +257,45 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
             rec.log(interrupts_done.get() as f64 / hz, Level::Info, message);
         }
     };
-    let mut on_progress = |p: Progress| match p {
-        Progress::Circuit { done, total } => {
-            let text = format!(
-                "circuit {}/{total} wound, layer {} of {}",
-                done + 1,
-                done / per_layer + 1,
-                total.div_ceil(per_layer)
-            );
-            log(&text);
-            if !quiet {
-                eprintln!("{text}");
-            }
-        }
-        Progress::Stop => {
-            log("M00 program stop");
-            if !quiet {
-                eprintln!("M00 program stop");
-            }
-        }
-        Progress::RunStart { run } => {
-            if single {
-                let at = plan.runs[run].blocks[0];
-                eprint!(
-                    "block {}:{}:{}: press Enter to run it ",
-                    args.program.display(),
-                    at.line,
-                    at.column
+    let mut on_progress = |p: Progress| {
+        match p {
+            Progress::Circuit { done, total } => {
+                let text = format!(
+                    "circuit {}/{total} wound, layer {} of {}",
+                    done + 1,
+                    done / per_layer + 1,
+                    total.div_ceil(per_layer)
                 );
-                let mut line = String::new();
-                let _ = stdin.read_line(&mut line);
+                log(&text);
+                if !quiet {
+                    eprintln!("{text}");
+                }
+            }
+            Progress::Stop => {
+                log("M00 program stop");
+                if !quiet {
+                    eprintln!("M00 program stop");
+                }
+            }
+            Progress::RunStart { run } => {
+                if single {
+                    let at = plan.runs[run].blocks[0];
+                    eprint!(
+                        "block {}:{}:{}: press Enter to run it ",
+                        args.program.display(),
+                        at.line,
+                        at.column
+                    );
+                    let mut line = String::new();
+                    // End of input (or an unreadable one) is not an Enter: stop here.
+                    if !matches!(stdin.read_line(&mut line), Ok(n) if n > 0) {
+                        eprintln!();
+                        return std::ops::ControlFlow::Break(());
+                    }
+                }
             }
         }
+        std::ops::ControlFlow::Continue(())
     };
     let report = lathe::execute(
         &plan,
@@ -303,6 +310,17 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     .map_err(Failure::from_cell)?;
     if let Some(rec) = recorder {
         rec.finish().map_err(Failure::from_cell)?;
+    }
+    if let Some(run) = report.halted_before_run {
+        let at = plan.runs[run].blocks[0];
+        return Err(Failure::runtime(format!(
+            "{}:{}:{}: --single-block: standard input closed before this block; stopped with the \
+             axes at rest ({run} of {} blocks run; each block waits for Enter)",
+            args.program.display(),
+            at.line,
+            at.column,
+            plan.runs.len()
+        )));
     }
     let jitter: Option<Jitter> = wall.as_ref().map(WallClock::jitter);
     if let Some(path) = &args.plot {

@@ -1,6 +1,7 @@
-//! `windcell lathe stream FILE --port PATH [--baud B] [--flow counting|ok-per-line]`: streams a
-//! planned G-code program to a GRBL-class controller over a serial port (docs/lathe.md,
-//! "Streaming to a GRBL controller").
+//! `windcell lathe stream FILE --port PATH [--baud B] [--flow counting|ok-per-line] [--json]`:
+//! streams a planned G-code program to a GRBL-class or Marlin controller over a serial port
+//! (docs/lathe.md, "Streaming to a GRBL controller", "Watching a stream"): the whole file checked
+//! first, progress shown while it streams, the line to restart from after a stop.
 //!
 //! Character counting keeps the controller's 128-byte receive buffer full; `ok-per-line` (Marlin,
 //! and the fallback) waits for each `ok`. Ctrl-C sends feed hold and soft reset and exits 130.
@@ -13,10 +14,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use cell::lathe::stream_watch::{Outline, Show, Shown, Watch, restart_hint};
 use clap::{Args, ValueEnum};
 use mandrel_drive::Link as _;
 use mandrel_drive::grbl::STATUS;
 use mandrel_drive::stream::{Flow, GRBL_RX_BUFFER, Program, ReplyLines, Streamer};
+use std::io::IsTerminal as _;
 
 use super::super::Failure;
 use super::super::run::EXIT_INTERRUPTED;
@@ -48,15 +51,36 @@ pub struct LatheStreamArgs {
     /// which the link counts as lost.
     #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     pub silence_s: f64,
+    /// Progress as JSON events on standard output (one per line: start, layer, progress every
+    /// second, done or stopped with the line to restart from).
+    #[arg(long)]
+    pub json: bool,
+    /// Seconds between plain progress lines when standard error is not a terminal.
+    #[arg(
+        long,
+        default_value_t = 5.0,
+        allow_negative_numbers = true,
+        value_name = "S"
+    )]
+    pub progress_every_s: f64,
 }
 
 /// How often a status report is asked for (also the link's heartbeat).
 const STATUS_PERIOD: Duration = Duration::from_millis(250);
 
-/// Reads and checks the program: every line to send must fit the receive buffer.
-fn load(path: &PathBuf) -> Result<Program, Failure> {
+/// Reads and checks the whole program before anything is sent: every line must be one the
+/// controller can hold ([`cell::lathe::stream_watch::check_line`]) and fit the receive buffer.
+fn load(path: &PathBuf) -> Result<(Program, Outline), Failure> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+    let outline = Outline::of(&text).map_err(|(line, r)| {
+        Failure::input(format!(
+            "{}:{line}:{}: {}",
+            path.display(),
+            r.column,
+            r.message
+        ))
+    })?;
     for (i, raw) in text.lines().enumerate() {
         let code = Program::from_gcode(raw);
         if let Some(line) = code.lines.first()
@@ -69,22 +93,6 @@ fn load(path: &PathBuf) -> Result<Program, Failure> {
                 line.len()
             )));
         }
-        if raw
-            .bytes()
-            .any(|b| b == 0x18 || b == b'!' || b == b'~' || b == b'?')
-            && !code.lines.is_empty()
-        {
-            let col = raw
-                .bytes()
-                .position(|b| b == 0x18 || b == b'!' || b == b'~' || b == b'?')
-                .unwrap_or(0);
-            return Err(Failure::input(format!(
-                "{}:{}:{}: a real-time command character inside a line",
-                path.display(),
-                i + 1,
-                col + 1
-            )));
-        }
     }
     let program = Program::from_gcode(&text);
     if program.lines.is_empty() {
@@ -93,7 +101,19 @@ fn load(path: &PathBuf) -> Result<Program, Failure> {
             path.display()
         )));
     }
-    Ok(program)
+    Ok((program, outline))
+}
+
+/// Prints what the progress display says.
+fn show(out: Option<Shown>) {
+    match out {
+        Some(Shown::Inline(t)) => eprint!("\r{t}\x1b[K"),
+        Some(Shown::Line(t)) => eprintln!("lathe stream: {t}"),
+        Some(Shown::Event(v)) => {
+            let _ = crate::cli::print(&format!("{v}\n"));
+        }
+        None => {}
+    }
 }
 
 /// Streams the program until every line is acknowledged.
@@ -104,8 +124,15 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
             args.silence_s
         )));
     }
-    let program = load(&args.file)?;
+    if !(args.progress_every_s.is_finite() && args.progress_every_s > 0.0) {
+        return Err(Failure::input(format!(
+            "lathe stream: --progress-every-s {} must be a positive number",
+            sequences::error::shown(args.progress_every_s)
+        )));
+    }
+    let (program, outline) = load(&args.file)?;
     let total = program.lines.len();
+    let file = args.file.display().to_string();
     let layers = program.layer_starts.clone();
     let flow = match args.flow {
         FlowArg::Counting => Flow::CharacterCounting {
@@ -141,6 +168,24 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
         }
     });
 
+    let mut watch = Watch::new(
+        &outline,
+        if args.json {
+            Show::Json
+        } else if std::io::stderr().is_terminal() {
+            Show::Terminal
+        } else {
+            Show::Plain(Duration::from_secs_f64(args.progress_every_s))
+        },
+    );
+    if args.json {
+        show(Some(Shown::Event(
+            serde_json::json!({"event": "start", "file": file,
+                "lines": total, "layers": outline.layers.len()}),
+        )));
+    }
+    // Every failure from here names the line to restart from.
+    let restart = |streamer: &Streamer| restart_hint(&outline, &file, streamer.acknowledged());
     let mut replies = ReplyLines::new();
     let mut buf = [0u8; 512];
     let mut last_heard = Instant::now();
@@ -150,15 +195,30 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
     while !streamer.is_done() {
         if stop.load(Ordering::Relaxed) {
             let bytes = streamer.stop();
-            port.write_all(&bytes).map_err(link_failure)?;
+            watch.end_line();
+            let sent = port.write_all(&bytes);
+            let message = format!(
+                "lathe stream: interrupted after {} of {total} lines: feed hold and reset {}; {}",
+                streamer.sent(),
+                if sent.is_ok() {
+                    "sent"
+                } else {
+                    "could not be sent"
+                },
+                restart(&streamer)
+            );
+            if args.json {
+                show(Some(Shown::Event(serde_json::json!({"event": "stopped",
+                        "reason": "interrupted", "acknowledged": streamer.acknowledged(),
+                        "restart": restart(&streamer)}))));
+            }
             return Err(Failure {
-                message: format!(
-                    "lathe stream: interrupted after {} of {total} lines: feed hold and reset sent",
-                    streamer.sent()
-                ),
+                message,
                 exit_code: EXIT_INTERRUPTED,
             });
         }
+        let out = watch.update(streamer.sent(), streamer.acknowledged(), false);
+        show(out);
         while let Ok(c) = console.try_recv() {
             match c {
                 'p' => streamer.request_pause(),
@@ -172,42 +232,83 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
         }
         while let Some(line) = streamer.poll_send() {
             let line = line.to_string();
-            port.write_all(line.as_bytes()).map_err(link_failure)?;
+            if let Err(e) = port.write_all(line.as_bytes()) {
+                watch.end_line();
+                return Err(Failure::runtime(format!(
+                    "{}: {e}; {}",
+                    args.port,
+                    restart(&streamer)
+                )));
+            }
         }
         if let Some(at) = streamer.paused_at()
             && !announced_pause
         {
             let layer = layers.iter().position(|&s| s == at).map_or(0, |i| i + 1);
+            watch.end_line();
             eprintln!(
                 "lathe stream: paused before layer {layer} (line {} of {total}); `r` resumes",
                 at + 1
             );
             announced_pause = true;
         }
-        if last_status.elapsed() >= STATUS_PERIOD {
-            port.write_all(&[STATUS]).map_err(link_failure)?;
+        // `?` is GRBL's real-time status request; a Marlin controller (one line per `ok`) would
+        // take it as part of the next line.
+        if args.flow == FlowArg::Counting && last_status.elapsed() >= STATUS_PERIOD {
+            if let Err(e) = port.write_all(&[STATUS]) {
+                watch.end_line();
+                return Err(Failure::runtime(format!(
+                    "{}: {e}; {}",
+                    args.port,
+                    restart(&streamer)
+                )));
+            }
             last_status = Instant::now();
         }
-        let n = port
-            .read_timeout(&mut buf, Duration::from_millis(5))
-            .map_err(link_failure)?;
+        let n = match port.read_timeout(&mut buf, Duration::from_millis(5)) {
+            Ok(n) => n,
+            Err(e) => {
+                watch.end_line();
+                return Err(Failure::runtime(format!(
+                    "{}: {e}; {}",
+                    args.port,
+                    restart(&streamer)
+                )));
+            }
+        };
         if n > 0 {
             last_heard = Instant::now();
         } else if last_heard.elapsed() > silence {
+            watch.end_line();
             return Err(Failure::runtime(format!(
-                "{}: no reply from the controller in {} s after {} of {total} lines",
+                "{}: no reply from the controller in {} s after {} of {total} lines; {}",
                 args.port,
                 args.silence_s,
-                streamer.sent()
+                streamer.sent(),
+                restart(&streamer)
             )));
         }
         for &b in buf.get(..n).unwrap_or_default() {
-            if let Some(text) = replies.push(b) {
-                streamer
-                    .on_reply(&text)
-                    .map_err(|e| Failure::runtime(format!("{}: {e}", args.file.display())))?;
+            if let Some(text) = replies.push(b)
+                && let Err(e) = streamer.on_reply(&text)
+            {
+                watch.end_line();
+                return Err(Failure::runtime(format!(
+                    "{}: {e}; {}",
+                    args.file.display(),
+                    restart(&streamer)
+                )));
             }
         }
+    }
+    let out = watch.update(streamer.sent(), streamer.acknowledged(), true);
+    show(out);
+    watch.end_line();
+    if args.json {
+        show(Some(Shown::Event(
+            serde_json::json!({"event": "done", "lines": total,
+                "elapsed_s": watch.elapsed().as_secs_f64()}),
+        )));
     }
     eprintln!("lathe stream: {total} lines sent and acknowledged");
     Ok(())
