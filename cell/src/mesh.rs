@@ -176,7 +176,7 @@ pub fn load_prepared(
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let (handle, len) = sequences::source::open(file, sequences::source::MAX_MESH_BYTES)?;
+    let (mut handle, len) = sequences::source::open(file, sequences::source::MAX_MESH_BYTES)?;
     if ext != "stl" && ext != "obj" {
         return Err(mesh_error(paths::Error::MeshSyntax {
             line: None,
@@ -188,6 +188,11 @@ pub fn load_prepared(
     if let Some(prepared) = from_cache(file, weld_mm, closure, &handle, len) {
         return Ok(prepared);
     }
+    // Checking a cache read the file through a clone of the handle, which shares its offset.
+    std::io::Seek::rewind(&mut handle).map_err(|source| sequences::Error::Io {
+        file: file.to_path_buf(),
+        source,
+    })?;
     let mut summing = Summing {
         inner: handle,
         sum: Checksum::default(),
@@ -224,4 +229,69 @@ pub fn load_prepared(
         }
     }
     Ok(prepared)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use paths::mesh::{DEFAULT_WELD_MM, triasym};
+
+    /// A closed cylinder of 2 · 256 · `rings` + 512 triangles, radius `r_mm`, as binary STL.
+    fn cylinder_stl(rings: usize, r_mm: f64) -> Vec<u8> {
+        let profile: Vec<(f64, f64)> = (0..=rings).map(|i| (i as f64, r_mm)).collect();
+        stl::write_binary(&triasym::revolution(&profile, 256, true).unwrap(), "test")
+    }
+
+    #[test]
+    fn a_large_mesh_is_cached_beside_its_file_and_prepared_again_when_the_file_changes() {
+        let tmp = tempfile::tempdir().unwrap();
+        let file = tmp.path().join("m.stl");
+        std::fs::write(&file, cylinder_stl(200, 30.0)).unwrap();
+        let fresh = load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        assert!(fresh.0.triangles().len() >= CACHE_MIN_TRIANGLES);
+        let cache = cache_path(&file);
+        assert!(cache.is_file(), "no cache written");
+        // Read back from the cache: the same prepared mesh.
+        let cached = load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        assert_eq!(cached, fresh);
+        // Another tolerance does not use it.
+        let other = load_prepared(&file, 2e-4, Closure::Closed).unwrap();
+        assert_eq!(other.0.triangles().len(), fresh.0.triangles().len());
+        // The file changes (same size, another radius): prepared from the file, cache replaced.
+        std::fs::write(&file, cylinder_stl(200, 31.0)).unwrap();
+        let changed = load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        let radius = |m: &Mesh| {
+            m.vertices()
+                .iter()
+                .map(|v| v.x.hypot(v.y))
+                .fold(0.0, f64::max)
+        };
+        assert!(
+            (radius(&changed.0) - 31.0).abs() < 1e-5,
+            "{}",
+            radius(&changed.0)
+        );
+        assert_eq!(
+            load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap(),
+            changed
+        );
+        // A corrupted cache is not read: the mesh is prepared from the file.
+        let mut bytes = std::fs::read(&cache).unwrap();
+        let middle = bytes.len() / 2;
+        bytes[middle] ^= 0xff;
+        std::fs::write(&cache, bytes).unwrap();
+        assert_eq!(
+            load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap(),
+            changed
+        );
+    }
+
+    #[test]
+    fn a_small_mesh_leaves_no_cache() {
+        let tmp = tempfile::tempdir().unwrap();
+        let file = tmp.path().join("s.stl");
+        std::fs::write(&file, cylinder_stl(10, 30.0)).unwrap();
+        load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        assert!(!cache_path(&file).exists());
+    }
 }
