@@ -127,6 +127,33 @@ mod tests {
     }
 
     #[test]
+    fn limits_stop_the_reader_at_the_line_that_breaks_them() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\n";
+        assert_eq!(read(text.as_bytes(), 3).unwrap().0.triangles().len(), 3);
+        let e = read(text.as_bytes(), 2).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("line 7, column 1: triangle count = 3 exceeds the limit of 2"),
+            "{e}"
+        );
+        // Three vertices per allowed triangle: the fourth `v` of a one-triangle limit.
+        let e = read(text.as_bytes(), 1).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("line 4, column 1: vertex count = 4 exceeds the limit of 3"),
+            "{e}"
+        );
+        // A line longer than the reader holds.
+        let long = format!("v 0 0 0 {}\n", "0".repeat(crate::mesh::MAX_LINE_BYTES));
+        assert!(
+            read(long.as_bytes(), 10)
+                .unwrap_err()
+                .to_string()
+                .starts_with("line 1: the line is longer than 65536 bytes")
+        );
+    }
+
+    #[test]
     fn errors_name_the_line() {
         let e = parse("v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap_err();
         assert_eq!(

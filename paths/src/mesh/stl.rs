@@ -430,6 +430,34 @@ mod tests {
     }
 
     #[test]
+    fn the_streamed_reader_welds_and_stops_at_the_triangle_limit() {
+        let m = tetra();
+        let ascii = write_ascii(&m, "t");
+        let binary = write_binary(&m, "t");
+        for bytes in [ascii.as_bytes(), &binary[..]] {
+            let welded = read(bytes, bytes.len() as u64, DEFAULT_WELD_MM, 4).unwrap();
+            assert_eq!(welded.mesh.vertices().len(), 4);
+            for t in 0..4 {
+                assert_eq!(welded.mesh.corners(t), m.corners(t));
+            }
+        }
+        // ASCII: at the `facet` line of the fourth triangle (line 2 + 3 × 7).
+        let e = read(ascii.as_bytes(), ascii.len() as u64, DEFAULT_WELD_MM, 3).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("line 23, column 3: triangle count = 4 exceeds the limit of 3"),
+            "{e}"
+        );
+        // Binary: at the header's count, before any triangle is read.
+        let e = read(&binary[..], binary.len() as u64, DEFAULT_WELD_MM, 3).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("byte 80: triangle count = 4 exceeds the limit of 3"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn errors_name_the_line_or_triangle() {
         let text = write_ascii(&tetra(), "t");
         let bad = text.replacen("vertex 1e1 0e0 0e0", "vertex 1e1 zero 0e0", 1);
