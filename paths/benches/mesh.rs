@@ -2,15 +2,22 @@
 //! and planning a full S-bend coverage set on a 200 000-triangle mesh. Figures in
 //! docs/benchmarks.md ("Triangulated mandrels").
 
+#[path = "common/shapes.rs"]
+mod shapes;
+
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{Point3, Vector3};
 use paths::geodesic::{Direction, PathStart};
 use paths::mesh::trace::{DEFAULT_CREASE_DEG, Mode, TraceOptions, Tracer};
-use paths::mesh::{Closure, DEFAULT_WELD_MM, Mesh, prepare, resegment, stl, triasym};
+use paths::mesh::{
+    Closure, DEFAULT_WELD_MM, Mesh, cache, prepare, prepare_welded, resegment, stl, triasym,
+};
 use paths::plan::ENTRY_ANGLE_MAX_DEG;
 use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
+use shapes::{Shape, starts};
+
 use paths::{Arm, Calibration, Gearing, MandrelProfile, Movement, Setup, Speeds, Spine, Tube};
 
 fn tracer(mesh: &Mesh) -> Tracer {
@@ -166,15 +173,88 @@ fn load(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("load_weld_validate_1m_binary_stl", |b| {
         b.iter(|| {
-            let soup = stl::parse(black_box(&bytes)).unwrap();
-            let m = Mesh::from_soup(&soup).unwrap();
-            black_box(prepare(&m, DEFAULT_WELD_MM, Closure::Closed).unwrap())
+            let welded = stl::read(
+                black_box(&bytes[..]),
+                bytes.len() as u64,
+                DEFAULT_WELD_MM,
+                usize::MAX,
+            )
+            .unwrap();
+            black_box(prepare_welded(welded.mesh, Closure::Closed).unwrap())
+        })
+    });
+    let (prepared, adjacency) = prepare(&mesh, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+    let key = cache::Key {
+        source_bytes: bytes.len() as u64,
+        source_checksum: cache::Checksum::of(&bytes),
+        weld_mm: DEFAULT_WELD_MM,
+        closure: Closure::Closed,
+    };
+    let cached = cache::encode(&key, &prepared, &adjacency);
+    group.bench_function("cached_1m_checksum_and_decode", |b| {
+        b.iter(|| {
+            let key = cache::Key {
+                source_checksum: cache::Checksum::of(black_box(&bytes)),
+                ..key
+            };
+            black_box(cache::decode(&cached, &key).unwrap())
         })
     });
     let (prepared, adjacency) = prepare(&mesh, DEFAULT_WELD_MM, Closure::Closed).unwrap();
     group.bench_function("tracer_new_1m", |b| {
         b.iter(|| black_box(Tracer::new(prepared.clone(), &adjacency, DEFAULT_CREASE_DEG).unwrap()))
     });
+    group.finish();
+}
+
+/// 32 different paths per iteration (cold in cache on the large meshes), beside one path retraced
+/// (warm): smooth and exact mode on the comparison's cylinder, sphere and torus.
+fn different_paths(c: &mut Criterion) {
+    let mut group = c.benchmark_group("mesh");
+    group.sample_size(10);
+    for size in [80_000, 700_000] {
+        for shape in Shape::ALL {
+            let mesh = shape.mesh(size);
+            let starts = starts(shape, &mesh);
+            let tr = tracer(&mesh);
+            for (name, mode) in [("smooth", Mode::Smooth), ("exact", Mode::Exact)] {
+                let o = TraceOptions {
+                    max_length_mm: shape.length_mm(),
+                    axis: shape.axis(),
+                    mode,
+                    ..TraceOptions::default()
+                };
+                let run = |s: &shapes::Start| {
+                    tr.trace_direction(&s.point, &s.direction, 1e-6, &o)
+                        .unwrap()
+                };
+                let crossings: usize = starts.iter().map(|s| run(s).crossings).sum();
+                group.throughput(Throughput::Elements(crossings as u64));
+                group.bench_function(
+                    format!("trace_{name}_32_paths_{}_{size}", shape.name()),
+                    |b| {
+                        b.iter(|| {
+                            for s in &starts {
+                                black_box(run(s));
+                            }
+                        })
+                    },
+                );
+                let one = run(&starts[0]).crossings;
+                group.throughput(Throughput::Elements(32 * one as u64));
+                group.bench_function(
+                    format!("trace_{name}_1_path_x32_{}_{size}", shape.name()),
+                    |b| {
+                        b.iter(|| {
+                            for _ in 0..32 {
+                                black_box(run(&starts[0]));
+                            }
+                        })
+                    },
+                );
+            }
+        }
+    }
     group.finish();
 }
 
@@ -237,5 +317,13 @@ fn coverage(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, trace, locality, bvh_locality, load, coverage);
+criterion_group!(
+    benches,
+    trace,
+    different_paths,
+    locality,
+    bvh_locality,
+    load,
+    coverage
+);
 criterion_main!(benches);

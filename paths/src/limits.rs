@@ -16,11 +16,10 @@ pub const MAX_PATH_LENGTH_MM: f64 = 100_000.0;
 pub const MAX_PATH_SAMPLES: usize = 400_000;
 /// Most spine knots (Table 6.1 has 36).
 pub const MAX_SPINE_KNOTS: usize = 1_000;
-/// Most triangles of a mesh that windcell reads from a file or generates with TRIASYM (the shipped
-/// S-bend mesh has 36 000). Loading and preparing a mesh for tracing takes about 600 bytes per
-/// triangle, so this keeps a mesh command within the memory budget. The library's own functions
-/// accept larger meshes (the 1-million-triangle load benchmark).
-pub const MAX_TRIANGLES: usize = 500_000;
+/// Most triangles of a mesh that windcell reads from a file or generates with TRIASYM: 5 million,
+/// a mandrel exported from CAD or scanned (the shipped S-bend mesh has 36 000). Memory grows
+/// with the triangle count, bounded per triangle (docs/ARCHITECTURE.md, "Limits").
+pub const MAX_TRIANGLES: usize = 5_000_000;
 
 /// `Ok` when `value` is at most `limit`, else [`Error::OverLimit`] naming `name`.
 pub fn at_most(name: &'static str, value: f64, limit: f64) -> Result<(), Error> {

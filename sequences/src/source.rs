@@ -12,9 +12,12 @@ use crate::Error;
 pub const MAX_JOB_BYTES: u64 = 1 << 20;
 /// Largest DXF drawing, bytes.
 pub const MAX_DXF_BYTES: u64 = 16 << 20;
-/// Largest mesh file (STL or OBJ), bytes: a binary STL of 500 000 triangles (windcell's limit)
-/// is 25 MB; ASCII STL takes about 250 bytes per triangle.
-pub const MAX_MESH_BYTES: u64 = 32 << 20;
+/// Largest mesh file (STL or OBJ), bytes: 2 GiB. A mesh is streamed ([`open`]), never read whole,
+/// so this caps the reading time, not the memory (the triangle limit does that). A binary STL of
+/// 5 000 000 triangles (windcell's limit, `paths::limits::MAX_TRIANGLES`) is 250 MB; windcell's
+/// own ASCII STL takes 230–400 bytes per triangle (`triasym --ascii`, 1.15–2.0 GB at the limit),
+/// OBJ about 55.
+pub const MAX_MESH_BYTES: u64 = 2 << 30;
 
 /// Largest robot or indexer control file, sequence or run file, bytes: a discrete `.ROB` of
 /// 10 000 segments (the plan's limit) is about 1.2 MB.
@@ -43,6 +46,31 @@ fn not_regular(file_type: std::fs::FileType) -> Option<&'static str> {
     } else {
         Some("not a regular file")
     }
+}
+
+/// Opens the regular file `path` for streaming when it holds at most `max_bytes` bytes: the file
+/// and its size. Refuses what [`read_bytes`] refuses, without reading it.
+pub fn open(path: &Path, max_bytes: u64) -> Result<(std::fs::File, u64), Error> {
+    let io = |source| Error::Io {
+        file: path.to_path_buf(),
+        source,
+    };
+    let metadata = std::fs::metadata(path).map_err(io)?;
+    if let Some(kind) = not_regular(metadata.file_type()) {
+        return Err(Error::NotRegularFile {
+            file: path.to_path_buf(),
+            kind,
+        });
+    }
+    if metadata.len() > max_bytes {
+        return Err(Error::FileTooLarge {
+            file: path.to_path_buf(),
+            bytes: metadata.len(),
+            limit_bytes: max_bytes,
+        });
+    }
+    let file = std::fs::File::open(path).map_err(io)?;
+    Ok((file, metadata.len()))
 }
 
 /// Reads the whole of the regular file `path`, at most `max_bytes` bytes.
@@ -261,9 +289,20 @@ mod tests {
             rob_bytes <= MAX_CONTROL_FILE_BYTES,
             "{rob_bytes} bytes of .ROB"
         );
-        // A binary STL at the triangle limit: 84-byte header and count, 50 bytes a triangle.
+        // A binary STL at the triangle limit: 84-byte header and count, 50 bytes a triangle; an
+        // ASCII STL at the limit with every number in its longest `{:e}` form (24 characters).
         let stl_bytes = 84 + 50 * paths::limits::MAX_TRIANGLES as u64;
         assert!(stl_bytes <= MAX_MESH_BYTES, "{stl_bytes} bytes of STL");
+        let number = "-1.2345678901234567e-300";
+        let facet = format!(
+            "  facet normal {number} {number} {number}\n    outer loop\n{}    endloop\n  endfacet\n",
+            format!("      vertex {number} {number} {number}\n").repeat(3)
+        );
+        let ascii_bytes = facet.len() as u64 * paths::limits::MAX_TRIANGLES as u64;
+        assert!(
+            ascii_bytes <= MAX_MESH_BYTES,
+            "{ascii_bytes} bytes of ASCII STL"
+        );
         // A journal of the most segments a job may hold, at 300 bytes a record.
         assert!(300 * paths::limits::MAX_JOB_SEGMENTS as u64 <= MAX_JOURNAL_BYTES);
         let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
@@ -278,10 +317,10 @@ mod tests {
         ] {
             read_bytes(&examples.join(name), cap).unwrap_or_else(|e| panic!("{name}: {e}"));
         }
+        // Files read whole stay small; a mesh is streamed instead (`open`).
         for cap in [
             MAX_JOB_BYTES,
             MAX_DXF_BYTES,
-            MAX_MESH_BYTES,
             MAX_CONTROL_FILE_BYTES,
             MAX_PROGRAM_BYTES,
             MAX_JOURNAL_BYTES,

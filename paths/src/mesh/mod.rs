@@ -5,6 +5,7 @@
 //! `a → b`, edge 1 `b → c`, edge 2 `c → a`. A consistently oriented surface crosses each interior
 //! edge once in each direction.
 
+pub mod cache;
 pub mod obj;
 pub mod order;
 pub mod resegment;
@@ -77,6 +78,132 @@ impl Hasher for CellHasher {
 
 type CellMap<K, V> = HashMap<K, V, BuildHasherDefault<CellHasher>>;
 
+/// Vertex welding one point at a time, in file order: each point merges into the first kept
+/// vertex within the tolerance, else is kept. A hashed grid of cells 32 tolerances wide holds the
+/// kept vertices; a point looks in its own cell and, along each axis where it lies within the
+/// tolerance of a cell face, in the neighbouring cells, so it meets every kept vertex within the
+/// tolerance. The readers weld as they parse ([`stl::read`]), so a triangle soup is never stored.
+#[derive(Debug, Clone)]
+pub struct Welder {
+    tolerance_mm: f64,
+    cell_mm: f64,
+    inv_cell: f64,
+    tol2: f64,
+    heads: CellMap<[i64; 3], u32>,
+    next: Vec<u32>,
+    kept: Vec<Point3<f64>>,
+}
+
+impl Welder {
+    /// A welder at `tolerance_mm` (> 0), with room for about `expected_vertices` kept vertices.
+    pub fn new(tolerance_mm: f64, expected_vertices: usize) -> Result<Welder, Error> {
+        if !(tolerance_mm > 0.0 && tolerance_mm.is_finite()) {
+            return Err(Error::OutOfRange {
+                name: "weld_mm",
+                value: tolerance_mm,
+                expected: "must be > 0",
+            });
+        }
+        let cell_mm = 32.0 * tolerance_mm;
+        let mut heads = CellMap::default();
+        heads.reserve(expected_vertices);
+        Ok(Welder {
+            tolerance_mm,
+            cell_mm,
+            inv_cell: 1.0 / cell_mm,
+            tol2: tolerance_mm * tolerance_mm,
+            heads,
+            next: Vec::with_capacity(expected_vertices),
+            kept: Vec::with_capacity(expected_vertices),
+        })
+    }
+
+    /// The index of the kept vertex `p` merges into (a new one when none lies within the
+    /// tolerance).
+    pub fn add(&mut self, p: &Point3<f64>) -> u32 {
+        let f = [
+            p.x * self.inv_cell,
+            p.y * self.inv_cell,
+            p.z * self.inv_cell,
+        ];
+        let home = f.map(|c| c.floor() as i64);
+        let mut found = self.find(&home, p);
+        if found.is_none() {
+            // Neighbour cells only along axes where the point lies within the tolerance of a face.
+            let mut side = [0i64; 3];
+            for k in 0..3 {
+                let frac = f[k] - home[k] as f64;
+                side[k] = if frac * self.cell_mm <= self.tolerance_mm {
+                    -1
+                } else if (1.0 - frac) * self.cell_mm <= self.tolerance_mm {
+                    1
+                } else {
+                    0
+                };
+            }
+            if side != [0, 0, 0] {
+                'cells: for dx in 0..=side[0].abs() {
+                    for dy in 0..=side[1].abs() {
+                        for dz in 0..=side[2].abs() {
+                            if dx + dy + dz == 0 {
+                                continue;
+                            }
+                            let key = [
+                                home[0] + dx * side[0],
+                                home[1] + dy * side[1],
+                                home[2] + dz * side[2],
+                            ];
+                            if let Some(at) = self.find(&key, p) {
+                                found = Some(at);
+                                break 'cells;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        match found {
+            Some(at) => at,
+            None => {
+                let at = self.kept.len() as u32;
+                self.kept.push(*p);
+                let head = self.heads.entry(home).or_insert(u32::MAX);
+                self.next.push(*head);
+                *head = at;
+                at
+            }
+        }
+    }
+
+    fn find(&self, key: &[i64; 3], p: &Point3<f64>) -> Option<u32> {
+        let mut at = *self.heads.get(key)?;
+        loop {
+            if (self.kept[at as usize] - p).norm_squared() <= self.tol2 {
+                return Some(at);
+            }
+            at = self.next[at as usize];
+            if at == u32::MAX {
+                return None;
+            }
+        }
+    }
+
+    /// Number of kept vertices so far.
+    pub fn len(&self) -> usize {
+        self.kept.len()
+    }
+
+    /// Whether no vertex was kept yet.
+    pub fn is_empty(&self) -> bool {
+        self.kept.is_empty()
+    }
+
+    /// The kept vertices, in the order they were first met.
+    pub fn into_vertices(self) -> Vec<Point3<f64>> {
+        self.kept
+    }
+}
+
 impl Mesh {
     /// A mesh from vertices and triangles. Rejects an empty mesh, a corner index out of range and a
     /// non-finite coordinate (naming the first triangle that uses it).
@@ -140,22 +267,9 @@ impl Mesh {
 
     /// Merges vertices closer than `tolerance_mm` (each to the first of its cluster in file order,
     /// by a hashed grid of cells 32 tolerances wide, so a vertex meets every vertex within the
-    /// tolerance). Unused vertices are dropped. The triangles keep their order.
+    /// tolerance; see [`Welder`]). Unused vertices are dropped. The triangles keep their order.
     pub fn weld(&self, tolerance_mm: f64) -> Result<Mesh, Error> {
-        if !(tolerance_mm > 0.0 && tolerance_mm.is_finite()) {
-            return Err(Error::OutOfRange {
-                name: "weld_mm",
-                value: tolerance_mm,
-                expected: "must be > 0",
-            });
-        }
-        let cell = 32.0 * tolerance_mm;
-        let inv = 1.0 / cell;
-        let tol2 = tolerance_mm * tolerance_mm;
-        let mut heads: CellMap<[i64; 3], u32> = CellMap::default();
-        heads.reserve(self.vertices.len() / 2);
-        let mut next: Vec<u32> = Vec::with_capacity(self.vertices.len() / 2);
-        let mut kept: Vec<Point3<f64>> = Vec::with_capacity(self.vertices.len() / 2);
+        let mut welder = Welder::new(tolerance_mm, self.vertices.len() / 2)?;
         let mut remap = vec![u32::MAX; self.vertices.len()];
         let mut used = vec![false; self.vertices.len()];
         for tri in &self.triangles {
@@ -164,69 +278,9 @@ impl Mesh {
             }
         }
         for (i, p) in self.vertices.iter().enumerate() {
-            if !used[i] {
-                continue;
+            if used[i] {
+                remap[i] = welder.add(p);
             }
-            let f = [p.x * inv, p.y * inv, p.z * inv];
-            let home = f.map(|c| c.floor() as i64);
-            let find = |key: &[i64; 3], kept: &[Point3<f64>]| -> Option<u32> {
-                let mut at = *heads.get(key)?;
-                loop {
-                    if (kept[at as usize] - p).norm_squared() <= tol2 {
-                        return Some(at);
-                    }
-                    at = next[at as usize];
-                    if at == u32::MAX {
-                        return None;
-                    }
-                }
-            };
-            let mut found = find(&home, &kept);
-            if found.is_none() {
-                // Neighbour cells only along axes where the point lies within the tolerance of a face.
-                let mut side = [0i64; 3];
-                for k in 0..3 {
-                    let frac = f[k] - home[k] as f64;
-                    side[k] = if frac * cell <= tolerance_mm {
-                        -1
-                    } else if (1.0 - frac) * cell <= tolerance_mm {
-                        1
-                    } else {
-                        0
-                    };
-                }
-                if side != [0, 0, 0] {
-                    'cells: for dx in 0..=side[0].abs() {
-                        for dy in 0..=side[1].abs() {
-                            for dz in 0..=side[2].abs() {
-                                if dx + dy + dz == 0 {
-                                    continue;
-                                }
-                                let key = [
-                                    home[0] + dx * side[0],
-                                    home[1] + dy * side[1],
-                                    home[2] + dz * side[2],
-                                ];
-                                if let Some(at) = find(&key, &kept) {
-                                    found = Some(at);
-                                    break 'cells;
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            remap[i] = match found {
-                Some(at) => at,
-                None => {
-                    let at = kept.len() as u32;
-                    kept.push(*p);
-                    let head = heads.entry(home).or_insert(u32::MAX);
-                    next.push(*head);
-                    *head = at;
-                    at
-                }
-            };
         }
         let triangles = self
             .triangles
@@ -234,7 +288,7 @@ impl Mesh {
             .map(|t| t.map(|i| remap[i as usize]))
             .collect();
         Ok(Mesh {
-            vertices: kept,
+            vertices: welder.into_vertices(),
             triangles,
             file_triangles: self.file_triangles.clone(),
         })
@@ -386,13 +440,41 @@ impl Mesh {
 /// and sorted for locality ([`order::by_locality`]; [`Mesh::file_triangle`] maps back). Returns
 /// the mesh and its adjacency.
 pub fn prepare(mesh: &Mesh, weld_mm: f64, closure: Closure) -> Result<(Mesh, Adjacency), Error> {
-    let mut welded = mesh.weld(weld_mm)?;
+    prepare_welded(mesh.weld(weld_mm)?, closure)
+}
+
+/// [`prepare`] of a mesh that is already welded (as [`stl::read`] returns it): validated, turned
+/// outward when closed, sorted for locality.
+pub fn prepare_welded(mut welded: Mesh, closure: Closure) -> Result<(Mesh, Adjacency), Error> {
     let mut adjacency = welded.validate(closure)?;
     if adjacency.boundary_edges == 0 && welded.signed_volume_mm3() < 0.0 {
         welded.flip();
-        adjacency = welded.validate(closure)?;
+        adjacency = adjacency.flipped();
     }
     Ok(order::by_locality(&welded, &adjacency))
+}
+
+impl Adjacency {
+    /// The adjacency of the same mesh after [`Mesh::flip`]: triangle `[a, b, c]` becomes
+    /// `[a, c, b]`, so its edge `e` (`0`: a→b, `1`: b→c, `2`: c→a) becomes edge `2 − e` run the
+    /// other way.
+    pub fn flipped(&self) -> Adjacency {
+        let turn = |h: u32| {
+            if h == NO_NEIGHBOUR {
+                h
+            } else {
+                (h & !3) | (2 - (h & 3))
+            }
+        };
+        Adjacency {
+            across: self
+                .across
+                .iter()
+                .map(|row| [turn(row[2]), turn(row[1]), turn(row[0])])
+                .collect(),
+            boundary_edges: self.boundary_edges,
+        }
+    }
 }
 
 /// `error` with the line of its triangle, when it names one and `lines` (one per triangle, from
@@ -438,6 +520,113 @@ pub(crate) fn at_byte(byte: u64, message: impl Into<String>) -> Error {
     }
 }
 
+/// Most bytes of one line of a text mesh (ASCII STL, OBJ): a vertex line is about 60 bytes, so
+/// a longer line is not a mesh, and a file without line breaks cannot make a reader hold more.
+pub const MAX_LINE_BYTES: usize = 1 << 16;
+
+/// The lines of a text mesh read one at a time from a buffered reader (no copy of the file):
+/// 1-based line numbers, `\n` or `\r\n` line ends, UTF-8 checked line by line.
+pub(crate) struct Lines<R> {
+    input: R,
+    buf: Vec<u8>,
+    /// Number of the line last returned.
+    number: usize,
+    /// Byte offset of the start of the next line.
+    offset: u64,
+}
+
+impl<R: std::io::BufRead> Lines<R> {
+    pub(crate) fn new(input: R) -> Self {
+        Lines {
+            input,
+            buf: Vec::with_capacity(256),
+            number: 0,
+            offset: 0,
+        }
+    }
+
+    /// The next line's number and text without its line end, `None` at the end of the input.
+    pub(crate) fn next_line(&mut self, what: &str) -> Result<Option<(usize, &str)>, Error> {
+        self.buf.clear();
+        let line = self.number + 1;
+        let mut seen = false;
+        loop {
+            let available = match self.input.fill_buf() {
+                Ok(a) => a,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    return Err(syntax(
+                        Some(line),
+                        format!("the file cannot be read further: {e}"),
+                    ));
+                }
+            };
+            if available.is_empty() {
+                break;
+            }
+            seen = true;
+            let (take, done) = match available.iter().position(|&b| b == b'\n') {
+                Some(i) => (i + 1, true),
+                None => (available.len(), false),
+            };
+            self.buf.extend_from_slice(&available[..take]);
+            self.input.consume(take);
+            if self.buf.len() > MAX_LINE_BYTES + 2 {
+                return Err(syntax(
+                    Some(line),
+                    format!("the line is longer than {MAX_LINE_BYTES} bytes: this is not {what}"),
+                ));
+            }
+            if done {
+                break;
+            }
+        }
+        if !seen {
+            return Ok(None);
+        }
+        self.number = line;
+        let start = self.offset;
+        self.offset += self.buf.len() as u64;
+        if self.buf.last() == Some(&b'\n') {
+            self.buf.pop();
+            if self.buf.last() == Some(&b'\r') {
+                self.buf.pop();
+            }
+        }
+        match std::str::from_utf8(&self.buf) {
+            Ok(text) => Ok(Some((line, text))),
+            Err(e) => {
+                let valid = std::str::from_utf8(&self.buf[..e.valid_up_to()]).unwrap_or_default();
+                Err(Error::MeshSyntax {
+                    line: Some(line),
+                    column: Some(valid.chars().count() + 1),
+                    byte: Some(start + e.valid_up_to() as u64),
+                    message: format!("{what} with bytes that are not UTF-8 text"),
+                })
+            }
+        }
+    }
+}
+
+/// `error` with a column, when it names line `line` (whose text is `row`) but no column (see
+/// [`with_column`]).
+pub fn with_column_in_row(error: Error, line: usize, row: &str) -> Error {
+    match error {
+        Error::MeshSyntax {
+            line: Some(l),
+            column: None,
+            byte,
+            message,
+        } if l == line => Error::MeshSyntax {
+            line: Some(l),
+            column: Some(column_in(&message, row)),
+            byte,
+            message,
+        },
+        other => other,
+    }
+}
+
 /// `error` with a column, when it names a line of `text` but no column: the column of the first
 /// word it quotes in backticks that is on that line, else of the line's first word (the
 /// statement at fault).
@@ -452,6 +641,17 @@ pub fn with_column(error: Error, text: &str) -> Error {
         return error;
     };
     let row = text.lines().nth(line - 1).unwrap_or_default();
+    Error::MeshSyntax {
+        line: Some(line),
+        column: Some(column_in(&message, row)),
+        byte,
+        message,
+    }
+}
+
+/// The column of the first word `message` quotes in backticks that is on `row`, else of the row's
+/// first word.
+fn column_in(message: &str, row: &str) -> usize {
     let quoted = message
         .split('`')
         .skip(1)
@@ -461,12 +661,7 @@ pub fn with_column(error: Error, text: &str) -> Error {
     let offset = quoted
         .or_else(|| row.find(|c: char| !c.is_whitespace()))
         .unwrap_or(0);
-    Error::MeshSyntax {
-        line: Some(line),
-        column: Some(row[..offset].chars().count() + 1),
-        byte,
-        message,
-    }
+    row[..offset].chars().count() + 1
 }
 
 /// `error` with the byte offset of its triangle's record in a binary STL (84-byte header, 50
@@ -626,6 +821,14 @@ mod tests {
                 .contains("triangle 1: a coordinate is not finite"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn flipped_adjacency_is_the_adjacency_of_the_flipped_mesh() {
+        let mut m = tetra();
+        let adjacency = m.validate(Closure::Closed).unwrap();
+        m.flip();
+        assert_eq!(adjacency.flipped(), m.validate(Closure::Closed).unwrap());
     }
 
     #[test]

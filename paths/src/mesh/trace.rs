@@ -184,21 +184,20 @@ pub struct MeshPath {
     pub stop: Stop,
 }
 
+/// One triangle as the crossing loop reads it: everything a crossing needs in one record of three
+/// cache lines (192 bytes, aligned), so a crossing touches one record in either mode. The edge
+/// normals and parameters are derived from the corners at each crossing (a cross product and a
+/// dot product per edge) rather than stored.
 #[derive(Debug, Clone, Copy, Default)]
-struct Edge {
-    /// Unit in-plane normal pointing into the triangle; `p · m − w` is the distance to the edge.
-    m: Vector3<f64>,
-    w: f64,
-    /// Edge vector over its squared length; `p · e − o` is the parameter along the edge.
-    e: Vector3<f64>,
-    o: f64,
-}
-
-#[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(64))]
 struct Face {
+    /// Unit plane normal.
     n: Vector3<f64>,
-    edges: [Edge; 3],
+    /// The corners, mm.
+    corners: [Vector3<f64>; 3],
+    /// Smooth unit normals at the corners.
     corner_normals: [Vector3<f64>; 3],
+    /// Neighbour across each edge (`4 · triangle + edge`) or [`NO_NEIGHBOUR`].
     next: [u32; 3],
 }
 
@@ -285,25 +284,15 @@ impl Tracer {
                 })
             })
             .collect();
-        let mut faces = Vec::with_capacity(tris.len());
-        for (f, t) in tris.iter().enumerate() {
+        let build = |f: usize| {
+            let t = &tris[f];
             let n = normals[f];
-            let p = t.map(|i| verts[i as usize].coords);
             let mut face = Face {
                 n,
+                corners: t.map(|i| verts[i as usize].coords),
                 ..Face::default()
             };
-            for i in 0..3 {
-                let (a, b) = (p[i], p[(i + 1) % 3]);
-                let ev = b - a;
-                let m = n.cross(&ev).try_normalize(0.0).unwrap_or_default();
-                let e = ev / ev.norm_squared().max(f64::MIN_POSITIVE);
-                face.edges[i] = Edge {
-                    m,
-                    w: a.dot(&m),
-                    e,
-                    o: a.dot(&e),
-                };
+            for (i, &v) in t.iter().enumerate() {
                 let h = adjacency.across[f][i];
                 face.next[i] =
                     if h != NO_NEIGHBOUR && normals[(h >> 2) as usize].dot(&n) >= cos_crease {
@@ -312,7 +301,7 @@ impl Tracer {
                         NO_NEIGHBOUR
                     };
                 // Corner normal: angle-weighted over the triangles at this vertex within the crease.
-                let v = t[i] as usize;
+                let v = v as usize;
                 let mut sum = Vector3::zeros();
                 for &fc in &incident[count[v] as usize..count[v + 1] as usize] {
                     let g = (fc >> 2) as usize;
@@ -322,9 +311,25 @@ impl Tracer {
                 }
                 face.corner_normals[i] = sum.try_normalize(0.0).unwrap_or(n);
             }
-            faces.push(face);
-        }
-        let grid = Grid::new(&mesh);
+            face
+        };
+        // The records in parallel chunks, the locating grid beside them.
+        let mut faces = vec![Face::default(); tris.len()];
+        let threads = worker_threads(tris.len());
+        let chunk = tris.len().div_ceil(threads).max(1);
+        let grid = std::thread::scope(|scope| {
+            let grid = scope.spawn(|| Grid::new(&mesh));
+            for (k, part) in faces.chunks_mut(chunk).enumerate() {
+                let build = &build;
+                scope.spawn(move || {
+                    for (j, slot) in part.iter_mut().enumerate() {
+                        *slot = build(k * chunk + j);
+                    }
+                });
+            }
+            grid.join()
+        })
+        .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         Ok(Tracer { mesh, faces, grid })
     }
 
@@ -429,6 +434,27 @@ impl Tracer {
         Ok(at)
     }
 
+    /// The tangent `t` carried from unit normal `from` to unit normal `to`: the smallest rotation,
+    /// plus the slip ratio's turn `λ |Δn · t|` about `to`; kept tangent and of unit length (one
+    /// Newton step for `1/|t|`, no square root).
+    #[inline(always)]
+    fn turn(
+        &self,
+        t: &Vector3<f64>,
+        from: &Vector3<f64>,
+        to: &Vector3<f64>,
+        lambda: f64,
+    ) -> Vector3<f64> {
+        let mut turned = rotate(t, from, to);
+        if lambda != 0.0 {
+            let theta = lambda * (to - from).dot(t).abs();
+            let (sn, cs) = theta.sin_cos();
+            turned = turned * cs + to.cross(&turned) * sn;
+        }
+        turned -= to * turned.dot(to);
+        turned * (0.5 * (3.0 - turned.norm_squared()))
+    }
+
     /// The crossing loop.
     fn run(&self, at: Located, t0: Vector3<f64>, o: &TraceOptions) -> MeshPath {
         let exact = o.mode == Mode::Exact;
@@ -457,6 +483,12 @@ impl Tracer {
         loop {
             let face = &self.faces[f];
             let nf = face.n;
+            if exact && nprev != nf {
+                // Exact mode turns at the crossing into this triangle, here, where its record is
+                // read anyway (the previous record never reads this one's normal).
+                t = self.turn(&t, &nprev, &nf, o.lambda);
+                nprev = nf;
+            }
             let mut d = t - nf * t.dot(&nf);
             let dn2 = d.norm_squared();
             if dn2.is_nan() || dn2 <= 1e-24 {
@@ -498,22 +530,11 @@ impl Tracer {
                 return finish(points, faces, s, crossings, Stop::Boundary);
             }
             let g = (next >> 2) as usize;
-            let nq = if exact {
-                self.faces[g].n
-            } else {
-                edge_normal(face, best, &q)
-            };
-            let t_old = t;
-            t = rotate(&t, &nprev, &nq);
-            if o.lambda != 0.0 {
-                let theta = o.lambda * (nq - nprev).dot(&t_old).abs();
-                let (sn, cs) = theta.sin_cos();
-                t = t * cs + nq.cross(&t) * sn;
+            if !exact {
+                let nq = edge_normal(face, best, &q);
+                t = self.turn(&t, &nprev, &nq, o.lambda);
+                nprev = nq;
             }
-            // Keep t tangent and of unit length (one Newton step for 1/|t|, no square root).
-            t -= nq * t.dot(&nq);
-            t *= 0.5 * (3.0 - t.norm_squared());
-            nprev = nq;
             crossings += 1;
             if crossings >= MAX_CROSSINGS {
                 points.push(Point3::from(q));
@@ -540,22 +561,38 @@ impl Tracer {
     }
 }
 
+/// Threads for a preparation step over `items` items: the machine's parallelism (at most 8), one
+/// below 20 000 items, where starting threads costs more than it saves.
+pub(crate) fn worker_threads(items: usize) -> usize {
+    if items < 20_000 {
+        return 1;
+    }
+    std::thread::available_parallelism()
+        .map_or(1, usize::from)
+        .clamp(1, 8)
+}
+
 /// The exit edge of a straight run from `p` along `d` in `face` (never the entry edge `e_in`) and
 /// the distance to it. When the direction leaves through the corner the path entered by, the edge
 /// nearest to `p` at distance 0, so the path walks around that vertex.
+///
+/// For edge `i` from corner `a` along `e`, `m = n × e` points into the triangle with `|m| = |e|`;
+/// the distance to the edge is `(p − a) · m / |m|` and the rate at which `d` approaches it
+/// `−d · m / |m|`, so their ratio needs no square root.
 #[inline(always)]
 fn exit(face: &Face, p: &Vector3<f64>, d: &Vector3<f64>, e_in: usize) -> (usize, f64) {
     let mut best = 3usize;
     let mut best_t = f64::INFINITY;
-    let mut near = 3usize;
-    let mut near_dist = f64::INFINITY;
+    let mut dists = [0.0; 3];
+    let mut ms = [Vector3::zeros(); 3];
     for i in 0..3 {
         if i == e_in {
             continue;
         }
-        let e = &face.edges[i];
-        let rate = d.dot(&e.m);
-        let dist = (p.dot(&e.m) - e.w).max(0.0);
+        let a = face.corners[i];
+        let m = face.n.cross(&(face.corners[(i + 1) % 3] - a));
+        let rate = d.dot(&m);
+        let dist = (p - a).dot(&m).max(0.0);
         if rate < 0.0 {
             let ti = dist / -rate;
             if ti < best_t {
@@ -563,12 +600,22 @@ fn exit(face: &Face, p: &Vector3<f64>, d: &Vector3<f64>, e_in: usize) -> (usize,
                 best = i;
             }
         }
-        if dist < near_dist {
-            near_dist = dist;
-            near = i;
-        }
+        dists[i] = dist;
+        ms[i] = m;
     }
     if best == 3 {
+        let mut near = 3usize;
+        let mut near_dist = f64::INFINITY;
+        for i in 0..3 {
+            if i == e_in {
+                continue;
+            }
+            let dist = dists[i] / ms[i].norm().max(f64::MIN_POSITIVE);
+            if dist < near_dist {
+                near_dist = dist;
+                near = i;
+            }
+        }
         (near, 0.0)
     } else {
         (best, best_t)
@@ -578,8 +625,9 @@ fn exit(face: &Face, p: &Vector3<f64>, d: &Vector3<f64>, e_in: usize) -> (usize,
 /// The smooth unit normal at `q` on edge `i` of `face` (interpolated between its corners).
 #[inline(always)]
 fn edge_normal(face: &Face, i: usize, q: &Vector3<f64>) -> Vector3<f64> {
-    let e = &face.edges[i];
-    let u = (q.dot(&e.e) - e.o).clamp(0.0, 1.0);
+    let a = face.corners[i];
+    let e = face.corners[(i + 1) % 3] - a;
+    let u = ((q - a).dot(&e) / e.norm_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
     let cn = &face.corner_normals;
     let n = cn[i] * (1.0 - u) + cn[(i + 1) % 3] * u;
     n / n.norm()
