@@ -1,6 +1,8 @@
-//! One hour of simulated mandrel motion on the virtual clock (target: < 50 ms).
+//! One hour of simulated mandrel motion on the virtual clock (target: < 50 ms), and the X
+//! client's cancel latency: from the token being set to a blocked wait returning (the stop path
+//! counts on about a millisecond, docs/ARCHITECTURE.md).
 //!
-//! `cargo bench -p mandrel-drive --bench sim -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p mandrel-drive --features bench --bench sim -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use mandrel_drive::Drive;
@@ -44,5 +46,31 @@ fn bench(c: &mut Criterion) {
     c.bench_function("sim_one_hour_virtual_clock", |b| b.iter(one_hour));
 }
 
-criterion_group!(benches, bench);
+/// An X client waiting for a move's completion on a pipe whose card is silent, cancelled from
+/// this thread 2 ms after the wait began: the time from `cancel` until the waiting thread has
+/// returned (the join included).
+fn cancel_latency(c: &mut Criterion) {
+    use mandrel_drive::{Error, IndexerConfig, Pipe, XClient};
+    let mut g = c.benchmark_group("cancel_latency");
+    g.sample_size(30);
+    g.bench_function("x_client_wait", |b| {
+        b.iter_custom(|iters| {
+            paths::link::contract::time_cancels(iters, || {
+                let (host, card) = Pipe::pair();
+                let mut client = XClient::new(host, IndexerConfig::default());
+                let token = client.cancel_token();
+                let wait = std::time::Duration::from_secs(30);
+                let exchange = std::thread::spawn(move || {
+                    let r = client.wait_complete(wait);
+                    drop(card);
+                    matches!(r, Err(Error::Cancelled))
+                });
+                (token, exchange)
+            })
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench, cancel_latency);
 criterion_main!(benches);
