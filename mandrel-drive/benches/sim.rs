@@ -51,25 +51,23 @@ fn bench(c: &mut Criterion) {
 /// returned (the join included).
 fn cancel_latency(c: &mut Criterion) {
     use mandrel_drive::{Error, IndexerConfig, Pipe, XClient};
-    let mut g = c.benchmark_group("cancel_latency");
-    g.sample_size(30);
-    g.bench_function("x_client_wait", |b| {
+    c.bench_function("cancel_latency/x_client_wait", |b| {
         b.iter_custom(|iters| {
             paths::link::contract::time_cancels(iters, || {
                 let (host, card) = Pipe::pair();
-                let mut client = XClient::new(host, IndexerConfig::default());
-                let token = client.cancel_token();
-                let wait = std::time::Duration::from_secs(30);
-                let exchange = std::thread::spawn(move || {
-                    let r = client.wait_complete(wait);
-                    drop(card);
-                    matches!(r, Err(Error::Cancelled))
-                });
-                (token, exchange)
+                let mut x = XClient::new(host, IndexerConfig::default());
+                let token = x.cancel_token();
+                let wait = move || {
+                    let _card = card;
+                    matches!(
+                        x.wait_complete(std::time::Duration::from_secs(30)),
+                        Err(Error::Cancelled)
+                    )
+                };
+                (token, wait)
             })
         })
     });
-    g.finish();
 }
 
 criterion_group!(benches, bench, cancel_latency);

@@ -971,10 +971,11 @@ mod tests {
 
     /// A client on a pipe whose card end has already written `card` (CR-ended lines).
     fn answered(card: &str) -> XClient<Pipe> {
-        let (host, mut device) = Pipe::pair();
-        device.write_all(card.as_bytes()).unwrap();
-        // The card end stays open: a card that says nothing more, not one that is gone.
-        std::mem::forget(device);
+        let (host, device) = Pipe::pair();
+        // The card end stays open (leaked): a card that says nothing more, not one that is gone.
+        Box::leak(Box::new(device))
+            .write_all(card.as_bytes())
+            .unwrap();
         XClient::new(
             host,
             IndexerConfig {

@@ -257,19 +257,20 @@ impl<N: Link, F: Link> Harness for Pair<N, F> {
 }
 
 /// Times `iters` cancels from another thread (for the device crates' cancel-latency benches):
-/// `start` begins an exchange that blocks on a thread of its own and returns the exchange's token
-/// and that thread, which returns whether the exchange ended as cancelled; 2 ms later the token is
-/// set, and the wall time from then until the thread has returned is summed.
+/// `start` makes an exchange that blocks, and its token; the exchange runs on a thread of its
+/// own and says whether it ended as cancelled; 2 ms later the token is set, and the wall time from
+/// then until the thread has returned is summed.
 ///
 /// # Panics
 /// When an exchange did not end as cancelled.
-pub fn time_cancels(
+pub fn time_cancels<F: FnOnce() -> bool + Send + 'static>(
     iters: u64,
-    mut start: impl FnMut() -> (Cancel, std::thread::JoinHandle<bool>),
+    mut start: impl FnMut() -> (Cancel, F),
 ) -> Duration {
     let mut total = Duration::ZERO;
     for _ in 0..iters {
         let (token, exchange) = start();
+        let exchange = std::thread::spawn(exchange);
         std::thread::sleep(Duration::from_millis(2));
         let t0 = Instant::now();
         token.cancel();
