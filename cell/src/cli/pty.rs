@@ -92,14 +92,20 @@ impl Ptys {
         self,
         serve: impl FnOnce(Vec<Pty>) -> Result<R, E>,
     ) -> Result<R, Failure> {
-        let Ptys {
-            cmd,
-            masters,
-            slaves,
-        } = self;
-        let served = serve(masters);
-        drop(slaves);
-        served.map_err(|e| Failure::runtime(format!("{cmd}: {e}")))
+        let cmd = self.cmd.clone();
+        self.serve_failing(|masters| {
+            serve(masters).map_err(|e| Failure::runtime(format!("{cmd}: {e}")))
+        })
+    }
+
+    /// [`Ptys::serve`] for a `serve` whose errors are already failures.
+    pub fn serve_failing<R>(
+        self,
+        serve: impl FnOnce(Vec<Pty>) -> Result<R, Failure>,
+    ) -> Result<R, Failure> {
+        let served = serve(self.masters);
+        drop(self.slaves);
+        served
     }
 }
 
