@@ -1,8 +1,9 @@
 //! Codec throughput (target: ≥ 2 million telegrams encoded + decoded per second on one core) and
 //! the upload of a full 470-instruction program over a 9600-baud link paced in virtual time
-//! (target: ≤ 2 % above the wire time of its bytes plus the specified gaps).
+//! (target: ≤ 2 % above the wire time of its bytes plus the specified gaps), and the client's
+//! cancel latency (the stop path counts on about a millisecond, docs/ARCHITECTURE.md).
 //!
-//! `cargo bench -p asea-protocol --bench asea -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p asea-protocol --features bench --bench asea -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -89,5 +90,24 @@ fn upload(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, codec, upload);
+/// A robot client in a status exchange with a silent robot on a pipe, cancelled from this thread
+/// 2 ms after the exchange began: the time from `cancel` until the waiting thread has returned
+/// (the join included).
+fn cancel_latency(c: &mut Criterion) {
+    c.bench_function("cancel_latency/robot_client_status", |b| {
+        b.iter_custom(|iters| {
+            paths::link::contract::time_cancels(iters, || {
+                let (host, robot) = asea_protocol::link::Pipe::pair();
+                let mut client = Client::new(host, ClientConfig::default());
+                let token = client.cancel_token();
+                (token, move || {
+                    let _robot = robot;
+                    matches!(client.status(), Err(asea_protocol::Error::Cancelled))
+                })
+            })
+        })
+    });
+}
+
+criterion_group!(benches, codec, upload, cancel_latency);
 criterion_main!(benches);

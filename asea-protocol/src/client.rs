@@ -18,17 +18,13 @@
 //! ([`Client::cancel_token`]): the exchange under way ends with an EOT and [`Error::Cancelled`]
 //! within [`POLL_PERIOD`], and [`Client::stop`] still goes through while the token is set.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
-
-use crate::clock::{Clock, RealClock};
+use crate::clock::{Clock, WallClock};
 use crate::command::{
     Command, Control, Instruction, Pose, Positioning, Reply, RobotError, Selector, Speed, Status,
 };
 use crate::error::{Error, Result};
 use crate::frame::{Frame, FrameConfig};
-use crate::link::Link;
+use crate::link::{Link, SerialLink};
 use crate::session::{Host, Stats, Timers};
 
 /// How often to start a request session again after a link failure, and how often to re-store
@@ -60,36 +56,18 @@ impl Default for RetryPolicy {
 
 /// Longest wait of one read: a cancelled exchange ends within this (plus one byte write). It
 /// bounds how late a stop request is seen while the host waits out a gap or a silent robot, so
-/// it is small beside the urgent gap ([`crate::session::Timers::urgent_gap`]).
-pub const POLL_PERIOD: Duration = Duration::from_millis(1);
+/// it is small beside the urgent gap ([`crate::session::Timers::urgent_gap`]). The one poll
+/// period of the shared plumbing ([`paths::link::POLL_PERIOD`]).
+pub use paths::link::POLL_PERIOD;
+
+/// The token that cancels the client's exchanges from another thread or task
+/// ([`paths::link::Cancel`], the same for both devices).
+pub use paths::link::Cancel;
 
 /// Status replies in a row that must agree (on every field but state and instruction, which
 /// move while the arm runs) before the client acts on them: one corrupted reply that a one-byte
 /// sum lets through cannot make a command look unexecuted (and be sent twice) or hide an error.
 pub const AGREE_STATUS: u32 = 2;
-
-/// A token that cancels the client's exchanges from another thread or task.
-#[derive(Debug, Clone, Default)]
-pub struct Cancel(Arc<AtomicBool>);
-
-impl Cancel {
-    /// A token not set.
-    pub fn new() -> Self {
-        Self::default()
-    }
-    /// Cancels the exchange under way and every later one until [`Cancel::reset`].
-    pub fn cancel(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-    /// Lets exchanges run again.
-    pub fn reset(&self) {
-        self.0.store(false, Ordering::SeqCst);
-    }
-    /// True while set.
-    pub fn is_cancelled(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
-    }
-}
 
 /// Set-up of a [`Client`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -123,7 +101,7 @@ pub struct VerifyReport {
 
 /// The blocking robot client.
 #[derive(Debug)]
-pub struct Client<L, C = RealClock> {
+pub struct Client<L, C = WallClock> {
     link: L,
     clock: C,
     host: Host,
@@ -148,14 +126,14 @@ pub struct Client<L, C = RealClock> {
     last_executed: Option<u16>,
 }
 
-impl<L: Link> Client<L, RealClock> {
-    /// A client on `link` in real time.
+impl<L: Link> Client<L, WallClock> {
+    /// A client on `link` in wall time.
     pub fn new(link: L, cfg: ClientConfig) -> Self {
-        Client::with_clock(link, RealClock::new(), cfg)
+        Client::with_clock(link, WallClock::new(), cfg)
     }
 }
 
-impl Client<Box<dyn serialport::SerialPort>, RealClock> {
+impl Client<SerialLink<Box<dyn serialport::SerialPort>>, WallClock> {
     /// A client on the serial port at `path`, 9600 baud 8N1 (docs/protocol.md §1; see
     /// [`crate::link::open_serial`] for other settings).
     pub fn open(path: &str, cfg: ClientConfig) -> Result<Self> {

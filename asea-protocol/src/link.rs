@@ -1,35 +1,17 @@
-//! The byte link: a serial port, an in-memory pipe, a fault injector, a tap, and a paced
-//! virtual-time wire that connects a client to a simulated robot without threads.
+//! The robot's byte link: the serial port at the robot computer's line settings, a fault
+//! injector, a tap, and a paced virtual-time wire that connects a client to a simulated robot
+//! without threads. The [`Link`] contract, the in-memory [`Pipe`] and the clocks are the ones
+//! both device crates share ([`paths::link`]).
 
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, VecDeque};
-use std::io::{self, Write};
-use std::sync::{Arc, Condvar, Mutex};
+use std::collections::BinaryHeap;
+use std::io;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+pub use paths::link::{Link, Pipe};
+
 use crate::clock::{Clock, VirtualClock};
-
-/// A byte link: write, read with a timeout, discard stale input.
-pub trait Link: Send {
-    /// Writes all of `bytes` and waits until they are handed to the line.
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()>;
-    /// Reads at least one byte into `buf` within `timeout`; `Ok(0)` on timeout.
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize>;
-    /// Drops any input received and not yet read.
-    fn discard_input(&mut self) -> io::Result<()>;
-}
-
-impl<L: Link + ?Sized> Link for Box<L> {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        (**self).write_all(bytes)
-    }
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        (**self).read_timeout(buf, timeout)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        (**self).discard_input()
-    }
-}
 
 /// Character format on the serial line (docs/protocol.md §1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -55,12 +37,12 @@ pub fn bits_per_char(format: CharFormat) -> u32 {
     }
 }
 
-/// Opens a real serial port at `baud` with `format`.
+/// Opens a real serial port at `baud` with `format`, as a [`Link`].
 pub fn open_serial(
     path: &str,
     baud: u32,
     format: CharFormat,
-) -> Result<Box<dyn serialport::SerialPort>, serialport::Error> {
+) -> Result<SerialLink<Box<dyn serialport::SerialPort>>, serialport::Error> {
     let (bits, parity) = match format {
         CharFormat::EightN1 => (serialport::DataBits::Eight, serialport::Parity::None),
         CharFormat::SevenE1 => (serialport::DataBits::Seven, serialport::Parity::Even),
@@ -72,142 +54,10 @@ pub fn open_serial(
         .flow_control(serialport::FlowControl::None)
         .timeout(Duration::from_millis(100))
         .open()
+        .map(SerialLink)
 }
 
-fn serial_read<P: serialport::SerialPort + ?Sized>(
-    port: &mut P,
-    buf: &mut [u8],
-    timeout: Duration,
-) -> io::Result<usize> {
-    port.set_timeout(timeout.max(Duration::from_millis(1)))
-        .map_err(io::Error::from)?;
-    match port.read(buf) {
-        Ok(n) => Ok(n),
-        // A signal arriving during the wait is a short read, not a failure.
-        Err(e)
-            if matches!(
-                e.kind(),
-                io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
-            ) =>
-        {
-            Ok(0)
-        }
-        Err(e) => Err(e),
-    }
-}
-
-impl Link for Box<dyn serialport::SerialPort> {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        Write::write_all(self, bytes)?;
-        self.flush()
-    }
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        serial_read(self.as_mut(), buf, timeout)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.clear(serialport::ClearBuffer::Input)
-            .map_err(io::Error::from)
-    }
-}
-
-#[cfg(unix)]
-impl Link for serialport::TTYPort {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        Write::write_all(self, bytes)?;
-        self.flush()
-    }
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        serial_read(self, buf, timeout)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        // Drain what has arrived without waiting (tcflush is not reliable on every pty
-        // implementation, and a wait would swallow a prompt answer).
-        use std::io::Read;
-        let mut scratch = [0u8; 256];
-        loop {
-            let n = serialport::SerialPort::bytes_to_read(self).map_err(io::Error::from)? as usize;
-            if n == 0 {
-                return Ok(());
-            }
-            let n = n.min(scratch.len());
-            let got = self.read(scratch.get_mut(..n).unwrap_or_default())?;
-            if got == 0 {
-                return Ok(());
-            }
-        }
-    }
-}
-
-#[derive(Debug, Default)]
-struct Queue {
-    bytes: Mutex<VecDeque<u8>>,
-    ready: Condvar,
-}
-
-/// One end of an in-memory duplex byte pipe (real time, for threads).
-#[derive(Debug, Clone)]
-pub struct Pipe {
-    rx: Arc<Queue>,
-    tx: Arc<Queue>,
-}
-
-impl Pipe {
-    /// Two connected ends.
-    pub fn pair() -> (Pipe, Pipe) {
-        let a = Arc::new(Queue::default());
-        let b = Arc::new(Queue::default());
-        (
-            Pipe {
-                rx: a.clone(),
-                tx: b.clone(),
-            },
-            Pipe { rx: b, tx: a },
-        )
-    }
-}
-
-fn poisoned() -> io::Error {
-    io::Error::other("pipe lock poisoned")
-}
-
-impl Link for Pipe {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.tx
-            .bytes
-            .lock()
-            .map_err(|_| poisoned())?
-            .extend(bytes.iter().copied());
-        self.tx.ready.notify_all();
-        Ok(())
-    }
-
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        let deadline = Instant::now() + timeout;
-        let mut q = self.rx.bytes.lock().map_err(|_| poisoned())?;
-        while q.is_empty() {
-            let now = Instant::now();
-            if now >= deadline {
-                return Ok(0);
-            }
-            q = self
-                .rx
-                .ready
-                .wait_timeout(q, deadline - now)
-                .map_err(|_| poisoned())?
-                .0;
-        }
-        let n = buf.len().min(q.len());
-        for (slot, byte) in buf.iter_mut().zip(q.drain(..n)) {
-            *slot = byte;
-        }
-        Ok(n)
-    }
-
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.rx.bytes.lock().map_err(|_| poisoned())?.clear();
-        Ok(())
-    }
-}
+paths::serial_link!();
 
 /// A small seeded generator (SplitMix64): reproducible faults without a dependency.
 #[derive(Debug, Clone)]
@@ -725,27 +575,6 @@ impl<P: Peer + Send> Link for Paced<P> {
 mod tests {
     use super::*;
 
-    #[test]
-    fn pipe_carries_bytes_both_ways() {
-        let (mut a, mut b) = Pipe::pair();
-        a.write_all(&[5, 6]).unwrap();
-        let mut buf = [0u8; 8];
-        assert_eq!(
-            b.read_timeout(&mut buf, Duration::from_millis(10)).unwrap(),
-            2
-        );
-        assert_eq!(
-            a.read_timeout(&mut buf, Duration::from_millis(1)).unwrap(),
-            0
-        );
-        b.write_all(b"junk").unwrap();
-        a.discard_input().unwrap();
-        assert_eq!(
-            a.read_timeout(&mut buf, Duration::from_millis(1)).unwrap(),
-            0
-        );
-    }
-
     /// Start bit, data bits, parity bit and stop bit.
     #[test]
     fn both_character_formats_take_ten_bits() {
@@ -777,12 +606,13 @@ mod tests {
 
     /// The serial-port links on a pseudo-terminal pair (no hardware): bytes written on one end
     /// are read on the other, a read with nothing waiting times out as 0 bytes, and input
-    /// waiting is discarded; the same through a boxed port (as `open_serial` returns it) and a
-    /// boxed link.
+    /// waiting is discarded, however much of it; the same through a boxed port (as
+    /// `open_serial` returns it) and a boxed link. (The indexer's serial link is the same code,
+    /// `paths::serial_link!`.)
     #[cfg(unix)]
     #[test]
     fn serial_ports_carry_bytes_time_out_and_discard_input() {
-        let (mut a, mut b) = serialport::TTYPort::pair().unwrap();
+        let (mut a, mut b) = SerialLink::pty_pair().unwrap();
         Link::write_all(&mut a, b"hello").unwrap();
         assert_eq!(read_all(&mut b, 5), b"hello");
         let mut buf = [0u8; 8];
@@ -797,9 +627,21 @@ mod tests {
             b.read_timeout(&mut buf, Duration::from_millis(50)).unwrap(),
             0
         );
+        // More than one read's worth (256 bytes) waiting: every byte of it goes.
+        Link::write_all(&mut a, &[b'x'; 600]).unwrap();
+        let t0 = std::time::Instant::now();
+        while b.waiting().unwrap() < 600 && t0.elapsed() < Duration::from_secs(1) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert_eq!(b.waiting().unwrap(), 600);
+        b.discard_input().unwrap();
+        assert_eq!(
+            b.read_timeout(&mut buf, Duration::from_millis(50)).unwrap(),
+            0
+        );
 
-        let (mut a, b) = serialport::TTYPort::pair().unwrap();
-        let mut boxed: Box<dyn serialport::SerialPort> = Box::new(b);
+        let (mut a, b) = SerialLink::pty_pair().unwrap();
+        let mut boxed = SerialLink(b.0 as Box<dyn serialport::SerialPort>);
         Link::write_all(&mut boxed, b"ping").unwrap();
         assert_eq!(read_all(&mut a, 4), b"ping");
         Link::write_all(&mut a, b"pong").unwrap();
@@ -836,26 +678,10 @@ mod tests {
     #[cfg(unix)]
     #[test]
     fn a_serial_port_whose_other_end_closed_is_an_error() {
-        let (a, mut b) = serialport::TTYPort::pair().unwrap();
+        let (a, mut b) = SerialLink::pty_pair().unwrap();
         drop(a);
         let mut buf = [0u8; 8];
         assert!(b.read_timeout(&mut buf, Duration::from_millis(50)).is_err());
-    }
-
-    /// A read on an empty pipe waits for bytes written meanwhile from another thread, up to its
-    /// timeout.
-    #[test]
-    fn a_pipe_read_waits_for_bytes_to_come() {
-        let (mut a, mut b) = Pipe::pair();
-        let writer = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(20));
-            a.write_all(&[7]).unwrap();
-            a
-        });
-        let mut buf = [0u8; 4];
-        assert_eq!(b.read_timeout(&mut buf, Duration::from_secs(5)).unwrap(), 1);
-        assert_eq!(buf[0], 7);
-        drop(writer.join().unwrap());
     }
 
     /// SplitMix64's published outputs for seed 1 234 567 (the reference implementation's test

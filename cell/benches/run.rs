@@ -15,7 +15,7 @@ use cell::run::coordinator::{
 };
 use cell::run::device::{NoSync, ProtocolRobot, WallClock, XIndexer};
 use cell::run::journal::Journal;
-use cell::sim::wiretap::{IndexerTap, StopPattern, StopTap, unix_now_s};
+use cell::sim::wiretap::{StopPattern, StopTap, unix_now_s};
 use cell::sim::{SimCell, SimCellConfig};
 use criterion::{Criterion, criterion_group, criterion_main};
 use mandrel_drive::Drive;
@@ -132,15 +132,14 @@ fn stop_latency(c: &mut Criterion) {
                     StopPattern::robot(&asea_protocol::FrameConfig::default()),
                 );
                 let (x_dev, x_seen) = StopTap::new(x_dev, StopPattern::IndexerStop);
-                let x_dev = IndexerTap(x_dev);
                 let (h1, r1) = (halt.clone(), robot.clone());
                 let t1 = std::thread::spawn(move || {
-                    let clock = asea_protocol::clock::RealClock::new();
+                    let clock = asea_protocol::clock::WallClock::new();
                     let _ = asea_protocol::sim::serve(robot_dev, &r1, &clock, &h1);
                 });
                 let (h2, c2) = (halt.clone(), card.clone());
                 let t2 = std::thread::spawn(move || {
-                    let clock = mandrel_drive::sim::RealClock::new();
+                    let clock = mandrel_drive::sim::WallClock::new();
                     let _ = mandrel_drive::sim::serve(x_dev, &c2, &clock, &h2);
                 });
                 let setup = cell::run::transfer::IndexerSetup {

@@ -1,6 +1,8 @@
-//! One hour of simulated mandrel motion on the virtual clock (target: < 50 ms).
+//! One hour of simulated mandrel motion on the virtual clock (target: < 50 ms), and the X
+//! client's cancel latency: from the token being set to a blocked wait returning (the stop path
+//! counts on about a millisecond, docs/ARCHITECTURE.md).
 //!
-//! `cargo bench -p mandrel-drive --bench sim -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p mandrel-drive --features bench --bench sim -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use mandrel_drive::Drive;
@@ -44,5 +46,29 @@ fn bench(c: &mut Criterion) {
     c.bench_function("sim_one_hour_virtual_clock", |b| b.iter(one_hour));
 }
 
-criterion_group!(benches, bench);
+/// An X client waiting for a move's completion on a pipe whose card is silent, cancelled from
+/// this thread 2 ms after the wait began: the time from `cancel` until the waiting thread has
+/// returned (the join included).
+fn cancel_latency(c: &mut Criterion) {
+    use mandrel_drive::{Error, IndexerConfig, Pipe, XClient};
+    c.bench_function("cancel_latency/x_client_wait", |b| {
+        b.iter_custom(|iters| {
+            paths::link::contract::time_cancels(iters, || {
+                let (host, card) = Pipe::pair();
+                let mut x = XClient::new(host, IndexerConfig::default());
+                let token = x.cancel_token();
+                let wait = move || {
+                    let _card = card;
+                    matches!(
+                        x.wait_complete(std::time::Duration::from_secs(30)),
+                        Err(Error::Cancelled)
+                    )
+                };
+                (token, wait)
+            })
+        })
+    });
+}
+
+criterion_group!(benches, bench, cancel_latency);
 criterion_main!(benches);

@@ -2,13 +2,13 @@
 //! [`Link`]: commands built from physical units at the mandrel through [`Drive`], replies checked,
 //! timeouts and typed errors.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
+
+use paths::link::{Wait, read_within};
 
 use crate::error::{Error, Result};
 use crate::grbl;
-use crate::link::Link;
+use crate::link::{Clock, Link, WallClock};
 use crate::profile::Profile;
 use crate::units::Drive;
 use crate::xlang::{self, Command, Reply, ReplyError};
@@ -104,10 +104,15 @@ pub trait Indexer {
     fn stop(&mut self, kind: StopKind) -> Result<()>;
     /// Reads busy, fault and position.
     fn status(&mut self) -> Result<IndexerStatus>;
+    /// The client's time: its clock's (wall time, or the virtual clock of a simulated link).
+    fn now(&self) -> Duration;
+    /// Lets `dt` of the client's time pass, reading the link meanwhile (what comes is kept for
+    /// the next reply): on a simulated link the device runs meanwhile.
+    fn pause(&mut self, dt: Duration) -> Result<()>;
 
     /// Polls [`Indexer::status`] until the drive is at rest; a fault is [`Error::Stalled`].
     fn wait_idle(&mut self, timeout: Duration) -> Result<IndexerStatus> {
-        let deadline = Instant::now() + timeout;
+        let deadline = self.now() + timeout;
         loop {
             let s = self.status()?;
             if s.fault {
@@ -116,43 +121,28 @@ pub trait Indexer {
             if !s.busy {
                 return Ok(s);
             }
-            if Instant::now() >= deadline {
+            if self.now() >= deadline {
                 return Err(Error::MoveTimeout {
                     waited_ms: timeout.as_millis() as u64,
                 });
             }
-            std::thread::sleep(Duration::from_millis(5));
+            self.pause(Duration::from_millis(5))?;
         }
     }
 }
 
-/// Longest wait of one read: a cancelled exchange ends within this.
-pub const POLL_PERIOD: Duration = Duration::from_millis(50);
+/// Longest wait of one read: a cancelled exchange ends within this (of the client's time). The
+/// one poll period of the shared plumbing ([`paths::link::POLL_PERIOD`]).
+pub use paths::link::POLL_PERIOD;
 
 /// A token that cancels a client's blocking exchanges from another thread or task: the read
 /// under way returns [`Error::Cancelled`] within [`POLL_PERIOD`]. The stop commands (`S`, `K`) are
-/// written without waiting and go through while it is set.
-#[derive(Debug, Clone, Default)]
-pub struct Cancel(Arc<AtomicBool>);
+/// written without waiting and go through while it is set. The same token as the robot's
+/// ([`paths::link::Cancel`]).
+pub use paths::link::Cancel;
 
-impl Cancel {
-    /// A token not set.
-    pub fn new() -> Self {
-        Self::default()
-    }
-    /// Cancels the exchange under way and every later one until [`Cancel::reset`].
-    pub fn cancel(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-    /// Lets exchanges run again.
-    pub fn reset(&self) {
-        self.0.store(false, Ordering::SeqCst);
-    }
-    /// True while set.
-    pub fn is_cancelled(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
-    }
-}
+/// How often a card busy after its reset (`Z`) is asked for its status (`R`).
+pub const RESET_POLL_PERIOD: Duration = Duration::from_millis(50);
 
 /// Reads lines ending in `end` (other line-end bytes dropped) from a link with a deadline.
 #[derive(Debug, Default)]
@@ -167,15 +157,17 @@ struct LineReader {
 const MAX_LINE: usize = 256;
 
 impl LineReader {
-    fn next_line<L: Link>(
+    #[allow(clippy::too_many_arguments)]
+    fn next_line<L: Link, C: Clock>(
         &mut self,
         link: &mut L,
+        clock: &C,
         end: u8,
         drop: u8,
         timeout: Duration,
         command: &str,
     ) -> Result<Vec<u8>> {
-        let deadline = Instant::now() + timeout;
+        let deadline = clock.now() + timeout;
         loop {
             if let Some(i) = self.pending.iter().position(|b| *b == end) {
                 let mut line: Vec<u8> = self.pending.drain(..=i).collect();
@@ -191,19 +183,35 @@ impl LineReader {
                     reason: "line too long",
                 });
             }
-            if !self.ignore_cancel && self.cancel.is_cancelled() {
-                return Err(Error::Cancelled);
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(Error::Timeout {
-                    command: command.to_string(),
-                    waited_ms: timeout.as_millis() as u64,
-                });
-            }
+            let cancel = (!self.ignore_cancel).then_some(&self.cancel);
+            let left = deadline.saturating_sub(clock.now());
             let mut buf = [0u8; 128];
-            let n = link.read_timeout(&mut buf, (deadline - now).min(POLL_PERIOD))?;
-            self.pending.extend_from_slice(buf.get(..n).unwrap_or(&[]));
+            match read_within(link, clock, cancel, &mut buf, left)? {
+                Wait::Bytes(n) => self.pending.extend_from_slice(buf.get(..n).unwrap_or(&[])),
+                Wait::Cancelled => return Err(Error::Cancelled),
+                Wait::TimedOut => {
+                    return Err(Error::Timeout {
+                        command: command.to_string(),
+                        waited_ms: timeout.as_millis() as u64,
+                    });
+                }
+            }
+        }
+    }
+
+    /// Lets `dt` of `clock` pass reading `link`; what comes is kept for the next line.
+    fn pause<L: Link, C: Clock>(&mut self, link: &mut L, clock: &C, dt: Duration) -> Result<()> {
+        let deadline = clock.now() + dt;
+        let mut buf = [0u8; 128];
+        loop {
+            let left = deadline.saturating_sub(clock.now());
+            if left.is_zero() {
+                return Ok(());
+            }
+            match read_within(link, clock, None, &mut buf, left)? {
+                Wait::Bytes(n) => self.pending.extend_from_slice(buf.get(..n).unwrap_or(&[])),
+                Wait::TimedOut | Wait::Cancelled => return Ok(()),
+            }
         }
     }
 }
@@ -215,8 +223,9 @@ pub const RESET_LIMIT: Duration = Duration::from_secs(5);
 
 /// An X-language indexer (Compumotor 2100 / PC21 / OEM family) over a serial link.
 #[derive(Debug)]
-pub struct XClient<L: Link> {
+pub struct XClient<L: Link, C = WallClock> {
     link: L,
+    clock: C,
     cfg: IndexerConfig,
     reader: LineReader,
     echo: bool,
@@ -225,11 +234,20 @@ pub struct XClient<L: Link> {
     completions: u32,
 }
 
-impl<L: Link> XClient<L> {
-    /// A client on `link`; call [`Indexer::init`] before anything else.
+impl<L: Link> XClient<L, WallClock> {
+    /// A client on `link` in wall time; call [`Indexer::init`] before anything else.
     pub fn new(link: L, cfg: IndexerConfig) -> Self {
+        XClient::with_clock(link, WallClock::new(), cfg)
+    }
+}
+
+impl<L: Link, C: Clock> XClient<L, C> {
+    /// A client on `link` timed by `clock` (the link's time: the virtual clock of a simulated
+    /// link, whose reads move it); call [`Indexer::init`] before anything else.
+    pub fn with_clock(link: L, clock: C, cfg: IndexerConfig) -> Self {
         XClient {
             link,
+            clock,
             cfg,
             reader: LineReader::default(),
             echo: true,
@@ -260,8 +278,13 @@ impl<L: Link> XClient<L> {
         // Echo off first: whatever the echo state was, the next commands' echo is known.
         let off = xlang::encode(Some(self.cfg.address), &Command::Echo(false));
         self.link.write_all(format!("{off}\r").as_bytes())?;
-        std::thread::sleep(self.cfg.reply_timeout.min(Duration::from_millis(100)));
+        self.reader.pause(
+            &mut self.link,
+            &self.clock,
+            self.cfg.reply_timeout.min(Duration::from_millis(100)),
+        )?;
         self.link.discard_input()?;
+        self.reader.pending.clear();
         self.echo = false;
         self.device_id = false;
         self.completions = 0;
@@ -307,6 +330,7 @@ impl<L: Link> XClient<L> {
     fn line(&mut self, command: &str) -> Result<Vec<u8>> {
         self.reader.next_line(
             &mut self.link,
+            &self.clock,
             b'\r',
             b'\n',
             self.cfg.reply_timeout,
@@ -388,7 +412,7 @@ impl<L: Link> XClient<L> {
     /// status reply (the late echo of `Z`, a partial line cut by the reset) is skipped.
     fn wait_reset_done(&mut self) -> Result<()> {
         let limit = RESET_LIMIT + self.cfg.reply_timeout;
-        let deadline = Instant::now() + limit;
+        let deadline = self.clock.now() + limit;
         let status = xlang::encode(Some(self.cfg.address), &Command::Status);
         // Polls sent and replies read: a reply that comes after its poll timed out belongs to
         // an earlier poll and is consumed before the set-up goes on.
@@ -417,13 +441,14 @@ impl<L: Link> XClient<L> {
             if ready && (answered >= sent || got.is_none()) {
                 return Ok(());
             }
-            if Instant::now() >= deadline {
+            if self.clock.now() >= deadline {
                 return Err(Error::MoveTimeout {
                     waited_ms: limit.as_millis() as u64,
                 });
             }
             if !ready {
-                std::thread::sleep(POLL_PERIOD.min(self.cfg.reply_timeout));
+                let poll = RESET_POLL_PERIOD.min(self.cfg.reply_timeout);
+                self.reader.pause(&mut self.link, &self.clock, poll)?;
             }
         }
     }
@@ -441,18 +466,22 @@ impl<L: Link> XClient<L> {
 
     /// Waits for the `CR` move-complete notification of the last preset move.
     pub fn wait_complete(&mut self, timeout: Duration) -> Result<()> {
-        let deadline = Instant::now() + timeout;
+        let deadline = self.clock.now() + timeout;
         while self.completions == 0 {
-            let now = Instant::now();
+            let now = self.clock.now();
             if now >= deadline {
                 return Err(Error::MoveTimeout {
                     waited_ms: timeout.as_millis() as u64,
                 });
             }
-            match self
-                .reader
-                .next_line(&mut self.link, b'\r', b'\n', deadline - now, "CR")
-            {
+            match self.reader.next_line(
+                &mut self.link,
+                &self.clock,
+                b'\r',
+                b'\n',
+                deadline - now,
+                "CR",
+            ) {
                 Ok(line) if line.is_empty() => self.completions += 1,
                 Ok(line) if line.starts_with(b"?") => {
                     return Err(refused("G", line.get(1..).unwrap_or(&[])));
@@ -522,12 +551,20 @@ fn range(name: &'static str, value: f64, lo: f64, hi: f64, expected: &'static st
     }
 }
 
-impl<L: Link> Indexer for XClient<L> {
+impl<L: Link, C: Clock> Indexer for XClient<L, C> {
+    fn now(&self) -> Duration {
+        self.clock.now()
+    }
+
+    fn pause(&mut self, dt: Duration) -> Result<()> {
+        self.reader.pause(&mut self.link, &self.clock, dt)
+    }
+
     fn init(&mut self) -> Result<()> {
         self.link.discard_input()?;
         let z = xlang::encode(Some(self.cfg.address), &Command::Reset);
         self.link.write_all(format!("{z}\r").as_bytes())?;
-        std::thread::sleep(self.cfg.reset_wait);
+        self.pause(self.cfg.reset_wait)?;
         self.link.discard_input()?;
         self.reader.pending.clear();
         self.echo = true;
@@ -544,14 +581,14 @@ impl<L: Link> Indexer for XClient<L> {
             self.send(&Command::LimitDisable(3))?;
         }
         self.send(&Command::Zero)?;
-        let deadline = Instant::now() + self.cfg.reset_wait + self.cfg.reply_timeout;
+        let deadline = self.clock.now() + self.cfg.reset_wait + self.cfg.reply_timeout;
         while self.ready_status()?.0 {
-            if Instant::now() > deadline {
+            if self.clock.now() > deadline {
                 return Err(Error::MoveTimeout {
                     waited_ms: (self.cfg.reset_wait + self.cfg.reply_timeout).as_millis() as u64,
                 });
             }
-            std::thread::sleep(Duration::from_millis(10));
+            self.pause(Duration::from_millis(10))?;
         }
         Ok(())
     }
@@ -662,8 +699,9 @@ impl<L: Link> Indexer for XClient<L> {
 
 /// A GRBL 1.1 / grblHAL controller turning the mandrel as its A axis.
 #[derive(Debug)]
-pub struct GrblClient<L: Link> {
+pub struct GrblClient<L: Link, C = WallClock> {
     link: L,
+    clock: C,
     cfg: IndexerConfig,
     reader: LineReader,
     feed_deg_per_min: f64,
@@ -675,11 +713,20 @@ pub struct GrblClient<L: Link> {
 /// profile ends well within it.
 pub const GRBL_STOP_WAIT: Duration = Duration::from_secs(60);
 
-impl<L: Link> GrblClient<L> {
-    /// A client on `link`; call [`Indexer::init`] before anything else.
+impl<L: Link> GrblClient<L, WallClock> {
+    /// A client on `link` in wall time; call [`Indexer::init`] before anything else.
     pub fn new(link: L, cfg: IndexerConfig) -> Self {
+        GrblClient::with_clock(link, WallClock::new(), cfg)
+    }
+}
+
+impl<L: Link, C: Clock> GrblClient<L, C> {
+    /// A client on `link` timed by `clock` (the link's time); call [`Indexer::init`] before
+    /// anything else.
+    pub fn with_clock(link: L, clock: C, cfg: IndexerConfig) -> Self {
         GrblClient {
             link,
+            clock,
             cfg,
             reader: LineReader::default(),
             feed_deg_per_min: 360.0,
@@ -696,9 +743,14 @@ impl<L: Link> GrblClient<L> {
     fn line(&mut self, command: &str, timeout: Duration) -> Result<grbl::Line> {
         let mut raw = Vec::new();
         while raw.is_empty() {
-            raw = self
-                .reader
-                .next_line(&mut self.link, b'\n', b'\r', timeout, command)?;
+            raw = self.reader.next_line(
+                &mut self.link,
+                &self.clock,
+                b'\n',
+                b'\r',
+                timeout,
+                command,
+            )?;
         }
         grbl::parse_line(&raw).map_err(|e| Error::BadReply {
             command: command.to_string(),
@@ -761,7 +813,15 @@ impl<L: Link> GrblClient<L> {
     }
 }
 
-impl<L: Link> Indexer for GrblClient<L> {
+impl<L: Link, C: Clock> Indexer for GrblClient<L, C> {
+    fn now(&self) -> Duration {
+        self.clock.now()
+    }
+
+    fn pause(&mut self, dt: Duration) -> Result<()> {
+        self.reader.pause(&mut self.link, &self.clock, dt)
+    }
+
     fn init(&mut self) -> Result<()> {
         self.link.discard_input()?;
         self.reader.pending.clear();
@@ -842,11 +902,12 @@ impl<L: Link> Indexer for GrblClient<L> {
                 return Ok(());
             }
             self.link.write_all(&[grbl::FEED_HOLD])?;
-            let deadline = Instant::now() + self.stop_wait;
+            let deadline = self.clock.now() + self.stop_wait;
             loop {
                 self.link.write_all(&[grbl::STATUS])?;
                 let raw = self.reader.next_line(
                     &mut self.link,
+                    &self.clock,
                     b'\n',
                     b'\r',
                     self.cfg.reply_timeout,
@@ -855,10 +916,10 @@ impl<L: Link> Indexer for GrblClient<L> {
                 if raw.starts_with(b"<Hold:0") && raw.windows(5).any(|w| w == b"|FS:0") {
                     break;
                 }
-                if raw.starts_with(b"<Idle") || Instant::now() > deadline {
+                if raw.starts_with(b"<Idle") || self.clock.now() > deadline {
                     break;
                 }
-                std::thread::sleep(Duration::from_millis(5));
+                self.pause(Duration::from_millis(5))?;
             }
         }
         self.reset()
@@ -878,6 +939,7 @@ impl<L: Link> Indexer for GrblClient<L> {
 mod tests {
     use super::*;
     use crate::link::Pipe;
+    use std::time::Instant;
 
     /// A line may hold up to [`MAX_LINE`] bytes before its end: that many without an end is
     /// still waited for (here until the deadline), one more is refused as too long at once.
@@ -887,13 +949,13 @@ mod tests {
         let (mut host, mut device) = Pipe::pair();
         device.write_all(&[b'X'; MAX_LINE]).unwrap();
         let e = LineReader::default()
-            .next_line(&mut host, b'\r', b'\n', wait, "R")
+            .next_line(&mut host, &WallClock::new(), b'\r', b'\n', wait, "R")
             .unwrap_err();
         assert!(matches!(e, Error::Timeout { .. }), "{e:?}");
         let (mut host, mut device) = Pipe::pair();
         device.write_all(&[b'X'; MAX_LINE + 1]).unwrap();
         let e = LineReader::default()
-            .next_line(&mut host, b'\r', b'\n', wait, "R")
+            .next_line(&mut host, &WallClock::new(), b'\r', b'\n', wait, "R")
             .unwrap_err();
         assert!(
             matches!(
@@ -909,8 +971,11 @@ mod tests {
 
     /// A client on a pipe whose card end has already written `card` (CR-ended lines).
     fn answered(card: &str) -> XClient<Pipe> {
-        let (host, mut device) = Pipe::pair();
-        device.write_all(card.as_bytes()).unwrap();
+        let (host, device) = Pipe::pair();
+        // The card end stays open (leaked): a card that says nothing more, not one that is gone.
+        Box::leak(Box::new(device))
+            .write_all(card.as_bytes())
+            .unwrap();
         XClient::new(
             host,
             IndexerConfig {
@@ -1138,12 +1203,12 @@ mod tests {
         assert!(t0.elapsed() < reply / 2, "{:?}", t0.elapsed());
     }
 
-    /// While the card is busy after its reset it is polled once per `POLL_PERIOD`, not as fast
+    /// While the card is busy after its reset it is polled once per `RESET_POLL_PERIOD`, not as fast
     /// as it answers: a card busy for six poll periods from the first poll gets at most eight
     /// polls (one at the start, six more a period apart, one of slack for the card's own clock).
     #[test]
     fn a_card_busy_resetting_is_polled_once_per_poll_period() {
-        let busy_for = 6 * POLL_PERIOD;
+        let busy_for = 6 * RESET_POLL_PERIOD;
         let (host, card) = Pipe::pair();
         let mut first_poll: Option<Instant> = None;
         let card = x_card(card, move |line| {
@@ -1271,7 +1336,8 @@ mod tests {
             reply_timeout: Duration::from_millis(150),
             ..IndexerConfig::default()
         };
-        GrblClient::new(host, cfg).init().unwrap();
+        let mut client = GrblClient::new(host, cfg);
+        client.init().unwrap();
         assert_eq!(
             String::from_utf8(controller.join().unwrap()).unwrap(),
             "\u{18}$103=5.1282\nG92 A0\n"

@@ -211,14 +211,14 @@ mod tests {
         let mut pc = start.clone();
         assert!(!robot_side.level().unwrap());
         pc.set(true).unwrap();
-        clock.advance(0.0005);
+        clock.advance_s(0.0005);
         assert!(!robot_side.level().unwrap());
-        clock.advance(0.0006);
+        clock.advance_s(0.0006);
         assert!(robot_side.level().unwrap());
         assert!(indexer_side.level().unwrap());
         pc.set(false).unwrap();
         assert!(indexer_side.level().unwrap());
-        clock.advance(0.002);
+        clock.advance_s(0.002);
         assert!(!indexer_side.level().unwrap());
     }
 
@@ -233,13 +233,13 @@ mod tests {
         for k in 0..10_000u32 {
             let level = k % 2 == 0;
             pc.set(level).unwrap();
-            clock.advance(0.0015);
+            clock.advance_s(0.0015);
             assert_eq!(robot_side.level().unwrap(), level);
             assert!(pc.line.lock().unwrap().edges.len() <= 2);
         }
         // Within the delay the earlier level is still seen, so its edge is kept.
         pc.set(true).unwrap();
-        clock.advance(0.0005);
+        clock.advance_s(0.0005);
         assert!(!robot_side.level().unwrap());
         assert_eq!(pc.line.lock().unwrap().edges.len(), 2);
     }

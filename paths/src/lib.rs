@@ -2,7 +2,8 @@
 //! segmentation, the tangent angle (seed 001 eq 3.7), payout-eye poses (eqs 3.8–3.14), wrist
 //! quaternions (App. A), the five-axis arm's kinematics and limits, six-axis arms (OPW and UR
 //! kinematics, the winding pose search, the mandrel axis in the robot base frame: [`arm`]),
-//! mandrel step planning and timing, and the cell's calibration. No I/O.
+//! mandrel step planning and timing, and the cell's calibration; and [`link`], the byte-link
+//! contract and the clocks both device crates share. No I/O.
 //!
 //! Millimetres and radians throughout; degrees appear only at file and command-line edges.
 
@@ -15,6 +16,7 @@ pub mod error;
 pub mod eye;
 pub mod geodesic;
 pub mod limits;
+pub mod link;
 pub mod mandrel;
 pub mod mesh;
 pub mod motion;

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use asea_protocol::clock::{Clock, RealClock, VirtualClock};
+use asea_protocol::clock::{Clock, VirtualClock, WallClock};
 use asea_protocol::command::IN_POSITION_OUTPUT;
 use asea_protocol::command::{Control, Instruction};
 use asea_protocol::link::{FaultRates, Faults, Paced, Peer};
@@ -957,9 +957,9 @@ static PTY: Mutex<()> = Mutex::new(());
 #[cfg(unix)]
 #[test]
 fn program_over_a_pseudo_terminal() {
-    use serialport::TTYPort;
+    use asea_protocol::link::SerialLink;
     let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
-    let (master, slave) = TTYPort::pair().expect("pty pair");
+    let (master, slave) = SerialLink::pty_pair().expect("pty pair");
     // Fast arm constants so that the 47 moves run in a fraction of a second of real time.
     let params = MotionParams {
         accel_mm_s2: 1.0e6,
@@ -977,7 +977,7 @@ fn program_over_a_pseudo_terminal() {
     let stop = Arc::new(AtomicBool::new(false));
     let server = {
         let (robot, stop) = (robot.clone(), stop.clone());
-        std::thread::spawn(move || serve(master, &robot, &RealClock::new(), &stop))
+        std::thread::spawn(move || serve(master, &robot, &WallClock::new(), &stop))
     };
     let mut c = Client::new(slave, ClientConfig::default());
     // A narrow zig-zag at full speed, so that the run takes a fraction of a second.
@@ -997,7 +997,7 @@ fn program_over_a_pseudo_terminal() {
     std::thread::sleep(Duration::from_millis(50));
     c.run_program(9).unwrap();
     let io = robot.lock().unwrap().machine.io().clone();
-    let clock = RealClock::new();
+    let clock = WallClock::new();
     while !io.output(IN_POSITION_OUTPUT) {
         assert!(
             clock.now() < Duration::from_secs(5),
@@ -1203,7 +1203,7 @@ fn an_upload_is_cancelled_from_another_thread_and_stop_still_goes_through() {
     let halt = Arc::new(AtomicBool::new(false));
     let server = {
         let (robot, halt) = (robot.clone(), halt.clone());
-        std::thread::spawn(move || serve(robot_end, &robot, &RealClock::new(), &halt))
+        std::thread::spawn(move || serve(robot_end, &robot, &WallClock::new(), &halt))
     };
     let c = Client::new(host_end, ClientConfig::default());
     let token: Cancel = c.cancel_token();

@@ -4,5 +4,6 @@
 
 mod end_to_end;
 mod fault_classes;
+mod link_contract;
 mod retry_rules;
 mod stop_phases;

@@ -9,6 +9,7 @@ pub mod jog;
 pub mod lathe;
 pub mod plan;
 pub mod predict;
+pub mod pty;
 pub mod run;
 pub mod sim_cell;
 pub mod sim_grbl;

@@ -543,7 +543,9 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
     Ok((loaded, cell, reach, name, clearance))
 }
 
-fn open_port(path: &str) -> Result<Box<dyn serialport::SerialPort>, Failure> {
+fn open_port(
+    path: &str,
+) -> Result<asea_protocol::link::SerialLink<Box<dyn serialport::SerialPort>>, Failure> {
     asea_protocol::link::open_serial(
         path,
         asea_protocol::link::DEFAULT_BAUD,
@@ -592,7 +594,7 @@ pub fn devices(
                     )
                 }
                 Some(path) => {
-                    let port = Arc::new(Mutex::new(open_port(path)?));
+                    let port = Arc::new(Mutex::new(open_port(path)?.0));
                     Box::new(cell::run::device::WiredSync {
                         start: Box::new(ModemLine::new(port.clone(), Pin::Rts, false)),
                         in_position: Box::new(ModemLine::new(port.clone(), Pin::Cts, false)),

@@ -14,13 +14,13 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use asea_protocol::clock::Clock as _;
 use asea_protocol::sim::MotionParams;
 use cell::run::device::{SyncLines, Timebase};
 use cell::sim::{SimCell, SimCellConfig, SimSync};
 use clap::Args;
-use serialport::{SerialPort, TTYPort};
+use paths::link::{Clock as _, Link};
 
+use super::pty::{Ptys, Signals};
 use super::{Failure, print};
 
 /// Arguments of `windcell sim-cell`.
@@ -79,11 +79,7 @@ pub fn run(args: SimCellArgs) -> Result<(), Failure> {
             args.home_s
         )));
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone())
-            .map_err(|e| Failure::runtime(format!("sim-cell: signal handler: {e}")))?;
-    }
+    let stop = Signals::register("sim-cell", false)?.stop;
     let cell = SimCell::new(&SimCellConfig {
         robot: MotionParams {
             home_s: args.home_s,
@@ -96,33 +92,24 @@ pub fn run(args: SimCellArgs) -> Result<(), Failure> {
             .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?;
         cell.log_to(f).map_err(Failure::runtime)?;
     }
-    let pty =
-        || TTYPort::pair().map_err(|e| Failure::runtime(format!("sim-cell: pseudo-terminal: {e}")));
-    let (mut robot_master, robot_slave) = pty()?;
-    let (mut x_master, x_slave) = pty()?;
-    let name = |p: &TTYPort| {
-        p.name()
-            .ok_or_else(|| Failure::runtime("sim-cell: the pseudo-terminal has no device path"))
-    };
+    let ptys = Ptys::open("sim-cell", 2)?;
     let socket = args.socket.clone().unwrap_or_else(|| {
         std::env::temp_dir().join(format!("windcell-sim-cell-{}.sock", std::process::id()))
     });
     let listener = UnixListener::bind(&socket)
         .map_err(|e| Failure::input(format!("{}: {e}", socket.display())))?;
     listener.set_nonblocking(true).map_err(Failure::runtime)?;
-    print(&format!(
-        "{}\n{}\n{}\n",
-        name(&robot_slave)?,
-        name(&x_slave)?,
-        socket.display()
-    ))?;
+    let paths = ptys.paths()?;
+    print(&format!("{}\n{}\n", paths.join("\n"), socket.display()))?;
     let mut robot_link = cell.robot_link();
     let mut x_link = cell.indexer_link();
     let time = cell.timebase();
     let epoch = Instant::now();
     let mut buf = [0u8; 256];
     let poll = Duration::from_millis(1);
-    let result: Result<(), std::io::Error> = (|| {
+    let result = ptys.serve(|masters| -> Result<(), std::io::Error> {
+        let [mut robot_master, mut x_master] = <[_; 2]>::try_from(masters)
+            .map_err(|_| std::io::Error::other("two pseudo-terminals"))?;
         while !stop.load(Ordering::Relaxed) {
             if let Ok((stream, _)) = listener.accept() {
                 stream.set_nonblocking(false)?;
@@ -130,31 +117,32 @@ pub fn run(args: SimCellArgs) -> Result<(), Failure> {
                 std::thread::spawn(move || serve_sync(stream, sync, stop));
             }
             // Host bytes to the devices (the cell paces them at the line's baud rate).
-            let n = asea_protocol::Link::read_timeout(&mut robot_master, &mut buf, poll)?;
-            if n > 0 {
-                asea_protocol::Link::write_all(&mut robot_link, &buf[..n])?;
-            }
-            let n = mandrel_drive::Link::read_timeout(&mut x_master, &mut buf, poll)?;
-            if n > 0 {
-                mandrel_drive::Link::write_all(&mut x_link, &buf[..n])?;
+            for (master, link) in [
+                (&mut robot_master, &mut robot_link as &mut dyn Link),
+                (&mut x_master, &mut x_link),
+            ] {
+                let n = master.read_timeout(&mut buf, poll)?;
+                if n > 0 {
+                    link.write_all(&buf[..n])?;
+                }
             }
             // The cell's clock follows the wall clock.
             let behind = epoch.elapsed().saturating_sub(cell.clock().now());
             if !behind.is_zero() {
                 time.sleep(behind);
             }
-            let n = asea_protocol::Link::read_timeout(&mut robot_link, &mut buf, Duration::ZERO)?;
-            if n > 0 {
-                robot_master.write_all(&buf[..n])?;
-            }
-            let n = mandrel_drive::Link::read_timeout(&mut x_link, &mut buf, Duration::ZERO)?;
-            if n > 0 {
-                x_master.write_all(&buf[..n])?;
+            for (master, link) in [
+                (&mut robot_master, &mut robot_link as &mut dyn Link),
+                (&mut x_master, &mut x_link),
+            ] {
+                let n = link.read_timeout(&mut buf, Duration::ZERO)?;
+                if n > 0 {
+                    std::io::Write::write_all(&mut ***master, &buf[..n])?;
+                }
             }
         }
         Ok(())
-    })();
-    drop((robot_slave, x_slave));
+    });
     let _ = std::fs::remove_file(&socket);
-    result.map_err(|e| Failure::runtime(format!("sim-cell: {e}")))
+    result
 }

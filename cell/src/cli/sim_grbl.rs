@@ -6,15 +6,14 @@
 //! from the receive buffer, per overflow and per real-time command, written as they happen.
 
 use std::io::Write as _;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 
 use clap::Args;
-use mandrel_drive::Link as _;
 use mandrel_drive::sim::winder::{Event, Winder};
-use mandrel_drive::sim::{Clock as _, POLL_PERIOD, RealClock};
-use serialport::{SerialPort, TTYPort};
+use mandrel_drive::sim::{Clock as _, POLL_PERIOD, WallClock};
+use paths::link::Link as _;
 
+use super::pty::{Ptys, Signals};
 use super::{Failure, print};
 
 /// Arguments of `windcell sim-grbl`.
@@ -57,45 +56,37 @@ pub fn run(args: SimGrblArgs) -> Result<(), Failure> {
         )),
         None => None,
     };
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone())
-            .map_err(|e| Failure::runtime(format!("sim-grbl: signal handler: {e}")))?;
-    }
-    let (mut master, slave) =
-        TTYPort::pair().map_err(|e| Failure::runtime(format!("sim-grbl: pseudo-terminal: {e}")))?;
-    let path = slave
-        .name()
-        .ok_or_else(|| Failure::runtime("sim-grbl: the pseudo-terminal has no device path"))?;
-    print(&format!("{path}\n"))?;
-    let clock = RealClock::new();
+    let signals = Signals::register("sim-grbl", false)?;
+    let ptys = Ptys::open("sim-grbl", 1)?;
+    print(&format!("{}\n", ptys.paths()?.join("\n")))?;
+    let clock = WallClock::new();
     let mut winder = Winder::new(args.time_scale);
     let mut buf = [0u8; 512];
-    let failure = |e: std::io::Error| Failure::runtime(format!("sim-grbl: {e}"));
-    while !stop.load(Ordering::Relaxed) {
-        let n = master
-            .read_timeout(&mut buf, POLL_PERIOD)
-            .map_err(failure)?;
-        let now = clock.now_s();
-        match buf.get(..n) {
-            Some(bytes) if n > 0 => winder.receive(bytes, now),
-            _ => winder.poll(now),
-        }
-        let events = winder.take_events();
-        if let Some(file) = log.as_mut()
-            && !events.is_empty()
-        {
-            for e in &events {
-                writeln!(file, "{}", record(e, now)).map_err(failure)?;
+    ptys.serve(|masters| -> std::io::Result<()> {
+        let Some(mut master) = masters.into_iter().next() else {
+            return Ok(());
+        };
+        while !signals.stop.load(Ordering::Relaxed) {
+            let n = master.read_timeout(&mut buf, POLL_PERIOD)?;
+            let now = clock.now_s();
+            match buf.get(..n) {
+                Some(bytes) if n > 0 => winder.receive(bytes, now),
+                _ => winder.poll(now),
             }
-            file.flush().map_err(failure)?;
+            let events = winder.take_events();
+            if let Some(file) = log.as_mut()
+                && !events.is_empty()
+            {
+                for e in &events {
+                    writeln!(file, "{}", record(e, now))?;
+                }
+                file.flush()?;
+            }
+            let out = winder.take_output();
+            if !out.is_empty() {
+                master.write_all(&out)?;
+            }
         }
-        let out = winder.take_output();
-        if !out.is_empty() {
-            mandrel_drive::Link::write_all(&mut master, &out).map_err(failure)?;
-        }
-    }
-    // The slave end stays open until here so that the master never sees a hang-up.
-    drop(slave);
-    Ok(())
+        Ok(())
+    })
 }

@@ -8,15 +8,14 @@
 //! becomes [`WEAK_PULL_IN_SPS`], so the next move's start stalls, as a motor whose drive lost
 //! current would); SIGUSR2 gives it back.
 
-use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 use clap::{Args, ValueEnum};
 use mandrel_drive::Drive;
 use mandrel_drive::sim::machine::PULL_IN_SPS;
-use mandrel_drive::sim::{Machine, RealClock, grbl::Controller, serve, xlang::Card};
-use serialport::{SerialPort, TTYPort};
+use mandrel_drive::sim::{Machine, WallClock, grbl::Controller, serve, xlang::Card};
 
+use super::pty::{Ptys, Signals, stop_records};
 use super::{Failure, print};
 
 /// The motor's pull-in rate after SIGUSR1, steps/s: below any start velocity.
@@ -62,108 +61,88 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
             args.pull_in_sps
         )));
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    let weaken = Arc::new(AtomicBool::new(false));
-    let restore = Arc::new(AtomicBool::new(false));
-    for (signal, flag) in [
-        (signal_hook::consts::SIGINT, &stop),
-        (signal_hook::consts::SIGTERM, &stop),
-        (signal_hook::consts::SIGUSR1, &weaken),
-        (signal_hook::consts::SIGUSR2, &restore),
-    ] {
-        signal_hook::flag::register(signal, flag.clone())
-            .map_err(|e| Failure::runtime(format!("sim-indexer: signal handler: {e}")))?;
-    }
-    let (master, slave) = TTYPort::pair()
-        .map_err(|e| Failure::runtime(format!("sim-indexer: pseudo-terminal: {e}")))?;
-    let path = slave
-        .name()
-        .ok_or_else(|| Failure::runtime("sim-indexer: the pseudo-terminal has no device path"))?;
-    print(&format!("{path}\n"))?;
+    let signals = Signals::register("sim-indexer", true)?;
+    let ptys = Ptys::open("sim-indexer", 1)?;
+    print(&format!("{}\n", ptys.paths()?.join("\n")))?;
     let machine = Machine::new(Drive::default(), args.pull_in_sps);
-    let clock = RealClock::new();
-    let served = match args.dialect {
-        Dialect::X => {
-            let card = Arc::new(Mutex::new(Card::new(machine, args.address)));
-            let log = match &args.log {
-                Some(p) => Some(
-                    std::fs::File::create(p)
-                        .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
-                ),
-                None => None,
-            };
-            // The log notes when each `S` arrives (wall clock), for the stop latency.
-            let (tap, stops) = cell::sim::wiretap::StopTap::new(
-                master,
-                cell::sim::wiretap::StopPattern::IndexerStop,
-            );
-            let master = cell::sim::wiretap::IndexerTap(tap);
-            std::thread::scope(|scope| {
-                // Fault injection: SIGUSR1 weakens the motor, SIGUSR2 restores it.
-                {
-                    let (card, stop, weaken, restore) = (&card, &stop, &weaken, &restore);
-                    let nominal = args.pull_in_sps;
-                    scope.spawn(move || {
-                        use std::sync::atomic::Ordering::Relaxed;
-                        while !stop.load(Relaxed) {
-                            let set = if weaken.swap(false, Relaxed) {
-                                Some(WEAK_PULL_IN_SPS)
-                            } else if restore.swap(false, Relaxed) {
-                                Some(nominal)
-                            } else {
-                                None
-                            };
-                            if let (Some(rate), Ok(mut c)) = (set, card.lock()) {
-                                c.machine.pull_in_sps = rate;
-                            }
-                            std::thread::sleep(std::time::Duration::from_millis(1));
-                        }
-                    });
-                }
-                if let Some(mut file) = log {
-                    let (card, stop, clock, stops) = (&card, &stop, &clock, &stops);
-                    scope.spawn(move || {
-                        use mandrel_drive::sim::{Clock as _, Frontend as _};
-                        use std::io::Write as _;
-                        let mut moving = false;
-                        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-                            let Ok(c) = card.lock() else { return };
-                            let m = c.machine();
-                            if moving && !m.is_moving() {
-                                let line = serde_json::json!({
-                                    "device": "indexer", "t_s": clock.now_s(),
-                                    "steps": m.steps_since_move_start(),
-                                });
-                                let _ = writeln!(file, "{line}");
-                            }
-                            moving = m.is_moving();
-                            drop(c);
-                            let arrived: Vec<f64> = stops
-                                .lock()
-                                .map(|mut s| s.drain(..).collect())
-                                .unwrap_or_default();
-                            for unix_s in arrived {
-                                let line = serde_json::json!({
-                                    "device": "indexer", "stop_received": true,
-                                    "t_s": clock.now_s(), "unix_s": unix_s,
-                                });
-                                let _ = writeln!(file, "{line}");
-                            }
-                            std::thread::sleep(std::time::Duration::from_millis(1));
-                        }
-                    });
-                }
-                serve(master, &card, &clock, &stop)
-            })
-        }
-        Dialect::Grbl => serve(
-            master,
-            &Arc::new(Mutex::new(Controller::new(machine))),
-            &clock,
-            &stop,
+    let clock = WallClock::new();
+    let (stop, weaken, restore) = (&signals.stop, &signals.usr1, &signals.usr2);
+    let log = match (&args.log, args.dialect) {
+        (Some(p), Dialect::X) => Some(
+            std::fs::File::create(p)
+                .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
         ),
+        _ => None,
     };
-    // The slave end stays open until here so that the master never sees a hang-up.
-    drop(slave);
-    served.map_err(|e| Failure::runtime(format!("sim-indexer: {e}")))
+    ptys.serve(|masters| {
+        let Some(master) = masters.into_iter().next() else {
+            return Ok(());
+        };
+        match args.dialect {
+            Dialect::X => {
+                let card = Arc::new(Mutex::new(Card::new(machine, args.address)));
+                // The log notes when each `S` arrives (wall clock), for the stop latency.
+                let (tap, stops) = cell::sim::wiretap::StopTap::new(
+                    master,
+                    cell::sim::wiretap::StopPattern::IndexerStop,
+                );
+                let master = tap;
+                std::thread::scope(|scope| {
+                    // Fault injection: SIGUSR1 weakens the motor, SIGUSR2 restores it.
+                    {
+                        let card = &card;
+                        let nominal = args.pull_in_sps;
+                        scope.spawn(move || {
+                            use std::sync::atomic::Ordering::Relaxed;
+                            while !stop.load(Relaxed) {
+                                let set = if weaken.swap(false, Relaxed) {
+                                    Some(WEAK_PULL_IN_SPS)
+                                } else if restore.swap(false, Relaxed) {
+                                    Some(nominal)
+                                } else {
+                                    None
+                                };
+                                if let (Some(rate), Ok(mut c)) = (set, card.lock()) {
+                                    c.machine.pull_in_sps = rate;
+                                }
+                                std::thread::sleep(std::time::Duration::from_millis(1));
+                            }
+                        });
+                    }
+                    if let Some(mut file) = log {
+                        let (card, clock, stops) = (&card, &clock, &stops);
+                        scope.spawn(move || {
+                            use mandrel_drive::sim::{Clock as _, Frontend as _};
+                            use std::io::Write as _;
+                            let mut moving = false;
+                            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                                let Ok(c) = card.lock() else { return };
+                                let m = c.machine();
+                                if moving && !m.is_moving() {
+                                    let line = serde_json::json!({
+                                        "device": "indexer", "t_s": clock.now_s(),
+                                        "steps": m.steps_since_move_start(),
+                                    });
+                                    let _ = writeln!(file, "{line}");
+                                }
+                                moving = m.is_moving();
+                                drop(c);
+                                for r in stop_records("indexer", stops, clock.now_s()) {
+                                    let _ = writeln!(file, "{r}");
+                                }
+                                std::thread::sleep(std::time::Duration::from_millis(1));
+                            }
+                        });
+                    }
+                    serve(master, &card, &clock, stop)
+                })
+            }
+            Dialect::Grbl => serve(
+                master,
+                &Arc::new(Mutex::new(Controller::new(machine))),
+                &clock,
+                stop,
+            ),
+        }
+    })
 }

@@ -12,14 +12,12 @@
 //! line (each once), per refused line, per clamped target, per overflow and for `M112`.
 
 use std::io::Write as _;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::Args;
-use mandrel_drive::Link as _;
 use mandrel_drive::sim::marlin::{Event, Marlin};
-use mandrel_drive::sim::{Clock as _, POLL_PERIOD, RealClock};
-use serialport::{SerialPort, TTYPort};
+use mandrel_drive::sim::{Clock as _, POLL_PERIOD, WallClock};
+use paths::link::Link as _;
 
 use super::{Failure, print};
 
@@ -79,16 +77,12 @@ pub fn run(args: SimMarlinArgs) -> Result<(), Failure> {
         )),
         None => None,
     };
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone())
-            .map_err(|e| Failure::runtime(format!("sim-marlin: signal handler: {e}")))?;
-    }
+    let stop = super::pty::Signals::register("sim-marlin", false)?.stop;
     let mut marlin = Marlin::new(args.time_scale);
     let mut session = Session {
         marlin: &mut marlin,
         log: log.as_mut(),
-        clock: RealClock::new(),
+        clock: WallClock::new(),
         stop: &stop,
     };
     if let Some(addr) = &args.tcp {
@@ -115,28 +109,27 @@ pub fn run(args: SimMarlinArgs) -> Result<(), Failure> {
         }
         return Ok(());
     }
-    let (mut master, slave) = TTYPort::pair()
-        .map_err(|e| Failure::runtime(format!("sim-marlin: pseudo-terminal: {e}")))?;
-    let path = slave
-        .name()
-        .ok_or_else(|| Failure::runtime("sim-marlin: the pseudo-terminal has no device path"))?;
-    print(&format!("{path}\n"))?;
-    // The start-up banner waits in the pseudo-terminal until a host opens it.
-    let banner = session.marlin.take_output();
-    mandrel_drive::Link::write_all(&mut master, &banner).map_err(failure)?;
-    let mut buf = [0u8; 512];
-    while !stop.load(Ordering::Relaxed) {
-        let n = master
-            .read_timeout(&mut buf, POLL_PERIOD)
-            .map_err(failure)?;
-        let out = session.step(buf.get(..n).unwrap_or_default())?;
-        if !out.is_empty() {
-            mandrel_drive::Link::write_all(&mut master, &out).map_err(failure)?;
+    let ptys = super::pty::Ptys::open("sim-marlin", 1)?;
+    print(&format!("{}\n", ptys.paths()?.join("\n")))?;
+    ptys.serve_failing(|masters| {
+        let Some(mut master) = masters.into_iter().next() else {
+            return Ok(());
+        };
+        // The start-up banner waits in the pseudo-terminal until a host opens it.
+        let banner = session.marlin.take_output();
+        master.write_all(&banner).map_err(failure)?;
+        let mut buf = [0u8; 512];
+        while !stop.load(Ordering::Relaxed) {
+            let n = master
+                .read_timeout(&mut buf, POLL_PERIOD)
+                .map_err(failure)?;
+            let out = session.step(buf.get(..n).unwrap_or_default())?;
+            if !out.is_empty() {
+                master.write_all(&out).map_err(failure)?;
+            }
         }
-    }
-    // The slave end stays open until here so that the master never sees a hang-up.
-    drop(slave);
-    Ok(())
+        Ok(())
+    })
 }
 
 fn failure(e: std::io::Error) -> Failure {
@@ -147,7 +140,7 @@ fn failure(e: std::io::Error) -> Failure {
 struct Session<'a> {
     marlin: &'a mut Marlin,
     log: Option<&'a mut std::io::BufWriter<std::fs::File>>,
-    clock: RealClock,
+    clock: WallClock,
     stop: &'a AtomicBool,
 }
 

@@ -12,13 +12,13 @@
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
-use asea_protocol::clock::RealClock;
 use asea_protocol::session::Timers;
 use asea_protocol::sim::{Malformed, MotionParams, Robot, serve};
 use asea_protocol::{Checksum, FrameConfig};
 use clap::{Args, ValueEnum};
-use serialport::{SerialPort, TTYPort};
+use paths::link::{Clock as _, Link, WallClock};
 
+use super::pty::{Ptys, Signals, stop_records};
 use super::{Failure, print};
 
 /// The check value after ETX (both ends must agree).
@@ -64,24 +64,9 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
             args.home_s
         )));
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    let storm_on = Arc::new(AtomicBool::new(false));
-    let storm_off = Arc::new(AtomicBool::new(false));
-    for (signal, flag) in [
-        (signal_hook::consts::SIGINT, &stop),
-        (signal_hook::consts::SIGTERM, &stop),
-        (signal_hook::consts::SIGUSR1, &storm_on),
-        (signal_hook::consts::SIGUSR2, &storm_off),
-    ] {
-        signal_hook::flag::register(signal, flag.clone())
-            .map_err(|e| Failure::runtime(format!("sim-robot: signal handler: {e}")))?;
-    }
-    let (master, slave) = TTYPort::pair()
-        .map_err(|e| Failure::runtime(format!("sim-robot: pseudo-terminal: {e}")))?;
-    let path = slave
-        .name()
-        .ok_or_else(|| Failure::runtime("sim-robot: the pseudo-terminal has no device path"))?;
-    print(&format!("{path}\n"))?;
+    let signals = Signals::register("sim-robot", true)?;
+    let ptys = Ptys::open("sim-robot", 1)?;
+    print(&format!("{}\n", ptys.paths()?.join("\n")))?;
     let frame = FrameConfig {
         checksum: match args.checksum {
             CheckValue::Sum8 => Checksum::Sum8,
@@ -112,71 +97,66 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
         ),
         None => None,
     };
-    let clock = RealClock::new();
-    // The log notes when each STOP telegram arrives (wall clock), for the stop latency.
-    let (master, stops) =
-        cell::sim::wiretap::StopTap::new(master, cell::sim::wiretap::StopPattern::robot(&frame));
-    let (master, traces) = if args.log_wire {
-        let (m, t) = master.with_trace();
-        (m, Some(t))
-    } else {
-        (master, None)
-    };
-    let master = NakStorm {
-        inner: master,
-        on: storm_on,
-        off: storm_off,
-        storming: false,
-    };
-    let served = std::thread::scope(|scope| {
-        if let Some(mut file) = log {
-            let (robot, stop, clock, stops, traces) = (&robot, &stop, &clock, &stops, &traces);
-            scope.spawn(move || {
-                use asea_protocol::clock::Clock as _;
-                use std::io::Write as _;
-                let mut watch = cell::sim::RobotWatch::default();
-                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-                    let records = match robot.lock() {
-                        Ok(r) => watch.watch(&r.machine, clock.now_s()),
-                        Err(_) => return,
-                    };
-                    for r in records {
-                        let _ = writeln!(file, "{}", r.json());
+    let clock = WallClock::new();
+    let stop = &signals.stop;
+    ptys.serve(|masters| {
+        let Some(master) = masters.into_iter().next() else {
+            return Ok(());
+        };
+        // The log notes when each STOP telegram arrives (wall clock), for the stop latency.
+        let (master, stops) = cell::sim::wiretap::StopTap::new(
+            master,
+            cell::sim::wiretap::StopPattern::robot(&frame),
+        );
+        let (master, traces) = if args.log_wire {
+            let (m, t) = master.with_trace();
+            (m, Some(t))
+        } else {
+            (master, None)
+        };
+        let master = NakStorm {
+            inner: master,
+            on: signals.usr1.clone(),
+            off: signals.usr2.clone(),
+            storming: false,
+        };
+        std::thread::scope(|scope| {
+            if let Some(mut file) = log {
+                let (robot, clock, stops, traces) = (&robot, &clock, &stops, &traces);
+                scope.spawn(move || {
+                    use std::io::Write as _;
+                    let mut watch = cell::sim::RobotWatch::default();
+                    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                        let records = match robot.lock() {
+                            Ok(r) => watch.watch(&r.machine, clock.now_s()),
+                            Err(_) => return,
+                        };
+                        for r in records {
+                            let _ = writeln!(file, "{}", r.json());
+                        }
+                        for r in stop_records("robot", stops, clock.now_s()) {
+                            let _ = writeln!(file, "{r}");
+                        }
+                        let wire: Vec<Vec<cell::sim::wiretap::WireEvent>> = traces
+                            .as_ref()
+                            .and_then(|t| t.lock().ok().map(|mut t| t.drain(..).collect()))
+                            .unwrap_or_default();
+                        for w in wire {
+                            let events: Vec<serde_json::Value> =
+                                w.iter().map(cell::sim::wiretap::WireEvent::json).collect();
+                            let _ = writeln!(
+                                file,
+                                "{}",
+                                serde_json::json!({"device": "robot", "wire_before_stop": events})
+                            );
+                        }
+                        std::thread::sleep(std::time::Duration::from_millis(1));
                     }
-                    let arrived: Vec<f64> = stops
-                        .lock()
-                        .map(|mut s| s.drain(..).collect())
-                        .unwrap_or_default();
-                    for unix_s in arrived {
-                        let _ = writeln!(
-                            file,
-                            "{}",
-                            serde_json::json!({"device": "robot", "stop_received": true,
-                                "t_s": clock.now_s(), "unix_s": unix_s})
-                        );
-                    }
-                    let wire: Vec<Vec<cell::sim::wiretap::WireEvent>> = traces
-                        .as_ref()
-                        .and_then(|t| t.lock().ok().map(|mut t| t.drain(..).collect()))
-                        .unwrap_or_default();
-                    for w in wire {
-                        let events: Vec<serde_json::Value> =
-                            w.iter().map(cell::sim::wiretap::WireEvent::json).collect();
-                        let _ = writeln!(
-                            file,
-                            "{}",
-                            serde_json::json!({"device": "robot", "wire_before_stop": events})
-                        );
-                    }
-                    std::thread::sleep(std::time::Duration::from_millis(1));
-                }
-            });
-        }
-        serve(master, &robot, &clock, &stop)
-    });
-    // The slave end stays open until here so that the master never sees a hang-up.
-    drop(slave);
-    served.map_err(|e| Failure::runtime(format!("sim-robot: {e}")))
+                });
+            }
+            serve(master, &robot, &clock, stop)
+        })
+    })
 }
 
 /// The robot's end of the line with a NAK storm that signals switch on and off: while it
@@ -190,7 +170,7 @@ struct NakStorm<L> {
     storming: bool,
 }
 
-impl<L: asea_protocol::Link> asea_protocol::Link for NakStorm<L> {
+impl<L: Link> Link for NakStorm<L> {
     fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
         use std::sync::atomic::Ordering::Relaxed;
         if self.on.swap(false, Relaxed) {

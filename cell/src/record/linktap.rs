@@ -18,6 +18,7 @@ use std::time::Duration;
 use asea_protocol::frame::{self, ACK, ENQ, EOT, FrameConfig, NAK, Parsed, STX};
 use asea_protocol::{Command, Reply};
 use nalgebra::Point3;
+use paths::link::Link;
 use paths::wrist::from_components;
 
 use crate::record::{Device, Direction, Recorder};
@@ -211,23 +212,7 @@ impl<L> LinkTap<L> {
     }
 }
 
-impl<L: asea_protocol::Link> asea_protocol::Link for LinkTap<L> {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.inner.write_all(bytes)?;
-        self.note(Direction::Sent, bytes);
-        Ok(())
-    }
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        let n = self.inner.read_timeout(buf, timeout)?;
-        self.note(Direction::Received, &buf[..n]);
-        Ok(n)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.inner.discard_input()
-    }
-}
-
-impl<L: mandrel_drive::Link> mandrel_drive::Link for LinkTap<L> {
+impl<L: Link> Link for LinkTap<L> {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
         self.inner.write_all(bytes)?;
         self.note(Direction::Sent, bytes);
@@ -360,20 +345,7 @@ mod tests {
     #[derive(Debug, Default)]
     struct Counting(u32);
 
-    impl asea_protocol::Link for Counting {
-        fn write_all(&mut self, _: &[u8]) -> io::Result<()> {
-            Ok(())
-        }
-        fn read_timeout(&mut self, _: &mut [u8], _: Duration) -> io::Result<usize> {
-            Ok(0)
-        }
-        fn discard_input(&mut self) -> io::Result<()> {
-            self.0 += 1;
-            Ok(())
-        }
-    }
-
-    impl mandrel_drive::Link for Counting {
+    impl Link for Counting {
         fn write_all(&mut self, _: &[u8]) -> io::Result<()> {
             Ok(())
         }

@@ -11,14 +11,13 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use asea_protocol::clock::Clock as RobotClock;
-use asea_protocol::{Client, Instruction, Link as RobotLink, Mode, Positioning, Speed, State};
-use mandrel_drive::Link as IndexerLink;
+use asea_protocol::{Client, Instruction, Mode, Positioning, Speed, State};
 use mandrel_drive::XClient;
 use mandrel_drive::sync::{SyncInput, SyncOutput};
 use mandrel_drive::xlang::{Command as X, Reply as XReply};
+use paths::link::{Cancel, Clock, Link};
 use sequences::MandrelMove;
 
 use crate::run::transfer::{self, IndexerSetup};
@@ -51,8 +50,8 @@ pub enum DeviceError {
 pub type DeviceResult<T> = Result<T, DeviceError>;
 
 /// Abandons a device's exchange under way from another thread: the link's cancel token
-/// ([`asea_protocol::client::Cancel`], [`mandrel_drive::client::Cancel`]). The exchange ends with
-/// a cancelled error at its next read; the device's stop still goes through.
+/// ([`paths::link::Cancel`], the same for both devices). The exchange ends with a cancelled
+/// error at its next read; the device's stop still goes through.
 pub trait Interrupt: Send + Sync + std::fmt::Debug {
     /// Cancels the exchange under way and every later one until [`Interrupt::clear`].
     fn interrupt(&self);
@@ -60,16 +59,7 @@ pub trait Interrupt: Send + Sync + std::fmt::Debug {
     fn clear(&self);
 }
 
-impl Interrupt for asea_protocol::client::Cancel {
-    fn interrupt(&self) {
-        self.cancel();
-    }
-    fn clear(&self) {
-        self.reset();
-    }
-}
-
-impl Interrupt for mandrel_drive::client::Cancel {
+impl Interrupt for Cancel {
     fn interrupt(&self) {
         self.cancel();
     }
@@ -101,30 +91,12 @@ pub trait Timebase: Send + Sync + std::fmt::Debug {
     }
 }
 
-/// Wall-clock time.
-#[derive(Debug, Clone, Copy)]
-pub struct WallClock {
-    epoch: Instant,
-}
-
-impl WallClock {
-    /// A clock at zero now.
-    pub fn new() -> Self {
-        WallClock {
-            epoch: Instant::now(),
-        }
-    }
-}
-
-impl Default for WallClock {
-    fn default() -> Self {
-        Self::new()
-    }
-}
+/// Wall-clock time ([`paths::link::WallClock`], the devices' wall clock).
+pub use paths::link::WallClock;
 
 impl Timebase for WallClock {
     fn now_s(&self) -> f64 {
-        self.epoch.elapsed().as_secs_f64()
+        Clock::now_s(self)
     }
     fn sleep(&self, dt: Duration) {
         std::thread::sleep(dt);
@@ -255,7 +227,7 @@ pub struct ProtocolRobot<L, C> {
     client: Client<L, C>,
 }
 
-impl<L: RobotLink, C: RobotClock> ProtocolRobot<L, C> {
+impl<L: Link, C: Clock> ProtocolRobot<L, C> {
     /// Drives the robot through `client`.
     pub fn new(client: Client<L, C>) -> Self {
         ProtocolRobot { client }
@@ -272,7 +244,7 @@ impl<L: RobotLink, C: RobotClock> ProtocolRobot<L, C> {
     }
 }
 
-impl<L: RobotLink, C: RobotClock> RobotDevice for ProtocolRobot<L, C> {
+impl<L: Link, C: Clock> RobotDevice for ProtocolRobot<L, C> {
     fn state(&mut self) -> DeviceResult<RobotState> {
         let s = self.client.status()?;
         Ok(RobotState {
@@ -357,14 +329,14 @@ impl<L: RobotLink, C: RobotClock> RobotDevice for ProtocolRobot<L, C> {
 /// The indexer over its X-language link ([`mandrel_drive::XClient`]); commands built by
 /// [`crate::run::transfer::indexer_move`].
 #[derive(Debug)]
-pub struct XIndexer<L: IndexerLink> {
-    client: XClient<L>,
+pub struct XIndexer<L: Link, C = WallClock> {
+    client: XClient<L, C>,
     setup: IndexerSetup,
 }
 
-impl<L: IndexerLink> XIndexer<L> {
+impl<L: Link, C: Clock> XIndexer<L, C> {
     /// Drives the indexer through `client` with the drive of `setup`.
-    pub fn new(client: XClient<L>, setup: IndexerSetup) -> Self {
+    pub fn new(client: XClient<L, C>, setup: IndexerSetup) -> Self {
         XIndexer { client, setup }
     }
 
@@ -373,7 +345,7 @@ impl<L: IndexerLink> XIndexer<L> {
     }
 }
 
-impl<L: IndexerLink + Send> MandrelDevice for XIndexer<L> {
+impl<L: Link, C: Clock> MandrelDevice for XIndexer<L, C> {
     fn attach(&mut self) -> DeviceResult<i64> {
         // Not `Z` or `PZ`: a restarted coordinator must find the mandrel where it is.
         self.send(&X::Resolution(self.setup.drive.gearing.steps_per_motor_rev))?;

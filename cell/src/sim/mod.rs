@@ -27,7 +27,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use asea_protocol::clock::{Clock as _, VirtualClock};
 use asea_protocol::command::{IN_POSITION_OUTPUT, START_INPUT};
 use asea_protocol::link::{Paced, Peer};
 use asea_protocol::sim::{EyePose, MotionParams, Robot};
@@ -36,6 +35,7 @@ use mandrel_drive::sim::xlang::Card;
 use mandrel_drive::sim::{Frontend, Machine as IndexerMachine};
 use mandrel_drive::sync::{OPTO_DELAY_S, Wire};
 use mandrel_drive::{Drive, sim::machine::PULL_IN_SPS};
+use paths::link::{Clock as _, Link, VirtualClock};
 
 use crate::record::linktap::{LinkTap, RecordSlot, SyncTap};
 use crate::run::device::{DeviceError, DeviceResult, SyncLines, Timebase};
@@ -70,16 +70,6 @@ impl Default for SimCellConfig {
             robot: MotionParams::default(),
             arm: paths::robot::Arm::default(),
         }
-    }
-}
-
-/// The [`mandrel_drive::sim::Clock`] view of the cell's one clock.
-#[derive(Debug, Clone)]
-struct CellClock(VirtualClock);
-
-impl mandrel_drive::sim::Clock for CellClock {
-    fn now_s(&self) -> f64 {
-        self.0.now_s()
     }
 }
 
@@ -563,7 +553,7 @@ impl SimCell {
     /// A powered-up cell: robot in standby, not homed, at home; indexer at rest at 0.
     pub fn new(cfg: &SimCellConfig) -> Self {
         let clock = VirtualClock::new();
-        let cell_clock: Arc<dyn mandrel_drive::sim::Clock> = Arc::new(CellClock(clock.clone()));
+        let cell_clock: Arc<dyn paths::link::Clock> = Arc::new(clock.clone());
         let start = Wire::new(cell_clock.clone(), cfg.opto_delay_s);
         let in_position = Wire::new(cell_clock, cfg.opto_delay_s);
         let card = Card::new(IndexerMachine::new(cfg.drive, PULL_IN_SPS), INDEXER_ADDRESS)
@@ -662,6 +652,9 @@ impl SimCell {
             time.clone(),
         );
         let client = asea_protocol::Client::with_clock(robot_link, self.clock.clone(), client_cfg);
+        // The X client keeps wall-time timeouts here: a resumed run asks the indexer's position
+        // (`PR`) while a move of the run before may still be under way, and the card answers
+        // only when its buffer reaches it; on the cell's clock that is a reply timeout.
         let x = mandrel_drive::XClient::new(
             LinkTap::indexer(self.indexer_link(), slot.clone(), time.clone()),
             mandrel_drive::IndexerConfig {
@@ -705,7 +698,7 @@ impl SimCell {
 #[derive(Debug, Clone)]
 pub struct SimRobotLink(Shared);
 
-impl asea_protocol::Link for SimRobotLink {
+impl Link for SimRobotLink {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
         lock(&self.0)?.write_all(bytes)
     }
@@ -721,7 +714,7 @@ impl asea_protocol::Link for SimRobotLink {
 #[derive(Debug, Clone)]
 pub struct SimIndexerLink(Shared);
 
-impl mandrel_drive::Link for SimIndexerLink {
+impl Link for SimIndexerLink {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
         let mut w = lock(&self.0)?;
         let now = w.clock().now();

@@ -7,6 +7,8 @@ use std::io;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
+use paths::link::Link;
+
 /// What the tap looks for.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum StopPattern {
@@ -177,7 +179,7 @@ impl<L> StopTap<L> {
     }
 }
 
-impl<L: asea_protocol::Link> asea_protocol::Link for StopTap<L> {
+impl<L: Link> Link for StopTap<L> {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
         self.inner.write_all(bytes)?;
         self.sent(bytes);
@@ -192,29 +194,6 @@ impl<L: asea_protocol::Link> asea_protocol::Link for StopTap<L> {
     }
     fn discard_input(&mut self) -> io::Result<()> {
         self.inner.discard_input()
-    }
-}
-
-/// The indexer's side: the same tap over `mandrel_drive::Link` (a separate trait, see
-/// docs/ARCHITECTURE.md).
-#[derive(Debug)]
-pub struct IndexerTap<L>(pub StopTap<L>);
-
-impl<L: mandrel_drive::Link> mandrel_drive::Link for IndexerTap<L> {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.0.inner.write_all(bytes)?;
-        self.0.sent(bytes);
-        Ok(())
-    }
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        let n = self.0.inner.read_timeout(buf, timeout)?;
-        if let Some(b) = buf.get(..n) {
-            self.0.saw(b);
-        }
-        Ok(n)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.0.inner.discard_input()
     }
 }
 

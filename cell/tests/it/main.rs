@@ -18,6 +18,7 @@ mod lathe_stream_marlin;
 mod lathe_stream_pty;
 mod lathe_svg;
 mod layering;
+mod link_contract;
 mod mesh_cli;
 mod plan_guards;
 mod predict_setup;

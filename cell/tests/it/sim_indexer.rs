@@ -5,15 +5,18 @@ use crate::common;
 
 use std::time::Duration;
 
+use mandrel_drive::link::SerialLink;
 use mandrel_drive::{GrblClient, Indexer, IndexerConfig, PosMode, Profile, XClient};
 
 fn run_dialect(dialect: &str) {
     let (child, path) = common::serve_on_pty(&["sim-indexer", "--pty", "--dialect", dialect]);
 
-    let port = serialport::new(&path, 115_200)
-        .timeout(Duration::from_millis(100))
-        .open_native()
-        .expect("open pty");
+    let port = SerialLink(Box::new(
+        serialport::new(&path, 115_200)
+            .timeout(Duration::from_millis(100))
+            .open_native()
+            .expect("open pty"),
+    ));
     let profile = Profile {
         accel_rps2: 4.0,
         start_rps: 0.0,

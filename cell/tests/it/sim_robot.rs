@@ -3,6 +3,8 @@
 
 use crate::common;
 
+use asea_protocol::link::SerialLink;
+
 use std::time::Duration;
 
 use asea_protocol::{
@@ -13,10 +15,12 @@ use asea_protocol::{
 fn serves_a_client_and_stops_on_sigterm() {
     let (child, path) = common::serve_on_pty(&["sim-robot", "--pty", "--home-s", "0.2"]);
 
-    let port = serialport::new(&path, 9600)
-        .timeout(Duration::from_millis(100))
-        .open_native()
-        .expect("open pty");
+    let port = SerialLink(Box::new(
+        serialport::new(&path, 9600)
+            .timeout(Duration::from_millis(100))
+            .open_native()
+            .expect("open pty"),
+    ));
     let mut c = Client::new(port, ClientConfig::default());
     let p = |z: f64| {
         Instruction::Position(Positioning {

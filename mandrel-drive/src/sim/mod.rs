@@ -1,7 +1,6 @@
 //! The indexer simulator: indexer card, translator, stepper motor and belt, on a clock, with a
 //! front end per dialect (docs/mandrel-drive.md; seed 001 §4.1.4–4.1.8, §5.3.2).
 
-pub mod clock;
 pub mod grbl;
 pub mod machine;
 pub mod marlin;
@@ -15,8 +14,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-pub use clock::{Clock, RealClock, VirtualClock};
 pub use machine::Machine;
+/// The simulator's clocks: the ones both device crates share ([`paths::link`]).
+pub use paths::link::{Clock, VirtualClock, WallClock};
 
 use crate::error::Result;
 use crate::link::Link;

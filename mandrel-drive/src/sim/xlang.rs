@@ -513,9 +513,9 @@ mod tests {
         say(&mut c, "1SSA1\r1MPI 1D50 1TR1 1G\r", 0.0);
         c.poll(0.5);
         assert_eq!(c.machine.counter_steps(), 0);
-        clock.advance(0.5);
+        clock.advance_s(0.5);
         pc.set(true).unwrap();
-        clock.advance(0.002);
+        clock.advance_s(0.002);
         c.poll(clock.now_s());
         c.poll(2.0);
         assert_eq!(c.machine.counter_steps(), 50);

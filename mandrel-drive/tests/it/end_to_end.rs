@@ -7,14 +7,17 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::Duration;
 
+use mandrel_drive::link::SerialLink;
 use mandrel_drive::sim::machine::PULL_IN_SPS;
-use mandrel_drive::sim::{Frontend, Machine, RealClock, grbl::Controller, serve, xlang::Card};
+use mandrel_drive::sim::{Frontend, Machine, WallClock, grbl::Controller, serve, xlang::Card};
 use mandrel_drive::xlang::Command;
 use mandrel_drive::{
     Direction, Drive, Error, GrblClient, Indexer, IndexerConfig, Link, Pipe, PosMode, Profile,
     StopKind, XClient,
 };
-use serialport::TTYPort;
+
+/// A pseudo-terminal end as a link.
+type Pty = SerialLink<Box<serialport::TTYPort>>;
 
 /// Pseudo-terminal tests run one at a time.
 static PTY: Mutex<()> = Mutex::new(());
@@ -26,12 +29,12 @@ struct Served<F: Frontend + 'static> {
 }
 
 impl<F: Frontend + 'static> Served<F> {
-    fn start(front: F, link: TTYPort) -> Self {
+    fn start(front: F, link: Pty) -> Self {
         let front = Arc::new(Mutex::new(front));
         let stop = Arc::new(AtomicBool::new(false));
         let (f, s) = (front.clone(), stop.clone());
         let thread = thread::spawn(move || {
-            let clock = RealClock::new();
+            let clock = WallClock::new();
             serve(link, &f, &clock, &s).unwrap();
         });
         Served {
@@ -62,7 +65,7 @@ fn config() -> IndexerConfig {
 #[test]
 fn xlang_over_pty() {
     let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
-    let (master, slave) = TTYPort::pair().expect("pty pair");
+    let (master, slave) = SerialLink::pty_pair().expect("pty pair");
     let drive = Drive::default();
     let mut card = Card::new(Machine::new(drive, PULL_IN_SPS), 1);
     card.reset_busy_s = 0.25;
@@ -141,7 +144,7 @@ fn xlang_over_pty() {
 #[test]
 fn grbl_over_pty() {
     let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
-    let (master, slave) = TTYPort::pair().expect("pty pair");
+    let (master, slave) = SerialLink::pty_pair().expect("pty pair");
     let drive = Drive::default();
     let sim = Served::start(Controller::new(Machine::new(drive, PULL_IN_SPS)), master);
     let mut client = GrblClient::new(slave, config());
@@ -265,8 +268,8 @@ fn attach_arm_on_trigger_and_cancel() {
     use mandrel_drive::sim::Clock;
     use mandrel_drive::sync::Wire;
     let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
-    let (master, slave) = TTYPort::pair().expect("pty pair");
-    let wire_clock: Arc<dyn Clock> = Arc::new(RealClock::new());
+    let (master, slave) = SerialLink::pty_pair().expect("pty pair");
+    let wire_clock: Arc<dyn Clock> = Arc::new(WallClock::new());
     let start = Wire::new(wire_clock, 0.0);
     let mut card = Card::new(Machine::new(Drive::default(), PULL_IN_SPS), 1)
         .with_trigger(Box::new(start.clone()));
@@ -334,7 +337,7 @@ fn attach_arm_on_trigger_and_cancel() {
 #[test]
 fn init_waits_for_the_reset_to_finish() {
     let _guard = PTY.lock().unwrap_or_else(|e| e.into_inner());
-    let (master, slave) = TTYPort::pair().expect("pty pair");
+    let (master, slave) = SerialLink::pty_pair().expect("pty pair");
     let mut card = Card::new(Machine::new(Drive::default(), PULL_IN_SPS), 1);
     card.reset_busy_s = 0.6;
     let sim = Served::start(card, master);

@@ -5,3 +5,4 @@
 mod end_to_end;
 mod grbl_stream_rate;
 mod hardware;
+mod link_contract;

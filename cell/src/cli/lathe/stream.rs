@@ -150,6 +150,7 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
     let mut port = serialport::new(&args.port, args.baud)
         .timeout(Duration::from_millis(10))
         .open()
+        .map(mandrel_drive::link::SerialLink)
         .map_err(|e| Failure::runtime(format!("{}: {e}", args.port)))?;
     let link_failure = |e: std::io::Error| Failure::runtime(format!("{}: {e}", args.port));
     port.discard_input().map_err(link_failure)?;
