@@ -1148,7 +1148,7 @@ fn report(
                 Halt::Interrupted { reason } => (reason.clone(), EXIT_INTERRUPTED, "stopped"),
                 Halt::Fault(fault) => (fault.to_string(), super::EXIT_RUNTIME, "fault"),
             };
-            let resume = resume_command(&args, batch.mode, &journal_path);
+            let resume = resume_command(args, batch.mode, journal_path);
             let stop_errors: Vec<String> =
                 stopped.stop_errors.iter().map(|e| e.to_string()).collect();
             if display.json {

@@ -472,7 +472,6 @@ fn mandrel_series(trace: &Trace, cal: &Calibration) -> Vec<(f64, f64)> {
     )
 }
 
-#[allow(clippy::too_many_arguments)]
 /// The largest error of the robot's own path (the simulated trace between the planned eye
 /// points) laid in proportion with the commanded mandrel angles: each planned eye point's nearest
 /// trace sample marks the segment's ends on the robot's path. `quantised` when the trace has
@@ -601,6 +600,9 @@ fn setup_errors(
     Ok(setup)
 }
 
+/// One path's prediction: the laid fibre of the simulated motion against the desired path, the
+/// error's sources (chords, quantisation, the robot's corners, timing) and the setup's spread.
+#[allow(clippy::too_many_arguments)]
 fn predict_path(
     path: &PlannedPath,
     tube: &Tube,

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use asea_protocol::clock::{Clock as _, VirtualClock};
+use asea_protocol::clock::VirtualClock;
 use asea_protocol::command::INTERPRETATION_S;
 use asea_protocol::command::LENGTH_MM_PER_LSB;
 use asea_protocol::command::{IN_POSITION_OUTPUT, START_INPUT};
@@ -286,7 +286,7 @@ fn send_x(card: &mut Card, clock: &mandrel_drive::sim::VirtualClock, cmds: &[xla
         let line = format!("{}\r", xlang::encode(Some(1), cmd));
         card.receive(line.as_bytes(), clock.now_s());
         card.poll(clock.now_s());
-        clock.advance(0.01);
+        clock.advance_s(0.01);
     }
 }
 
@@ -303,7 +303,7 @@ fn run_x_move(
     let mut out = card.take_output();
     let mut waited = 0;
     while !out.contains(&b'\n') {
-        clock.advance(0.01);
+        clock.advance_s(0.01);
         card.poll(clock.now_s());
         out.extend(card.take_output());
         waited += 1;
