@@ -313,7 +313,7 @@ def main() -> int:
         shutil.rmtree(ours_dir, ignore_errors=True)
         fp_t, fp = timed([fiberpath, "plan", str(f), "-o", str(fp_out), "--json"], args.repeat)
         our_t, ours = timed(
-            [windcell, "lathe", "plan", str(f), "-o", str(ours_dir), "--dialect", "marlin",
+            [windcell, "lathe", "plan", str(f), "-o", str(ours_dir), "--dialect", "marlin", "--force",
              "--json"], max(args.repeat, 5))
         if fp.returncode != 0:
             rows.append((name, "FiberPath refused", "", "", "", "", ""))
@@ -400,7 +400,7 @@ def main() -> int:
             fp = subprocess.run([fiberpath, "plan", str(f), "-o", f"{out}/fp.gcode"],
                                 capture_output=True, text=True)
             ours = subprocess.run([windcell, "lathe", "plan", str(f), "-o", f"{out}/ours",
-                                   "--dialect", "marlin"], capture_output=True, text=True)
+                                   "--dialect", "marlin", "--force"], capture_output=True, text=True)
             message = ours.stderr.strip().replace(str(f), f.name).replace("|", "\\|")
             refusals += f"| {f.name} | {fp.returncode} | {ours.returncode} | {message} |\n"
     text = (table + ttable + summary if rows else "") + refusals
