@@ -16,7 +16,7 @@ use cell::run::cellfile::{self, Cell};
 use cell::run::coordinator::{
     Batch, Coordinator, Devices, Event, Halt, Reach, ResumePoint, RunMode, StopRequest,
 };
-use cell::run::journal::Journal;
+use cell::run::journal::{self, Journal};
 use cell::sim::{SimCell, SimCellConfig};
 use clap::{Args, ValueEnum};
 use nalgebra::Point3;
@@ -112,16 +112,19 @@ fn resume_command(args: &RunArgs, mode: RunMode, journal: &Path) -> String {
     resume + &format!(" --resume {}", journal.display())
 }
 
+/// True for a job file (`.toml`, planned in memory), false for a sequence of control files.
+fn is_job_file(input: &Path) -> bool {
+    input
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+}
+
 /// The journal's place when `--journal` is not given: beside the control files of a sequence
 /// (the plan's folder, which the operator wrote), in the current folder for a job planned in
 /// memory (never into the folder a job file came from, such as `examples/`).
 fn default_journal(args: &RunArgs, sequence_path: &Path, name: &str) -> PathBuf {
-    let is_job = args
-        .input
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    if is_job {
+    if is_job_file(&args.input) {
         PathBuf::from(format!("{name}.journal"))
     } else {
         sequence_path.with_file_name(format!("{name}.journal"))
@@ -136,22 +139,19 @@ fn default_journal(args: &RunArgs, sequence_path: &Path, name: &str) -> PathBuf 
 fn keep_unfinished_journal(
     args: &RunArgs,
     mode: RunMode,
-    journal: &Path,
+    journal_path: &Path,
 ) -> Result<Option<PathBuf>, Failure> {
-    if !journal.exists() {
+    if !journal_path.exists() {
         return Ok(None);
     }
-    let state = match cell::run::journal::read(journal) {
+    let state = match journal::read(journal_path) {
         Ok(records) => {
-            if records
-                .last()
-                .is_some_and(|r| r.get("rec").and_then(|v| v.as_str()) == Some("done"))
-            {
+            if journal::batch_done(&records) {
                 return Ok(None);
             }
             let items = records
                 .iter()
-                .filter(|r| r.get("rec").and_then(|v| v.as_str()) == Some("item_done"))
+                .filter(|r| journal::kind(r) == Some("item_done"))
                 .count();
             format!("an unfinished batch, {items} paths done")
         }
@@ -161,18 +161,18 @@ fn keep_unfinished_journal(
         return Err(Failure::input(format!(
             "{}: the journal records {state}; nothing was sent. Resume it with: {}; or start \
              over with --restart (the journal is kept as {}.N)",
-            journal.display(),
-            resume_command(args, mode, journal),
-            journal.display()
+            journal_path.display(),
+            resume_command(args, mode, journal_path),
+            journal_path.display()
         )));
     }
     let kept = (1..10_000)
-        .map(|n| PathBuf::from(format!("{}.{n}", journal.display())))
+        .map(|n| PathBuf::from(format!("{}.{n}", journal_path.display())))
         .find(|p| !p.exists())
         .ok_or_else(|| {
             Failure::input(format!(
                 "{}: no free name to keep the old journal under",
-                journal.display()
+                journal_path.display()
             ))
         })?;
     Ok(Some(kept))
@@ -473,12 +473,7 @@ type Load = (Loaded, Cell, Reach, String, Option<Clearance>);
 
 fn load(args: &RunArgs) -> Result<Load, Failure> {
     let mode = args.mode.map(mode_of);
-    let is_job = args
-        .input
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    let (loaded, job_cell, reach, name, clearance) = if is_job {
+    let (loaded, job_cell, reach, name, clearance) = if is_job_file(&args.input) {
         let (mut job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
         // A mode given on the command line is planned for (its speeds and guards), not only
         // applied to files planned for another.
@@ -881,10 +876,7 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
             let (j, records) = Journal::resume(p).map_err(Failure::input)?;
             let from = cell::run::coordinator::resume_point(&batch, &records)
                 .map_err(Failure::from_cell)?;
-            if records
-                .last()
-                .is_some_and(|r| r.get("rec").and_then(|v| v.as_str()) == Some("done"))
-            {
+            if journal::batch_done(&records) {
                 return Err(Failure::input(format!(
                     "{}: the batch is already done",
                     p.display()

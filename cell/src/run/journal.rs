@@ -148,6 +148,16 @@ impl Journal {
     }
 }
 
+/// A record's kind: its `rec` field (`begin`, `segment`, `item_done`, `done`, …).
+pub fn kind(record: &Map<String, Value>) -> Option<&str> {
+    record.get("rec").and_then(Value::as_str)
+}
+
+/// True when the journal's last record says the batch is done.
+pub fn batch_done(records: &[Map<String, Value>]) -> bool {
+    records.last().and_then(kind) == Some("done")
+}
+
 /// Reads and checks every record of a journal.
 pub fn read(path: &Path) -> Result<Vec<Map<String, Value>>, JournalError> {
     let text = sequences::source::read_text(path, sequences::source::MAX_JOURNAL_BYTES)?;

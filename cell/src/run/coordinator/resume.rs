@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::error::JournalMismatch;
+use crate::run::journal;
 
 /// Where to resume: from the journal.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -23,7 +24,7 @@ pub fn resume_point(
 ) -> Result<ResumePoint, Error> {
     let begin = records
         .first()
-        .filter(|r| r.get("rec").and_then(|v| v.as_str()) == Some("begin"))
+        .filter(|r| journal::kind(r) == Some("begin"))
         .ok_or(Error::JournalMismatch(JournalMismatch::NoBegin))?;
     if begin.get("job").and_then(|v| v.as_str()) != Some(batch.job_id.as_str()) {
         return Err(Error::JournalMismatch(JournalMismatch::OtherJob));
@@ -68,7 +69,7 @@ pub fn resume_point(
             }
         };
         let current = p.items_done.min(batch.items.len().saturating_sub(1));
-        match r.get("rec").and_then(|v| v.as_str()) {
+        match journal::kind(r) {
             Some("item") => {
                 p.sync_counter = None;
                 p.segments_done = 0;
