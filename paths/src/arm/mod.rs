@@ -24,6 +24,7 @@
 pub mod mandrel;
 pub mod opw;
 pub mod path;
+mod presets;
 pub mod ur;
 
 use std::f64::consts::{PI, TAU};

@@ -159,27 +159,17 @@ pub const OPW_PRESETS: [OpwPreset; 4] = [
 
 /// The built-in arm of that model name (case-insensitive), or `None`.
 pub fn preset(model: &str) -> Option<&'static OpwPreset> {
-    OPW_PRESETS
-        .iter()
-        .find(|p| p.model.eq_ignore_ascii_case(model))
+    super::presets::find(&OPW_PRESETS, |p| p.model, model)
 }
 
 /// The built-in arm of that model name, or [`Error::UnknownArmModel`] listing the known ones.
 pub fn named(model: &str) -> Result<&'static OpwPreset, Error> {
-    preset(model).ok_or_else(|| Error::UnknownArmModel {
-        kind: "opw",
-        model: model.to_string(),
-        known: preset_names(),
-    })
+    super::presets::named(&OPW_PRESETS, |p| p.model, "opw", model)
 }
 
 /// The built-in model names, for messages.
 pub fn preset_names() -> String {
-    OPW_PRESETS
-        .iter()
-        .map(|p| format!("\"{}\"", p.model))
-        .collect::<Vec<_>>()
-        .join(", ")
+    super::presets::names(&OPW_PRESETS, |p| p.model)
 }
 
 /// The rotation `Rz(a)`.

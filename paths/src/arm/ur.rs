@@ -109,27 +109,17 @@ pub const UR_PRESETS: [UrPreset; 3] = [
 
 /// The built-in UR arm of that model name (case-insensitive), or `None`.
 pub fn preset(model: &str) -> Option<&'static UrPreset> {
-    UR_PRESETS
-        .iter()
-        .find(|p| p.model.eq_ignore_ascii_case(model))
+    super::presets::find(&UR_PRESETS, |p| p.model, model)
 }
 
 /// The built-in arm of that model name, or [`Error::UnknownArmModel`] listing the known ones.
 pub fn named(model: &str) -> Result<&'static UrPreset, Error> {
-    preset(model).ok_or_else(|| Error::UnknownArmModel {
-        kind: "ur",
-        model: model.to_string(),
-        known: preset_names(),
-    })
+    super::presets::named(&UR_PRESETS, |p| p.model, "ur", model)
 }
 
 /// The built-in model names, for messages.
 pub fn preset_names() -> String {
-    UR_PRESETS
-        .iter()
-        .map(|p| format!("\"{}\"", p.model))
-        .collect::<Vec<_>>()
-        .join(", ")
+    super::presets::names(&UR_PRESETS, |p| p.model)
 }
 
 impl UrPreset {
