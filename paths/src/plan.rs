@@ -125,6 +125,22 @@ pub struct Speeds {
 }
 
 impl Setup {
+    /// A mandrel-frame point in the cell frame (the robot base frame) with the mandrel at
+    /// `angle_rad`: through the calibrated cell transform for the IRB 6/2, through the mandrel
+    /// axis for a six-axis arm.
+    pub fn mandrel_to_cell(&self, angle_rad: f64, p: &Point3<f64>) -> Point3<f64> {
+        match &self.six_axis {
+            Some(six) => six.axis.to_base(angle_rad, p),
+            None => {
+                let cell = self
+                    .calibration
+                    .transform(self.robot_distance_mm, self.mandrel_height_mm);
+                let (s, c) = angle_rad.sin_cos();
+                cell.to_cell(&Point3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z))
+            }
+        }
+    }
+
     /// Checks every length, the arm and the calibration.
     pub fn validate(&self) -> Result<(), Error> {
         positive("robot_distance_mm", self.robot_distance_mm)?;

@@ -12,7 +12,8 @@ use std::path::Path;
 use nalgebra::Point3;
 use paths::clearance::{
     self, DEFAULT_EYE_RADIUS_MM, DEFAULT_SNAG_TOLERANCE_MM, EyeMechanism, Obstacle, Report, Solid,
-    TubeSolid, sweep::Cell,
+    TubeSolid,
+    sweep::{Cell, SweptArm},
 };
 use paths::{Arm, ElbowBranch, Tube};
 use sequences::job::Job;
@@ -113,7 +114,10 @@ pub fn check(job: &Job, text: &str, file: &Path, plan: JobPlan) -> Result<Checke
         obstacles: &obstacles,
         home_mm,
         approach_speed_mm_s: speeds.base_speed_mm_s * tool::APPROACH_SPEED_PCT / 100.0,
-        arm: Some((&arm, ELBOW_BRANCH)),
+        arm: Some(match &setup.six_axis {
+            Some(six) => SweptArm::SixAxis(&six.arm),
+            None => SweptArm::Irb62(&arm, ELBOW_BRANCH),
+        }),
     };
     let plans: Vec<&paths::PathPlan> = plan.paths.iter().map(|p| &p.plan).collect();
     let report = clearance::sweep(&cell, solid.as_ref(), &plans)

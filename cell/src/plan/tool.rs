@@ -281,6 +281,10 @@ pub fn setup(job: &Job) -> (Setup, Speeds) {
                 motor_teeth,
                 mandrel_teeth,
             },
+            six_axis: job.six_axis_arm().map(|arm| paths::SixAxisCell {
+                arm,
+                axis: job.mandrel_axis(),
+            }),
         },
         Speeds {
             mandrel: {
@@ -447,7 +451,10 @@ fn plan_paths(
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
         let segments = *spec.segments.get_ref() as usize;
-        program_fits_memory(job, spec, text, file)?;
+        if setup.six_axis.is_none() {
+            // The IRB 6/2's robot computer stores fine and medium programs.
+            program_fits_memory(job, spec, text, file)?;
+        }
         let mut surface_distances_mm = None;
         let mut desired_mm = None;
         let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
@@ -560,7 +567,9 @@ fn plan_paths(
                 let span = culprit(job, &e).unwrap_or_else(|| error_span(job, spec, &e));
                 located(e, span)
             })?;
-        check_speeds(job, &plan).map_err(|e| located(e, spec.program.span()))?;
+        if setup.six_axis.is_none() {
+            check_speeds(job, &plan).map_err(|e| located(e, spec.program.span()))?;
+        }
         planned.push(PlannedPath {
             name: format!("{}_{}", job.name.get_ref(), spec.program.get_ref()),
             program: *spec.program.get_ref(),
@@ -752,8 +761,31 @@ pub fn mandrel_file(job: &Job, path: &PlannedPath) -> MandrelFile {
 
 /// Every output file of a planned job: `(file name, contents)`. Fails if a file cannot be
 /// written as its reader would read it back ([`sequences::Error::Unwritable`]).
+///
+/// A six-axis arm has no `.ROB` files (its controller's programs come from `windcell post`): the
+/// set is the plan itself, `NAME.plan.json` (the `plan --json` report), and each path's `.IND`
+/// file when windcell's indexer turns the mandrel.
 pub fn control_files(job: &Job, plan: &JobPlan) -> Result<Vec<(PathBuf, String)>, Error> {
     let mut files = Vec::new();
+    if job.six_axis_arm().is_some() {
+        if job.mandrel_axis().drive == paths::arm::MandrelDrive::Indexer {
+            for path in &plan.paths {
+                files.push((
+                    PathBuf::from(format!("{}.IND", path.name)),
+                    mandrel_file(job, path).write()?,
+                ));
+            }
+        }
+        let name = PathBuf::from(format!("{}.plan.json", job.name.get_ref()));
+        let report = crate::plan::report::PlanReport::new(job, plan);
+        let mut json = serde_json::to_string_pretty(&report).map_err(|e| Error::Output {
+            path: name.clone(),
+            source: std::io::Error::other(e),
+        })?;
+        json.push('\n');
+        files.push((name, json));
+        return Ok(files);
+    }
     for path in &plan.paths {
         files.push((
             PathBuf::from(format!("{}.ROB", path.name)),

@@ -58,8 +58,9 @@ pub enum SweptArm<'a> {
     /// The IRB 6/2 on one elbow branch: its joints from the eye and the tool axis.
     Irb62(&'a Arm, ElbowBranch),
     /// A six-axis arm: on a path its joints from the eye and the tool frame on the path's
-    /// configuration (the plan's [`PathArm::SixAxis`]); between paths (approach and link moves) a
-    /// joint move, the joints interpolated linearly from the previous path's last pose. Its base
+    /// configuration (the plan's [`PathArm::SixAxis`]); approach and link moves are straight
+    /// moves on the next path's configuration too, or joint moves (the joints interpolated
+    /// linearly) where the two paths keep different configurations. Its base
     /// is checked against the mandrel only (it stands on the floor), the other links and the tool
     /// against the mandrel and the obstacles.
     SixAxis(&'a SixAxisArm),
@@ -712,11 +713,12 @@ fn irb_link_lipschitz(
     Ok(2.0 * link_motion + d_phi * (base_from_axis + arm_reach).min(ctx.solid.axis_radius_mm()))
 }
 
-/// A six-axis arm's approach or link move is a joint move: its end joints.
+/// A six-axis arm's approach or link move between two configurations is a joint move: its end
+/// joints. Between poses of one configuration it is a straight move, as on a path.
 fn joint_move(ctx: &Context<'_>, from: &End, to: &End) -> Option<(Joints6, Joints6)> {
     match (ctx.cell.arm, from.joints, to.joints) {
         (Some(SweptArm::SixAxis(_)), Some(a), Some(b))
-            if from.tangent.is_none() || to.tangent.is_none() =>
+            if (from.tangent.is_none() || to.tangent.is_none()) && from.config != to.config =>
         {
             Some((a, b))
         }
