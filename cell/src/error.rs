@@ -175,6 +175,24 @@ pub enum Error {
         /// True for bad input.
         input: bool,
     },
+    /// A command that drives or simulates the IRB 6/2 cell, given a job for a six-axis arm.
+    #[error(
+        "{}:{line}:{column}: {command} drives the IRB 6/2 cell; this job's arm is \"{kind}\" \
+         (plan and check it, and write its controller's programs with `windcell post`)",
+        file.display()
+    )]
+    SixAxisNotDriven {
+        /// The job file.
+        file: PathBuf,
+        /// Line of `[cell.robot] kind`.
+        line: usize,
+        /// Column there.
+        column: usize,
+        /// The arm kind.
+        kind: &'static str,
+        /// The command refused (`run`, `predict`).
+        command: &'static str,
+    },
     /// A control file planned for another movement, wound in continuous mode (its timing is a
     /// property of the plan: docs/continuous.md).
     #[error(
@@ -320,6 +338,7 @@ impl Error {
                 | Error::NotPlannedForContinuous { .. }
                 | Error::RelativePosition { .. }
                 | Error::OutOfReach { .. }
+                | Error::SixAxisNotDriven { .. }
                 | Error::EmptyProgram { .. }
                 | Error::MissingFile { .. }
                 | Error::MandrelSteps { .. }

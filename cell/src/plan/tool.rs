@@ -366,6 +366,27 @@ fn error_span(job: &Job, spec: &PathSpec, error: &paths::Error) -> Range<usize> 
     }
 }
 
+/// Refuses a job for a six-axis arm in `command`, a command that drives or simulates the IRB 6/2
+/// cell (`run`, `predict`): one line at the job's `[cell.robot] kind`.
+pub fn irb62_only(job: &Job, text: &str, file: &Path, command: &'static str) -> Result<(), Error> {
+    let Some(kind) = job.cell.robot.as_ref().and_then(|r| r.kind.as_ref()) else {
+        return Ok(());
+    };
+    let name = match kind.get_ref() {
+        sequences::job::RobotKind::Irb6 => return Ok(()),
+        sequences::job::RobotKind::Opw => "opw",
+        sequences::job::RobotKind::Ur => "ur",
+    };
+    let (line, column) = sequences::error::line_column(text, kind.span().start);
+    Err(Error::SixAxisNotDriven {
+        file: file.to_path_buf(),
+        line,
+        column,
+        kind: name,
+        command,
+    })
+}
+
 /// Plans every path of `job`. `text` and `file` locate errors in the job file.
 pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
     let located = |source, span| located(text, file, source, span);

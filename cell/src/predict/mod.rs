@@ -715,6 +715,7 @@ pub fn predict(
             input: true,
         });
     }
+    tool::irb62_only(job, text, file, "predict")?;
     let tube = tool::mandrel_in(job, text, file)?;
     let mut modes = Vec::with_capacity(opt.modes.len());
     for (mode_index, &mode) in opt.modes.iter().enumerate() {

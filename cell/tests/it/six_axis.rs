@@ -249,3 +249,17 @@ fn an_obstacle_in_the_six_axis_arms_way_is_found() {
     assert_eq!(out.status.code(), Some(3), "{stdout}{}", common::stderr(&out));
     assert!(stdout.contains("hits post"), "{stdout}");
 }
+
+#[test]
+fn run_and_predict_refuse_a_six_axis_job_in_one_line_at_its_kind() {
+    for command in ["run", "predict"] {
+        let job = example("ur10e-cylinder.toml");
+        let out = windcell(&[command, job.to_str().unwrap()]);
+        let err = common::stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{command}: {err}");
+        assert_eq!(err.lines().count(), 1, "{command}: {err}");
+        // `kind = "ur"` is line 26 of the example, its value at column 8.
+        assert!(err.contains("ur10e-cylinder.toml:26:8:"), "{command}: {err}");
+        assert!(err.contains("\"ur\""), "{command}: {err}");
+    }
+}
