@@ -44,6 +44,8 @@ use crate::sim::{SimCell, SimCellConfig, Trace};
 
 pub use crate::run::cellfile::Tolerances;
 
+mod six_axis;
+
 /// The modes `predict` knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
@@ -176,6 +178,9 @@ pub struct Prediction {
     pub samples: usize,
     /// The seed.
     pub seed: u64,
+    /// A six-axis arm's prediction from its plan (module `six_axis`): no setup samples, no
+    /// corners.
+    pub six_axis: bool,
 }
 
 /// SplitMix64: a small seeded generator for the Monte Carlo (Steele, Lea and Flood 2014); the
@@ -715,13 +720,34 @@ pub fn predict(
             input: true,
         });
     }
-    tool::irb62_only(job, text, file, "predict")?;
     let tube = tool::mandrel_in(job, text, file)?;
     let mut modes = Vec::with_capacity(opt.modes.len());
     for (mode_index, &mode) in opt.modes.iter().enumerate() {
         let j = job_for(job, mode, opt.mandrel_rps);
         let mandrel_rps = *j.cell.mandrel_speed_rps.get_ref();
         let Mode::Run(run_mode) = mode;
+        if j.six_axis_arm().is_some() {
+            // A six-axis arm: predicted from its plan (six_axis module).
+            let outcome = match tool::plan(&j, text, file) {
+                Err(e) if e.is_input() => Err(e.to_string()),
+                Err(e) => return Err(e),
+                Ok(plan) => {
+                    let (setup, speeds) = tool::setup(&j);
+                    let coupled = j.mandrel_axis().drive == paths::arm::MandrelDrive::Robot;
+                    plan.paths
+                        .iter()
+                        .map(|p| six_axis::predict_path(p, &tube, &setup, &speeds, coupled, opt))
+                        .collect::<Result<Vec<_>, Error>>()
+                        .map_err(|e| e.to_string())
+                }
+            };
+            modes.push(ModePrediction {
+                mode,
+                mandrel_rps,
+                outcome,
+            });
+            continue;
+        }
         let outcome = match wind(&j, text, file, cell, run_mode) {
             Err(e) if e.is_input() => Err(e.to_string()),
             Err(e) => return Err(e),
@@ -760,11 +786,13 @@ pub fn predict(
             outcome,
         });
     }
+    let six_axis = job.six_axis_arm().is_some();
     Ok(Prediction {
         job: job.name.get_ref().clone(),
         modes,
-        samples: opt.samples,
+        samples: if six_axis { 0 } else { opt.samples },
         seed: opt.seed,
+        six_axis,
     })
 }
 
@@ -774,6 +802,7 @@ impl Prediction {
         json!({
             "job": self.job,
             "setup_samples": self.samples,
+            "model": if self.six_axis { "six-axis plan" } else { "simulated cell" },
             "seed": self.seed,
             "modes": self.modes.iter().map(|m| {
                 let mut o = json!({"mode": m.mode.keyword(), "mandrel_rps": m.mandrel_rps});
@@ -806,10 +835,19 @@ impl Prediction {
 
     /// The report in words, one block per mode.
     pub fn text(&self) -> String {
-        let mut s = format!(
-            "prediction for {} ({} setup samples, seed {})\n",
-            self.job, self.samples, self.seed
-        );
+        let mut s = if self.six_axis {
+            format!(
+                "prediction for {} from its plan (six-axis arm: the controller's zone blending \
+                 and servo lag, lost steps and the setup's spread are not modelled; \
+                 docs/arms.md)\n",
+                self.job
+            )
+        } else {
+            format!(
+                "prediction for {} ({} setup samples, seed {})\n",
+                self.job, self.samples, self.seed
+            )
+        };
         for m in &self.modes {
             match &m.outcome {
                 Err(e) => {

@@ -251,15 +251,56 @@ fn an_obstacle_in_the_six_axis_arms_way_is_found() {
 }
 
 #[test]
-fn run_and_predict_refuse_a_six_axis_job_in_one_line_at_its_kind() {
-    for command in ["run", "predict"] {
-        let job = example("ur10e-cylinder.toml");
-        let out = windcell(&[command, job.to_str().unwrap()]);
-        let err = common::stderr(&out);
-        assert_eq!(out.status.code(), Some(2), "{command}: {err}");
-        assert_eq!(err.lines().count(), 1, "{command}: {err}");
-        // `kind = "ur"` is line 26 of the example, its value at column 8.
-        assert!(err.contains("ur10e-cylinder.toml:26:8:"), "{command}: {err}");
-        assert!(err.contains("\"ur\""), "{command}: {err}");
+fn run_refuses_a_six_axis_job_in_one_line_at_its_kind() {
+    let job = example("ur10e-cylinder.toml");
+    let out = windcell(&["run", job.to_str().unwrap()]);
+    let err = common::stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    // `kind = "ur"` is line 26 of the example, its value at column 8.
+    assert!(err.contains("ur10e-cylinder.toml:26:8:"), "{err}");
+    assert!(err.contains("\"ur\""), "{err}");
+}
+
+/// `predict` of a six-axis job: each path's time is the plan's (the sum of its segment times in
+/// `plan --json`), the coupled positioner's mandrel moves with the eye (no timing drift), and
+/// the error stays within the chord model's sub-millimetre range.
+#[test]
+fn predict_of_a_six_axis_job_times_the_plan_and_lays_its_motion() {
+    let job = example("irb2600-positioner.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let plan = windcell(&[
+        "plan",
+        job.to_str().unwrap(),
+        "-o",
+        dir.path().to_str().unwrap(),
+        "--json",
+    ]);
+    let plan: serde_json::Value = serde_json::from_slice(&plan.stdout).unwrap();
+    let planned: Vec<f64> = plan["paths"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            p["segments"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|s| s["duration_s"].as_f64().unwrap())
+                .sum()
+        })
+        .collect();
+    let out = windcell(&["predict", job.to_str().unwrap(), "--mode", "fine", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", common::stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["model"], "six-axis plan");
+    let paths = v["modes"][0]["paths"].as_array().unwrap();
+    assert_eq!(paths.len(), 2);
+    for (p, t) in paths.iter().zip(&planned) {
+        assert!((p["time_s"].as_f64().unwrap() - t).abs() < 1e-6, "{p}");
+        let e = p["max_error_mm"].as_f64().unwrap();
+        assert!(e > 0.0 && e < 1.0, "{p}");
+        let timing = p["sources_mm"]["timing_drift"].as_f64().unwrap();
+        assert!(timing.abs() < 0.01, "coupled: {p}");
     }
 }
