@@ -45,8 +45,8 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 use nalgebra::{Point3, Unit, UnitQuaternion, Vector2, Vector3};
 
-use crate::calibration::{Calibration, CellTransform};
 use crate::arm::{Joints6, MandrelAxis, PathReport as SixAxisReport, SixAxisArm};
+use crate::calibration::{Calibration, CellTransform};
 use crate::robot::{Arm, ArmFault, ElbowBranch, JointTrig, Joints};
 use crate::segment::SurfacePoint;
 use crate::step::{Gearing, RemainderCarrier};

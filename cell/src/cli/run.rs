@@ -475,7 +475,8 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
     let mode = args.mode.map(mode_of);
     let (loaded, job_cell, reach, name, clearance) = if is_job_file(&args.input) {
         let (mut job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
-        cell::plan::tool::irb62_only(&job, &text, &args.input, "run").map_err(Failure::from_cell)?;
+        cell::plan::tool::irb62_only(&job, &text, &args.input, "run")
+            .map_err(Failure::from_cell)?;
         // A mode given on the command line is planned for (its speeds and guards), not only
         // applied to files planned for another.
         if let Some(m) = mode {

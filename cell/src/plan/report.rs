@@ -162,9 +162,12 @@ fn path(p: &PlannedPath, arm: &paths::Arm, setup: &paths::Setup, job_max_rps: f6
                 );
                 ((lo[k] - min).min(max - hi[k]), SIX_AXIS_NAMES[k])
             })
-            .fold((f64::INFINITY, ""), |best, m| {
-                if m.0 < best.0 { m } else { best }
-            }),
+            .fold(
+                (f64::INFINITY, ""),
+                |best, m| {
+                    if m.0 < best.0 { m } else { best }
+                },
+            ),
         None => paths::Joint::ALL
             .iter()
             .zip(&arm.joints)

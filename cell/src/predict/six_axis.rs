@@ -92,11 +92,7 @@ pub(super) fn predict_path(
     for s in &plan.segments {
         let n = s.steps.unsigned_abs();
         let samples = ((s.duration_s * SAMPLES_PER_S).ceil() as usize).max(8);
-        let from = eye_cell(
-            &transform,
-            &previous.eye_mandrel_mm,
-            previous.mandrel_rad,
-        );
+        let from = eye_cell(&transform, &previous.eye_mandrel_mm, previous.mandrel_rad);
         let to = eye_cell(&transform, &s.pose.eye_mandrel_mm, s.pose.mandrel_rad);
         for i in 0..samples {
             let f = i as f64 / samples as f64;

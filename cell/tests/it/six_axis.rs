@@ -154,7 +154,11 @@ fn check_poses(
                 "{job} pose {k}: tool_q {:.4}° off",
                 fk_q.angle_to(&planned_q).to_degrees()
             );
-            assert_eq!(pose.get("external_deg").is_some(), coupled, "{job} pose {k}");
+            assert_eq!(
+                pose.get("external_deg").is_some(),
+                coupled,
+                "{job} pose {k}"
+            );
             if coupled {
                 let external = pose["external_deg"].as_f64().unwrap();
                 assert!((external - pose["mandrel_deg"].as_f64().unwrap()).abs() < 1e-9);
@@ -195,7 +199,12 @@ fn irb2600_on_a_positioner_puts_every_pose_where_the_published_kinematics_do() {
 
 #[test]
 fn ur10e_beside_the_indexer_puts_every_pose_where_the_published_kinematics_do() {
-    check_poses("ur10e-cylinder.toml", ur10e_flange, [0.0, 0.0, 150.0], false);
+    check_poses(
+        "ur10e-cylinder.toml",
+        ur10e_flange,
+        [0.0, 0.0, 150.0],
+        false,
+    );
 }
 
 #[test]
@@ -246,7 +255,12 @@ fn an_obstacle_in_the_six_axis_arms_way_is_found() {
     );
     let out = windcell(&["check", job.to_str().unwrap()]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(3), "{stdout}{}", common::stderr(&out));
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{stdout}{}",
+        common::stderr(&out)
+    );
     assert!(stdout.contains("hits post"), "{stdout}");
 }
 

@@ -29,10 +29,10 @@ use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
 
 use super::{EyeTarget, Joints6, MandrelDrive, SixAxisArm};
 use crate::Error;
+use crate::plan::Setup;
 use crate::plan::{
     ArmJoints, PathArm, PathPlan, Pose, SixAxisCell, Speeds, eyes_and_angles, timed_segments,
 };
-use crate::plan::Setup;
 use crate::segment::SurfacePoint;
 use crate::step::RemainderCarrier;
 

@@ -368,11 +368,12 @@ impl<'a> Context<'a> {
                     (Some(q), _) => q,
                     (None, Some(config)) => {
                         let tool_q = at.q * tool_to_wrist().inverse();
-                        joints_for_tool(arm, &at.eye, &tool_q, config)
-                            .map_err(|fault| Error::SixAxis {
+                        joints_for_tool(arm, &at.eye, &tool_q, config).map_err(|fault| {
+                            Error::SixAxis {
                                 segment: None,
                                 fault,
-                            })?
+                            }
+                        })?
                     }
                     (None, None) => {
                         return Err(Error::OutOfRange {
