@@ -42,6 +42,7 @@ fn sbend_job() -> (MeshSolid, Setup, Vec<PathPlan>) {
         entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
         calibration: Calibration::default(),
         gearing: Gearing::default(),
+        six_axis: None,
     };
     let speeds = Speeds {
         mandrel: MandrelProfile {
@@ -88,7 +89,10 @@ fn clearance(c: &mut Criterion) {
         obstacles: &[],
         home_mm: None,
         approach_speed_mm_s: 100.0,
-        arm: Some((&arm, ElbowBranch::Up)),
+        arm: Some(paths::clearance::sweep::SweptArm::Irb62(
+            &arm,
+            ElbowBranch::Up,
+        )),
     };
     let refs: Vec<&PathPlan> = plans.iter().collect();
     let report = sweep(&cell, &solid, &refs).unwrap();

@@ -274,6 +274,7 @@ fn coverage(c: &mut Criterion) {
         entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
         calibration: Calibration::default(),
         gearing: Gearing::default(),
+        six_axis: None,
     };
     let speeds = Speeds {
         mandrel: MandrelProfile {

@@ -320,7 +320,7 @@ fn sequence_gate(args: &RunArgs, loaded: &Loaded) -> Result<Option<Clearance>, F
     let (job, text) = sequences::Job::load(job_path).map_err(Failure::input)?;
     let plan = cell::plan::tool::plan(&job, &text, job_path).map_err(Failure::from_cell)?;
     let planned = batch::files_of_job(
-        &cell::plan::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+        &cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?,
     );
     let dir = args.input.parent().unwrap_or(Path::new("."));
     let run_path = args
@@ -485,7 +485,7 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
         }
         let plan = cell::plan::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
         let files = batch::files_of_job(
-            &cell::plan::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+            &cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?,
         );
         let dir = args.input.parent().unwrap_or(Path::new("."));
         let mut loaded =

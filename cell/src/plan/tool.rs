@@ -5,7 +5,7 @@
 //! `NAME_<prog>.IND`, the sequence file and the run file.
 
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use paths::geodesic::{self, PathStart};
 use paths::plan::ENTRY_ANGLE_MAX_DEG;
@@ -13,7 +13,7 @@ use paths::{Arm, Calibration, MandrelProfile, PathPlan, Setup, Speeds, Spine, Tu
 use sequences::Movement;
 use sequences::job::{Direction, Job, MandrelKind, PathSpec};
 use sequences::rob::{Header, Instruction, Interpolation, Reference};
-use sequences::{MandrelFile, MandrelMove, RobotFile, RunFile, SequenceFile};
+use sequences::{MandrelFile, MandrelMove, RobotFile};
 
 use crate::Error;
 
@@ -780,60 +780,6 @@ pub fn mandrel_file(job: &Job, path: &PlannedPath) -> MandrelFile {
     }
 }
 
-/// Every output file of a planned job: `(file name, contents)`. Fails if a file cannot be
-/// written as its reader would read it back ([`sequences::Error::Unwritable`]).
-///
-/// A six-axis arm has no `.ROB` files (its controller's programs come from `windcell post`): the
-/// set is the plan itself, `NAME.plan.json` (the `plan --json` report), and each path's `.IND`
-/// file when windcell's indexer turns the mandrel.
-pub fn control_files(job: &Job, plan: &JobPlan) -> Result<Vec<(PathBuf, String)>, Error> {
-    let mut files = Vec::new();
-    if job.six_axis_arm().is_some() {
-        if job.mandrel_axis().drive == paths::arm::MandrelDrive::Indexer {
-            for path in &plan.paths {
-                files.push((
-                    PathBuf::from(format!("{}.IND", path.name)),
-                    mandrel_file(job, path).write()?,
-                ));
-            }
-        }
-        let name = PathBuf::from(format!("{}.plan.json", job.name.get_ref()));
-        let report = crate::plan::report::PlanReport::new(job, plan);
-        let mut json = serde_json::to_string_pretty(&report).map_err(|e| Error::Output {
-            path: name.clone(),
-            source: std::io::Error::other(e),
-        })?;
-        json.push('\n');
-        files.push((name, json));
-        return Ok(files);
-    }
-    for path in &plan.paths {
-        files.push((
-            PathBuf::from(format!("{}.ROB", path.name)),
-            robot_file(job, path)?.write()?,
-        ));
-        files.push((
-            PathBuf::from(format!("{}.IND", path.name)),
-            mandrel_file(job, path).write()?,
-        ));
-    }
-    let sequence = SequenceFile {
-        names: plan.paths.iter().map(|p| p.name.clone()).collect(),
-    };
-    let run = RunFile {
-        programs: plan.paths.iter().map(|p| p.program).collect(),
-    };
-    files.push((
-        PathBuf::from(format!("{}.SEQ", job.name.get_ref())),
-        sequence.write()?,
-    ));
-    files.push((
-        PathBuf::from(format!("{}.RUN", job.name.get_ref())),
-        run.write()?,
-    ));
-    Ok(files)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -887,6 +833,7 @@ mod tests {
             let plan = &path.plan;
             for pose in std::iter::once(&plan.start).chain(plan.segments.iter().map(|s| &s.pose)) {
                 let j = &pose.joints;
+                let j = j.irb62().unwrap();
                 let (s1, c1) = j.base_yaw_rad.sin_cos();
                 let rho = upper * j.shoulder_rad.sin() + fore * j.elbow_rad.cos();
                 let z = shoulder_height + upper * j.shoulder_rad.cos() + fore * j.elbow_rad.sin();

@@ -240,7 +240,7 @@ struct Wound {
 
 fn wind(job: &Job, text: &str, file: &Path, cell: &Cell, mode: RunMode) -> Result<Wound, Error> {
     let plan = tool::plan(job, text, file)?;
-    let files = batch::files_of_job(&tool::control_files(job, &plan)?);
+    let files = batch::files_of_job(&crate::plan::files::control_files(job, &plan)?);
     let dir = file.parent().unwrap_or(Path::new("."));
     let loaded = batch::from_files(&files, Some(mode), dir, &dir.join("RUN"))?;
     let batch = Batch::new(

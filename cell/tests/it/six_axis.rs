@@ -18,6 +18,9 @@ use crate::common;
 use common::{example, windcell};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
+/// A frame: rotation (columns: its axes) and origin, base frame, mm.
+type Frame = (Matrix3<f64>, Vector3<f64>);
+
 fn rz(a: f64) -> Matrix3<f64> {
     *Rotation3::from_axis_angle(&Vector3::z_axis(), a).matrix()
 }
@@ -29,7 +32,7 @@ fn rx(a: f64) -> Matrix3<f64> {
 }
 
 /// The IRB 2600-12/1.65's flange from its controller joints, degrees (OPW, the paper's eqs).
-fn irb2600_flange(joints_deg: &[f64]) -> (Matrix3<f64>, Vector3<f64>) {
+fn irb2600_flange(joints_deg: &[f64]) -> Frame {
     let (a1, a2, b, c1, c2, c3, c4) = (150.0, -115.0, 0.0, 445.0, 700.0, 795.0, 85.0);
     let offsets = [0.0, 0.0, -90.0f64.to_radians(), 0.0, 0.0, 0.0];
     let q: Vec<f64> = (0..6)
@@ -52,7 +55,7 @@ fn irb2600_flange(joints_deg: &[f64]) -> (Matrix3<f64>, Vector3<f64>) {
 }
 
 /// The UR10e's flange from its joints, degrees (the DH table).
-fn ur10e_flange(joints_deg: &[f64]) -> (Matrix3<f64>, Vector3<f64>) {
+fn ur10e_flange(joints_deg: &[f64]) -> Frame {
     let d = [180.7, 0.0, 0.0, 174.15, 119.85, 116.55];
     let a = [0.0, -612.7, -571.55, 0.0, 0.0, 0.0];
     let alpha = [
@@ -85,7 +88,7 @@ fn v3(v: &serde_json::Value) -> Vector3<f64> {
 /// Plans `job` with `--json` and checks every pose against `flange` and the tool's `tcp_mm`.
 fn check_poses(
     job: &str,
-    flange: fn(&[f64]) -> (Matrix3<f64>, Vector3<f64>),
+    flange: fn(&[f64]) -> Frame,
     tcp_mm: [f64; 3],
     coupled: bool,
 ) {

@@ -299,7 +299,7 @@ impl<'a> Context<'a> {
     }
 
     /// Distance of a base-frame point from the rotation axis, mm.
-    fn from_axis_mm(&self, p: &Point3<f64>) -> f64 {
+    fn distance_to_axis_mm(&self, p: &Point3<f64>) -> f64 {
         let w = p - self.origin;
         (w - self.direction * w.dot(&self.direction)).norm()
     }
@@ -654,7 +654,7 @@ fn eye_lipschitz(ctx: &Context<'_>, from: &End, to: &End) -> f64 {
             + (to.phi - from.phi).abs() * ctx.solid.axis_radius_mm();
     }
     let eye_len = ctx.cell.eye.length_mm;
-    let horizontal = |p: &Point3<f64>| ctx.from_axis_mm(p);
+    let horizontal = |p: &Point3<f64>| ctx.distance_to_axis_mm(p);
     let d_phi = (to.phi - from.phi).abs();
     let turn = from.q.angle_to(&to.q);
     let travel = (to.eye - from.eye).norm();
@@ -710,7 +710,7 @@ fn irb_link_lipschitz(
     let chain = arm.upper_arm_mm + arm.forearm_mm;
     let link_motion = (travel[0] + travel[1]) * chain + travel[2] * arm.forearm_mm;
     let arm_reach = arm.shoulder_height_mm + chain;
-    let base_from_axis = ctx.from_axis_mm(&Point3::origin());
+    let base_from_axis = ctx.distance_to_axis_mm(&Point3::origin());
     Ok(2.0 * link_motion + d_phi * (base_from_axis + arm_reach).min(ctx.solid.axis_radius_mm()))
 }
 
