@@ -86,12 +86,7 @@ fn v3(v: &serde_json::Value) -> Vector3<f64> {
 }
 
 /// Plans `job` with `--json` and checks every pose against `flange` and the tool's `tcp_mm`.
-fn check_poses(
-    job: &str,
-    flange: fn(&[f64]) -> Frame,
-    tcp_mm: [f64; 3],
-    coupled: bool,
-) {
+fn check_poses(job: &str, flange: fn(&[f64]) -> Frame, tcp_mm: [f64; 3], coupled: bool) {
     let dir = tempfile::tempdir().unwrap();
     let out = windcell(&[
         "plan",

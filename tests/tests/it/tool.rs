@@ -13,8 +13,10 @@ fn examples() -> Vec<PathBuf> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        // Robot-cell jobs only: cell descriptions (`cell-*.toml`) and lathe vessels have no paths.
+        // IRB 6/2 robot-cell jobs only: cell descriptions (`cell-*.toml`) and lathe vessels have
+        // no paths; six-axis jobs (`[cell.robot] kind`) are tested in `cell/tests/it/six_axis.rs`.
         .filter(|p| std::fs::read_to_string(p).is_ok_and(|t| t.contains("[[path]]")))
+        .filter(|p| Job::load(p).is_ok_and(|(job, _)| job.six_axis_arm().is_none()))
         .collect();
     jobs.sort();
     jobs
