@@ -202,3 +202,231 @@ pub fn lever_arms_mm(arm: &SixAxisArm, extra_mm: f64) -> [f64; 6] {
     // chain from an earlier point is the longer.
     std::array::from_fn(|j| chain[j] + extra_mm)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::arm::{MandrelAxis, MandrelDrive, Tool};
+    use crate::geodesic::{self, Direction, PathStart};
+    use crate::plan::{ENTRY_ANGLE_MAX_DEG, plan as plan_path};
+    use crate::segment::equal_length;
+    use crate::{Arm, Calibration, Gearing, MandrelProfile, Movement, Tube};
+
+    /// The IRB 2600 with the eye 200 mm out and its axis across the flange (`docs/arms.md`).
+    fn irb2600() -> SixAxisArm {
+        SixAxisArm::opw_preset(
+            "irb2600-12/1.65",
+            Tool {
+                tcp_mm: [0.0, 0.0, 200.0],
+                rpy_deg: [0.0, 90.0, 0.0],
+            },
+        )
+        .unwrap()
+    }
+
+    fn setup(robot_distance_mm: f64, six_axis: Option<SixAxisCell>) -> Setup {
+        Setup {
+            robot_distance_mm,
+            mandrel_height_mm: 300.0,
+            offset_mm: 100.0,
+            arm: Arm::default(),
+            entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
+            calibration: Calibration::default(),
+            gearing: Gearing::default(),
+            six_axis,
+        }
+    }
+
+    fn speeds(movement: Movement) -> Speeds {
+        Speeds {
+            mandrel: MandrelProfile {
+                accel_rps2: 1.0,
+                start_stop_rps: 0.05,
+                max_rps: 0.1,
+            },
+            base_speed_mm_s: 1000.0,
+            max_speed_mm_s: 1500.0,
+            movement,
+        }
+    }
+
+    fn cylinder_points() -> (Tube, Vec<SurfacePoint>) {
+        let tube = Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap();
+        let start = PathStart {
+            angle_rad: 0.0,
+            wind_angle_rad: 48.3f64.to_radians(),
+            direction: Direction::Up,
+        };
+        let path = geodesic::helix(&tube, &start, 1.0).unwrap();
+        let points = equal_length(&tube, &path, 50).unwrap();
+        (tube, points)
+    }
+
+    /// The shoulder of the IRB 2600 stands at (a1, 0, c1) = (150, 0, 445) mm with its joints at
+    /// 0: a vertical axis through (800, 0) sees it 650 mm off on its −x side (no turn); an axis
+    /// through (150, 650) sees it on its −y side, a quarter turn clockwise of −x.
+    #[test]
+    fn the_robot_faces_the_mandrel_from_its_shoulder() {
+        let arm = irb2600();
+        let cell = |origin: [f64; 3], direction: [f64; 3]| SixAxisCell {
+            arm,
+            axis: MandrelAxis::new(origin, direction, MandrelDrive::Indexer).unwrap(),
+        };
+        let (b, turn) = facing(&cell([800.0, 0.0, 300.0], [0.0, 0.0, 1.0]));
+        assert!((b - 650.0).abs() < 1e-9 && turn.abs() < 1e-12, "{b} {turn}");
+        let (b, turn) = facing(&cell([150.0, 650.0, 0.0], [0.0, 0.0, 1.0]));
+        assert!((b - 650.0).abs() < 1e-9, "{b}");
+        // atan2(−650, 0) − π = −3π/2, a quarter turn counter-clockwise (the same angle).
+        assert!(
+            (turn.rem_euclid(std::f64::consts::TAU) - FRAC_PI_2).abs() < 1e-12,
+            "{turn}"
+        );
+    }
+
+    /// In the thesis geometry (vertical axis) the six-axis plan's mandrel angles and steps are
+    /// eq 3.7's for a robot at the shoulder's distance: those of the IRB 6/2 plan with `b`
+    /// = 650 mm. The eye (mandrel frame) is the same; only the arm differs.
+    #[test]
+    fn a_vertical_axis_gives_the_thesis_mandrel_angles_and_steps() {
+        let (tube, points) = cylinder_points();
+        let clearance = |p: &Point3<f64>| tube.distance_to_surface_mm(p);
+        let six = SixAxisCell {
+            arm: irb2600(),
+            axis: MandrelAxis::new([800.0, 0.0, 300.0], [0.0, 0.0, 1.0], MandrelDrive::Robot)
+                .unwrap(),
+        };
+        let s = speeds(Movement::Fine);
+        let six_plan = plan_path(&points, clearance, &setup(800.0, Some(six)), &s).unwrap();
+        let irb_plan = plan_path(&points, clearance, &setup(650.0, None), &s).unwrap();
+        assert_eq!(six_plan.segments.len(), irb_plan.segments.len());
+        for (a, b) in six_plan.segments.iter().zip(&irb_plan.segments) {
+            assert_eq!(a.steps, b.steps);
+            assert!((a.pose.ideal_mandrel_rad - b.pose.ideal_mandrel_rad).abs() < 1e-12);
+            assert!((a.pose.eye_mandrel_mm - b.pose.eye_mandrel_mm).norm() < 1e-9);
+            // Coupled: the external axis is the commanded mandrel angle.
+            let ArmJoints::SixAxis {
+                joints,
+                tool_q,
+                external_rad,
+            } = a.pose.joints
+            else {
+                panic!("a six-axis pose");
+            };
+            assert_eq!(external_rad, Some(a.pose.mandrel_rad));
+            // The joints put the eye at the pose's eye, the tool's z along the tow line.
+            let frame = six.arm.tool_frame(&joints);
+            assert!((frame.origin() - a.pose.eye_mm).norm() < 1e-6);
+            let tangent = six
+                .axis
+                .to_base(a.pose.mandrel_rad, &a.pose.tangent_point_mm);
+            let tow = (tangent - a.pose.eye_mm).normalize();
+            assert!((tool_q * Vector3::z()).angle(&tow) < 1e-6);
+            assert!((a.pose.wrist_q * Vector3::x()).angle(&tow) < 1e-6);
+            assert!(a.pose.entry_angle_rad < 1e-6);
+        }
+        assert!(matches!(six_plan.arm, PathArm::SixAxis(_)));
+        // Decoupled: no external axis.
+        let decoupled = SixAxisCell {
+            axis: MandrelAxis {
+                drive: MandrelDrive::Indexer,
+                ..six.axis
+            },
+            ..six
+        };
+        let p = plan_path(&points, clearance, &setup(800.0, Some(decoupled)), &s).unwrap();
+        assert!(p.segments.iter().all(|seg| matches!(
+            seg.pose.joints,
+            ArmJoints::SixAxis {
+                external_rad: None,
+                ..
+            }
+        )));
+    }
+
+    /// The robot's least time is the longer of the straight travel at the controller's speed and
+    /// the largest joint turn at its speed (by hand: 150 mm at 1500 mm/s = 0.1 s; 35° of axis 1
+    /// at 175°/s = 0.2 s).
+    #[test]
+    fn robot_time_is_the_longer_of_travel_and_joint_turn() {
+        let arm = irb2600();
+        let s = speeds(Movement::Discrete);
+        let pose = |x: f64, q1_deg: f64| Pose {
+            tangent_point_mm: Point3::origin(),
+            normal: Vector3::z(),
+            eye_mandrel_mm: Point3::origin(),
+            eye_mm: Point3::new(x, 0.0, 0.0),
+            joints: ArmJoints::SixAxis {
+                joints: [q1_deg.to_radians(), 0.0, 0.0, 0.0, 0.0, 0.0],
+                tool_q: UnitQuaternion::identity(),
+                external_rad: None,
+            },
+            entry_angle_rad: 0.0,
+            wrist_q: UnitQuaternion::identity(),
+            ideal_mandrel_rad: 0.0,
+            mandrel_rad: 0.0,
+        };
+        let t = robot_time_s(&arm, &s, &pose(0.0, 0.0), &pose(150.0, 0.0));
+        assert!((t - 0.1).abs() < 1e-12, "{t}");
+        let t = robot_time_s(&arm, &s, &pose(0.0, 0.0), &pose(150.0, 35.0));
+        assert!((t - 0.2).abs() < 1e-12, "{t}");
+        let t = robot_time_s(&arm, &s, &pose(0.0, 10.0), &pose(3.0, -25.0));
+        assert!((t - 0.2).abs() < 1e-12, "{t}");
+    }
+
+    /// The joints that put the tool where a pose has it are the pose's own, on its
+    /// configuration.
+    #[test]
+    fn joints_for_a_tool_pose_return_the_joints_that_made_it() {
+        let arm = SixAxisArm::ur_preset(
+            "ur10e",
+            Tool {
+                tcp_mm: [10.0, 20.0, 150.0],
+                rpy_deg: [5.0, 10.0, 15.0],
+            },
+        )
+        .unwrap();
+        for q in [
+            [0.3, -1.2, 1.4, -0.5, 1.1, 0.7],
+            [-2.0, -0.6, -1.9, 2.2, -0.8, -1.5],
+        ] {
+            let frame = arm.tool_frame(&q);
+            let config = arm.kind.config_of(&q);
+            let back = joints_for_tool(&arm, &frame.origin(), &frame.quaternion(), config).unwrap();
+            let again = arm.tool_frame(&back);
+            assert!((again.origin() - frame.origin()).norm() < 1e-9);
+            assert!(again.quaternion().angle_to(&frame.quaternion()) < 1e-9);
+            assert_eq!(arm.kind.config_of(&back), config);
+        }
+    }
+
+    /// No point of the links moves further than `Σ |Δqⱼ| · lever[j]` for a small joint move (the
+    /// bound the check's Lipschitz constant rests on), over random moves.
+    #[test]
+    fn lever_arms_bound_how_far_the_links_move() {
+        for arm in [
+            irb2600(),
+            SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap(),
+        ] {
+            let levers = lever_arms_mm(&arm, 150.0);
+            let mut seed = 0x2545_f491_4f6c_dd1du64;
+            let mut next = || {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            };
+            for _ in 0..500 {
+                let q: Joints6 = std::array::from_fn(|_| 3.0 * next());
+                let dq: Joints6 = std::array::from_fn(|_| 1e-4 * next());
+                let q2: Joints6 = std::array::from_fn(|j| q[j] + dq[j]);
+                let bound: f64 = (0..6).map(|j| dq[j].abs() * levers[j]).sum();
+                let (a, b) = (arm.kind.link_points(&q), arm.kind.link_points(&q2));
+                for i in 0..7 {
+                    assert!((b[i] - a[i]).norm() <= bound * (1.0 + 1e-6) + 1e-12);
+                }
+                let moved = (arm.tool_frame(&q2).origin() - arm.tool_frame(&q).origin()).norm();
+                assert!(moved <= bound * (1.0 + 1e-6) + 1e-12);
+            }
+        }
+    }
+}
