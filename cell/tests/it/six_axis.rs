@@ -316,3 +316,39 @@ fn predict_of_a_six_axis_job_times_the_plan_and_lays_its_motion() {
         assert!(timing.abs() < 0.01, "coupled: {p}");
     }
 }
+
+/// A mandrel placed beyond the arm's reach: one line naming the segment and how far the arm
+/// reaches (the UR10e's wrist centre reaches about 1.18 m from its shoulder: a2 + a3 = 612.7 +
+/// 571.55 mm), exit 2, nothing written.
+#[test]
+fn a_mandrel_out_of_reach_is_refused_naming_the_segment_and_the_reach() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = common::example_variant(
+        dir.path(),
+        "ur10e-cylinder.toml",
+        "far.toml",
+        &[(
+            "axis_origin_mm = [700.0, 0.0, 100.0]",
+            "axis_origin_mm = [3000.0, 0.0, 100.0]",
+        )],
+    );
+    let out_dir = dir.path().join("out");
+    let out = windcell(&[
+        "plan",
+        job.to_str().unwrap(),
+        "-o",
+        out_dir.to_str().unwrap(),
+    ]);
+    let err = common::stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("far.toml:") && err.contains("segment 0"),
+        "{err}"
+    );
+    assert!(
+        err.contains("out of reach") && err.contains("1184.2 mm"),
+        "{err}"
+    );
+    assert!(!out_dir.exists());
+}
