@@ -7,10 +7,9 @@
 //! - Each target `P[n]` in `/POS`: group 1, user frame 1 and tool frame 1, the configuration
 //!   from the joints ([`super::config::fanuc_config`]), mm with 3 decimals and `W`, `P`, `R` the
 //!   rotations about the fixed `x`, `y`, `z` axes in that order (`R = Rz(R)·Ry(P)·Rx(W)`) in
-//!   degrees with 3 decimals. Coupled: the mandrel axis as the extended axis `E1` of group 1 (an
-//!   integrated rotary axis of the robot's own motion group, degrees), which keeps one group
-//!   and one `DEFAULT_GROUP`; a positioner in its own group (`GP2`) would need coordinated
-//!   motion software on the controller.
+//!   degrees with 3 decimals. Coupled: the mandrel axis as the extended axis `E1` of group 1
+//!   (degrees); the targets are in the mandrel frame, so user frame 1 must turn with E1 (a
+//!   coordinated extended axis, FANUC's Coordinated Motion option).
 //! - `/MN`: `UFRAME_NUM=1`, `UTOOL_NUM=1` (the frames' values as comments: set them on the
 //!   controller), the first target `J P[1] 20% FINE`, every other `L P[n] Vmm/sec CNTk|FINE`:
 //!   `V` the segment's speed in whole mm/sec (TP's linear speed unit), `k` the zone in mm

@@ -6,11 +6,13 @@
 //!
 //! # Frames and units
 //! A [`ProgramTarget`] is the tool frame (the payout eye, `paths::arm`'s tool frame) in the
-//! **work frame** of its [`ProgramPath`]: millimetres and a unit quaternion `[w, x, y, z]`. The
-//! work frame is given in the robot base frame ([`ProgramPath::work`]); for a decoupled mandrel
-//! it is usually the identity, for a coupled mandrel it is the mandrel frame at axis angle 0 and
-//! the controller turns it with the external axis (a coordinated work object). Joint angles are
-//! the controller's, degrees.
+//! **work frame** of its [`ProgramPath`]: millimetres and a unit quaternion `[w, x, y, z]`. For a
+//! decoupled mandrel the work frame is given in the robot base frame (usually the identity). For
+//! a coupled mandrel the targets are in the mandrel frame, which the controller turns with the
+//! external axis, and [`ProgramPath::work`] is that frame as the controller's coordinated frame
+//! takes it: relative to the positioner's calibrated moving frame (ABB `wobjdata` of the `ufmec`
+//! unit, KUKA `EK` offset; FANUC user frame 1 on a coordinated axis). Joint angles are the
+//! controller's, degrees.
 //!
 //! # Writing and reading
 //! [`write`] returns every file of the program set as `(file name, contents)`, the main program
@@ -66,7 +68,7 @@ pub type ToolFrame = Frame;
 /// The frame the targets are expressed in, in the robot base frame.
 pub type WorkFrame = Frame;
 
-/// The two robot digital signals the thesis's indexer handshake uses (seed 001 §5.6: the start
+/// The two robot digital signals the thesis's indexer handshake uses (seed 001 App. D: the start
 /// output and the in-position input), as numbers of the robot controller's digital I/O.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SyncSignals {
@@ -79,7 +81,8 @@ pub struct SyncSignals {
 /// Which external axis of the robot controller turns the mandrel (degrees).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ExternalAxis {
-    /// 1-based external axis number: RAPID `eax_a` = 1, KRL `E1` = 1, FANUC `E1` = 1.
+    /// 1-based external axis number; the writers take the mandrel on axis 1 only (RAPID
+    /// `eax_a`, KRL `E1`, FANUC `E1`).
     pub number: u8,
     /// The controller's name of the mechanical unit that carries it (ABB `ufmec`, e.g.
     /// `"STN1"`); KRL uses `MACHINE_DEF[number + 1]` and FANUC the extended axis of group 1.
@@ -109,7 +112,8 @@ pub struct ProgramPath {
     pub name: String,
     /// The tool centre point in the flange frame.
     pub tool: ToolFrame,
-    /// The frame the targets are expressed in, in the robot base frame.
+    /// The frame the targets are expressed in: decoupled, in the robot base frame; coupled, the
+    /// mandrel frame relative to the positioner's moving frame (see the module documentation).
     pub work: WorkFrame,
     /// Who turns the mandrel.
     pub mandrel: MandrelCoupling,
@@ -134,8 +138,9 @@ pub struct ProgramTarget {
     pub speed_mm_s: f64,
     /// Blending radius allowed at this target, mm (0: a stop point).
     pub zone_mm: f64,
-    /// Decoupled mandrel: the move into this target is one indexer segment (start output
-    /// before it, in-position wait after it, at a stop point).
+    /// Decoupled mandrel: the move into this target is one indexer segment: start output on
+    /// before it, the move to a stop point, then wait for the in-position input, start output
+    /// off, wait for the input to drop (`docs/robot-programs.md`, "Sync points").
     pub sync: bool,
 }
 
@@ -335,8 +340,12 @@ impl ReadProgram {
     }
 }
 
-/// The most steps a program set expands to when calls are followed.
-pub const MAX_STEPS: usize = 10_000_000;
+/// The most steps a program set expands to when calls are followed (a path of the job limit of
+/// 10 000 segments, each synchronised, is 50 000 steps; a step takes about 200 B).
+pub const MAX_STEPS: usize = 500_000;
+/// The largest program file the caller should hand to [`read`] (a 10 000-target RAPID module is
+/// about 1.3 MB); the readers themselves take any `&str` in time and memory linear in its length.
+pub const MAX_PROGRAM_BYTES: u64 = 16 << 20;
 /// The deepest chain of calls followed.
 pub const MAX_CALL_DEPTH: usize = 16;
 
@@ -353,12 +362,77 @@ pub fn write(
         .targets_per_file
         .unwrap_or(format.default_targets_per_file())
         .max(1);
-    match format {
+    let files = match format {
         Format::Rapid => rapid::write(path, arm, per_file),
         Format::Krl => krl::write(path, arm, per_file),
         Format::Fanuc => fanuc::write(path, arm, per_file),
         Format::UrScript => urscript::write(path),
+    }?;
+    read_back(format, path, &files)?;
+    Ok(files)
+}
+
+/// Reads the written set with windcell's own reader and checks that every target is there in
+/// order within the printed precision, so that a program windcell writes is always one it reads
+/// (as every writer of the crate does, `crate::error::written`).
+fn read_back(format: Format, path: &ProgramPath, files: &[(String, String)]) -> Result<(), Error> {
+    let unwritable = |line, column, message: String| Error::Unwritable {
+        format: "robot program",
+        line,
+        column,
+        message,
+    };
+    let main = files.first().map(|f| f.0.as_str());
+    let read = read(format, files, main).map_err(|e| match e {
+        Error::Parse {
+            line,
+            column,
+            message,
+            file,
+        } => unwritable(
+            line,
+            column,
+            format!(
+                "{}: {message}",
+                file.map(|f| f.display().to_string()).unwrap_or_default()
+            ),
+        ),
+        other => other,
+    })?;
+    let tolerance_mm = if format == Format::UrScript {
+        0.001
+    } else {
+        0.01
+    };
+    let mut n = 0;
+    for (t, want) in read.targets().zip(&path.targets) {
+        n += 1;
+        let d: f64 = (0..3)
+            .map(|i| (t.position_mm[i] - want.position_mm[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let dot: f64 = (0..4).map(|i| t.orientation[i] * want.orientation[i]).sum();
+        let angle_deg = 2.0 * dot.abs().min(1.0).acos().to_degrees();
+        if !(d <= tolerance_mm && angle_deg <= 0.01) {
+            return Err(unwritable(
+                t.line,
+                1,
+                format!(
+                    "target {n} reads back {} mm and {}° from the plan",
+                    crate::error::shown(d),
+                    crate::error::shown(angle_deg)
+                ),
+            ));
+        }
     }
+    if n != path.targets.len() {
+        return Err(unwritable(
+            1,
+            1,
+            format!("{n} targets read back of {}", path.targets.len()),
+        ));
+    }
+    Ok(())
 }
 
 /// Reads a program set: `files` as `(file name, contents)`; the main program is `main` when
@@ -457,9 +531,13 @@ fn check_path(format: Format, path: &ProgramPath, arm: &SixAxisArm) -> Result<()
         );
     }
     if let MandrelCoupling::Coupled { axis } = &path.mandrel
-        && !(1..=6).contains(&axis.number)
+        && axis.number != 1
     {
-        return refuse(format!("external axis {} is outside 1–6", axis.number));
+        return refuse(format!(
+            "external axis {}: the mandrel must be the controller's first external axis (eax_a, \
+             E1)",
+            axis.number
+        ));
     }
     if path.targets.is_empty() {
         return refuse(format!("path {} has no targets", path.name));
@@ -495,6 +573,14 @@ fn check_path(format: Format, path: &ProgramPath, arm: &SixAxisArm) -> Result<()
                  the quaternion is not a rotation",
                 path.name,
                 i + 1
+            ));
+        }
+        if i > 0 && t.speed_mm_s < 0.1 {
+            return refuse(format!(
+                "path {} target {}: the speed {} mm/s is below the 0.1 mm/s the formats print",
+                path.name,
+                i + 1,
+                crate::error::shown(t.speed_mm_s)
             ));
         }
         if coupled && t.external_deg.is_none() {
