@@ -77,23 +77,28 @@ fn bench(c: &mut Criterion) {
             (f, a, paths)
         })
         .collect();
+    let run = |cases: &[(Format, SixAxisArm, Vec<ProgramPath>)]| {
+        let mut steps = 0;
+        for (f, a, paths) in cases {
+            for p in paths {
+                let files = program::write(*f, p, a, WriteOptions::default()).expect("write");
+                let read = program::read(*f, &files, None).expect("read");
+                steps += read.steps.len();
+            }
+        }
+        steps
+    };
     c.bench_function(
         "write and read, 2 paths x 51 targets, all four formats",
-        |b| {
-            b.iter(|| {
-                let mut steps = 0;
-                for (f, a, paths) in &cases {
-                    for p in paths {
-                        let files =
-                            program::write(*f, p, a, WriteOptions::default()).expect("write");
-                        let read = program::read(*f, &files, None).expect("read");
-                        steps += read.steps.len();
-                    }
-                }
-                steps
-            })
-        },
+        |b| b.iter(|| run(&cases)),
     );
+    for case in &cases {
+        let one = std::slice::from_ref(case);
+        c.bench_function(
+            &format!("write and read, 2 paths x 51 targets, {}", case.0),
+            |b| b.iter(|| run(one)),
+        );
+    }
 }
 
 criterion_group!(benches, bench);

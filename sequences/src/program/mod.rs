@@ -33,7 +33,7 @@ pub mod urscript;
 use std::collections::HashMap;
 use std::fmt;
 
-use paths::arm::{SixAxisArm, SixAxisKind};
+use paths::arm::{Config, Elbow, Shoulder, SixAxisArm, SixAxisKind, Wrist};
 
 use crate::Error;
 
@@ -225,6 +225,66 @@ pub enum ConfigData {
     Fanuc(FanucConfig),
     /// No configuration data (URScript).
     None,
+}
+
+impl ConfigData {
+    /// The configuration data `format` states for the joints (`None` for URScript): what a
+    /// target's configuration read from a program must equal.
+    pub fn of(format: Format, arm: &SixAxisArm, joints_deg: &[f64; 6]) -> ConfigData {
+        match format {
+            Format::Rapid => ConfigData::Abb(config::abb_conf(arm, joints_deg)),
+            Format::Krl => ConfigData::Kuka(config::kuka_status(arm, joints_deg)),
+            Format::Fanuc => ConfigData::Fanuc(config::fanuc_config(arm, joints_deg)),
+            Format::UrScript => ConfigData::None,
+        }
+    }
+
+    /// The arm configuration (inverse-kinematics branch) the data names, to solve a read target's
+    /// joints with: ABB `cfx`, KUKA `S`, FANUC's letters. The wrist bit of ABB and KUKA is the
+    /// sign of axis 5, turned into the model's wrist solution with the arm's axis-5 sign. `None`
+    /// for URScript (no configuration data) and a UR arm.
+    pub fn arm_config(&self, arm: &SixAxisArm) -> Option<Config> {
+        let axis5_sign = match &arm.kind {
+            SixAxisKind::Opw(o) => o.signs[4],
+            SixAxisKind::Ur(_) => return None,
+        };
+        let wrist = |axis5_negative: bool| {
+            if axis5_negative == (axis5_sign > 0) {
+                Wrist::Flip
+            } else {
+                Wrist::NoFlip
+            }
+        };
+        let side = |back: bool| {
+            if back {
+                Shoulder::Back
+            } else {
+                Shoulder::Front
+            }
+        };
+        Some(match *self {
+            ConfigData::Abb(c) => Config {
+                shoulder: side(c.cfx & 4 != 0),
+                elbow: if c.cfx & 2 != 0 {
+                    Elbow::Down
+                } else {
+                    Elbow::Up
+                },
+                wrist: wrist(c.cfx & 1 != 0),
+            },
+            ConfigData::Kuka(k) => Config {
+                shoulder: side(k.s & 1 != 0),
+                elbow: if k.s & 2 != 0 { Elbow::Up } else { Elbow::Down },
+                wrist: wrist(k.s & 4 != 0),
+            },
+            ConfigData::Fanuc(f) => Config {
+                shoulder: side(!f.front),
+                elbow: if f.up { Elbow::Up } else { Elbow::Down },
+                wrist: if f.flip { Wrist::Flip } else { Wrist::NoFlip },
+            },
+            ConfigData::None => return None,
+        })
+    }
 }
 
 /// How a move was programmed.

@@ -448,7 +448,8 @@ pub(crate) fn parse(text: &str) -> Result<Unit, Error> {
         c.eat_ident("TASK");
         if c.eat_ident("CONST") || c.eat_ident("PERS") || c.eat_ident("VAR") {
             let (kind, _) = c.ident()?;
-            let (name, nt) = c.ident()?;
+            let name_at = c.pos;
+            let (name, _) = c.ident()?;
             if c.eat_punct("{") {
                 while !c.at_end() && !c.peek().is_punct("}") {
                     c.next();
@@ -467,7 +468,7 @@ pub(crate) fn parse(text: &str) -> Result<Unit, Error> {
                 Decl {
                     kind: kind.to_ascii_lowercase(),
                     value: v,
-                    at: toks.iter().position(|x| std::ptr::eq(x, nt)).unwrap_or(0),
+                    at: name_at,
                 },
             );
             continue;

@@ -1141,6 +1141,28 @@ fn home_poses_give_the_vendors_configuration() {
     assert_eq!(f.text(), "N U T, 0, 0, 0");
 }
 
+/// The configuration read back names the branch the joints are on: solving the read pose on
+/// that branch gives the planned joints (up to whole turns of axes 4 and 6 and axis 1).
+#[test]
+fn read_configuration_names_the_planned_branch() {
+    for (format, model, kin) in [
+        (Format::Rapid, "irb2600-12/1.65", Kin::Opw(&IRB2600)),
+        (Format::Krl, "kr16-2", Kin::Opw(&KR16)),
+        (Format::Fanuc, "m-20ia", Kin::Opw(&M20IA)),
+    ] {
+        let a = arm(model);
+        let p = random_path(&kin, 30, 111, false);
+        let files = write(format, &p, model, None);
+        let read = program::read(format, &files, None).unwrap();
+        for (t, want) in read.targets().zip(&p.targets) {
+            assert_eq!(t.config, ConfigData::of(format, &a, &want.joints_deg));
+            let branch = t.config.arm_config(&a).unwrap();
+            let planned = a.kind.config_of(&want.joints_deg.map(f64::to_radians));
+            assert_eq!(branch, planned, "{format} line {}", t.line);
+        }
+    }
+}
+
 #[test]
 fn a_urscript_program_of_a_coupled_mandrel_is_refused() {
     let p = random_path(&Kin::Ur, 5, 61, false);
