@@ -6,6 +6,7 @@
 //!   in their errors;
 //! - [`check`] and [`figure`]: the collision and snag check and its picture (Figure 5.9);
 //! - [`program`]: a stored robot program's layout in the robot's memory;
+//! - [`post`]: a six-axis plan as programs for the arm's controller (`windcell post`);
 //! - [`report`]: `plan --json`; [`output`]: writing a set of files all or nothing.
 //!
 //! Nothing here talks to a device: `run` takes the plan from here.
@@ -16,6 +17,7 @@ pub mod files;
 pub mod imported;
 pub mod mesh;
 pub mod output;
+pub mod post;
 pub mod program;
 pub mod report;
 pub mod tool;

@@ -229,7 +229,10 @@ fn the_validation_line_quotes_the_measured_figures() {
     let times = row("discrete total time within ±20 %");
     let line = cell::predict::VALIDATION_LINE;
     let (hit, of) = band.split_once(' ').unwrap().0.split_once('/').unwrap();
-    assert!(line.contains(&format!("{hit} of them")) && line.contains(of), "{band} / {line}");
+    assert!(
+        line.contains(&format!("{hit} of them")) && line.contains(of),
+        "{band} / {line}"
+    );
     let (hit, of) = times.split_once('/').unwrap();
     assert!(line.contains(&format!("{hit} of {of}")), "{times} / {line}");
 }
