@@ -1278,6 +1278,37 @@ fn a_missing_part_or_an_unknown_call_is_refused() {
     assert!(e.to_string().starts_with("SBEND_1.src:"), "{e}");
 }
 
+/// Files saved with CR LF line ends (as Windows tools and controllers keep them) and in lower
+/// case where the language ignores case read the same.
+#[test]
+fn crlf_and_case_are_read_the_same() {
+    for (format, model, kin) in [
+        (Format::Rapid, "irb2600-12/1.65", Kin::Opw(&IRB2600)),
+        (Format::Krl, "kr16-2", Kin::Opw(&KR16)),
+        (Format::Fanuc, "m-20ia", Kin::Opw(&M20IA)),
+        (Format::UrScript, "ur10e", Kin::Ur),
+    ] {
+        let p = random_path(&kin, 12, 121, false);
+        let files = write(format, &p, model, Some(5));
+        let want = reader_events(&program::read(format, &files, None).unwrap());
+        let crlf: Vec<(String, String)> = files
+            .iter()
+            .map(|(n, t)| {
+                let t = t.replace('\n', "\r\n");
+                // RAPID and KRL keywords are case-insensitive.
+                let t = match format {
+                    Format::Rapid => t.replace("MoveL", "movel").replace("ENDPROC", "endproc"),
+                    Format::Krl => t.replace("LIN ", "lin ").replace("DEF ", "def "),
+                    _ => t,
+                };
+                (n.clone(), t)
+            })
+            .collect();
+        let got = reader_events(&program::read(format, &crlf, None).unwrap());
+        assert_eq!(got, want, "{format}");
+    }
+}
+
 /// Routines that call each other many times over without moving stop at the step limit,
 /// quickly.
 #[test]
