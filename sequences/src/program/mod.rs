@@ -329,8 +329,9 @@ pub struct ReadTarget {
     pub motion: Motion,
     /// Tool centre point in the work frame, mm.
     pub position_mm: [f64; 3],
-    /// Tool orientation in the work frame, unit quaternion `[w, x, y, z]` (as printed for RAPID;
-    /// converted from the format's angles for the others).
+    /// Tool orientation in the work frame, unit quaternion `[w, x, y, z]`: for RAPID as printed
+    /// (normalised, its sign kept: `orientation[0] < 0` is a file whose `q1` is negative, which
+    /// windcell never writes); for the others converted from the format's angles (`w ≥ 0`).
     pub orientation: [f64; 4],
     /// The configuration data as read.
     pub config: ConfigData,
@@ -400,8 +401,8 @@ impl ReadProgram {
     }
 }
 
-/// The most steps a program set expands to when calls are followed (a path of the job limit of
-/// 10 000 segments, each synchronised, is 50 000 steps; a step takes about 200 B).
+/// The most steps and calls a program set expands to when calls are followed (a path of the job
+/// limit of 10 000 segments, each synchronised, is 50 000 steps; a step takes about 200 B).
 pub const MAX_STEPS: usize = 500_000;
 /// The largest program file the caller should hand to [`read`] (a 10 000-target RAPID module is
 /// about 1.3 MB); the readers themselves take any `&str` in time and memory linear in its length.
@@ -536,7 +537,7 @@ pub fn main_file_name(format: Format, path_name: &str) -> String {
 /// with a letter (an `W` is put in front otherwise), at most 32 characters for RAPID (RAPID
 /// reference, "Identifiers"), 24 for KRL (KSS programming manual: names of up to 24 characters),
 /// 36 for FANUC TP program names (R-30iB) and 32 for URScript; RAPID, KRL and FANUC names are
-/// upper case. The length leaves room for the part suffix `_Pnn`.
+/// upper case, URScript names lower case. The length leaves room for the part suffix `_Pnn`.
 pub fn identifier(format: Format, name: &str) -> String {
     let max = match format {
         Format::Rapid => 32,
@@ -552,7 +553,9 @@ pub fn identifier(format: Format, name: &str) -> String {
         id.insert(0, 'W');
     }
     id.truncate(max);
-    if format != Format::UrScript {
+    if format == Format::UrScript {
+        id.make_ascii_lowercase();
+    } else {
         id.make_ascii_uppercase();
     }
     id
@@ -845,7 +848,7 @@ fn link(
             Error::content(format!("the main program {m} is not among the files"))
         })?,
         None => {
-            let called: Vec<String> = units
+            let called: std::collections::HashSet<String> = units
                 .iter()
                 .flat_map(|(_, u)| u.routines.iter())
                 .flat_map(|r| r.body.iter())
@@ -906,11 +909,13 @@ fn link(
         steps: Vec::new(),
     };
     let mut stack: Vec<(usize, usize)> = Vec::new();
+    let mut visited = 0;
     expand(
         &units,
         &by_name,
         (main_unit, main_routine),
         &mut stack,
+        &mut visited,
         &mut out,
     )?;
     Ok(out)
@@ -921,6 +926,7 @@ fn expand(
     by_name: &HashMap<String, (usize, usize)>,
     at: (usize, usize),
     stack: &mut Vec<(usize, usize)>,
+    visited: &mut usize,
     out: &mut ReadProgram,
 ) -> Result<(), Error> {
     let (file, unit) = &units[at.0];
@@ -935,13 +941,16 @@ fn expand(
     }
     stack.push(at);
     for item in &unit.routines[at.1].body {
+        // Calls count as steps too: a chain of routines that call each other many times over
+        // without moving would otherwise run without bound.
+        *visited += 1;
+        if *visited > MAX_STEPS {
+            return Err(Error::content(format!(
+                "the program runs more than {MAX_STEPS} steps and calls"
+            )));
+        }
         match item {
             Item::Step(s) => {
-                if out.steps.len() >= MAX_STEPS {
-                    return Err(Error::content(format!(
-                        "the program runs more than {MAX_STEPS} steps"
-                    )));
-                }
                 let mut s = s.clone();
                 match &mut s {
                     Step::Move(t) => t.file = file.clone(),
@@ -971,7 +980,7 @@ fn expand(
                     )
                     .in_file(file));
                 }
-                expand(units, by_name, target, stack, out)?;
+                expand(units, by_name, target, stack, visited, out)?;
             }
         }
     }
@@ -1033,6 +1042,14 @@ mod tests {
         assert_eq!(identifier(Format::Rapid, "sbend 1"), "SBEND_1");
         assert_eq!(identifier(Format::Krl, "1st-path"), "W1ST_PATH");
         assert!(identifier(Format::Krl, &"x".repeat(40)).len() <= 19);
+        assert_eq!(identifier(Format::UrScript, "SBEND 1"), "sbend_1");
+        for f in Format::ALL {
+            assert!(
+                main_file_name(f, "S-bend 2")
+                    .to_ascii_lowercase()
+                    .starts_with("s_bend_2.")
+            );
+        }
         assert_eq!(fixed(-0.0001, 3), "0.000");
         assert_eq!(fixed(-1.5, 1), "-1.5");
     }

@@ -536,11 +536,19 @@ pub(crate) fn parse(text: &str) -> Result<Unit, Error> {
     Ok(unit)
 }
 
+/// A quaternion as printed, normalised with its sign kept (a negative `q1` stays negative, so a
+/// checker can see it), when its norm is within 1e-4 of 1: printed with 6 decimals its norm is
+/// off by up to 1e-6, and the controller's editor prints fewer digits still.
+fn printed_quaternion(q: &[f64]) -> Option<[f64; 4]> {
+    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    (n.is_finite() && (n - 1.0).abs() < 1e-4).then(|| [q[0] / n, q[1] / n, q[2] / n, q[3] / n])
+}
+
 fn pose(v: &Value, what: &str, at: &Tok) -> Result<Frame, Error> {
     let l = v.list(2, what, at)?;
     let p = l[0].nums(3, what, at)?;
     let q = l[1].nums(4, what, at)?;
-    let q = unit_quaternion([q[0], q[1], q[2], q[3]])
+    let q = printed_quaternion(&q)
         .ok_or_else(|| at.error(format!("{what}: the quaternion is not of unit length")))?;
     Ok(Frame {
         position_mm: [p[0], p[1], p[2]],
@@ -685,15 +693,8 @@ fn movement(
     let l = target.list(4, "robtarget", at)?;
     let p = l[0].nums(3, "robtarget trans", at)?;
     let q = l[1].nums(4, "robtarget rot", at)?;
-    let orientation = unit_quaternion([q[0], q[1], q[2], q[3]])
+    let orientation = printed_quaternion(&q)
         .ok_or_else(|| at.error("robtarget rot: the quaternion is not of unit length"))?;
-    // The quaternion as printed (its sign kept), normalised.
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let orientation = if q[0] < 0.0 {
-        [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
-    } else {
-        orientation
-    };
     let cf = l[2].nums(4, "robtarget robconf", at)?;
     if cf.iter().any(|v| v.fract() != 0.0 || v.abs() > 1e6) {
         return Err(at.error("robtarget robconf: expected whole numbers"));

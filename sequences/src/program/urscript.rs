@@ -44,7 +44,7 @@ fn pose_text(f: &Frame) -> String {
 
 /// The one program file.
 pub(crate) fn write(path: &ProgramPath) -> Result<Vec<(String, String)>, Error> {
-    let id = identifier(super::Format::UrScript, &path.name).to_ascii_lowercase();
+    let id = identifier(super::Format::UrScript, &path.name);
     let MandrelCoupling::Decoupled { sync } = path.mandrel else {
         return Err(Error::content(
             "a URScript program cannot drive a coupled mandrel",

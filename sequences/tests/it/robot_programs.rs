@@ -961,6 +961,10 @@ fn write(
 
 fn check_rapid(path: &ProgramPath, per_file: Option<usize>) {
     let files = write(Format::Rapid, path, "irb2600-12/1.65", per_file);
+    assert_eq!(
+        files[0].0,
+        program::main_file_name(Format::Rapid, &path.name)
+    );
     let map = files_map(&files);
     let mut got = Vec::new();
     rapid_events(&map, "SBEND_1", &mut got);
@@ -1062,6 +1066,10 @@ fn check_fanuc(path: &ProgramPath, per_file: Option<usize>) {
 fn check_ur(path: &ProgramPath) {
     let files = write(Format::UrScript, path, "ur10e", None);
     assert_eq!(files.len(), 1);
+    assert_eq!(
+        files[0].0,
+        program::main_file_name(Format::UrScript, &path.name)
+    );
     let mut got = Vec::new();
     ur_events(&files[0].1, &mut got);
     compare(
@@ -1268,6 +1276,71 @@ fn a_missing_part_or_an_unknown_call_is_refused() {
     let e = program::read(Format::Krl, &files, Some("SBEND_1.src")).unwrap_err();
     assert!(e.to_string().contains("SBEND_1_P2"), "{e}");
     assert!(e.to_string().starts_with("SBEND_1.src:"), "{e}");
+}
+
+/// Files saved with CR LF line ends (as Windows tools and controllers keep them) and in lower
+/// case where the language ignores case read the same.
+#[test]
+fn crlf_and_case_are_read_the_same() {
+    for (format, model, kin) in [
+        (Format::Rapid, "irb2600-12/1.65", Kin::Opw(&IRB2600)),
+        (Format::Krl, "kr16-2", Kin::Opw(&KR16)),
+        (Format::Fanuc, "m-20ia", Kin::Opw(&M20IA)),
+        (Format::UrScript, "ur10e", Kin::Ur),
+    ] {
+        let p = random_path(&kin, 12, 121, false);
+        let files = write(format, &p, model, Some(5));
+        let want = reader_events(&program::read(format, &files, None).unwrap());
+        let crlf: Vec<(String, String)> = files
+            .iter()
+            .map(|(n, t)| {
+                let t = t.replace('\n', "\r\n");
+                // RAPID and KRL keywords are case-insensitive.
+                let t = match format {
+                    Format::Rapid => t.replace("MoveL", "movel").replace("ENDPROC", "endproc"),
+                    Format::Krl => t.replace("LIN ", "lin ").replace("DEF ", "def "),
+                    _ => t,
+                };
+                (n.clone(), t)
+            })
+            .collect();
+        let got = reader_events(&program::read(format, &crlf, None).unwrap());
+        assert_eq!(got, want, "{format}");
+    }
+}
+
+/// Routines that call each other many times over without moving stop at the step limit,
+/// quickly.
+#[test]
+fn call_bombs_are_bounded() {
+    let started = std::time::Instant::now();
+    let body = |callee: &str| {
+        (1..=50)
+            .map(|i| format!("{i:>4}:  CALL {callee} ;\n"))
+            .collect::<String>()
+    };
+    let mut files = vec![(
+        "MAIN.ls".to_string(),
+        format!("/PROG  MAIN\n/MN\n{}/POS\n/END\n", body("R1")),
+    )];
+    for k in 1..=10 {
+        let mn = if k < 10 {
+            body(&format!("R{}", k + 1))
+        } else {
+            String::new()
+        };
+        files.push((
+            format!("R{k}.ls"),
+            format!("/PROG  R{k}\n/MN\n{mn}/POS\n/END\n"),
+        ));
+    }
+    let e = program::read(Format::Fanuc, &files, None).unwrap_err();
+    assert!(e.to_string().contains("steps and calls"), "{e}");
+    assert!(
+        started.elapsed().as_secs_f64() < 5.0,
+        "{:?}",
+        started.elapsed()
+    );
 }
 
 /// Programs as a controller's editor keeps them: comments, blank lines, headers and
