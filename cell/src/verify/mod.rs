@@ -192,7 +192,13 @@ pub fn verify(
             .map_err(|e| Error::File(e.in_file(dir.join(&main))))?;
         let mut found = Vec::new();
         check_targets(&read, path, &arm, &axis, format, &speeds, &mut found);
-        let run = run_program(&read, path, &arm, &axis, setup.gearing.steps_per_mandrel_rev());
+        let run = run_program(
+            &read,
+            path,
+            &arm,
+            &axis,
+            setup.gearing.steps_per_mandrel_rev(),
+        );
         let coupled = axis.drive == MandrelDrive::Robot;
         let planned = predict::six_axis::predict_path(path, &tube, &setup, &speeds, coupled, opt)?;
         let prediction = match &run {
@@ -403,21 +409,21 @@ fn check_targets(
         // The controller's joints: the plan's, where the solution is the same pose (the turn
         // numbers pick among equal angles 360° apart).
         let joints = match pose.joints {
-            paths::ArmJoints::SixAxis { joints: planned, .. } => {
-                std::array::from_fn(|i| unwrap_near(joints[i], planned[i]))
-            }
+            paths::ArmJoints::SixAxis {
+                joints: planned, ..
+            } => std::array::from_fn(|i| unwrap_near(joints[i], planned[i])),
             paths::ArmJoints::Irb62(_) => joints,
         };
-        for i in 0..6 {
+        for (i, q) in joints.iter().enumerate() {
             let (lo, hi) = (arm.limits.min_rad[i], arm.limits.max_rad[i]);
-            if !(lo..=hi).contains(&joints[i]) {
+            if !(lo..=hi).contains(q) {
                 out.push(finding(
                     t,
                     format!(
                         "target {}: axis {} at {}° is outside its range {}..{}°",
                         k + 1,
                         i + 1,
-                        shown(joints[i].to_degrees()),
+                        shown(q.to_degrees()),
                         shown(lo.to_degrees()),
                         shown(hi.to_degrees())
                     ),
@@ -572,7 +578,9 @@ fn run_program(
                     |fault| Finding {
                         file: t.file.clone(),
                         line: t.line,
-                        message: format!("the simulated run stops: the arm cannot take it: {fault}"),
+                        message: format!(
+                            "the simulated run stops: the arm cannot take it: {fault}"
+                        ),
                     },
                 )?;
                 pose.eye_mm = eye;
@@ -591,7 +599,8 @@ fn run_program(
         }
     }
     if reached_s.len() != path.plan.segments.len() + 1 {
-        let (file, line) = previous.map_or((read.main_file.clone(), 1), |t| (t.file.clone(), t.line));
+        let (file, line) =
+            previous.map_or((read.main_file.clone(), 1), |t| (t.file.clone(), t.line));
         return Err(Finding {
             file,
             line,
@@ -623,10 +632,12 @@ impl Verified {
                 p.name,
                 p.main_file,
                 p.targets,
-                p.prediction.as_ref().map_or("not run".to_string(), |r| format!(
-                    "error {:.3} mm, {:.2} s",
-                    r.max_error_mm, r.time_s
-                )),
+                p.prediction
+                    .as_ref()
+                    .map_or("not run".to_string(), |r| format!(
+                        "error {:.3} mm, {:.2} s",
+                        r.max_error_mm, r.time_s
+                    )),
                 p.planned.max_error_mm,
                 p.planned.time_s,
             );
