@@ -159,14 +159,14 @@ pub fn verify(
 ) -> Result<Verified, Error> {
     let (format, files) = program_files(dir)?;
     let arm = crate::plan::post::six_axis_arm(job, text, file, format)?;
-    let checked = check::run(job, text, file)?;
+    let plan = tool::plan(job, text, file)?;
     let axis = job.mandrel_axis();
     let (setup, speeds) = tool::setup(job);
     let tube = tool::mandrel_in(job, text, file)?;
     let mut findings = Vec::new();
     let mut paths_out = Vec::new();
     let mut runs: Vec<PlannedPath> = Vec::new();
-    for path in &checked.plan.paths {
+    for path in &plan.paths {
         let main = program::main_file_name(format, &path.name);
         if !files.iter().any(|(n, _)| *n == main) {
             return Err(Error::OutputPath {
@@ -223,10 +223,10 @@ pub fn verify(
         findings.extend(found);
     }
     // The collision and snag check of the simulated run's motion.
-    let check_line = if runs.len() == checked.plan.paths.len() {
+    let check_line = if runs.len() == plan.paths.len() {
         let plan = crate::plan::tool::JobPlan {
             paths: runs,
-            mesh_solid: checked.plan.mesh_solid.clone(),
+            mesh_solid: plan.mesh_solid.clone(),
         };
         let ran: Checked = check::check(job, text, file, plan)?;
         for f in &ran.report.findings {
