@@ -1034,36 +1034,9 @@ fn other_kind_of_file(message: &str, text: &str) -> &'static str {
 mod tests {
     use super::*;
 
-    pub(crate) const CYLINDER: &str = r#"name = "CYL"
-
-[cell]
-robot_distance_mm = 800.0
-start_height_mm = 300.0
-mandrel_speed_rps = 0.1
-eye_mechanism_length_mm = 150.0
-offset_mm = 100.0
-base_speed_mm_s = 1000.0
-max_speed_mm_s = 2000.0
-movement = "fine"
-
-[cell.drive]
-steps_per_rev = 400
-gear_ratio = [13, 60]
-accel_rps2 = 1.0
-start_stop_rps = 0.05
-
-[mandrel]
-kind = "cylinder"
-diameter_mm = 63.5
-length_mm = 178.0
-
-[[path]]
-program = 1
-direction = "down"
-wind_angle_deg = 48.3
-start_angle_deg = 0.0
-segments = 50
-"#;
+    /// The cylinder job of the examples with its first path only, without comments (the line
+    /// and column figures of the tests count on its layout).
+    pub(crate) const CYLINDER: &str = include_str!("../tests/data/cylinder-one-path.toml");
 
     #[test]
     fn robot_and_calibration_tables_parse_and_round_trip() {

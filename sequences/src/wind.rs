@@ -452,12 +452,12 @@ mod tests {
         assert_eq!(job.machine.limits.axes[1].acceleration, 1000.0);
     }
 
-    /// Each `(from, to, expect)`: [`TUBE`] with `from` replaced by `to` is refused with a message
+    /// Each `(from, to, expect)`: `base` with `from` replaced by `to` is refused with a message
     /// that begins with `expect` (its line and column first).
-    fn refused_as(cases: &[(&str, &str, &str)]) {
+    fn refused_as(base: &str, cases: &[(&str, &str, &str)]) {
         for &(from, to, expect) in cases {
-            let text = TUBE.replace(from, to);
-            assert_ne!(text, TUBE, "{from}");
+            let text = base.replace(from, to);
+            assert_ne!(text, base, "{from}");
             let err = WindFile::parse(&text, "t").unwrap_err().to_string();
             assert!(err.starts_with(expect), "{expect}: {err}");
         }
@@ -489,7 +489,7 @@ mod tests {
                 "8:5: layer 2: patternNumber and skipIndex must be ≥ 1",
             ),
         ];
-        refused_as(&cases);
+        refused_as(TUBE, &cases);
     }
 
     #[test]
@@ -567,21 +567,11 @@ mod tests {
                 "13:1: missing field `defaultFeedRate`",
             ),
         ];
-        refused_as(&cases);
+        refused_as(TUBE, &cases);
     }
 
     /// FiberPath's cone cases: 98 → 54 mm over 120 mm.
-    const CONE: &str = r#"{
-  "schemaVersion": "1.1",
-  "layers": [
-    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
-      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15 },
-    { "windType": "skip", "mandrelRotation": 45 }
-  ],
-  "mandrelParameters": { "diameter": 98.0, "windLength": 120.0, "endDiameter": 54.0 },
-  "towParameters": { "width": 6.0, "thickness": 0.5 },
-  "defaultFeedRate": 9000.0
-}"#;
+    const CONE: &str = include_str!("../tests/data/reducer.wind");
 
     #[test]
     fn a_reducing_cone_is_planned_with_the_large_end_first() {
@@ -625,12 +615,7 @@ mod tests {
                 "8:65: endDiameter 154 mm is larger than diameter 98 mm",
             ),
         ];
-        for (from, to, expect) in cases {
-            let text = CONE.replace(from, to);
-            assert_ne!(text, CONE, "{from}");
-            let err = WindFile::parse(&text, "c").unwrap_err().to_string();
-            assert!(err.starts_with(expect), "{expect}: {err}");
-        }
+        refused_as(CONE, &cases);
     }
 
     /// A von Kármán nose: 98 mm base, 300 mm long (the dimensions of FiberPath's example).
@@ -694,12 +679,7 @@ mod tests {
                 "3:107: unknown field `c`",
             ),
         ];
-        for (from, to, expect) in cases {
-            let text = NOSE.replace(from, to);
-            assert_ne!(text, NOSE, "{from}");
-            let err = WindFile::parse(&text, "n").unwrap_err().to_string();
-            assert!(err.starts_with(expect), "{expect}: {err}");
-        }
+        refused_as(NOSE, &cases);
         // FiberPath's unreachable case: 89° on the geodesic turns around 0.955 mm from the base,
         // inside the lead-in (r(5 mm) = 48.9109 mm is R·sin 86.5437°).
         let steep = NOSE

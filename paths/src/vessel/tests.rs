@@ -1,18 +1,15 @@
 use super::*;
-use crate::motion::{AxisLimit, Estimate, Recording};
+use crate::motion::tests::limits;
+use crate::motion::{Estimate, Recording};
 use approx::assert_abs_diff_eq;
 
 include!("../../tests/data/seed002_o0004.rs");
 
-fn limits() -> Limits {
-    let l = AxisLimit {
-        velocity: 100.0,
-        acceleration: 1000.0,
-    };
-    Limits {
-        axes: [l; 4],
-        junction_deviation: 0.01,
-    }
+/// `job` is refused with a message that contains `expect`; the message.
+fn refused_with(job: &Job, expect: &str) -> String {
+    let err = job.check().unwrap_err().to_string();
+    assert!(err.contains(expect), "{err}");
+    err
 }
 
 pub(crate) fn seed_job(length_mm: f64, advance_deg: Option<f64>) -> Job {
@@ -315,8 +312,7 @@ fn tube_rules_are_enforced_with_reasons() {
             initial_lock: true,
             friction_lambda: 0.0,
         })];
-        let err = job.check().unwrap_err().to_string();
-        assert!(err.contains(expect), "{err}");
+        refused_with(&job, expect);
     }
     let mut job = tube_job(1);
     job.layers = vec![Layer::TubeHelical(TubeHelical {
@@ -464,8 +460,7 @@ fn cone_helical_follows_the_geodesic_and_counts_at_the_large_end() {
 fn cone_refusals_give_the_reason() {
     let mut job = cone_job();
     job.layers = vec![Layer::Hoop { passes: 2 }];
-    let err = job.check().unwrap_err().to_string();
-    assert!(err.contains("layer 1: hoop layers on a cone"), "{err}");
+    refused_with(&job, "layer 1: hoop layers on a cone");
     let mut job = cone_job();
     if let Layer::TubeHelical(t) = &mut job.layers[0] {
         t.wind_angle_deg = 40.0;
@@ -478,8 +473,7 @@ fn cone_refusals_give_the_reason() {
         small_radius_mm: 49.0,
         length_mm: 120.0,
     };
-    let err = job.check().unwrap_err().to_string();
-    assert!(err.contains("reducing frustum"), "{err}");
+    refused_with(&job, "reducing frustum");
     // A skip layer needs no geodesic.
     let mut job = cone_job();
     job.layers = vec![Layer::Skip { mandrel_deg: 90.0 }];
@@ -669,18 +663,10 @@ fn nose_friction_lays_deeper_and_keeps_the_pattern() {
 fn nose_refusals_give_the_reason() {
     let mut job = nose_job(0.0);
     job.layers = vec![Layer::Hoop { passes: 2 }];
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("layer 1: hoop layers on a nose profile"),
-        "{err}"
-    );
+    refused_with(&job, "layer 1: hoop layers on a nose profile");
     let mut job = nose_job(0.0);
     job.layers.push(Layer::Helical(PatternRequest::default()));
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("layer 2: a geodesic dome layer needs a vessel"),
-        "{err}"
-    );
+    refused_with(&job, "layer 2: a geodesic dome layer needs a vessel");
     for (lambda, expect) in [
         (-0.1, "frictionLambda = -0.1 must be ≥ 0"),
         (f64::NAN, "frictionLambda = NaN must be ≥ 0"),
@@ -689,8 +675,7 @@ fn nose_refusals_give_the_reason() {
             "frictionLambda 0.21 exceeds the machine slip limit 0.2",
         ),
     ] {
-        let err = nose_job(lambda).check().unwrap_err().to_string();
-        assert!(err.contains(expect), "{err}");
+        refused_with(&nose_job(lambda), expect);
     }
     assert!(nose_job(NOSE_SLIP_LIMIT).check().is_ok());
     // Friction on a cone or a tube is refused: they are wound on their geodesics.
@@ -698,20 +683,12 @@ fn nose_refusals_give_the_reason() {
     if let Layer::TubeHelical(t) = &mut cone.layers[0] {
         t.friction_lambda = 0.1;
     }
-    let err = cone.check().unwrap_err().to_string();
-    assert!(
-        err.contains("frictionLambda = 0.1: a cylinder or cone"),
-        "{err}"
-    );
+    refused_with(&cone, "frictionLambda = 0.1: a cylinder or cone");
     // Build-up would wind on an offset of the ogive: refused on the second layer.
     let mut job = nose_job(0.0);
     job.build_up = true;
     job.layers.push(job.layers[0]);
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("layer 2: layer build-up on a nose profile"),
-        "{err}"
-    );
+    refused_with(&job, "layer 2: layer build-up on a nose profile");
     // A path that reaches the tip: a shallow geodesic, C = 49·sin 0.4° < 1 % of 49 mm.
     let mut job = nose_job(0.0);
     if let Layer::TubeHelical(t) = &mut job.layers[0] {
@@ -735,8 +712,7 @@ fn nose_refusals_give_the_reason() {
         if let Layer::TubeHelical(t) = &mut job.layers[0] {
             t.friction_lambda = lambda;
         }
-        let err = job.check().unwrap_err().to_string();
-        assert!(err.contains(expect), "{err}");
+        let err = refused_with(&job, expect);
         if lambda == 0.05 {
             assert!(
                 err.contains("above 0.4900 mm (1% of") && err.contains("sin α, 0.8552 mm"),
@@ -751,10 +727,9 @@ fn nose_refusals_give_the_reason() {
         base_radius_mm: 0.5,
         length_mm: 1e6,
     };
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("wind angle 30° with frictionLambda 0: the pass needs more than 400000"),
-        "{err}"
+    refused_with(
+        &job,
+        "wind angle 30° with frictionLambda 0: the pass needs more than 400000",
     );
     // No usable pass: 89° turns around inside the lead-in.
     let mut job = nose_job(0.0);

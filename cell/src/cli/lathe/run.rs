@@ -439,36 +439,31 @@ struct Report<'a> {
 impl Report<'_> {
     /// The `--json` report.
     fn json(&self) -> Result<(), Failure> {
-        let Report {
-            args,
-            setup,
-            wound,
-            deviations,
-        } = *self;
-        let report = &wound.report;
-        let devs: Vec<_> = deviations
+        let report = &self.wound.report;
+        let devs: Vec<_> = self
+            .deviations
             .iter()
             .map(|(at, off, rem)| {
                 json!({
-                    "block": format!("{}:{}:{}", args.program.display(), at.line, at.column),
+                    "block": format!("{}:{}:{}", self.args.program.display(), at.line, at.column),
                     "offset": {"a_deg": off[0], "x_mm": off[1], "y_mm": off[2]},
                     "remedies": rem.iter().map(remedy_name).collect::<Vec<_>>(),
                 })
             })
             .collect();
         let value = json!({
-            "program": args.program.display().to_string(),
-            "interpolation": interp_name(args.interp),
-            "feed_counts_per_interrupt": setup.feed,
-            "interrupt_hz": args.rate,
-            "clock": if wound.jitter.is_some() { "real" } else { "sim" },
+            "program": self.args.program.display().to_string(),
+            "interpolation": interp_name(self.args.interp),
+            "feed_counts_per_interrupt": self.setup.feed,
+            "interrupt_hz": self.args.rate,
+            "clock": if self.wound.jitter.is_some() { "real" } else { "sim" },
             "axes": report.axes,
             "interrupts": report.interrupts,
             "completion_time_s": report.completion_time_s,
             "circuits": report.circuits,
             "stops": report.stops,
             "deviations": devs,
-            "jitter": wound.jitter.map(|j| json!({
+            "jitter": self.wound.jitter.map(|j| json!({
                 "interrupts": j.interrupts,
                 "p50_us": j.p50_us,
                 "p99_us": j.p99_us,
@@ -483,20 +478,14 @@ impl Report<'_> {
     /// The plain report: the axes' figures, the completion time, the worst deviation and the wall
     /// clock's lateness.
     fn text(&self) -> Result<(), Failure> {
-        let Report {
-            args,
-            setup,
-            wound,
-            deviations,
-        } = *self;
-        let report = &wound.report;
+        let report = &self.wound.report;
         let mut out = format!(
             "{}: {} circuit(s), {}, feed {} counts/interrupt at {} Hz\n",
-            args.program.display(),
+            self.args.program.display(),
             report.circuits,
-            interp_name(args.interp),
-            setup.feed,
-            args.rate
+            interp_name(self.args.interp),
+            self.setup.feed,
+            self.args.rate
         );
         out.push_str("axis  max err     rms err     peak v/s     peak a/s²     peak j/s³\n");
         for a in &report.axes {
@@ -516,15 +505,16 @@ impl Report<'_> {
             report.completion_time_s, report.interrupts
         ));
         let largest = |o: &[f64; 3]| o.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        if let Some(worst) = deviations
+        if let Some(worst) = self
+            .deviations
             .iter()
             .max_by(|a, b| largest(&a.1).total_cmp(&largest(&b.1)))
         {
             out.push_str(&format!(
                 "deviation: the path passes more than 0.5 mm (or 0.5°) from {} given point(s); \
              worst {}:{}:{} (A {:.2}°, X {:.2} mm, Y {:.2} mm); remedies: {}\n",
-                deviations.len(),
-                args.program.display(),
+                self.deviations.len(),
+                self.args.program.display(),
                 worst.0.line,
                 worst.0.column,
                 worst.1[0],
@@ -538,7 +528,7 @@ impl Report<'_> {
                     .join(", ")
             ));
         }
-        if let Some(j) = wound.jitter {
+        if let Some(j) = self.wound.jitter {
             out.push_str(&format!(
             "wall clock: {} interrupts, lateness p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} missed\n",
             j.interrupts, j.p50_us, j.p99_us, j.max_us, j.missed
