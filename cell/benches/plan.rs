@@ -1,9 +1,10 @@
 //! The whole TOOL step for each example job, through the library path `windcell plan` takes
-//! (`sequences::Job::load`, `cell::plan::tool::plan`, `cell::plan::tool::control_files`,
+//! (`sequences::Job::load`, `cell::plan::tool::plan`, `cell::plan::files::control_files`,
 //! `cell::plan::check::check`, `cell::plan::output::write_all`): `plan/NAME` parses, traces, segments, plans
 //! (the arm's inverse kinematics, limits and speeds included), checks the job for collisions and
 //! snags, and writes the control files, as `windcell plan` does; `plan_only/NAME` stops after
-//! planning (target: under 50 ms each). Run with `cargo bench -p cell --bench plan`.
+//! planning (target: under 50 ms each; a six-axis job, `irb2600-positioner` (the S-bend mesh on
+//! an IRB 2600) and `ur10e-cylinder`, planned and checked under 100 ms). Run with `cargo bench -p cell --bench plan`.
 
 use std::path::Path;
 
@@ -21,6 +22,8 @@ fn plan_examples(c: &mut Criterion) {
         "sbend",
         "sbend-dxf",
         "sbend-mesh",
+        "irb2600-positioner",
+        "ur10e-cylinder",
     ];
     let mut group = c.benchmark_group("plan_only");
     for name in names {
@@ -41,7 +44,7 @@ fn plan_examples(c: &mut Criterion) {
             b.iter(|| {
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
                 let plan = cell::plan::tool::plan(&job, &text, &job_path).unwrap();
-                let files = cell::plan::tool::control_files(&job, &plan).unwrap();
+                let files = cell::plan::files::control_files(&job, &plan).unwrap();
                 let checked = cell::plan::check::check(&job, &text, &job_path, plan).unwrap();
                 assert!(checked.report.is_clear());
                 cell::plan::output::write_all(

@@ -25,7 +25,7 @@ fn batch(mode: RunMode) -> Batch {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sbend.toml");
     let (job, text) = Job::load(&path).unwrap();
     let plan = tool::plan(&job, &text, &path).unwrap();
-    let files = batch::files_of_job(&tool::control_files(&job, &plan).unwrap());
+    let files = batch::files_of_job(&cell::plan::files::control_files(&job, &plan).unwrap());
     let l = batch::from_files(&files, Some(mode), Path::new("."), Path::new("R")).unwrap();
     Batch::new(
         l.items,

@@ -199,6 +199,60 @@ pub enum Error {
         /// True for bad input.
         input: bool,
     },
+    /// `post` of a job for the IRB 6/2 (its robot computer reads `.ROB` files, `windcell plan`).
+    #[error(
+        "{}:{line}:{column}: {format} programs are for six-axis arms; this job plans for the \
+         IRB 6/2 (give [cell.robot] kind = \"opw\" or \"ur\"; its control files come from \
+         `windcell plan`)",
+        file.display()
+    )]
+    PostNeedsSixAxis {
+        /// The job file.
+        file: PathBuf,
+        /// Line of `[cell.robot] kind` (or the job's name).
+        line: usize,
+        /// Column there.
+        column: usize,
+        /// The format asked for.
+        format: &'static str,
+    },
+    /// A plan whose poses are not a six-axis arm's, given to `post`.
+    #[error("{path}: the plan holds no six-axis poses")]
+    PostNotSixAxisPlan {
+        /// The path's name.
+        path: String,
+    },
+    /// `post` of a decoupled mandrel in a flying movement.
+    #[error(
+        "{job}: a mandrel windcell's indexer turns meets the robot program at stop points, one \
+         per segment: post it in discrete movement (movement = \"discrete\" or --mode \
+         discrete), or let the robot controller turn it ([cell.mandrel] drive = \"robot\"), \
+         not in {movement} movement"
+    )]
+    PostDecoupledFlying {
+        /// The job's name.
+        job: String,
+        /// The movement asked for.
+        movement: &'static str,
+    },
+    /// A command that drives or simulates the IRB 6/2 cell, given a job for a six-axis arm.
+    #[error(
+        "{}:{line}:{column}: {command} drives the IRB 6/2 cell; this job's arm is \"{kind}\" \
+         (plan and check it, and write its controller's programs with `windcell post`)",
+        file.display()
+    )]
+    SixAxisNotDriven {
+        /// The job file.
+        file: PathBuf,
+        /// Line of `[cell.robot] kind`.
+        line: usize,
+        /// Column there.
+        column: usize,
+        /// The arm kind.
+        kind: &'static str,
+        /// The command refused (`run`, `predict`).
+        command: &'static str,
+    },
     /// A control file planned for another movement, wound in continuous mode (its timing is a
     /// property of the plan: docs/continuous.md).
     #[error(
@@ -347,6 +401,9 @@ impl Error {
                 | Error::NotPlannedForContinuous { .. }
                 | Error::RelativePosition { .. }
                 | Error::OutOfReach { .. }
+                | Error::SixAxisNotDriven { .. }
+                | Error::PostNeedsSixAxis { .. }
+                | Error::PostDecoupledFlying { .. }
                 | Error::EmptyProgram { .. }
                 | Error::MissingFile { .. }
                 | Error::MandrelSteps { .. }
@@ -416,6 +473,12 @@ pub enum CellProblem {
     /// A calibration tolerance not finite or outside 0–100.
     #[error("[tolerance]: every figure must be finite and 0–100")]
     Tolerance,
+    /// A six-axis arm controller's sync signal number outside 1–4096 (`[robot_io]`).
+    #[error("[robot_io]: signal {signal}: expected 1–4096")]
+    RobotIoSignal {
+        /// The signal number given.
+        signal: u16,
+    },
 }
 
 /// A lathe winder setting or start refused before anything moves (seed 000 Ch. 7, seed 003

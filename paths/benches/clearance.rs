@@ -74,7 +74,10 @@ fn clearance(c: &mut Criterion) {
         obstacles: &[],
         home_mm: None,
         approach_speed_mm_s: 100.0,
-        arm: Some((&arm, ElbowBranch::Up)),
+        arm: Some(paths::clearance::sweep::SweptArm::Irb62(
+            &arm,
+            ElbowBranch::Up,
+        )),
     };
     let refs: Vec<&PathPlan> = plans.iter().collect();
     let report = sweep(&cell, &solid, &refs).unwrap();

@@ -39,7 +39,7 @@ pub use error::Error;
 pub use geodesic::{Direction, PathStart, SurfacePath};
 pub use mandrel::{Section, Tube};
 pub use mesh::Mesh;
-pub use plan::{Movement, PathPlan, Pose, Segment, Setup, Speeds};
+pub use plan::{ArmJoints, Movement, PathArm, PathPlan, Pose, Segment, Setup, SixAxisCell, Speeds};
 pub use robot::{Arm, ArmFault, ArmPose, Capsule, ElbowBranch, Joint, Joints};
 pub use segment::SurfacePoint;
 pub use spine::Spine;

@@ -45,6 +45,7 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 use nalgebra::{Point3, Unit, UnitQuaternion, Vector2, Vector3};
 
+use crate::arm::{Joints6, MandrelAxis, PathReport as SixAxisReport, SixAxisArm};
 use crate::calibration::{Calibration, CellTransform};
 use crate::robot::{Arm, ArmFault, ElbowBranch, JointTrig, Joints};
 use crate::segment::SurfacePoint;
@@ -75,6 +76,22 @@ pub struct Setup {
     pub calibration: Calibration,
     /// The mandrel drive train.
     pub gearing: Gearing,
+    /// A six-axis arm and where the mandrel turns in its base frame (`[cell.robot] kind = "opw"`
+    /// or `"ur"`); `None` plans for the IRB 6/2 of `arm`. With a six-axis arm, `arm`,
+    /// `robot_distance_mm`, `mandrel_height_mm` and the calibration's cell placement are not
+    /// used: the mandrel axis gives the mandrel frame's place (the calibration's sense of
+    /// rotation and zero still turn commanded angles into indexer positions).
+    pub six_axis: Option<SixAxisCell>,
+}
+
+/// A six-axis arm in a cell ([`crate::arm`]): the arm and the mandrel's rotation axis in its base
+/// frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SixAxisCell {
+    /// The arm, its tool (the payout eye), limits, link radii and margins.
+    pub arm: SixAxisArm,
+    /// The mandrel's rotation axis in the robot base frame and who turns it.
+    pub axis: MandrelAxis,
 }
 
 /// How robot and mandrel move together (seed 001 §5.4).
@@ -108,6 +125,22 @@ pub struct Speeds {
 }
 
 impl Setup {
+    /// A mandrel-frame point in the cell frame (the robot base frame) with the mandrel at
+    /// `angle_rad`: through the calibrated cell transform for the IRB 6/2, through the mandrel
+    /// axis for a six-axis arm.
+    pub fn mandrel_to_cell(&self, angle_rad: f64, p: &Point3<f64>) -> Point3<f64> {
+        match &self.six_axis {
+            Some(six) => six.axis.to_base(angle_rad, p),
+            None => {
+                let cell = self
+                    .calibration
+                    .transform(self.robot_distance_mm, self.mandrel_height_mm);
+                let (s, c) = angle_rad.sin_cos();
+                cell.to_cell(&Point3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z))
+            }
+        }
+    }
+
     /// Checks every length, the arm and the calibration.
     pub fn validate(&self) -> Result<(), Error> {
         positive("robot_distance_mm", self.robot_distance_mm)?;
@@ -120,7 +153,11 @@ impl Setup {
                 expected: "must lie in (0°, 90°]",
             });
         }
-        self.arm.validate()?;
+        if let Some(six) = &self.six_axis {
+            six.arm.validate()?;
+        } else {
+            self.arm.validate()?;
+        }
         self.calibration.validate()?;
         self.gearing.validate()
     }
@@ -171,11 +208,13 @@ pub struct Pose {
     /// The eye, cell frame (at the commanded mandrel angle).
     pub eye_mm: Point3<f64>,
     /// The arm's joints for this pose.
-    pub joints: Joints,
+    pub joints: ArmJoints,
     /// Fibre entry angle: the tow line (eye to tangent point) against the eye's roll axis, rad.
     pub entry_angle_rad: f64,
-    /// Wrist orientation, cell frame: App. A's pitch-then-roll composed with the base yaw
-    /// (`R_z(q1) R_y(θ) R_x(Φ)`, its `x` axis the roll axis); a continuous function of the joints,
+    /// Wrist orientation, cell frame, its `x` axis the eye's axis (toward the mandrel). IRB 6/2:
+    /// App. A's pitch-then-roll composed with the base yaw (`R_z(q1) R_y(θ) R_x(Φ)`, `x` the roll
+    /// axis); six-axis arms: the tool frame turned so that its `x` is the tool's `z`
+    /// ([`ArmJoints::SixAxis`] keeps the tool frame itself). A continuous function of the joints,
     /// so it never flips sign along a path.
     pub wrist_q: UnitQuaternion<f64>,
     /// Eq 3.7 mandrel angle, unwrapped along the path.
@@ -208,6 +247,65 @@ pub struct Segment {
     pub robot_paced: bool,
 }
 
+/// The arm's joints at one pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ArmJoints {
+    /// The IRB 6/2's five joints (seed 001 §4.1).
+    Irb62(Joints),
+    /// A six-axis arm ([`crate::arm`]).
+    SixAxis {
+        /// The controller's joint angles, rad.
+        joints: Joints6,
+        /// The tool frame's orientation in the base frame (`z` along the free fibre).
+        tool_q: UnitQuaternion<f64>,
+        /// The mandrel axis angle when the robot controller turns it (`drive = "robot"`), rad:
+        /// the commanded mandrel angle.
+        external_rad: Option<f64>,
+    },
+}
+
+impl ArmJoints {
+    /// The IRB 6/2's joints, `None` for a six-axis arm.
+    pub fn irb62(&self) -> Option<&Joints> {
+        match self {
+            ArmJoints::Irb62(j) => Some(j),
+            ArmJoints::SixAxis { .. } => None,
+        }
+    }
+
+    /// Every joint angle in axis order, rad (5 or 6 values).
+    pub fn to_array(&self) -> Vec<f64> {
+        match self {
+            ArmJoints::Irb62(j) => j.to_array().to_vec(),
+            ArmJoints::SixAxis { joints, .. } => joints.to_vec(),
+        }
+    }
+
+    /// Every joint angle in axis order, degrees (5 or 6 values).
+    pub fn to_degrees(&self) -> Vec<f64> {
+        self.to_array().into_iter().map(f64::to_degrees).collect()
+    }
+}
+
+/// What a path kept of the arm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PathArm {
+    /// The IRB 6/2's elbow branch, used for the whole path.
+    Irb62(ElbowBranch),
+    /// A six-axis arm's configuration and margins ([`crate::arm::path`]).
+    SixAxis(SixAxisReport),
+}
+
+impl PathArm {
+    /// The IRB 6/2's elbow branch, `None` for a six-axis arm.
+    pub fn elbow(&self) -> Option<ElbowBranch> {
+        match self {
+            PathArm::Irb62(e) => Some(*e),
+            PathArm::SixAxis(_) => None,
+        }
+    }
+}
+
 /// The plan for one path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PathPlan {
@@ -217,8 +315,8 @@ pub struct PathPlan {
     pub segments: Vec<Segment>,
     /// The indexer position at the start pose, in its own sense of rotation from its zero, rad.
     pub sync_drive_rad: f64,
-    /// The elbow branch used for the whole path.
-    pub elbow: ElbowBranch,
+    /// The configuration kept for the whole path.
+    pub arm: PathArm,
     /// Worst |commanded − ideal| mandrel angle over the segment ends.
     pub max_drift_rad: f64,
     /// Least distance from the eye to the mandrel surface.
@@ -227,13 +325,14 @@ pub struct PathPlan {
     pub max_entry_angle_rad: f64,
 }
 
-/// Per-point results of the first pass.
+/// Per-point results of the first pass: the eye (mandrel frame), eq 3.7's angle's cosine and
+/// sine, and that angle unwrapped along the path, rad.
 #[derive(Debug, Clone, Copy)]
-struct Prepared {
-    eye: Point3<f64>,
+pub(crate) struct Prepared {
+    pub(crate) eye: Point3<f64>,
     cos: f64,
     sin: f64,
-    ideal: f64,
+    pub(crate) ideal: f64,
 }
 
 /// An arm fault at pose `segment`.
@@ -283,10 +382,13 @@ pub fn plan(
             expected: "must be at least 1",
         });
     }
+    if let Some(six) = &setup.six_axis {
+        return crate::arm::winding::plan(points, clearance_mm, setup, six, speeds);
+    }
     let cell: CellTransform = setup
         .calibration
         .transform(setup.robot_distance_mm, setup.mandrel_height_mm);
-    let prepared = eyes_and_angles(points, setup, cell.robot_distance_mm)?;
+    let prepared = eyes_and_angles(points, setup, cell.robot_distance_mm, 0.0)?;
 
     // Pass 2: steps (remainder carried), the commanded angle, the cell-frame pose, the arm.
     let step_angle = setup.gearing.step_angle_rad();
@@ -322,12 +424,33 @@ pub fn plan(
     let (min_clearance, max_entry) = (poser.min_clearance, poser.max_entry);
 
     // Pass 3: the segments' times and speeds.
-    let segments = timed_segments(&start, &start_trig, &poses, setup, speeds)?;
+    let arm = &setup.arm;
+    let trigs: Vec<&JointTrig> = std::iter::once(&start_trig)
+        .chain(poses.iter().map(|(_, _, t)| t))
+        .collect();
+    let joints = |pose: &Pose| pose.joints.irb62().copied().unwrap_or_default();
+    let robot_time_s = |i: usize, prev: &Pose, pose: &Pose| {
+        let travel_v = pose.eye_mm - prev.eye_mm;
+        let travel = travel_v.norm();
+        let linear_s = if travel > 1e-9 {
+            let dir = Unit::new_unchecked(travel_v / travel);
+            let fastest = arm
+                .max_tool_speed_at(trigs[i], &dir)
+                .min(arm.max_tool_speed_at(trigs[i + 1], &dir))
+                .min(speeds.max_speed_mm_s);
+            travel / fastest
+        } else {
+            0.0
+        };
+        linear_s.max(arm.joint_time_s(&joints(prev), &joints(pose)))
+    };
+    let stepped: Vec<(Pose, i64)> = poses.iter().map(|(p, s, _)| (*p, *s)).collect();
+    let segments = timed_segments(&start, &stepped, setup, speeds, robot_time_s)?;
     Ok(PathPlan {
         sync_drive_rad: setup.calibration.drive_angle_rad(start.mandrel_rad),
         start,
         segments,
-        elbow,
+        arm: PathArm::Irb62(elbow),
         max_drift_rad,
         min_eye_clearance_mm: min_clearance,
         max_entry_angle_rad: max_entry,
@@ -336,8 +459,15 @@ pub fn plan(
 
 /// Pass 1: the eye in the mandrel frame (eqs 3.8–3.14; the start eye on the path's tangent) and
 /// eq 3.7's angle at every point, unwrapped by the path's own angle around the spine, on the
-/// flank that keeps the eye between the robot (at `b` mm) and the mandrel.
-fn eyes_and_angles(points: &[SurfacePoint], setup: &Setup, b: f64) -> Result<Vec<Prepared>, Error> {
+/// flank that keeps the eye between the robot (at `b` mm from the rotation axis) and the mandrel.
+/// Eq 3.7 places the robot on the drive frame's `−x` side; `turn_rad` is the robot's angle
+/// about the axis from there (0 in the thesis cell), added to every angle.
+pub(crate) fn eyes_and_angles(
+    points: &[SurfacePoint],
+    setup: &Setup,
+    b: f64,
+    turn_rad: f64,
+) -> Result<Vec<Prepared>, Error> {
     // The flank that keeps the eye between the robot and the mandrel: the fibre must travel toward
     // the robot, i.e. along the counter-clockwise horizontal tangent on the left flank.
     let n0 = points[0].normal;
@@ -390,6 +520,13 @@ fn eyes_and_angles(points: &[SurfacePoint], setup: &Setup, b: f64) -> Result<Vec
             sin: angle.sin,
             ideal,
         });
+    }
+    if turn_rad != 0.0 {
+        let (s, c) = turn_rad.sin_cos();
+        for p in &mut prepared {
+            (p.cos, p.sin) = (p.cos * c - p.sin * s, p.sin * c + p.cos * s);
+            p.ideal += turn_rad;
+        }
     }
 
     Ok(prepared)
@@ -454,7 +591,8 @@ impl<F: Fn(&Point3<f64>) -> f64> Poser<'_, F> {
             .and_then(|(j, t)| arm.check_joints(&j).map(|()| (j, t)))
             .map_err(|e| arm_error(e, k))?;
         if let Some(prev) = previous {
-            arm.check_continuity(&prev.joints, &joints)
+            let prev_joints = prev.joints.irb62().copied().unwrap_or_default();
+            arm.check_continuity(&prev_joints, &joints)
                 .map_err(|e| arm_error(e, k))?;
         }
         if entry_angle_rad > self.setup.entry_angle_max_rad {
@@ -483,7 +621,7 @@ impl<F: Fn(&Point3<f64>) -> f64> Poser<'_, F> {
                 normal: self.points[k].normal,
                 eye_mandrel_mm: prep.eye,
                 eye_mm,
-                joints,
+                joints: ArmJoints::Irb62(joints),
                 entry_angle_rad,
                 wrist_q,
                 ideal_mandrel_rad: prep.ideal,
@@ -496,26 +634,22 @@ impl<F: Fn(&Point3<f64>) -> f64> Poser<'_, F> {
 
 /// Pass 3: each segment's time (the mandrel's profile; in discrete movement slowed to the robot,
 /// in program movement refused where the robot cannot keep up) and the robot's speed.
-fn timed_segments(
+/// `robot_time_s(i, from, to)` is the robot's least time for segment `i + 1`.
+pub(crate) fn timed_segments(
     start: &Pose,
-    start_trig: &JointTrig,
-    poses: &[(Pose, i64, JointTrig)],
+    poses: &[(Pose, i64)],
     setup: &Setup,
     speeds: &Speeds,
+    robot_time_s: impl Fn(usize, &Pose, &Pose) -> f64,
 ) -> Result<Vec<Segment>, Error> {
-    let arm = &setup.arm;
     let steps_per_rev = setup.gearing.steps_per_mandrel_rev();
-    let total_steps: u64 = poses.iter().map(|(_, s, _)| s.unsigned_abs()).sum();
+    let total_steps: u64 = poses.iter().map(|(_, s)| s.unsigned_abs()).sum();
     let mut covered = 0u64;
     let sign = i64::from(setup.calibration.rotation_sign);
     let mut segments: Vec<Segment> = Vec::with_capacity(poses.len());
-    for (i, (pose, steps, trig)) in poses.iter().enumerate() {
+    for (i, (pose, steps)) in poses.iter().enumerate() {
         let k = i + 1;
-        let (prev, prev_trig) = if i == 0 {
-            (start, start_trig)
-        } else {
-            (&poses[i - 1].0, &poses[i - 1].2)
-        };
+        let prev = if i == 0 { start } else { &poses[i - 1].0 };
         let n = steps.unsigned_abs();
         let mut duration_s = match speeds.movement {
             Movement::Discrete => speeds.mandrel.duration_s(n, steps_per_rev),
@@ -530,19 +664,8 @@ fn timed_segments(
                     - before
             }
         };
-        let travel_v = pose.eye_mm - prev.eye_mm;
-        let travel = travel_v.norm();
-        let linear_s = if travel > 1e-9 {
-            let dir = Unit::new_unchecked(travel_v / travel);
-            let fastest = arm
-                .max_tool_speed_at(prev_trig, &dir)
-                .min(arm.max_tool_speed_at(trig, &dir))
-                .min(speeds.max_speed_mm_s);
-            travel / fastest
-        } else {
-            0.0
-        };
-        let robot_time_s = linear_s.max(arm.joint_time_s(&prev.joints, &pose.joints));
+        let travel = (pose.eye_mm - prev.eye_mm).norm();
+        let robot_time_s = robot_time_s(i, prev, pose);
         let mut mandrel = speeds.mandrel;
         let mut robot_paced = false;
         if robot_time_s > duration_s * (1.0 + 1e-12) {
@@ -573,7 +696,7 @@ fn timed_segments(
             // Segments of equal steps each last at least the instruction time at full speed
             // (the ramps only lengthen the first and last) when each has at least the whole
             // steps the mandrel turns in that time.
-            let steps: Vec<u64> = poses.iter().map(|(_, s, _)| s.unsigned_abs()).collect();
+            let steps: Vec<u64> = poses.iter().map(|(_, s)| s.unsigned_abs()).collect();
             return Err(Error::SegmentTooShort {
                 segment: k,
                 duration_s,
@@ -752,6 +875,7 @@ mod tests {
             entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
             calibration: Calibration::default(),
             gearing: Gearing::default(),
+            six_axis: None,
         }
     }
 
@@ -859,7 +983,8 @@ mod tests {
                 let mut worst = 0.0f64;
                 let mut previous: Option<&Pose> = None;
                 for pose in poses(&p) {
-                    let fk = arm.forward(&pose.joints);
+                    let joints = *pose.joints.irb62().unwrap();
+                    let fk = arm.forward(&joints);
                     // The joints put the eye where the plan says.
                     assert_abs_diff_eq!(fk.eye_mm, pose.eye_mm, epsilon = 1e-9);
                     // The roll axis lies in the vertical plane through the pedestal axis and eye.
@@ -896,11 +1021,11 @@ mod tests {
                     // The rocker arm's plane (tool x–z) holds the tow line.
                     assert!((pose.wrist_q * Vector3::y()).dot(&tow).abs() < 1e-9);
                     // One elbow branch for the whole path.
-                    assert!(pose.joints.elbow_rad < FRAC_PI_2);
-                    assert!(arm.check_joints(&pose.joints).is_ok());
+                    assert!(joints.elbow_rad < FRAC_PI_2);
+                    assert!(arm.check_joints(&joints).is_ok());
                     previous = Some(pose);
                 }
-                assert_eq!(p.elbow, ElbowBranch::Up);
+                assert_eq!(p.arm.elbow(), Some(ElbowBranch::Up));
                 assert_abs_diff_eq!(p.max_entry_angle_rad, worst, epsilon = 1e-15);
             }
         }
@@ -1170,8 +1295,8 @@ mod tests {
             let travel = s.pose.eye_mm - prev.eye_mm;
             let dir = Unit::new_normalize(travel);
             let fastest = arm
-                .max_tool_speed_mm_s(&prev.joints, &dir)
-                .min(arm.max_tool_speed_mm_s(&s.pose.joints, &dir))
+                .max_tool_speed_mm_s(prev.joints.irb62().unwrap(), &dir)
+                .min(arm.max_tool_speed_mm_s(s.pose.joints.irb62().unwrap(), &dir))
                 .min(2000.0);
             // Never faster than the arm at that pose, nor than the controller.
             assert!(s.speed_mm_s <= fastest * (1.0 + 1e-9), "{k}");

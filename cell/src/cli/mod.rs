@@ -8,6 +8,7 @@ pub mod geodesic;
 pub mod jog;
 pub mod lathe;
 pub mod plan;
+pub mod post;
 pub mod predict;
 pub mod pty;
 pub mod run;
@@ -73,6 +74,8 @@ pub struct Cli {
 pub enum Command {
     /// Plan a job: write .ROB, .IND, sequence and run files (the TOOL step).
     Plan(plan::PlanArgs),
+    /// Write a six-axis job's programs for its controller (RAPID, KRL, FANUC TP, URScript).
+    Post(post::PostArgs),
     /// Check a job for collisions of the eye and the arm and snags of the free fibre (exit 3).
     Check(check::CheckArgs),
     /// Predict each mode's time and placement error on the simulated cell, before winding.
@@ -144,6 +147,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Plan(args) => plan::run(args),
         Command::Check(args) => check::run(args),
+        Command::Post(args) => post::run(args),
         Command::Run(args) => run::run(args),
         Command::Predict(args) => predict::run(args),
         Command::Jog(args) => jog::run(args),

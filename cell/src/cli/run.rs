@@ -320,7 +320,7 @@ fn sequence_gate(args: &RunArgs, loaded: &Loaded) -> Result<Option<Clearance>, F
     let (job, text) = sequences::Job::load(job_path).map_err(Failure::input)?;
     let plan = cell::plan::tool::plan(&job, &text, job_path).map_err(Failure::from_cell)?;
     let planned = batch::files_of_job(
-        &cell::plan::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+        &cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?,
     );
     let dir = args.input.parent().unwrap_or(Path::new("."));
     let run_path = args
@@ -475,6 +475,8 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
     let mode = args.mode.map(mode_of);
     let (loaded, job_cell, reach, name, clearance) = if is_job_file(&args.input) {
         let (mut job, text) = sequences::Job::load(&args.input).map_err(Failure::input)?;
+        cell::plan::tool::irb62_only(&job, &text, &args.input, "run")
+            .map_err(Failure::from_cell)?;
         // A mode given on the command line is planned for (its speeds and guards), not only
         // applied to files planned for another.
         if let Some(m) = mode {
@@ -483,7 +485,7 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
         }
         let plan = cell::plan::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
         let files = batch::files_of_job(
-            &cell::plan::tool::control_files(&job, &plan).map_err(Failure::from_cell)?,
+            &cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?,
         );
         let dir = args.input.parent().unwrap_or(Path::new("."));
         let mut loaded =

@@ -63,7 +63,7 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
         })
         .collect();
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
-    let files = tool::control_files(&job, &plan).map_err(Failure::from_cell)?;
+    let files = cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?;
     output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
         .map_err(Failure::from_cell)?;
     let out = if args.json {

@@ -12,7 +12,8 @@ use std::path::Path;
 use nalgebra::Point3;
 use paths::clearance::{
     self, DEFAULT_EYE_RADIUS_MM, DEFAULT_SNAG_TOLERANCE_MM, EyeMechanism, Obstacle, Report, Solid,
-    TubeSolid, sweep::Cell,
+    TubeSolid,
+    sweep::{Cell, SweptArm},
 };
 use paths::{Arm, ElbowBranch, Tube};
 use sequences::job::Job;
@@ -113,7 +114,10 @@ pub fn check(job: &Job, text: &str, file: &Path, plan: JobPlan) -> Result<Checke
         obstacles: &obstacles,
         home_mm,
         approach_speed_mm_s: speeds.base_speed_mm_s * tool::APPROACH_SPEED_PCT / 100.0,
-        arm: Some((&arm, ELBOW_BRANCH)),
+        arm: Some(match &setup.six_axis {
+            Some(six) => SweptArm::SixAxis(&six.arm),
+            None => SweptArm::Irb62(&arm, ELBOW_BRANCH),
+        }),
     };
     let plans: Vec<&paths::PathPlan> = plan.paths.iter().map(|p| &p.plan).collect();
     let report = clearance::sweep(&cell, solid.as_ref(), &plans)
@@ -127,6 +131,59 @@ pub fn check(job: &Job, text: &str, file: &Path, plan: JobPlan) -> Result<Checke
         arm,
         setup,
     })
+}
+
+impl Checked {
+    /// A cell-frame point in the mandrel frame with the mandrel at `phi` rad: the check's frames
+    /// (the IRB 6/2's nominal cell, the rotation axis through `(b, 0, h)`; a six-axis cell's
+    /// `[cell.mandrel]` axis).
+    pub fn to_mandrel(&self, p: &Point3<f64>, phi: f64) -> Point3<f64> {
+        match &self.setup.six_axis {
+            Some(six) => six.axis.frame(phi).inverse_transform_point(p),
+            None => {
+                let s = &self.setup;
+                let w = p - nalgebra::Vector3::new(s.robot_distance_mm, 0.0, s.mandrel_height_mm);
+                let (sn, cs) = phi.sin_cos();
+                Point3::new(cs * w.x + sn * w.y, -sn * w.x + cs * w.y, w.z)
+            }
+        }
+    }
+
+    /// A cell-frame direction in the mandrel frame with the mandrel at `phi` rad.
+    pub fn direction_to_mandrel(
+        &self,
+        v: &nalgebra::Vector3<f64>,
+        phi: f64,
+    ) -> nalgebra::Vector3<f64> {
+        self.to_mandrel(&Point3::from(*v), phi) - self.to_mandrel(&Point3::origin(), phi)
+    }
+
+    /// The arm's links that the check tests, cell frame, with the eye at `eye_mm` and the tool
+    /// axis `axis` (eye toward the mandrel): the IRB 6/2's pedestal, upper arm, forearm and wrist
+    /// from its inverse kinematics (elbow up, the roll axis in the arm plane); a six-axis arm's
+    /// seven capsules from `joints` (none without them). Empty where the arm cannot take the pose.
+    pub fn links_at(
+        &self,
+        eye_mm: &Point3<f64>,
+        axis: &nalgebra::Vector3<f64>,
+        joints: Option<&paths::arm::Joints6>,
+    ) -> Vec<paths::Capsule> {
+        if let Some(six) = &self.setup.six_axis {
+            return joints.map_or_else(Vec::new, |q| six.arm.links(q).to_vec());
+        }
+        let rho = eye_mm.x.hypot(eye_mm.y);
+        if rho <= 1e-9 {
+            return Vec::new();
+        }
+        let across = nalgebra::Vector3::new(-eye_mm.y / rho, eye_mm.x / rho, 0.0);
+        let Some(roll) = nalgebra::Unit::try_new(axis - across * axis.dot(&across), 1e-9) else {
+            return Vec::new();
+        };
+        match self.arm.inverse(eye_mm, &roll, 0.0, ELBOW_BRANCH) {
+            Ok(j) => self.arm.links(&j).iter().take(4).copied().collect(),
+            Err(_) => Vec::new(),
+        }
+    }
 }
 
 /// One line: clear with the least clearances, or the number of findings and the first.

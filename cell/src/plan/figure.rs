@@ -9,7 +9,7 @@
 
 use std::fmt::Write;
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Point3;
 
 use crate::plan::check::Checked;
 
@@ -23,10 +23,7 @@ const PATH_COLOURS: [&str; 4] = ["#1f77b4", "#2ca02c", "#9467bd", "#8c564b"];
 
 /// A cell-frame point in the mandrel frame at mandrel angle `phi`.
 fn to_mandrel(checked: &Checked, p: &Point3<f64>, phi: f64) -> Point3<f64> {
-    let setup = &checked.setup;
-    let w = p - Vector3::new(setup.robot_distance_mm, 0.0, setup.mandrel_height_mm);
-    let (s, c) = phi.sin_cos();
-    Point3::new(c * w.x + s * w.y, -s * w.x + c * w.y, w.z)
+    checked.to_mandrel(p, phi)
 }
 
 /// One view: which two mandrel-frame axes it shows.
@@ -373,7 +370,7 @@ fn arm(s: &mut String, view: &View, worst_links: &[(Point3<f64>, Point3<f64>, f6
 fn findings(s: &mut String, checked: &Checked, view: &View) {
     for f in &checked.report.findings {
         let eye = to_mandrel(checked, &f.eye_mm, f.mandrel_rad);
-        let axis = rotate(&f.axis, f.mandrel_rad);
+        let axis = checked.direction_to_mandrel(&f.axis, f.mandrel_rad);
         let back = eye - axis * checked.eye.length_mm;
         line(
             s,
@@ -391,12 +388,6 @@ fn findings(s: &mut String, checked: &Checked, view: &View) {
     }
 }
 
-/// A cell-frame direction in the mandrel frame at angle `phi`.
-fn rotate(v: &Vector3<f64>, phi: f64) -> Vector3<f64> {
-    let (s, c) = phi.sin_cos();
-    Vector3::new(c * v.x + s * v.y, -s * v.x + c * v.y, v.z)
-}
-
 /// The eye mechanism and the arm's links at the worst pose, mandrel frame: `(a, b, radius)`.
 fn worst_links(checked: &Checked) -> Vec<(Point3<f64>, Point3<f64>, f64)> {
     let Some(w) = checked.report.worst else {
@@ -411,24 +402,12 @@ fn worst_links(checked: &Checked) -> Vec<(Point3<f64>, Point3<f64>, f64)> {
         ),
         checked.eye.radius_mm,
     )];
-    let rho = w.eye_mm.x.hypot(w.eye_mm.y);
-    if rho > 1e-9 {
-        let across = Vector3::new(-w.eye_mm.y / rho, w.eye_mm.x / rho, 0.0);
-        let in_plane = w.axis - across * w.axis.dot(&across);
-        if let Some(roll) = nalgebra::Unit::try_new(in_plane, 1e-9)
-            && let Ok(j) =
-                checked
-                    .arm
-                    .inverse(&w.eye_mm, &roll, 0.0, crate::plan::check::ELBOW_BRANCH)
-        {
-            for link in checked.arm.links(&j).iter().take(4) {
-                out.push((
-                    to_mandrel(checked, &link.a, w.mandrel_rad),
-                    to_mandrel(checked, &link.b, w.mandrel_rad),
-                    link.radius_mm,
-                ));
-            }
-        }
+    for link in checked.links_at(&w.eye_mm, &w.axis, w.joints.as_ref()) {
+        out.push((
+            to_mandrel(checked, &link.a, w.mandrel_rad),
+            to_mandrel(checked, &link.b, w.mandrel_rad),
+            link.radius_mm,
+        ));
     }
     out
 }

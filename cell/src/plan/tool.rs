@@ -5,7 +5,7 @@
 //! `NAME_<prog>.IND`, the sequence file and the run file.
 
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use paths::geodesic::{self, PathStart};
 use paths::plan::ENTRY_ANGLE_MAX_DEG;
@@ -13,7 +13,7 @@ use paths::{Arm, Calibration, MandrelProfile, PathPlan, Setup, Speeds, Spine, Tu
 use sequences::Movement;
 use sequences::job::{Direction, Job, MandrelKind, PathSpec};
 use sequences::rob::{Header, Instruction, Interpolation, Reference};
-use sequences::{MandrelFile, MandrelMove, RobotFile, RunFile, SequenceFile};
+use sequences::{MandrelFile, MandrelMove, RobotFile};
 
 use crate::Error;
 
@@ -281,6 +281,10 @@ pub fn setup(job: &Job) -> (Setup, Speeds) {
                 motor_teeth,
                 mandrel_teeth,
             },
+            six_axis: job.six_axis_arm().map(|arm| paths::SixAxisCell {
+                arm,
+                axis: job.mandrel_axis(),
+            }),
         },
         Speeds {
             mandrel: {
@@ -360,6 +364,27 @@ fn error_span(job: &Job, spec: &PathSpec, error: &paths::Error) -> Range<usize> 
         },
         _ => spec.program.span(),
     }
+}
+
+/// Refuses a job for a six-axis arm in `command`, a command that drives or simulates the IRB 6/2
+/// cell (`run`, `predict`): one line at the job's `[cell.robot] kind`.
+pub fn irb62_only(job: &Job, text: &str, file: &Path, command: &'static str) -> Result<(), Error> {
+    let Some(kind) = job.cell.robot.as_ref().and_then(|r| r.kind.as_ref()) else {
+        return Ok(());
+    };
+    let name = match kind.get_ref() {
+        sequences::job::RobotKind::Irb6 => return Ok(()),
+        sequences::job::RobotKind::Opw => "opw",
+        sequences::job::RobotKind::Ur => "ur",
+    };
+    let (line, column) = sequences::error::line_column(text, kind.span().start);
+    Err(Error::SixAxisNotDriven {
+        file: file.to_path_buf(),
+        line,
+        column,
+        kind: name,
+        command,
+    })
 }
 
 /// Plans every path of `job`. `text` and `file` locate errors in the job file.
@@ -447,7 +472,10 @@ fn plan_paths(
     let mut planned = Vec::with_capacity(job.paths.len());
     for spec in &job.paths {
         let segments = *spec.segments.get_ref() as usize;
-        program_fits_memory(job, spec, text, file)?;
+        if setup.six_axis.is_none() {
+            // The IRB 6/2's robot computer stores fine and medium programs.
+            program_fits_memory(job, spec, text, file)?;
+        }
         let mut surface_distances_mm = None;
         let mut desired_mm = None;
         let (points, smoothing_deviation_mm) = if let Some(dxf) = &spec.dxf {
@@ -560,7 +588,9 @@ fn plan_paths(
                 let span = culprit(job, &e).unwrap_or_else(|| error_span(job, spec, &e));
                 located(e, span)
             })?;
-        check_speeds(job, &plan).map_err(|e| located(e, spec.program.span()))?;
+        if setup.six_axis.is_none() {
+            check_speeds(job, &plan).map_err(|e| located(e, spec.program.span()))?;
+        }
         planned.push(PlannedPath {
             name: format!("{}_{}", job.name.get_ref(), spec.program.get_ref()),
             program: *spec.program.get_ref(),
@@ -750,37 +780,6 @@ pub fn mandrel_file(job: &Job, path: &PlannedPath) -> MandrelFile {
     }
 }
 
-/// Every output file of a planned job: `(file name, contents)`. Fails if a file cannot be
-/// written as its reader would read it back ([`sequences::Error::Unwritable`]).
-pub fn control_files(job: &Job, plan: &JobPlan) -> Result<Vec<(PathBuf, String)>, Error> {
-    let mut files = Vec::new();
-    for path in &plan.paths {
-        files.push((
-            PathBuf::from(format!("{}.ROB", path.name)),
-            robot_file(job, path)?.write()?,
-        ));
-        files.push((
-            PathBuf::from(format!("{}.IND", path.name)),
-            mandrel_file(job, path).write()?,
-        ));
-    }
-    let sequence = SequenceFile {
-        names: plan.paths.iter().map(|p| p.name.clone()).collect(),
-    };
-    let run = RunFile {
-        programs: plan.paths.iter().map(|p| p.program).collect(),
-    };
-    files.push((
-        PathBuf::from(format!("{}.SEQ", job.name.get_ref())),
-        sequence.write()?,
-    ));
-    files.push((
-        PathBuf::from(format!("{}.RUN", job.name.get_ref())),
-        run.write()?,
-    ));
-    Ok(files)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -834,6 +833,7 @@ mod tests {
             let plan = &path.plan;
             for pose in std::iter::once(&plan.start).chain(plan.segments.iter().map(|s| &s.pose)) {
                 let j = &pose.joints;
+                let j = j.irb62().unwrap();
                 let (s1, c1) = j.base_yaw_rad.sin_cos();
                 let rho = upper * j.shoulder_rad.sin() + fore * j.elbow_rad.cos();
                 let z = shoulder_height + upper * j.shoulder_rad.cos() + fore * j.elbow_rad.sin();

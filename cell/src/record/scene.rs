@@ -10,11 +10,11 @@
 use std::collections::BTreeMap;
 use std::io::Cursor;
 
-use nalgebra::{Point3, Unit, Vector3};
+use nalgebra::{Point3, Vector3};
 use serde_json::{Value, json};
 
 use crate::Error;
-use crate::plan::check::{Checked, ELBOW_BRANCH};
+use crate::plan::check::Checked;
 
 /// The topic.
 pub const TOPIC: &str = "/check/scene";
@@ -55,10 +55,7 @@ fn entity(id: &str, ns: u64, lines_: Vec<Value>, spheres: Vec<Value>) -> Value {
 }
 
 fn to_mandrel(checked: &Checked, p: &Point3<f64>, phi: f64) -> Point3<f64> {
-    let s = &checked.setup;
-    let w = p - Vector3::new(s.robot_distance_mm, 0.0, s.mandrel_height_mm);
-    let (sn, cs) = phi.sin_cos();
-    Point3::new(cs * w.x + sn * w.y, -sn * w.x + cs * w.y, w.z)
+    checked.to_mandrel(p, phi)
 }
 
 /// The scene as MCAP bytes.
@@ -154,19 +151,17 @@ pub fn mcap(checked: &Checked) -> Result<Vec<u8>, Error> {
                 m(&pose.eye_mandrel_mm),
                 m(&(pose.eye_mandrel_mm - axis * checked.eye.length_mm)),
             ];
-            let cell_axis = pose.wrist_q * Vector3::z();
-            let e = pose.eye_mm;
-            let rho = e.x.hypot(e.y);
-            if rho > 1e-9 {
-                let across = Vector3::new(-e.y / rho, e.x / rho, 0.0);
-                if let Some(roll) = Unit::try_new(cell_axis - across * cell_axis.dot(&across), 1e-9)
-                    && let Ok(j) = checked.arm.inverse(&e, &roll, 0.0, ELBOW_BRANCH)
-                {
-                    for link in checked.arm.links(&j).iter().take(4) {
-                        parts.push(m(&to_mandrel(checked, &link.a, phi)));
-                        parts.push(m(&to_mandrel(checked, &link.b, phi)));
-                    }
-                }
+            let joints = match pose.joints {
+                paths::ArmJoints::SixAxis { joints, .. } => Some(joints),
+                paths::ArmJoints::Irb62(_) => None,
+            };
+            for link in checked.links_at(
+                &pose.eye_mm,
+                &(pose.wrist_q * Vector3::x()),
+                joints.as_ref(),
+            ) {
+                parts.push(m(&to_mandrel(checked, &link.a, phi)));
+                parts.push(m(&to_mandrel(checked, &link.b, phi)));
             }
             let ns = ((offset_s + t) * 1e9).round().max(0.0) as u64;
             let update = json!({"deletions": [], "entities": [

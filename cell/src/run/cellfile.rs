@@ -30,6 +30,20 @@ pub struct CellFile {
     /// Calibration tolerances (`windcell predict`'s setup Monte Carlo).
     #[serde(default)]
     pub tolerance: Option<ToleranceSection>,
+    /// A six-axis arm's controller I/O for the sync lines of a decoupled mandrel.
+    #[serde(default)]
+    pub robot_io: Option<RobotIoSection>,
+}
+
+/// `[robot_io]`: the robot controller's digital signals that carry the sync lines when a
+/// six-axis arm's own program winds beside windcell's indexer (`docs/robot-programs.md`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotIoSection {
+    /// The robot's digital output that starts the indexer's segment (1–4096).
+    pub start_output: u16,
+    /// The robot's digital input the indexer raises when the mandrel is in position (1–4096).
+    pub in_position_input: u16,
 }
 
 /// `[tolerance]`: half-widths of how far the true cell may lie from its calibration; absent
@@ -86,6 +100,13 @@ pub enum Devices {
     },
 }
 
+/// The sync signals of a six-axis arm's controller when the cell file names none: digital
+/// output 1 and input 1.
+pub const DEFAULT_ROBOT_IO: sequences::program::SyncSignals = sequences::program::SyncSignals {
+    start_output: 1,
+    in_position_input: 1,
+};
+
 /// The cell as a run uses it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cell {
@@ -102,6 +123,8 @@ pub struct Cell {
     pub arm: paths::robot::Arm,
     /// Calibration tolerances.
     pub tolerances: Tolerances,
+    /// A six-axis arm's sync signals (`[robot_io]`, default output 1 and input 1).
+    pub robot_io: sequences::program::SyncSignals,
 }
 
 fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, CellProblem> {
@@ -155,6 +178,7 @@ impl Cell {
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
             arm: crate::plan::tool::arm(job),
             tolerances: Tolerances::default(),
+            robot_io: DEFAULT_ROBOT_IO,
         })
     }
 
@@ -167,6 +191,7 @@ impl Cell {
             opto_delay_s: mandrel_drive::sync::OPTO_DELAY_S,
             arm: paths::robot::Arm::default(),
             tolerances: Tolerances::default(),
+            robot_io: DEFAULT_ROBOT_IO,
         }
     }
 
@@ -236,6 +261,23 @@ impl Cell {
                 tolerances.diameter_mm = v;
             }
         }
+        let robot_io = match file.robot_io {
+            Some(io) => {
+                for v in [io.start_output, io.in_position_input] {
+                    if !(1..=4096).contains(&v) {
+                        return Err(at(
+                            locate("[robot_io]"),
+                            CellProblem::RobotIoSignal { signal: v },
+                        ));
+                    }
+                }
+                sequences::program::SyncSignals {
+                    start_output: io.start_output,
+                    in_position_input: io.in_position_input,
+                }
+            }
+            None => DEFAULT_ROBOT_IO,
+        };
         Ok(Cell {
             source: path.display().to_string(),
             devices,
@@ -243,6 +285,7 @@ impl Cell {
             opto_delay_s,
             arm: paths::robot::Arm::default(),
             tolerances,
+            robot_io,
         })
     }
 }

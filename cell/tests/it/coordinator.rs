@@ -35,7 +35,7 @@ fn sbend(mode: Option<RunMode>) -> Loaded {
         job.cell.movement = toml::Spanned::new(span, RunMode::Continuous.movement());
     }
     let plan = tool::plan(&job, &text, &path).unwrap();
-    let files = batch::files_of_job(&tool::control_files(&job, &plan).unwrap());
+    let files = batch::files_of_job(&cell::plan::files::control_files(&job, &plan).unwrap());
     batch::from_files(&files, mode, Path::new("."), Path::new("SBEND.RUN")).unwrap()
 }
 

@@ -28,3 +28,4 @@ mod run_pty;
 mod sim_indexer;
 mod sim_robot;
 mod simcell_events;
+mod six_axis;

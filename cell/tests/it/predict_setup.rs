@@ -212,3 +212,27 @@ fn a_stall_depends_on_the_speed_asked_for() {
         );
     }
 }
+
+/// The line `predict` prints on how far it can be trusted quotes `docs/validation.md`'s
+/// held-out figures (1-rev reading): the error band's rows and the discrete times' rows.
+#[test]
+fn the_validation_line_quotes_the_measured_figures() {
+    let doc = include_str!("../../../docs/validation.md");
+    let row = |target: &str| -> String {
+        doc.lines()
+            .find(|l| l.starts_with(&format!("| {target}")))
+            .and_then(|l| l.split('|').nth(2))
+            .map(|c| c.trim().to_string())
+            .unwrap_or_else(|| panic!("validation.md has no row for {target}"))
+    };
+    let band = row("error within max(1 mm, 40 % of the measured mean)");
+    let times = row("discrete total time within ±20 %");
+    let line = cell::predict::VALIDATION_LINE;
+    let (hit, of) = band.split_once(' ').unwrap().0.split_once('/').unwrap();
+    assert!(
+        line.contains(&format!("{hit} of them")) && line.contains(of),
+        "{band} / {line}"
+    );
+    let (hit, of) = times.split_once('/').unwrap();
+    assert!(line.contains(&format!("{hit} of {of}")), "{times} / {line}");
+}

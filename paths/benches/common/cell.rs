@@ -17,6 +17,7 @@ pub fn setup(arm: Arm) -> Setup {
         entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
         calibration: Calibration::default(),
         gearing: Gearing::default(),
+        six_axis: None,
     }
 }
 

@@ -26,6 +26,7 @@ pub mod opw;
 pub mod path;
 mod presets;
 pub mod ur;
+pub mod winding;
 
 use std::f64::consts::{PI, TAU};
 use std::fmt;

@@ -34,21 +34,37 @@
 //!   the previous path's last angle to the next path's start (the synchronisation of §5.6 step 8).
 //!   No fibre is checked on them. They are reported as segment 0 of the path they lead into.
 
-use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Point3, Unit, UnitQuaternion, Vector3};
 
 use super::minimum::Minimum;
-use super::{EyeMechanism, Obstacle, RESOLUTION_MM, Solid, certified_min_below};
-use crate::plan::{PathPlan, Pose};
+use super::{Capsule, EyeMechanism, Obstacle, RESOLUTION_MM, Solid, certified_min_below};
+use crate::arm::winding::{joints_for_tool, lever_arms_mm, tool_to_wrist};
+use crate::arm::{self, Config, Joints6, MandrelAxis, SixAxisArm};
+use crate::plan::{ArmJoints, PathArm, PathPlan, Pose};
 use crate::robot::{Arm, ElbowBranch};
 use crate::{Error, Setup};
 
 /// Largest eye travel (mandrel frame) between two sampled tow lines, mm.
 pub const TOW_SAMPLE_MM: f64 = 0.5;
 
-/// Links of the arm checked against the mandrel and the obstacles (the pedestal stands on the
-/// floor and the eye mechanism is the eye's capsule, so they are checked against the mandrel
+/// Links of the IRB 6/2 checked against the mandrel and the obstacles (the pedestal stands on
+/// the floor and the eye mechanism is the eye's capsule, so they are checked against the mandrel
 /// only, and not at all, respectively).
 const LINK_NAMES: [&str; 5] = ["pedestal", "upper arm", "forearm", "wrist", "eye mechanism"];
+
+/// The arm whose links are checked.
+#[derive(Debug, Clone, Copy)]
+pub enum SweptArm<'a> {
+    /// The IRB 6/2 on one elbow branch: its joints from the eye and the tool axis.
+    Irb62(&'a Arm, ElbowBranch),
+    /// A six-axis arm: on a path its joints from the eye and the tool frame on the path's
+    /// configuration (the plan's [`PathArm::SixAxis`]); approach and link moves are straight
+    /// moves on the next path's configuration too, or joint moves (the joints interpolated
+    /// linearly) where the two paths keep different configurations. Its base
+    /// is checked against the mandrel only (it stands on the floor), the other links and the tool
+    /// against the mandrel and the obstacles.
+    SixAxis(&'a SixAxisArm),
+}
 
 /// What was checked: the cell around the paths.
 #[derive(Debug, Clone, Copy)]
@@ -66,8 +82,8 @@ pub struct Cell<'a> {
     pub home_mm: Option<Point3<f64>>,
     /// Speed of approach and link moves, mm/s.
     pub approach_speed_mm_s: f64,
-    /// The arm and its elbow branch; `None` checks no links.
-    pub arm: Option<(&'a Arm, ElbowBranch)>,
+    /// The arm; `None` checks no links.
+    pub arm: Option<SweptArm<'a>>,
 }
 
 /// The part that comes too close.
@@ -113,6 +129,8 @@ pub struct Finding {
     pub axis: Vector3<f64>,
     /// The mandrel angle there, rad.
     pub mandrel_rad: f64,
+    /// A six-axis arm's joints there, rad.
+    pub joints: Option<Joints6>,
 }
 
 /// The least clearances found over one segment (or approach move). The least of each field over
@@ -152,6 +170,8 @@ pub struct Instant {
     pub axis: Vector3<f64>,
     /// Mandrel angle, rad.
     pub mandrel_rad: f64,
+    /// A six-axis arm's joints there, rad.
+    pub joints: Option<Joints6>,
     /// The least clearance of the eye and the arm there, mm.
     pub clearance_mm: f64,
 }
@@ -175,24 +195,62 @@ impl Report {
     }
 }
 
-/// One end of a move.
+/// One end of a move: the eye, the wrist frame (its `x` the tool axis), the mandrel angle, the
+/// tangent point (none on approach and link moves) and, for a six-axis arm, the joints and the
+/// path's configuration.
 #[derive(Debug, Clone, Copy)]
 struct End {
     eye: Point3<f64>,
     q: UnitQuaternion<f64>,
     phi: f64,
     tangent: Option<Point3<f64>>,
+    joints: Option<Joints6>,
+    config: Option<Config>,
 }
 
 impl End {
-    fn of(pose: &Pose) -> End {
+    fn of(pose: &Pose, plan: &PathPlan) -> End {
         End {
             eye: pose.eye_mm,
             q: pose.wrist_q,
             phi: pose.mandrel_rad,
             tangent: Some(pose.tangent_point_mm),
+            joints: match pose.joints {
+                ArmJoints::SixAxis { joints, .. } => Some(joints),
+                ArmJoints::Irb62(_) => None,
+            },
+            config: match plan.arm {
+                PathArm::SixAxis(report) => Some(report.config),
+                PathArm::Irb62(_) => None,
+            },
         }
     }
+}
+
+/// The arm and the eye at one instant of a move.
+#[derive(Debug, Clone, Copy)]
+struct At {
+    eye: Point3<f64>,
+    q: UnitQuaternion<f64>,
+    phi: f64,
+    /// A six-axis arm's joints, when the move is a joint move (else found from the eye, the
+    /// wrist frame and `config`).
+    joints: Option<Joints6>,
+    config: Option<Config>,
+}
+
+impl At {
+    fn axis(&self) -> Vector3<f64> {
+        axis_of(&self.q)
+    }
+}
+
+/// The link capsules at one instant, with their names; the first is checked against the mandrel
+/// only.
+struct Links {
+    capsules: [Capsule; arm::LINKS],
+    count: usize,
+    names: &'static [&'static str],
 }
 
 /// The tool axis of a wrist orientation: the roll axis, the tool `x` axis of `paths::robot`
@@ -201,18 +259,49 @@ fn axis_of(q: &UnitQuaternion<f64>) -> Vector3<f64> {
     q * Vector3::x()
 }
 
-/// The cell and the solid, with the frame change.
+/// The cell and the solid, with the frame change: the mandrel frame at angle 0 has its origin at
+/// `origin` and its axes the columns of `align` (base frame); the thesis cell's is the identity.
 struct Context<'a> {
     cell: &'a Cell<'a>,
     solid: &'a dyn Solid,
-    origin: Vector3<f64>,
+    origin: Point3<f64>,
+    align_t: Matrix3<f64>,
+    direction: Vector3<f64>,
+    /// A six-axis arm's lever arms ([`lever_arms_mm`]), with the eye mechanism beyond the eye.
+    levers_mm: [f64; 6],
 }
 
-impl Context<'_> {
+impl<'a> Context<'a> {
+    fn new(cell: &'a Cell<'a>, solid: &'a dyn Solid) -> Self {
+        let axis = match &cell.setup.six_axis {
+            Some(six) => six.axis,
+            None => MandrelAxis::thesis(cell.setup.robot_distance_mm, cell.setup.mandrel_height_mm),
+        };
+        let frame = axis.frame(0.0);
+        let levers_mm = match cell.arm {
+            Some(SweptArm::SixAxis(arm)) => lever_arms_mm(arm, cell.eye.length_mm),
+            _ => [0.0; 6],
+        };
+        Context {
+            cell,
+            solid,
+            origin: axis.origin_mm,
+            align_t: frame.rotation.to_rotation_matrix().into_inner().transpose(),
+            direction: axis.direction.into_inner(),
+            levers_mm,
+        }
+    }
+
     fn to_mandrel(&self, p: &Point3<f64>, phi: f64) -> Point3<f64> {
         let (s, c) = phi.sin_cos();
-        let w = p - self.origin;
+        let w = self.align_t * (p - self.origin);
         Point3::new(c * w.x + s * w.y, -s * w.x + c * w.y, w.z)
+    }
+
+    /// Distance of a base-frame point from the rotation axis, mm.
+    fn distance_to_axis_mm(&self, p: &Point3<f64>) -> f64 {
+        let w = p - self.origin;
+        (w - self.direction * w.dot(&self.direction)).norm()
     }
 
     /// Least clearance of a cell-frame capsule against the mandrel at angle `phi` and the
@@ -254,51 +343,70 @@ impl Context<'_> {
         }
     }
 
-    /// The joints' link capsules for an eye and tool axis: the roll axis is the tool axis
-    /// projected into the arm plane (the vertical plane through the pedestal axis and the eye; a
-    /// five-axis arm has no wrist yaw, seed 001 §4.1.1).
-    fn links(
-        &self,
-        eye: &Point3<f64>,
-        axis: &Vector3<f64>,
-    ) -> Result<Option<(crate::Joints, [super::Capsule; 5])>, Error> {
-        let Some((arm, branch)) = self.cell.arm else {
-            return Ok(None);
-        };
-        let rho = eye.x.hypot(eye.y);
-        let across = if rho > 1e-9 {
-            Vector3::new(-eye.y / rho, eye.x / rho, 0.0)
-        } else {
-            Vector3::zeros()
-        };
-        let in_plane = axis - across * axis.dot(&across);
-        let roll_axis = Unit::try_new(in_plane, 1e-9).ok_or(Error::OutOfRange {
-            name: "tool axis",
-            value: axis.dot(&across),
-            expected: "must not be normal to the arm plane",
-        })?;
-        let joints = arm.inverse(eye, &roll_axis, 0.0, branch)?;
-        Ok(Some((joints, arm.links(&joints))))
+    /// The link capsules at an instant. IRB 6/2: from the eye and the tool axis ([`irb_joints`]).
+    /// Six-axis: the joints of
+    /// a joint move, else those of the path's configuration that put the tool frame there.
+    fn links(&self, at: &At) -> Result<Option<(Option<Joints6>, Links)>, Error> {
+        match self.cell.arm {
+            None => Ok(None),
+            Some(SweptArm::Irb62(arm, branch)) => {
+                let joints = irb_joints(arm, branch, at)?;
+                let five = arm.links(&joints);
+                let mut capsules = [five[0]; arm::LINKS];
+                capsules[..5].copy_from_slice(&five);
+                Ok(Some((
+                    None,
+                    Links {
+                        capsules,
+                        count: 4,
+                        names: &LINK_NAMES,
+                    },
+                )))
+            }
+            Some(SweptArm::SixAxis(arm)) => {
+                let joints = match (at.joints, at.config) {
+                    (Some(q), _) => q,
+                    (None, Some(config)) => {
+                        let tool_q = at.q * tool_to_wrist().inverse();
+                        joints_for_tool(arm, &at.eye, &tool_q, config).map_err(|fault| {
+                            Error::SixAxis {
+                                segment: None,
+                                fault,
+                            }
+                        })?
+                    }
+                    (None, None) => {
+                        return Err(Error::OutOfRange {
+                            name: "configuration",
+                            value: 0.0,
+                            expected: "must be known for a six-axis pose",
+                        });
+                    }
+                };
+                Ok(Some((
+                    Some(joints),
+                    Links {
+                        capsules: arm.links(&joints),
+                        count: arm::LINKS,
+                        names: &arm::LINK_NAMES,
+                    },
+                )))
+            }
+        }
     }
 
-    /// Least clearance of the arm's links (pedestal against the mandrel only; upper arm, forearm
-    /// and wrist against the mandrel and the obstacles), with the link and what it was against;
-    /// at or above `cap`, any value from `cap` up to it.
-    fn arm(
-        &self,
-        eye: &Point3<f64>,
-        axis: &Vector3<f64>,
-        phi: f64,
-        cap: f64,
-    ) -> Result<Option<(f64, usize, usize)>, Error> {
-        let Some((_, links)) = self.links(eye, axis)? else {
+    /// Least clearance of the arm's links (the first, the base, against the mandrel only; the
+    /// others against the mandrel and the obstacles), with the link's name and what it was
+    /// against; at or above `cap`, any value from `cap` up to it.
+    fn arm(&self, at: &At, cap: f64) -> Result<Option<(f64, &'static str, usize)>, Error> {
+        let Some((_, links)) = self.links(at)? else {
             return Ok(None);
         };
-        let mut best = (f64::INFINITY, 0, 0);
-        for (i, link) in links.iter().enumerate().take(4) {
-            let (d, against) = self.capsule(&link.a, &link.b, link.radius_mm, phi, i > 0, cap);
+        let mut best = (f64::INFINITY, links.names[0], 0);
+        for (i, link) in links.capsules.iter().enumerate().take(links.count) {
+            let (d, against) = self.capsule(&link.a, &link.b, link.radius_mm, at.phi, i > 0, cap);
             if d < best.0 {
-                best = (d, i, against);
+                best = (d, links.names[i], against);
             }
         }
         Ok(Some(best))
@@ -308,15 +416,7 @@ impl Context<'_> {
 /// Checks every path of a job (`paths` in order) against `solid`, the mandrel in its own frame.
 /// Errors only when the arm cannot take a pose on the way.
 pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<Report, Error> {
-    let ctx = Context {
-        cell,
-        solid,
-        origin: Vector3::new(
-            cell.setup.robot_distance_mm,
-            0.0,
-            cell.setup.mandrel_height_mm,
-        ),
-    };
+    let ctx = Context::new(cell, solid);
     let mut report = Report {
         paths: Vec::with_capacity(paths.len()),
         findings: Vec::new(),
@@ -331,6 +431,7 @@ pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<
     };
     for plan in paths {
         for pose in std::iter::once(&plan.start).chain(plan.segments.iter().map(|s| &s.pose)) {
+            let end = End::of(pose, plan);
             let axis = axis_of(&pose.wrist_q);
             let back = pose.eye_mm - axis * cell.eye.length_mm;
             let (eye, _) = ctx.capsule(
@@ -342,9 +443,7 @@ pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<
                 least.eye_mm,
             );
             least.eye_mm = least.eye_mm.min(eye);
-            if let Some((arm, _, _)) =
-                ctx.arm(&pose.eye_mm, &axis, pose.mandrel_rad, least.arm_mm)?
-            {
+            if let Some((arm, _, _)) = ctx.arm(&end.at_rest(), least.arm_mm)? {
                 least.arm_mm = least.arm_mm.min(arm);
             }
         }
@@ -352,20 +451,16 @@ pub fn sweep(cell: &Cell<'_>, solid: &dyn Solid, paths: &[&PathPlan]) -> Result<
     // Where each path's approach or link move starts: home before the first, then the end of the
     // path before (the plan's poses, not the check's results, so the paths are independent).
     let mut previous: Vec<Option<End>> = Vec::with_capacity(paths.len());
-    let mut last: Option<End> = cell.home_mm.map(|home| End {
-        eye: home,
-        q: paths
-            .first()
-            .map_or(UnitQuaternion::identity(), |p| p.start.wrist_q),
-        phi: paths.first().map_or(0.0, |p| p.start.mandrel_rad),
-        tangent: None,
-    });
+    let mut last: Option<End> = match (cell.home_mm, paths.first()) {
+        (Some(home), first) => Some(home_end(cell, home, first)?),
+        (None, _) => None,
+    };
     for plan in paths {
         previous.push(last);
         last = Some(
             plan.segments
                 .last()
-                .map_or(End::of(&plan.start), |s| End::of(&s.pose)),
+                .map_or(End::of(&plan.start, plan), |s| End::of(&s.pose, plan)),
         );
     }
     // The paths are checked on up to as many threads as the machine has cores, each thread a
@@ -430,7 +525,7 @@ fn sweep_path(
         worst: None,
     };
     let mut rows = Vec::with_capacity(plan.segments.len() + 1);
-    let start = End::of(&plan.start);
+    let start = End::of(&plan.start, plan);
     // Approach or link move: no fibre.
     match previous {
         Some(from) => {
@@ -472,7 +567,7 @@ fn sweep_path(
     let mut from = start;
     let mut t = 0.0;
     for (k, segment) in plan.segments.iter().enumerate() {
-        let to = End::of(&segment.pose);
+        let to = End::of(&segment.pose, plan);
         let row = check_move(
             ctx,
             &from,
@@ -492,6 +587,46 @@ fn sweep_path(
     Ok(report)
 }
 
+/// Where the approach to path 1 starts: the eye at `home`, the wrist as at path 1's start; a
+/// six-axis arm there on path 1's configuration (an error when it cannot take that pose).
+fn home_end(cell: &Cell<'_>, home: Point3<f64>, first: Option<&&PathPlan>) -> Result<End, Error> {
+    let mut end = End {
+        eye: home,
+        q: first.map_or(UnitQuaternion::identity(), |p| p.start.wrist_q),
+        phi: first.map_or(0.0, |p| p.start.mandrel_rad),
+        tangent: None,
+        joints: None,
+        config: None,
+    };
+    if let (Some(SweptArm::SixAxis(arm)), Some(plan)) = (cell.arm, first) {
+        let start = End::of(&plan.start, plan);
+        if let Some(config) = start.config {
+            let tool_q = end.q * tool_to_wrist().inverse();
+            end.joints = Some(
+                joints_for_tool(arm, &home, &tool_q, config).map_err(|fault| Error::SixAxis {
+                    segment: Some(0),
+                    fault,
+                })?,
+            );
+            end.config = Some(config);
+        }
+    }
+    Ok(end)
+}
+
+impl End {
+    /// The arm and the eye standing at this end.
+    fn at_rest(&self) -> At {
+        At {
+            eye: self.eye,
+            q: self.q,
+            phi: self.phi,
+            joints: self.joints,
+            config: self.config,
+        }
+    }
+}
+
 /// How many intervals a move's free fibre is sampled at so that the eye travels at most
 /// [`TOW_SAMPLE_MM`] in the mandrel frame between two samples. With the eye at `o + w(τ)` (cell
 /// frame, `o` on the rotation axis) moving on a straight line and the mandrel turning linearly
@@ -502,7 +637,7 @@ fn tow_sample_count(ctx: &Context<'_>, from: &End, to: &End) -> usize {
     let d_phi = to.phi - from.phi;
     let speed = |eye: &Point3<f64>| {
         let w = eye - ctx.origin;
-        (travel - Vector3::new(-w.y, w.x, 0.0) * d_phi).norm()
+        (travel - ctx.direction.cross(&w) * d_phi).norm()
     };
     let swept = speed(&from.eye).max(speed(&to.eye));
     (swept / TOW_SAMPLE_MM).ceil().max(1.0) as usize
@@ -512,13 +647,93 @@ fn tow_sample_count(ctx: &Context<'_>, from: &End, to: &End) -> usize {
 /// mechanism's length times the wrist's turn, plus the mandrel's turn times the smaller of the
 /// capsule's and the mandrel's largest distance from the rotation axis.
 fn eye_lipschitz(ctx: &Context<'_>, from: &End, to: &End) -> f64 {
+    if let Some((a, b)) = joint_move(ctx, from, to) {
+        // A point of the eye capsule is within the lever arm (eye mechanism included) of each
+        // joint's axis.
+        return joint_travel_lipschitz(ctx, &a, &b)
+            + (to.phi - from.phi).abs() * ctx.solid.axis_radius_mm();
+    }
     let eye_len = ctx.cell.eye.length_mm;
-    let horizontal = |p: &Point3<f64>| (p.x - ctx.origin.x).hypot(p.y - ctx.origin.y);
+    let horizontal = |p: &Point3<f64>| ctx.distance_to_axis_mm(p);
     let d_phi = (to.phi - from.phi).abs();
     let turn = from.q.angle_to(&to.q);
     let travel = (to.eye - from.eye).norm();
     let reach = horizontal(&from.eye).max(horizontal(&to.eye)) + eye_len;
     travel + eye_len * turn + d_phi * reach.min(ctx.solid.axis_radius_mm())
+}
+
+/// The IRB 6/2's joints for an eye and tool axis: the roll axis is the tool axis projected into
+/// the arm plane (the vertical plane through the pedestal axis and the eye; a five-axis arm has
+/// no wrist yaw, seed 001 §4.1.1).
+fn irb_joints(arm: &Arm, branch: ElbowBranch, at: &At) -> Result<crate::Joints, Error> {
+    let (eye, axis) = (&at.eye, at.axis());
+    let rho = eye.x.hypot(eye.y);
+    let across = if rho > 1e-9 {
+        Vector3::new(-eye.y / rho, eye.x / rho, 0.0)
+    } else {
+        Vector3::zeros()
+    };
+    let in_plane = axis - across * axis.dot(&across);
+    let roll_axis = Unit::try_new(in_plane, 1e-9).ok_or(Error::OutOfRange {
+        name: "tool axis",
+        value: axis.dot(&across),
+        expected: "must not be normal to the arm plane",
+    })?;
+    arm.inverse(eye, &roll_axis, 0.0, branch)
+}
+
+/// The IRB 6/2's links' Lipschitz bound over a move, mm per unit `τ`. The links checked
+/// (pedestal, upper arm, forearm, wrist) hang on the first three joints only: pitch and roll turn
+/// the eye mechanism, not them. A point of them lies within `upper + forearm` of the base's axis
+/// and of the shoulder's, and within the forearm of the elbow's, so it moves at most `(|Δq1| +
+/// |Δq2|)(upper + forearm) + |Δq3| forearm` (doubled, since joints do not move linearly in `τ`);
+/// the mandrel's turn adds its angle times the smaller of the arm's and the mandrel's largest
+/// distance from the rotation axis.
+fn irb_link_lipschitz(
+    ctx: &Context<'_>,
+    arm: &Arm,
+    instant: &dyn Fn(f64) -> At,
+    d_phi: f64,
+) -> Result<f64, Error> {
+    let Some(SweptArm::Irb62(_, branch)) = ctx.cell.arm else {
+        return Ok(0.0);
+    };
+    let (a, b) = (
+        irb_joints(arm, branch, &instant(0.0))?,
+        irb_joints(arm, branch, &instant(1.0))?,
+    );
+    let travel = [
+        (a.base_yaw_rad - b.base_yaw_rad).abs(),
+        (a.shoulder_rad - b.shoulder_rad).abs(),
+        (a.elbow_rad - b.elbow_rad).abs(),
+    ];
+    let chain = arm.upper_arm_mm + arm.forearm_mm;
+    let link_motion = (travel[0] + travel[1]) * chain + travel[2] * arm.forearm_mm;
+    let arm_reach = arm.shoulder_height_mm + chain;
+    let base_from_axis = ctx.distance_to_axis_mm(&Point3::origin());
+    Ok(2.0 * link_motion + d_phi * (base_from_axis + arm_reach).min(ctx.solid.axis_radius_mm()))
+}
+
+/// A six-axis arm's approach or link move between two configurations is a joint move: its end
+/// joints. Between poses of one configuration it is a straight move, as on a path.
+fn joint_move(ctx: &Context<'_>, from: &End, to: &End) -> Option<(Joints6, Joints6)> {
+    match (ctx.cell.arm, from.joints, to.joints) {
+        (Some(SweptArm::SixAxis(_)), Some(a), Some(b))
+            if (from.tangent.is_none() || to.tangent.is_none()) && from.config != to.config =>
+        {
+            Some((a, b))
+        }
+        _ => None,
+    }
+}
+
+/// How fast, in mm per unit `τ`, any point of a six-axis arm's links, tool and eye mechanism can
+/// move when the joints go from `a` to `b`: `Σ |Δqⱼ| · lever[j]`, doubled (the joints of a
+/// Cartesian move do not move linearly in `τ`).
+fn joint_travel_lipschitz(ctx: &Context<'_>, a: &Joints6, b: &Joints6) -> f64 {
+    2.0 * (0..6)
+        .map(|j| (b[j] - a[j]).abs() * ctx.levers_mm[j])
+        .sum::<f64>()
 }
 
 /// The least clearances found on the moves checked so far: a later move's minimum is certified
@@ -545,11 +760,46 @@ fn check_move(
     let first_segment = segment == 1;
     let cell = ctx.cell;
     let eye_len = cell.eye.length_mm;
-    let at = |tau: f64| {
-        let eye = from.eye + (to.eye - from.eye) * tau;
-        let q = from.q.try_slerp(&to.q, tau, 1e-12).unwrap_or(to.q);
+    let joints = joint_move(ctx, from, to);
+    let six = match cell.arm {
+        Some(SweptArm::SixAxis(arm)) => Some(arm),
+        _ => None,
+    };
+    let to_wrist = tool_to_wrist();
+    let instant = |tau: f64| {
         let phi = from.phi + (to.phi - from.phi) * tau;
-        (eye, axis_of(&q), phi)
+        match (joints, six) {
+            (Some((a, b)), Some(arm)) => {
+                let q: Joints6 = std::array::from_fn(|j| a[j] + (b[j] - a[j]) * tau);
+                let frame = arm.tool_frame(&q);
+                At {
+                    eye: frame.origin(),
+                    q: frame.quaternion() * to_wrist,
+                    phi,
+                    joints: Some(q),
+                    config: None,
+                }
+            }
+            _ => At {
+                eye: from.eye + (to.eye - from.eye) * tau,
+                q: from.q.try_slerp(&to.q, tau, 1e-12).unwrap_or(to.q),
+                phi,
+                joints: None,
+                config: to.config,
+            },
+        }
+    };
+    let at = |tau: f64| {
+        let i = instant(tau);
+        (i.eye, i.axis(), i.phi)
+    };
+    let worst_at = |tau: f64| {
+        let i = instant(tau);
+        let joints = match six {
+            Some(_) => ctx.links(&i).ok().flatten().and_then(|(q, _)| q),
+            None => None,
+        };
+        (i.eye, i.axis(), i.phi, joints)
     };
     // Lipschitz bound of the eye capsule's points in τ. Turning the mandrel moves a point of the
     // capsule, seen from the mandrel, by at most `d_phi` times its distance from the axis, and
@@ -560,7 +810,7 @@ fn check_move(
     let l_eye = eye_lipschitz(ctx, from, to);
     let time = |tau: f64| start_s + tau * duration_s;
     let record = |report: &mut Report, tau: f64, clearance: f64, part: Part, against: String| {
-        let (eye_mm, axis, mandrel_rad) = at(tau);
+        let (eye_mm, axis, mandrel_rad, joints) = worst_at(tau);
         report.findings.push(Finding {
             path,
             segment,
@@ -571,6 +821,7 @@ fn check_move(
             eye_mm,
             axis,
             mandrel_rad,
+            joints,
         });
     };
 
@@ -603,7 +854,7 @@ fn check_move(
         let against = ctx.against(against);
         record(report, tau, d, Part::EyeMechanism, against);
     }
-    note_worst(report, &eye, path, segment, &at);
+    note_worst(report, &eye, path, segment, &worst_at);
 
     // Free fibre, sampled.
     let tow_mm = match (from.tangent, to.tangent) {
@@ -649,43 +900,26 @@ fn check_move(
     };
 
     // Arm links.
-    let arm_mm = if cell.arm.is_some() {
-        let (_, axis0, _) = at(0.0);
-        let (_, axis1, _) = at(1.0);
-        let j0 = ctx.links(&from.eye, &axis0)?.map(|(j, _)| j);
-        let j1 = ctx.links(&to.eye, &axis1)?.map(|(j, _)| j);
-        let (arm, _) = cell.arm.ok_or(Error::OutOfRange {
-            name: "arm",
-            value: 0.0,
-            expected: "must be given",
-        })?;
-        // The links checked (pedestal, upper arm, forearm, wrist) hang on the first three
-        // joints only: pitch and roll turn the eye mechanism, not them. A point of them lies
-        // within `upper + forearm` of the base's axis and of the shoulder's, and within the
-        // forearm of the elbow's, so it moves at most `(|Δq1| + |Δq2|)(upper + forearm) +
-        // |Δq3| forearm` (doubled, since joints do not move linearly in `τ`).
-        let travel: [f64; 3] = match (j0, j1) {
-            (Some(a), Some(b)) => [
-                (a.base_yaw_rad - b.base_yaw_rad).abs(),
-                (a.shoulder_rad - b.shoulder_rad).abs(),
-                (a.elbow_rad - b.elbow_rad).abs(),
-            ],
-            _ => [0.0; 3],
+    let arm_mm = if let Some(swept) = cell.arm {
+        let l_arm = match swept {
+            SweptArm::Irb62(arm, _) => irb_link_lipschitz(ctx, arm, &instant, d_phi)?,
+            SweptArm::SixAxis(_) => {
+                let q0 = ctx.links(&instant(0.0))?.and_then(|(q, _)| q);
+                let q1 = ctx.links(&instant(1.0))?.and_then(|(q, _)| q);
+                let links = match (q0, q1) {
+                    (Some(a), Some(b)) => joint_travel_lipschitz(ctx, &a, &b),
+                    _ => 0.0,
+                };
+                links + d_phi * spin_radius
+            }
         };
-        let chain = arm.upper_arm_mm + arm.forearm_mm;
-        let link_motion = (travel[0] + travel[1]) * chain + travel[2] * arm.forearm_mm;
-        let arm_reach = arm.shoulder_height_mm + chain;
-        let l_arm = 2.0 * link_motion + d_phi * (ctx.origin.x + arm_reach).min(spin_radius);
         let mut failure: Option<Error> = None;
-        let mut arm_fn = |tau: f64, cap: f64| {
-            let (eye, axis, phi) = at(tau);
-            match ctx.arm(&eye, &axis, phi, cap) {
-                Ok(Some((d, _, _))) => d,
-                Ok(None) => f64::INFINITY,
-                Err(e) => {
-                    failure.get_or_insert(e);
-                    f64::INFINITY
-                }
+        let mut arm_fn = |tau: f64, cap: f64| match ctx.arm(&instant(tau), cap) {
+            Ok(Some((d, _, _))) => d,
+            Ok(None) => f64::INFINITY,
+            Err(e) => {
+                failure.get_or_insert(e);
+                f64::INFINITY
             }
         };
         let m = certified_min_below(&mut arm_fn, l_arm, RESOLUTION_MM, 0.0, least.arm_mm);
@@ -694,19 +928,12 @@ fn check_move(
         if let Some(e) = failure {
             return Err(e);
         }
-        if let Some((tau, d)) = m.first_below {
-            let (eye, axis, phi) = at(tau);
-            if let Some((_, link, against)) = ctx.arm(&eye, &axis, phi, f64::INFINITY)? {
-                record(
-                    report,
-                    tau,
-                    d,
-                    Part::Link(LINK_NAMES[link]),
-                    ctx.against(against),
-                );
-            }
+        if let Some((tau, d)) = m.first_below
+            && let Some((_, link, against)) = ctx.arm(&instant(tau), f64::INFINITY)?
+        {
+            record(report, tau, d, Part::Link(link), ctx.against(against));
         }
-        note_worst(report, &m, path, segment, &at);
+        note_worst(report, &m, path, segment, &worst_at);
         Some(m.value)
     } else {
         None
@@ -727,10 +954,10 @@ fn note_worst(
     m: &Minimum,
     path: usize,
     segment: usize,
-    at: &dyn Fn(f64) -> (Point3<f64>, Vector3<f64>, f64),
+    at: &dyn Fn(f64) -> (Point3<f64>, Vector3<f64>, f64, Option<Joints6>),
 ) {
     if report.worst.is_none_or(|w| m.value < w.clearance_mm) {
-        let (eye_mm, axis, mandrel_rad) = at(m.at);
+        let (eye_mm, axis, mandrel_rad, joints) = at(m.at);
         report.worst = Some(Instant {
             path,
             segment,
@@ -738,6 +965,7 @@ fn note_worst(
             eye_mm,
             axis,
             mandrel_rad,
+            joints,
             clearance_mm: m.value,
         });
     }
@@ -762,6 +990,7 @@ mod tests {
             entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
             calibration: Calibration::default(),
             gearing: Gearing::default(),
+            six_axis: None,
         }
     }
 
@@ -1006,13 +1235,9 @@ mod tests {
             .iter()
             .map(|row| row.eye_mm)
             .fold(f64::INFINITY, f64::min);
-        let ctx = Context {
-            cell: &c,
-            solid: &solid,
-            origin: Vector3::new(setup.robot_distance_mm, 0.0, setup.mandrel_height_mm),
-        };
-        let mut ends = vec![End::of(&p.start)];
-        ends.extend(p.segments.iter().map(|s| End::of(&s.pose)));
+        let ctx = Context::new(&c, &solid);
+        let mut ends = vec![End::of(&p.start, &p)];
+        ends.extend(p.segments.iter().map(|s| End::of(&s.pose, &p)));
         let mut dense = f64::INFINITY;
         let mut per_move = Vec::new();
         for w in ends.windows(2) {
@@ -1069,13 +1294,9 @@ mod tests {
             max_mm: mid + Vector3::repeat(0.1),
         }];
         let c = cell(&setup, &obstacles);
-        let ctx = Context {
-            cell: &c,
-            solid: &solid,
-            origin: Vector3::new(setup.robot_distance_mm, 0.0, setup.mandrel_height_mm),
-        };
-        let mut ends = vec![End::of(&p.start)];
-        ends.extend(p.segments.iter().map(|s| End::of(&s.pose)));
+        let ctx = Context::new(&c, &solid);
+        let mut ends = vec![End::of(&p.start, &p)];
+        ends.extend(p.segments.iter().map(|s| End::of(&s.pose, &p)));
         let mut tightest = 0.0f64;
         for w in ends.windows(2) {
             let (from, to) = (&w[0], &w[1]);
@@ -1137,11 +1358,7 @@ mod tests {
             max_mm: Point3::from(post + Vector3::repeat(5.0)),
         }];
         let c = cell(&setup, &obstacles);
-        let ctx = Context {
-            cell: &c,
-            solid: &solid,
-            origin,
-        };
+        let ctx = Context::new(&c, &solid);
         let mut next = uniform(0x5851_f42d_4c95_7f2du64);
         let mut stopped = 0;
         for _ in 0..200 {
@@ -1186,18 +1403,14 @@ mod tests {
         let (tube, p) = cylinder_plan(&setup);
         let solid = TubeSolid::new(&tube);
         let c = cell(&setup, &[]);
-        let ctx = Context {
-            cell: &c,
-            solid: &solid,
-            origin: Vector3::new(800.0, 0.0, 300.0),
-        };
+        let ctx = Context::new(&c, &solid);
         let eye_at = |from: &End, to: &End, tau: f64| {
             let eye = from.eye + (to.eye - from.eye) * tau;
             let phi = from.phi + (to.phi - from.phi) * tau;
             ctx.to_mandrel(&eye, phi)
         };
-        let mut ends = vec![End::of(&p.start)];
-        ends.extend(p.segments.iter().map(|s| End::of(&s.pose)));
+        let mut ends = vec![End::of(&p.start, &p)];
+        ends.extend(p.segments.iter().map(|s| End::of(&s.pose, &p)));
         for w in ends.windows(2) {
             let (from, to) = (&w[0], &w[1]);
             let count = tow_sample_count(&ctx, from, to);

@@ -1,5 +1,7 @@
 //! Integration tests of `sequences`, one binary for the crate (each test file is a module: one link
-//! of the dependency graph instead of one per file): DXF and the round trip of every operator file.
+//! of the dependency graph instead of one per file): DXF, the round trip of every operator file and
+//! the robot programs.
 
 mod dxf;
+mod robot_programs;
 mod round_trip;

@@ -13,8 +13,10 @@ fn examples() -> Vec<PathBuf> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        // Robot-cell jobs only: cell descriptions (`cell-*.toml`) and lathe vessels have no paths.
+        // IRB 6/2 robot-cell jobs only: cell descriptions (`cell-*.toml`) and lathe vessels have
+        // no paths; six-axis jobs (`[cell.robot] kind`) are tested in `cell/tests/it/six_axis.rs`.
         .filter(|p| std::fs::read_to_string(p).is_ok_and(|t| t.contains("[[path]]")))
+        .filter(|p| Job::load(p).is_ok_and(|(job, _)| job.six_axis_arm().is_none()))
         .collect();
     jobs.sort();
     jobs
@@ -138,10 +140,14 @@ fn every_example_keeps_its_elbow_branch_its_joint_ranges_and_the_recorded_entry_
                 }
                 // The elbow bends to the same side at every pose (the bend from the upper arm's
                 // direction to the forearm's: positive elbow up): no branch switch.
-                let bend =
-                    std::f64::consts::FRAC_PI_2 - pose.joints.shoulder_rad - pose.joints.elbow_rad;
+                let joints = pose.joints.irb62().expect("an IRB 6/2 pose");
+                let bend = std::f64::consts::FRAC_PI_2 - joints.shoulder_rad - joints.elbow_rad;
                 let up = bend.sin() > 0.0;
-                assert_eq!(up, path.plan.elbow == paths::ElbowBranch::Up, "{name}");
+                assert_eq!(
+                    up,
+                    path.plan.arm.elbow() == Some(paths::ElbowBranch::Up),
+                    "{name}"
+                );
                 worst_deg = worst_deg.max(pose.entry_angle_rad.to_degrees());
             }
             assert_abs_diff_eq!(
