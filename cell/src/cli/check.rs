@@ -31,6 +31,10 @@ pub struct CheckArgs {
 /// Runs `windcell check`.
 pub fn run(args: CheckArgs) -> Result<(), Failure> {
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    let inputs = cell::plan::output::inputs_of_job(&job, &args.job);
+    for out in args.svg.iter().chain(&args.record) {
+        cell::plan::output::check_output_file(out, &inputs).map_err(Failure::from_cell)?;
+    }
     let checked = check::run(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     if let Some(svg) = &args.svg {
@@ -43,8 +47,7 @@ pub fn run(args: CheckArgs) -> Result<(), Failure> {
         ));
     }
     for (path, bytes) in files {
-        std::fs::write(&path, bytes)
-            .map_err(|e| Failure::runtime(format!("{}: {e}", path.display())))?;
+        cell::plan::output::write_file(&path, &bytes).map_err(Failure::from_cell)?;
     }
     let mut out = String::new();
     if args.json {

@@ -19,6 +19,7 @@ pub mod sim_marlin;
 pub mod sim_robot;
 pub mod sweep;
 pub mod triasym;
+pub mod verify;
 
 /// Exit code for bad input: a file, a field or an argument the operator must fix.
 pub const EXIT_INPUT: u8 = 2;
@@ -76,6 +77,8 @@ pub enum Command {
     Plan(plan::PlanArgs),
     /// Write a six-axis job's programs for its controller (RAPID, KRL, FANUC TP, URScript).
     Post(post::PostArgs),
+    /// Read robot programs back, check them against the plan and run them on a model (exit 3).
+    Verify(verify::VerifyArgs),
     /// Check a job for collisions of the eye and the arm and snags of the free fibre (exit 3).
     Check(check::CheckArgs),
     /// Predict each mode's time and placement error on the simulated cell, before winding.
@@ -148,6 +151,7 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
         Command::Plan(args) => plan::run(args),
         Command::Check(args) => check::run(args),
         Command::Post(args) => post::run(args),
+        Command::Verify(args) => verify::run(args),
         Command::Run(args) => run::run(args),
         Command::Predict(args) => predict::run(args),
         Command::Jog(args) => jog::run(args),

@@ -101,6 +101,10 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
         tolerances: cell.tolerances,
         ..Options::default()
     };
+    let inputs = cell::plan::output::inputs_of_job(&job, &args.job);
+    for out in args.svg.iter().chain(&args.record) {
+        cell::plan::output::check_output_file(out, &inputs).map_err(Failure::from_cell)?;
+    }
     let prediction =
         predict::predict(&job, &text, &args.job, &cell, &opt).map_err(Failure::from_cell)?;
     no_mode_winds(&prediction)?;
@@ -110,8 +114,7 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
         let text = prediction
             .svg(&tube)
             .map_err(|e| Failure::runtime(format!("{}: {e}", svg.display())))?;
-        std::fs::write(svg, text)
-            .map_err(|e| Failure::runtime(format!("{}: {e}", svg.display())))?;
+        cell::plan::output::write_file(svg, text.as_bytes()).map_err(Failure::from_cell)?;
     }
     if let Some(path) = &args.record {
         let sinks = cell::record::Sinks {

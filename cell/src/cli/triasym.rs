@@ -56,6 +56,8 @@ pub fn run(args: TriasymArgs) -> Result<(), Failure> {
     }
     output::check_file(&args.out).map_err(Failure::from_cell)?;
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    output::not_an_input(&args.out, &output::inputs_of_job(&job, &args.job))
+        .map_err(Failure::from_cell)?;
     let tube = tool::mandrel_in(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let mesh = triasym::tube(&tube, args.facets, args.spacing_mm, true).map_err(|e| {
         Failure::input(format!(

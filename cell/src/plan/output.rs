@@ -105,6 +105,53 @@ pub fn check_file(path: &Path) -> Result<(), Error> {
     }
 }
 
+/// Refuses an output file that is one of the command's `inputs` (the same file, by device and
+/// inode, whatever the path says): writing it would destroy what the command reads.
+pub fn not_an_input(output: &Path, inputs: &[PathBuf]) -> Result<(), Error> {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(out) = fs::metadata(output) else {
+        return Ok(());
+    };
+    for input in inputs {
+        if let Ok(m) = fs::metadata(input)
+            && m.dev() == out.dev()
+            && m.ino() == out.ino()
+        {
+            return Err(refuse(
+                output,
+                format!(
+                    "is {}, an input of this command; name another output",
+                    input.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The files a job reads: the job file, its mesh and its DXF drawings (relative to the job's
+/// folder).
+pub fn inputs_of_job(job: &sequences::Job, file: &Path) -> Vec<PathBuf> {
+    let dir = file.parent().unwrap_or(Path::new(""));
+    let mut inputs = vec![file.to_path_buf()];
+    inputs.extend(job.mandrel.mesh.iter().map(|m| dir.join(m.get_ref())));
+    inputs.extend(job.mandrel.spine_dxf.iter().map(|m| dir.join(m.get_ref())));
+    inputs.extend(
+        job.paths
+            .iter()
+            .filter_map(|p| p.dxf.as_ref())
+            .map(|d| dir.join(d.get_ref())),
+    );
+    inputs
+}
+
+/// Checks that `path` can take a single output file of a command reading `inputs`
+/// ([`check_file`], [`not_an_input`]).
+pub fn check_output_file(path: &Path, inputs: &[PathBuf]) -> Result<(), Error> {
+    check_file(path)?;
+    not_an_input(path, inputs)
+}
+
 fn folder_of(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),

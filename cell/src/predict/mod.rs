@@ -44,7 +44,7 @@ use crate::sim::{SimCell, SimCellConfig, Trace};
 
 pub use crate::run::cellfile::Tolerances;
 
-mod six_axis;
+pub mod six_axis;
 
 /// The modes `predict` knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

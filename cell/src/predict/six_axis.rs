@@ -36,7 +36,7 @@ use crate::plan::tool::PlannedPath;
 const SAMPLES_PER_S: f64 = 200.0;
 
 /// One path's prediction from its plan.
-pub(super) fn predict_path(
+pub fn predict_path(
     path: &PlannedPath,
     tube: &Tube,
     setup: &paths::Setup,

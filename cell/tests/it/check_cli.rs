@@ -227,3 +227,38 @@ print(len(clips), len(red), len(axis), "0" in texts,
     assert_eq!(fields[1], "1", "{seen}");
     assert_eq!(fields[5], "eye path, SBEND_1|eye path, SBEND_2", "{seen}");
 }
+
+/// An output that is one of the command's inputs (the job, its mesh) is refused before anything
+/// is read further or written: one line, exit 2, the input byte for byte as it was.
+#[test]
+fn an_output_that_is_an_input_is_refused_and_left_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["sbend-mesh.toml", "sbend.stl"] {
+        std::fs::copy(example(name), dir.path().join(name)).unwrap();
+    }
+    let job = dir.path().join("sbend-mesh.toml");
+    let mesh = dir.path().join("sbend.stl");
+    let before = [std::fs::read(&job).unwrap(), std::fs::read(&mesh).unwrap()];
+    let job_s = job.to_str().unwrap();
+    // The same files under other spellings.
+    let mesh_alias = format!("{}/./sbend.stl", dir.path().display());
+    let job_alias = format!(
+        "{}/../{}/sbend-mesh.toml",
+        dir.path().display(),
+        dir.path().file_name().unwrap().to_str().unwrap()
+    );
+    for args in [
+        vec!["check", job_s, "--svg", mesh_alias.as_str()],
+        vec!["check", job_s, "--record", job_alias.as_str()],
+        vec!["predict", job_s, "--svg", job_s],
+        vec!["triasym", job_s, "-o", mesh_alias.as_str()],
+    ] {
+        let out = windcell(&args);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        assert!(err.contains("an input of this command"), "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read(&job).unwrap(), before[0]);
+    assert_eq!(std::fs::read(&mesh).unwrap(), before[1]);
+}

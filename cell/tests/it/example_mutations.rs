@@ -10,8 +10,10 @@ use std::path::Path;
 use common::limited::{broken_rule, run_limited};
 use proptest::prelude::*;
 
-const JOBS: [&str; 6] = [
+const JOBS: [&str; 8] = [
     "cylinder.toml",
+    "irb2600-positioner.toml",
+    "ur10e-cylinder.toml",
     "offset-2r.toml",
     "tilted-1r.toml",
     "sbend.toml",
@@ -180,4 +182,33 @@ fn mutations_change_what_they_say() {
         mutate(text, 4, Mutation::Zero),
         "a = 0 # 7\nspine = [[1.0, -2e1]]\nname_2 = 3\n"
     );
+}
+
+/// Every number of the UR10e job (the arm's placement, tool, mandrel axis, drive and paths)
+/// mutated every way, one at a time: each plans or fails cleanly (about 200 cases, no
+/// sampling).
+#[test]
+fn every_number_of_the_six_axis_job_mutated_every_way_plans_or_fails_cleanly() {
+    let text = std::fs::read_to_string(common::example("ur10e-cylinder.toml")).unwrap();
+    let count: usize = text
+        .lines()
+        .map(|l| numbers(l.split('#').next().unwrap_or_default()).len())
+        .sum();
+    assert!(count >= 30, "{count} numbers");
+    let mut cases = 0;
+    for pick in 0..count {
+        for m in [
+            Mutation::Scale(1e6),
+            Mutation::Scale(1e-6),
+            Mutation::Zero,
+            Mutation::Negate,
+            Mutation::NaN,
+            Mutation::Drop,
+        ] {
+            check("ur10e-cylinder.toml", pick, m, false)
+                .unwrap_or_else(|e| panic!("number {pick}, {m:?}: {e}"));
+            cases += 1;
+        }
+    }
+    assert!(cases >= 180, "{cases} cases");
 }

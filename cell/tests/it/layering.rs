@@ -1,5 +1,5 @@
 //! The `cell` crate's layering, read from its source: the stages depend on each other in one
-//! direction only (`plan` ← `run` ← `record` ← `sim` ← `predict`; `lathe` on none of them), no
+//! direction only (`plan` ← `run` ← `record` ← `sim` ← `predict` ← `verify`; `lathe` on none of them), no
 //! production module of `plan`, `run` or `record` reaches a simulator, and no two modules import
 //! each other through a chain (docs/ARCHITECTURE.md, "Crates and dependency direction").
 //!
@@ -12,7 +12,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 /// The stages in dependency order: each may use only those before it.
-const STAGES: [&str; 5] = ["plan", "run", "record", "sim", "predict"];
+const STAGES: [&str; 6] = ["plan", "run", "record", "sim", "predict", "verify"];
 
 fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")

@@ -23,6 +23,7 @@ mod mesh_cli;
 mod plan_guards;
 mod predict_setup;
 mod record_cli;
+mod robot_programs;
 mod run_cli;
 mod run_pty;
 mod sim_indexer;

@@ -684,3 +684,29 @@ fn group1(c: &mut Cursor<'_>) -> Result<Position, Error> {
         e1: v[6],
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_strings_in_their_written_forms() {
+        let t = lex("'x'", 1, None).unwrap();
+        let c = config_text("N U T, 0, 1, -1", &t[0]).unwrap();
+        assert_eq!(
+            (c.flip, c.up, c.front, c.turns),
+            (false, true, true, [0, 1, -1])
+        );
+        let c = config_text("FDB,0,0,0", &t[0]).unwrap();
+        assert_eq!((c.flip, c.up, c.front), (true, false, false));
+        for bad in [
+            "N U",
+            "N U T, 0, 0",
+            "X U T, 0, 0, 0",
+            "N U T, 0, 0, 0, 0",
+            "N U T, a, 0, 0",
+        ] {
+            assert!(config_text(bad, &t[0]).is_err(), "{bad}");
+        }
+    }
+}

@@ -630,3 +630,47 @@ fn frame(c: &mut Cursor<'_>) -> Result<Frame, Error> {
         orientation: zyx_deg_quaternion([v[3], v[4], v[5]]),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A module as KUKA's editor saves it: bit-string Status and Turn, an inline aggregate,
+    /// folds, `&` headers and other declarations.
+    #[test]
+    fn editor_forms_are_read() {
+        let dat = "&ACCESS RVP\n&REL 3\nDEFDAT  SEAM PUBLIC\n;FOLD EXTERNAL DECLARATIONS\n\
+                   EXT BAS (BAS_COMMAND :IN,REAL :IN )\n;ENDFOLD\n\
+                   DECL E6POS XP1={X 10.0,Y -2.5,Z 300,A 90,B 0,C 180,S 'B110',T 'B000010',E1 0.0}\n\
+                   DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE}\nENDDAT\n";
+        let src = "&ACCESS RVP\n&REL 3\nDEF SEAM( )\n;FOLD INI\n  BAS (#INITMOV,0 )\n;ENDFOLD (INI)\n\
+                   $vel.cp = 0.2\n$APO.CDIS = 1.5\nPTP XP1\nlin {X 20,Y 0,Z 300,A 0,B 0,C 0} C_DIS\n\
+                   WAIT FOR $IN[3]==FALSE\nEND\n";
+        let units = parse_set(&[
+            ("SEAM.dat".to_string(), dat.to_string()),
+            ("SEAM.src".to_string(), src.to_string()),
+        ])
+        .unwrap();
+        let body = &units[1].1.routines[0].body;
+        let Item::Step(Step::Move(first)) = &body[0] else {
+            panic!("{body:?}");
+        };
+        assert_eq!(first.config, ConfigData::Kuka(KukaStatus { s: 6, t: 2 }));
+        assert_eq!(first.motion, Motion::Joint);
+        assert_eq!(first.external_deg, Some(0.0));
+        let Item::Step(Step::Move(second)) = &body[1] else {
+            panic!("{body:?}");
+        };
+        assert_eq!(second.zone, Zone::Distance(1.5));
+        assert_eq!(second.speed_mm_s, Some(200.0));
+        assert_eq!(second.config, ConfigData::None);
+        assert!(matches!(
+            body[2],
+            Item::Step(Step::Wait {
+                number: 3,
+                on: false,
+                ..
+            })
+        ));
+    }
+}

@@ -23,8 +23,10 @@
 //! - Sync at a target (decoupled): `SetDO doWcN, 1;` before the move, the move to a stop point,
 //!   `WaitDI diWcM, 1; SetDO doWcN, 0; WaitDI diWcM, 0;` after it; the signals `doWcN`/`diWcM`
 //!   are the robot's digital output N and input M, named so in the I/O configuration.
-//! - Split: at most [`TARGETS_PER_MODULE`] targets per module; the main module loads each part
-//!   (`Load \Dynamic, "HOME:/…"`), runs its procedure by late binding and unloads it.
+//! - Split: at most [`TARGETS_PER_MODULE`] targets per module; the part `NAME_Pk.mod` holds
+//!   module `MNAME_Pk` with procedure `NAME_Pk` (a module and a routine may not share a name);
+//!   the main module loads each part (`Load \Dynamic, "HOME:/…"`), runs its procedure by late
+//!   binding and unloads it.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -129,7 +131,8 @@ pub(crate) fn write(
     files.push((format!("{id}.mod"), main));
     for (name, (decls, procs)) in part_texts {
         let mut t = String::new();
-        let _ = writeln!(t, "MODULE {name}");
+        // A module and a routine may not share a name: the part module is `M` + its procedure.
+        let _ = writeln!(t, "MODULE M{name}");
         t.push_str(&decls);
         let _ = writeln!(t, "  PROC {name}()");
         t.push_str(&procs);

@@ -1309,6 +1309,27 @@ fn crlf_and_case_are_read_the_same() {
     }
 }
 
+/// Long paths split with the default sizes (RAPID 2000 targets a module, KRL 200, FANUC 1000)
+/// and read back whole, in time linear in their length.
+#[test]
+fn long_programs_split_by_default_and_read_back() {
+    for (format, model, kin, parts) in [
+        (Format::Rapid, "irb2600-12/1.65", Kin::Opw(&IRB2600), 2 + 1),
+        (Format::Krl, "kr16-2", Kin::Opw(&KR16), 2 * 15 + 1),
+        (Format::Fanuc, "m-20ia", Kin::Opw(&M20IA), 3 + 1),
+        (Format::UrScript, "ur10e", Kin::Ur, 1),
+    ] {
+        let p = random_path(&kin, 3000, 131, false);
+        let started = std::time::Instant::now();
+        let files = write(format, &p, model, None);
+        assert_eq!(files.len(), parts, "{format}");
+        let read = program::read(format, &files, None).unwrap();
+        assert_eq!(read.targets().count(), 3000);
+        let secs = started.elapsed().as_secs_f64();
+        assert!(secs < 10.0, "{format}: {secs} s");
+    }
+}
+
 /// Routines that call each other many times over without moving stop at the step limit,
 /// quickly.
 #[test]
