@@ -166,6 +166,30 @@ pub enum Error {
         /// What is in the way, in words.
         reason: String,
     },
+    /// A cell description that cannot be used: `CELL.toml` at a line and column, or the job's
+    /// `[cell]` (`place` `None`).
+    #[error("{}{}: {problem}", file.display(), cell_place(*place))]
+    Cell {
+        /// `CELL.toml`, or the job file.
+        file: PathBuf,
+        /// 1-based line and column in `CELL.toml`; `None` for the job's `[cell]`.
+        place: Option<(usize, usize)>,
+        /// What is wrong.
+        problem: CellProblem,
+    },
+    /// A program the run file runs that no control file of the sequence is (seed 001 §5.4.1).
+    #[error("{}:{line}:1: program {program} is not loaded by the sequence", file.display())]
+    ProgramNotLoaded {
+        /// The run file.
+        file: PathBuf,
+        /// 1-based line of the program's record.
+        line: usize,
+        /// The program number.
+        program: u8,
+    },
+    /// A lathe winder setting or start out of range, refused before anything moves.
+    #[error(transparent)]
+    LatheSetting(LatheSetting),
     /// A run cannot start or go on: `input` true when the operator's files or arguments are at
     /// fault (exit code 2), false for the cell (exit code 1).
     #[error("{message}")]
@@ -371,6 +395,9 @@ impl Error {
                     source: mandrel_drive::Error::OutOfRange { .. }
                 }
                 | Error::Run { input: true, .. }
+                | Error::Cell { .. }
+                | Error::ProgramNotLoaded { .. }
+                | Error::LatheSetting(_)
                 | Error::NotPlannedForContinuous { .. }
                 | Error::RelativePosition { .. }
                 | Error::OutOfReach { .. }
@@ -420,6 +447,139 @@ pub enum JournalMismatch {
         /// This run's mode keyword.
         run: &'static str,
     },
+}
+
+/// What is wrong with a cell description (docs/file-formats.md, "Cell file").
+#[derive(Debug, Error)]
+pub enum CellProblem {
+    /// The TOML reader refused the text.
+    #[error("{0}")]
+    Syntax(String),
+    /// The drive's gearing is one the drive cannot run.
+    #[error(transparent)]
+    Drive(mandrel_drive::Error),
+    /// Some of the ports named, not all.
+    #[error(
+        "name the robot and indexer ports (and the sync port for program mode) or none (the \
+         simulated cell)"
+    )]
+    Ports,
+    /// The simulated sync lines' opto-isolator delay out of range.
+    #[error("opto_delay_s = {}: expected 0–1 s", sequences::error::shown(*value_s))]
+    OptoDelay {
+        /// The delay given, s.
+        value_s: f64,
+    },
+    /// A calibration tolerance not finite or outside 0–100.
+    #[error("[tolerance]: every figure must be finite and 0–100")]
+    Tolerance,
+    /// A six-axis arm controller's sync signal number outside 1–4096 (`[robot_io]`).
+    #[error("[robot_io]: signal {signal}: expected 1–4096")]
+    RobotIoSignal {
+        /// The signal number given.
+        signal: u16,
+    },
+}
+
+/// A lathe winder setting or start refused before anything moves (seed 000 Ch. 7, seed 003
+/// §4.1–4.2).
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum LatheSetting {
+    /// A feed the axes cannot reach: it would be planned and then not followed.
+    #[error(
+        "feed {} counts/interrupt is above the axes' top speed of {top_counts_per_interrupt:.1} \
+         (the plant {plant_gain:.1}/(s (s + {pole_per_s})) at full DAC output, {interrupt_hz} Hz)",
+        paths::limits::shown(*feed_counts_per_interrupt)
+    )]
+    FeedAboveTopSpeed {
+        /// The feed asked for, counts per interrupt.
+        feed_counts_per_interrupt: f64,
+        /// The plant's steady speed at full DAC output, counts per interrupt.
+        top_counts_per_interrupt: f64,
+        /// The plant's gain.
+        plant_gain: f64,
+        /// The plant's pole, 1/s.
+        pole_per_s: f64,
+        /// The interrupt rate, Hz.
+        interrupt_hz: f64,
+    },
+    /// A homing start outside the limit switches.
+    #[error(
+        "start {axis} = {} mm is outside the limit switches (−5 … {travel_mm} mm)",
+        paths::limits::shown(*start_mm)
+    )]
+    HomeStart {
+        /// `X` or `Y`.
+        axis: char,
+        /// The start, mm from the home switch's frame.
+        start_mm: f64,
+        /// The axis's travel, mm.
+        travel_mm: f64,
+    },
+    /// A homing back-off outside 0 … 4000 encoder pulses.
+    #[error("back-off {pulses} pulses is outside 0 … 4000")]
+    HomeBackoff {
+        /// The back-off asked for.
+        pulses: i64,
+    },
+    /// A gear ratio that is not finite.
+    #[error("ratio {ratio_mm_per_deg} mm/° is not finite")]
+    GearRatio {
+        /// Carriage millimetres per mandrel degree.
+        ratio_mm_per_deg: f64,
+    },
+    /// A geared mandrel speed outside (0, 3600] °/s.
+    #[error("mandrel speed {speed_deg_s} °/s is outside (0, 3600]")]
+    GearSpeed {
+        /// The mandrel's speed, °/s.
+        speed_deg_s: f64,
+    },
+    /// Geared turns outside (0, 1000].
+    #[error("turns {turns} is outside (0, 1000]")]
+    GearTurns {
+        /// Mandrel turns.
+        turns: f64,
+    },
+    /// A ramp outside [0, 60] s.
+    #[error("ramp {ramp_s} s is outside [0, 60]")]
+    GearRamp {
+        /// The ramp, s.
+        ramp_s: f64,
+    },
+    /// A geared run longer than an hour.
+    #[error("{angle_deg}° at {speed_deg_s} °/s takes more than an hour")]
+    GearTooLong {
+        /// The mandrel's whole turn, degrees.
+        angle_deg: f64,
+        /// Its speed, °/s.
+        speed_deg_s: f64,
+    },
+    /// A geared carriage that would pass a limit switch.
+    #[error(
+        "the carriage would reach {} mm from machine zero, beyond the limit switches (0 … \
+         {travel_mm} mm): ratio {} mm/° over {}°",
+        paths::limits::fixed(*end_mm, 2),
+        paths::limits::shown(*ratio_mm_per_deg),
+        paths::limits::shown(*angle_deg)
+    )]
+    CarriageBeyondLimits {
+        /// Where the carriage would end, mm from machine zero.
+        end_mm: f64,
+        /// The carriage's travel, mm.
+        travel_mm: f64,
+        /// Carriage millimetres per mandrel degree.
+        ratio_mm_per_deg: f64,
+        /// The mandrel's whole turn, degrees.
+        angle_deg: f64,
+    },
+}
+
+/// Where in a cell description: `:LINE:COL` in `CELL.toml`, `: [cell]` in a job.
+fn cell_place(place: Option<(usize, usize)>) -> String {
+    match place {
+        Some((line, column)) => format!(":{line}:{column}"),
+        None => ": [cell]".to_string(),
+    }
 }
 
 /// A length for a message: plain below a million, in exponent form above (`1e308`, not 309

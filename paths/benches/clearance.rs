@@ -2,6 +2,9 @@
 //! mesh (both paths, every segment, the eye mechanism, the free fibre and the arm's links), and
 //! the free-fibre (tow-segment) query alone. Figures in docs/benchmarks.md ("Clearance").
 
+#[path = "common/cell.rs"]
+mod cell;
+
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -13,10 +16,10 @@ use paths::clearance::{
 use paths::geodesic::{Direction, PathStart};
 use paths::mesh::trace::{DEFAULT_CREASE_DEG, TraceOptions, Tracer};
 use paths::mesh::{Closure, DEFAULT_WELD_MM, prepare, resegment, triasym};
-use paths::plan::{ENTRY_ANGLE_MAX_DEG, PathPlan};
+use paths::plan::PathPlan;
 use paths::robot::ElbowBranch;
 use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
-use paths::{Arm, Calibration, Gearing, MandrelProfile, Movement, Setup, Speeds, Spine, Tube};
+use paths::{Arm, Movement, Setup, Spine, Tube};
 
 /// The S-bend job of `examples/sbend-mesh.toml` on a 200 448-triangle mesh: its solid, setup and
 /// the plans of its two paths.
@@ -31,29 +34,11 @@ fn sbend_job() -> (MeshSolid, Setup, Vec<PathPlan>) {
     assert_eq!(mesh.triangles().len(), 200_448);
     let solid = MeshSolid::new(&mesh).unwrap();
     let tracer = Tracer::new(mesh, &adjacency, DEFAULT_CREASE_DEG).unwrap();
-    let setup = Setup {
-        robot_distance_mm: 800.0,
-        mandrel_height_mm: 300.0,
-        offset_mm: 100.0,
-        arm: Arm {
-            eye_mechanism_mm: 150.0,
-            ..Arm::default()
-        },
-        entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
-        calibration: Calibration::default(),
-        gearing: Gearing::default(),
-        six_axis: None,
-    };
-    let speeds = Speeds {
-        mandrel: MandrelProfile {
-            accel_rps2: 1.0,
-            start_stop_rps: 0.05,
-            max_rps: 0.1,
-        },
-        base_speed_mm_s: 1000.0,
-        max_speed_mm_s: 2000.0,
-        movement: Movement::Fine,
-    };
+    let setup = cell::setup(Arm {
+        eye_mechanism_mm: 150.0,
+        ..Arm::default()
+    });
+    let speeds = cell::speeds(Movement::Fine);
     let plans = [Direction::Down, Direction::Up]
         .into_iter()
         .map(|direction| {

@@ -5,6 +5,9 @@
 #[path = "common/shapes.rs"]
 mod shapes;
 
+#[path = "common/cell.rs"]
+mod cell;
+
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -14,11 +17,10 @@ use paths::mesh::trace::{DEFAULT_CREASE_DEG, Mode, TraceOptions, Tracer};
 use paths::mesh::{
     Closure, DEFAULT_WELD_MM, Mesh, cache, prepare, prepare_welded, resegment, stl, triasym,
 };
-use paths::plan::ENTRY_ANGLE_MAX_DEG;
 use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
 use shapes::{Shape, starts};
 
-use paths::{Arm, Calibration, Gearing, MandrelProfile, Movement, Setup, Speeds, Spine, Tube};
+use paths::{Arm, Movement, Spine, Tube};
 
 fn tracer(mesh: &Mesh) -> Tracer {
     let (m, adj) = prepare(mesh, DEFAULT_WELD_MM, Closure::Closed).unwrap();
@@ -218,12 +220,7 @@ fn different_paths(c: &mut Criterion) {
             let starts = starts(shape, &mesh);
             let tr = tracer(&mesh);
             for (name, mode) in [("smooth", Mode::Smooth), ("exact", Mode::Exact)] {
-                let o = TraceOptions {
-                    max_length_mm: shape.length_mm(),
-                    axis: shape.axis(),
-                    mode,
-                    ..TraceOptions::default()
-                };
+                let o = shape.trace_options(mode);
                 let run = |s: &shapes::Start| {
                     tr.trace_direction(&s.point, &s.direction, 1e-6, &o)
                         .unwrap()
@@ -266,26 +263,8 @@ fn coverage(c: &mut Criterion) {
     .unwrap();
     let mesh = triasym::tube(&tube, 384, 350.0 / 260.0, true).unwrap();
     let tr = tracer(&mesh);
-    let setup = Setup {
-        robot_distance_mm: 800.0,
-        mandrel_height_mm: 300.0,
-        offset_mm: 100.0,
-        arm: Arm::default(),
-        entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
-        calibration: Calibration::default(),
-        gearing: Gearing::default(),
-        six_axis: None,
-    };
-    let speeds = Speeds {
-        mandrel: MandrelProfile {
-            accel_rps2: 1.0,
-            start_stop_rps: 0.05,
-            max_rps: 0.1,
-        },
-        base_speed_mm_s: 1000.0,
-        max_speed_mm_s: 2000.0,
-        movement: Movement::Fine,
-    };
+    let setup = cell::setup(Arm::default());
+    let speeds = cell::speeds(Movement::Fine);
     let mut group = c.benchmark_group("mesh");
     group.sample_size(10);
     group.bench_function(

@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::io::Write as _;
 use std::time::Instant;
 
-use paths::mesh::trace::{DEFAULT_CREASE_DEG, Mode, TraceOptions, Tracer};
+use paths::mesh::trace::{DEFAULT_CREASE_DEG, Mode, Tracer};
 use paths::mesh::{Closure, prepare_welded, stl};
 use shapes::{Shape, starts};
 
@@ -59,12 +59,7 @@ fn main() {
             );
             let mut result = Vec::new();
             for (mode_name, mode) in [("smooth", Mode::Smooth), ("exact", Mode::Exact)] {
-                let o = TraceOptions {
-                    max_length_mm: shape.length_mm(),
-                    axis: shape.axis(),
-                    mode,
-                    ..TraceOptions::default()
-                };
+                let o = shape.trace_options(mode);
                 let run = |s: &shapes::Start| {
                     tracer
                         .trace_direction(&s.point, &s.direction, 1e-6, &o)

@@ -3,38 +3,24 @@
 //! the base yaw, steps, trapezoid timing and the arm's speed limit for every segment end of a
 //! planned path (target: at least 2 million poses per second on one core). Run with `cargo bench -p paths --bench pose`.
 
+#[path = "common/cell.rs"]
+mod cell;
+
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use paths::geodesic::{self, Direction, PathStart};
-use paths::plan::ENTRY_ANGLE_MAX_DEG;
 use paths::segment::equal_length;
 use paths::spine::{SBEND_SMOOTHING_MM, SBEND_TABLE_6_1_MM};
-use paths::{Arm, Calibration, Gearing, MandrelProfile, Movement, Setup, Speeds, Spine, Tube};
+use paths::{Arm, Movement, Spine, Tube};
 use std::hint::black_box;
 
 fn poses(c: &mut Criterion) {
-    let setup = Setup {
-        robot_distance_mm: 800.0,
-        mandrel_height_mm: 300.0,
-        offset_mm: 100.0,
-        arm: Arm::default(),
-        entry_angle_max_rad: ENTRY_ANGLE_MAX_DEG.to_radians(),
-        calibration: Calibration::default(),
-        gearing: Gearing::default(),
-        six_axis: None,
-    };
-    let speeds = Speeds {
-        mandrel: MandrelProfile {
-            accel_rps2: 1.0,
-            start_stop_rps: 0.05,
-            max_rps: 0.1,
-        },
-        base_speed_mm_s: 1000.0,
-        max_speed_mm_s: 2000.0,
+    let setup = cell::setup(Arm::default());
+    let speeds = cell::speeds(
         // Discrete: at 10 000 segments many segments turn the mandrel by no step at all, which
         // fine movement rightly refuses (the robot cannot move in no time); discrete movement
         // paces those by the robot.
-        movement: Movement::Discrete,
-    };
+        Movement::Discrete,
+    );
     let tube = Tube::new(
         Spine::smoothing(&SBEND_TABLE_6_1_MM, SBEND_SMOOTHING_MM).unwrap(),
         28.5,

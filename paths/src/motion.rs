@@ -373,11 +373,13 @@ impl MotionSink for Estimate {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
 
-    fn limits() -> Limits {
+    /// Every axis at 100 units/s and 1000 units/s², a junction deviation of 0.01: the limits the
+    /// planner's tests run on.
+    pub(crate) fn limits() -> Limits {
         let l = AxisLimit {
             velocity: 100.0,
             acceleration: 1000.0,

@@ -689,17 +689,50 @@ impl Job {
         })
     }
 
+    /// A helical layer on a tube, cone or nose: the format's rules, the circuits that cover the
+    /// surface in whole patterns, the lock that steps through every slot, then the layer's passes
+    /// and the tow it lays.
     fn check_tube(
         &self,
         number: usize,
         t: &TubeHelical,
         radius: f64,
     ) -> Result<(Detail, LayerMark), Error> {
+        let length = self.mandrel.length_mm();
+        self.check_tube_rules(number, t, length)?;
+        let geodesic = self.cone_geodesic(number, t, radius, length)?;
+        let nose_pass = match self.mandrel {
+            Mandrel::VonKarman {
+                base_radius_mm,
+                length_mm,
+            } => Some(self.nose_pass(number, t, radius, base_radius_mm, length_mm)?),
+            _ => None,
+        };
+        let circuits = tube_circuits(number, t, radius, self.tow.band_mm)?;
+        check_lock_stride(number, t)?;
+        if let Some((pass, stations)) = nose_pass {
+            return Ok(nose_layer(
+                number,
+                t,
+                circuits,
+                radius,
+                length,
+                &pass,
+                stations,
+                self.machine.eye_radius_mm,
+            ));
+        }
+        Ok(self.tube_layer(number, t, circuits, radius, length, geodesic))
+    }
+
+    /// The helical layer's own figures: the angle, the lock, lead-in and lead-out, the friction
+    /// (a nose only, within the slip limit), the pattern and skip (coprime), a lead-in shorter
+    /// than the wound length.
+    fn check_tube_rules(&self, number: usize, t: &TubeHelical, length: f64) -> Result<(), Error> {
         let reject = |reason: String| Error::WindRule {
             layer: number,
             reason,
         };
-        let length = self.mandrel.length_mm();
         positive("cylinder_length_mm", length)?;
         if !(1.0..=89.0).contains(&t.wind_angle_deg) {
             return Err(reject(format!(
@@ -759,9 +792,23 @@ impl Job {
                 t.lead_in_mm
             )));
         }
-        // On a cone the layer winds on the large end's radius grown by the laminate below; the
-        // small end grows by the same.
-        let geodesic = match self.mandrel {
+        Ok(())
+    }
+
+    /// On a cone, the geodesic the layer winds: on the large end's radius grown by the laminate
+    /// below; the small end grows by the same. `None` on a tube or nose.
+    fn cone_geodesic(
+        &self,
+        number: usize,
+        t: &TubeHelical,
+        radius: f64,
+        length: f64,
+    ) -> Result<Option<ConeGeodesic>, Error> {
+        let reject = |reason: String| Error::WindRule {
+            layer: number,
+            reason,
+        };
+        Ok(match self.mandrel {
             Mandrel::Cone {
                 large_radius_mm,
                 small_radius_mm,
@@ -790,69 +837,22 @@ impl Job {
                 )
             }
             _ => None,
-        };
-        let nose_pass = match self.mandrel {
-            Mandrel::VonKarman {
-                base_radius_mm,
-                length_mm,
-            } => Some(self.nose_pass(number, t, radius, base_radius_mm, length_mm)?),
-            _ => None,
-        };
+        })
+    }
+
+    /// The passes of a helical layer of `circuits` on a tube (a helix) or cone (its geodesic):
+    /// the turnaround that brings each pass to the lock, and the tow laid.
+    fn tube_layer(
+        &self,
+        number: usize,
+        t: &TubeHelical,
+        circuits: u32,
+        radius: f64,
+        length: f64,
+        geodesic: Option<ConeGeodesic>,
+    ) -> (Detail, LayerMark) {
         let alpha = t.wind_angle_deg.to_radians();
         let circumference = TAU * radius;
-        let arc = self.tow.band_mm / alpha.cos();
-        let circuits_f = (circumference / arc - 1e-9).ceil();
-        if circuits_f > 1e7 {
-            return Err(reject(format!("{circuits_f} circuits is too many to wind")));
-        }
-        let circuits = circuits_f as u32;
-        if !circuits.is_multiple_of(t.pattern_number) {
-            let near: Vec<String> = (1..=circuits)
-                .filter(|p| circuits.is_multiple_of(*p))
-                .map(|p| p.to_string())
-                .collect();
-            return Err(reject(format!(
-                "{circuits} circuits (at radius {radius:.3} mm) do not divide into patterns of {}; \
-                 pattern numbers that divide them: {}",
-                t.pattern_number,
-                near.join(", ")
-            )));
-        }
-        if t.pattern_number > 1 {
-            let slot = 360.0 / f64::from(t.pattern_number);
-            let per_circuit = (2.0 * t.lock_deg).rem_euclid(360.0);
-            let slots = per_circuit / slot;
-            let stride_ok = (slots - slots.round()).abs() < 1e-6 && {
-                let j =
-                    (slots.round() as u64 + u64::from(t.skip_index)) % u64::from(t.pattern_number);
-                gcd(j as u32, t.pattern_number) == 1
-            };
-            if !stride_ok {
-                let valid: Vec<String> = nearest_locks(t, slot)
-                    .into_iter()
-                    .map(|v| format!("{v}°"))
-                    .collect();
-                return Err(reject(format!(
-                    "lock {}° turns a circuit by {per_circuit}° (mod 360°), which does not step \
-                     through all {} slots of {slot}°; nearest valid locks: {}",
-                    t.lock_deg,
-                    t.pattern_number,
-                    valid.join(", ")
-                )));
-            }
-        }
-        if let Some((pass, stations)) = nose_pass {
-            return Ok(nose_layer(
-                number,
-                t,
-                circuits,
-                radius,
-                length,
-                &pass,
-                stations,
-                self.machine.eye_radius_mm,
-            ));
-        }
         let deg_per_mm = (length * alpha.tan() / circumference * 360.0) / length;
         let pass_deg = match &geodesic {
             Some(g) => g.turn_deg(length),
@@ -889,7 +889,7 @@ impl Job {
                 )
             }
         };
-        Ok((
+        (
             Detail::Tube {
                 layer: *t,
                 circuits,
@@ -906,7 +906,7 @@ impl Job {
                 winding_radius_mm: radius,
                 wind_angle_deg: t.wind_angle_deg,
             },
-        ))
+        )
     }
 }
 
@@ -1018,6 +1018,68 @@ fn nose_layer(
 
 fn gcd(a: u32, b: u32) -> u32 {
     if b == 0 { a } else { gcd(b, a % b) }
+}
+
+/// The circuits of a helical layer at `radius`: enough bands of `band_mm` (across the fibre) to
+/// cover the circumference, in whole patterns.
+fn tube_circuits(number: usize, t: &TubeHelical, radius: f64, band_mm: f64) -> Result<u32, Error> {
+    let reject = |reason: String| Error::WindRule {
+        layer: number,
+        reason,
+    };
+    let alpha = t.wind_angle_deg.to_radians();
+    let circumference = TAU * radius;
+    let arc = band_mm / alpha.cos();
+    let circuits_f = (circumference / arc - 1e-9).ceil();
+    if circuits_f > 1e7 {
+        return Err(reject(format!("{circuits_f} circuits is too many to wind")));
+    }
+    let circuits = circuits_f as u32;
+    if !circuits.is_multiple_of(t.pattern_number) {
+        let near: Vec<String> = (1..=circuits)
+            .filter(|p| circuits.is_multiple_of(*p))
+            .map(|p| p.to_string())
+            .collect();
+        return Err(reject(format!(
+            "{circuits} circuits (at radius {radius:.3} mm) do not divide into patterns of {}; \
+             pattern numbers that divide them: {}",
+            t.pattern_number,
+            near.join(", ")
+        )));
+    }
+    Ok(circuits)
+}
+
+/// With more than one pattern slot, the lock must turn each circuit by a whole number of slots
+/// that, with the skip, steps through all of them.
+fn check_lock_stride(number: usize, t: &TubeHelical) -> Result<(), Error> {
+    if t.pattern_number <= 1 {
+        return Ok(());
+    }
+    let slot = 360.0 / f64::from(t.pattern_number);
+    let per_circuit = (2.0 * t.lock_deg).rem_euclid(360.0);
+    let slots = per_circuit / slot;
+    let stride_ok = (slots - slots.round()).abs() < 1e-6 && {
+        let j = (slots.round() as u64 + u64::from(t.skip_index)) % u64::from(t.pattern_number);
+        gcd(j as u32, t.pattern_number) == 1
+    };
+    if stride_ok {
+        return Ok(());
+    }
+    let valid: Vec<String> = nearest_locks(t, slot)
+        .into_iter()
+        .map(|v| format!("{v}°"))
+        .collect();
+    Err(Error::WindRule {
+        layer: number,
+        reason: format!(
+            "lock {}° turns a circuit by {per_circuit}° (mod 360°), which does not step \
+             through all {} slots of {slot}°; nearest valid locks: {}",
+            t.lock_deg,
+            t.pattern_number,
+            valid.join(", ")
+        ),
+    })
 }
 
 /// Up to three locks nearest the requested one that step through every slot.

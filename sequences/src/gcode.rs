@@ -396,11 +396,7 @@ impl<W: Write> Writer<W> {
         if self.frame.fiberpath {
             self.comment(&title)?;
             let p = header.parameters.unwrap_or_default();
-            self.raw(&format!(
-                "; Parameters {{\"mandrel\": {{\"diameter\": {}, \"windLength\": {}}}, \
-                 \"tow\": {{\"width\": {}, \"thickness\": {}}}}}\n",
-                p.diameter_mm, p.wind_length_mm, p.tow_width_mm, p.tow_thickness_mm
-            ))?;
+            self.raw(&fiberpath_parameters(&p))?;
             let units = self.frame.units_word();
             return self.raw(&format!("{units}\nG90\nG94\n"));
         }
@@ -574,6 +570,19 @@ impl<W: Write> MotionSink for Writer<W> {
     }
 }
 
+/// FiberPath's `; Parameters {…}` line: the mandrel and the tow as JSON.
+fn fiberpath_parameters(p: &Parameters) -> String {
+    let mandrel = format!(
+        "\"mandrel\": {{\"diameter\": {}, \"windLength\": {}}}",
+        p.diameter_mm, p.wind_length_mm
+    );
+    let tow = format!(
+        "\"tow\": {{\"width\": {}, \"thickness\": {}}}",
+        p.tow_width_mm, p.tow_thickness_mm
+    );
+    format!("; Parameters {{{mandrel}, {tow}}}\n")
+}
+
 /// A program read back: its moves (absolute, unwrapped, with durations from the feed words) and
 /// its layer boundaries.
 pub fn read(text: &str, dialect: Dialect) -> Result<Recording, Error> {
@@ -583,39 +592,11 @@ pub fn read(text: &str, dialect: Dialect) -> Result<Recording, Error> {
 /// A program written in a machine's `frame` read back into the planner's frame (moves of the
 /// axes the machine lacks keep the value they had, 0 from the start).
 pub fn read_in_frame(text: &str, dialect: Dialect, frame: &Frame) -> Result<Recording, Error> {
-    let letters = frame.letters;
-    let feed_mode = frame.feed;
     let mut rec = Recording::default();
-    let mut pos = [0.0f64; 4];
-    let mut offset = 0.0f64;
-    let mut incremental = false;
-    let mut inverse_time = false;
+    let mut modal = Modal::default();
     for (n, raw_line) in text.lines().enumerate() {
         let line_no = n + 1;
-        // Strip comments, noting layer marks.
-        let mut code = String::with_capacity(raw_line.len());
-        let mut rest = raw_line;
-        while !rest.is_empty() {
-            if dialect == Dialect::Marlin && rest.starts_with(';') {
-                note_layer(&rest[1..], &mut rec);
-                break;
-            }
-            if let Some(body) = rest.strip_prefix('(') {
-                let Some(end) = body.find(')') else {
-                    return Err(Error::at(
-                        line_no,
-                        raw_line.len() - rest.len() + 1,
-                        "comment without `)`",
-                    ));
-                };
-                note_layer(&body[..end], &mut rec);
-                rest = &body[end + 1..];
-                continue;
-            }
-            let ch = rest.chars().next().expect("not empty");
-            code.push(ch);
-            rest = &rest[ch.len_utf8()..];
-        }
+        let code = strip_comments(raw_line, line_no, dialect, &mut rec)?;
         let code = code.trim();
         let code = if dialect == Dialect::FwCnc {
             code.strip_suffix(';').unwrap_or(code).trim_end()
@@ -625,60 +606,142 @@ pub fn read_in_frame(text: &str, dialect: Dialect, frame: &Frame) -> Result<Reco
         if code.is_empty() || code == "%" {
             continue;
         }
-        // Words: a letter and a number, spaces allowed between them.
-        let bytes = code.as_bytes();
-        let mut i = 0;
-        let mut words: Vec<(u8, f64, usize)> = Vec::with_capacity(8);
-        while i < bytes.len() {
-            if bytes[i] == b' ' {
-                i += 1;
-                continue;
-            }
-            let col = raw_line.len() - raw_line.trim_start().len() + i + 1;
-            let letter = bytes[i].to_ascii_uppercase();
-            if !letter.is_ascii_alphabetic() {
+        let words = words_of(code, raw_line, line_no)?;
+        let block = modal.block(&words, line_no, dialect, frame)?;
+        if let Some(m) = modal.apply(&block, frame) {
+            rec.moves.push(m);
+        }
+    }
+    Ok(rec)
+}
+
+/// A line's code without its comments (`( … )`, and `; …` in Marlin), noting the layer marks
+/// the comments carry.
+fn strip_comments(
+    raw_line: &str,
+    line_no: usize,
+    dialect: Dialect,
+    rec: &mut Recording,
+) -> Result<String, Error> {
+    let mut code = String::with_capacity(raw_line.len());
+    let mut rest = raw_line;
+    while !rest.is_empty() {
+        if dialect == Dialect::Marlin && rest.starts_with(';') {
+            note_layer(&rest[1..], rec);
+            break;
+        }
+        if let Some(body) = rest.strip_prefix('(') {
+            let Some(end) = body.find(')') else {
                 return Err(Error::at(
                     line_no,
-                    col,
-                    format!("expected a word letter, found `{}`", bytes[i] as char),
+                    raw_line.len() - rest.len() + 1,
+                    "comment without `)`",
                 ));
-            }
-            i += 1;
-            while i < bytes.len() && bytes[i] == b' ' {
-                i += 1;
-            }
-            let start = i;
-            while i < bytes.len() && matches!(bytes[i], b'0'..=b'9' | b'.' | b'-' | b'+') {
-                i += 1;
-            }
-            let value: f64 = code[start..i]
-                .parse()
-                .ok()
-                .filter(|v: &f64| v.is_finite())
-                .ok_or_else(|| {
-                    Error::at(
-                        line_no,
-                        col,
-                        format!("word {} has no number", letter as char),
-                    )
-                })?;
-            words.push((letter, value, col));
+            };
+            note_layer(&body[..end], rec);
+            rest = &body[end + 1..];
+            continue;
         }
-        let mut motion: Option<MoveKind> = None;
-        let mut set_position = false;
-        let mut feed: Option<f64> = None;
-        let mut axis_words: [Option<f64>; 4] = [None; 4];
-        for &(letter, value, col) in &words {
+        let ch = rest.chars().next().expect("not empty");
+        code.push(ch);
+        rest = &rest[ch.len_utf8()..];
+    }
+    Ok(code)
+}
+
+/// A word: its letter (upper case), its number and its 1-based column in the raw line.
+type Word = (u8, f64, usize);
+
+/// The words of a line's code: a letter and a number, spaces allowed between them.
+fn words_of(code: &str, raw_line: &str, line_no: usize) -> Result<Vec<Word>, Error> {
+    let bytes = code.as_bytes();
+    let mut i = 0;
+    let mut words: Vec<Word> = Vec::with_capacity(8);
+    while i < bytes.len() {
+        if bytes[i] == b' ' {
+            i += 1;
+            continue;
+        }
+        let col = raw_line.len() - raw_line.trim_start().len() + i + 1;
+        let letter = bytes[i].to_ascii_uppercase();
+        if !letter.is_ascii_alphabetic() {
+            return Err(Error::at(
+                line_no,
+                col,
+                format!("expected a word letter, found `{}`", bytes[i] as char),
+            ));
+        }
+        i += 1;
+        while i < bytes.len() && bytes[i] == b' ' {
+            i += 1;
+        }
+        let start = i;
+        while i < bytes.len() && matches!(bytes[i], b'0'..=b'9' | b'.' | b'-' | b'+') {
+            i += 1;
+        }
+        let value: f64 = code[start..i]
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| {
+                Error::at(
+                    line_no,
+                    col,
+                    format!("word {} has no number", letter as char),
+                )
+            })?;
+        words.push((letter, value, col));
+    }
+    Ok(words)
+}
+
+/// What one block asks for.
+struct Block {
+    motion: Option<MoveKind>,
+    /// `G92`: the position is set, nothing moves.
+    set_position: bool,
+    feed: Option<f64>,
+    /// The axes' words, in the machine's axis order.
+    axis_words: [Option<f64>; 4],
+}
+
+/// The reader's modal state: where the axes stand (written frame), the `G92` offset of the
+/// first axis, `G91` and `G93`.
+#[derive(Default)]
+struct Modal {
+    pos: [f64; 4],
+    offset: f64,
+    incremental: bool,
+    inverse_time: bool,
+}
+
+impl Modal {
+    /// Reads a block's words, taking its modal words (`G90`/`G91`, `G93`/`G94`) into the
+    /// state; refuses a word the dialect's writer does not write.
+    fn block(
+        &mut self,
+        words: &[Word],
+        line_no: usize,
+        dialect: Dialect,
+        frame: &Frame,
+    ) -> Result<Block, Error> {
+        let mut block = Block {
+            motion: None,
+            set_position: false,
+            feed: None,
+            axis_words: [None; 4],
+        };
+        for &(letter, value, col) in words {
             let bad = |what: &str| Error::at(line_no, col, format!("{what} in {dialect}"));
             match letter {
                 b'G' => match value as i64 {
-                    0 if value == 0.0 => motion = Some(MoveKind::Rapid),
-                    1 if value == 1.0 => motion = Some(MoveKind::Feed),
-                    90 => incremental = false,
-                    91 => incremental = true,
-                    92 => set_position = true,
-                    93 => inverse_time = true,
-                    94 => inverse_time = false,
+                    0 if value == 0.0 => block.motion = Some(MoveKind::Rapid),
+                    1 if value == 1.0 => block.motion = Some(MoveKind::Feed),
+                    90 => self.incremental = false,
+                    91 => self.incremental = true,
+                    92 => block.set_position = true,
+                    93 => self.inverse_time = true,
+                    94 => self.inverse_time = false,
                     17..=21 => {}
                     64 => {}
                     _ => return Err(bad(&format!("G{value} is not written"))),
@@ -687,34 +750,42 @@ pub fn read_in_frame(text: &str, dialect: Dialect, frame: &Frame) -> Result<Reco
                     2 | 30 | 400 => {}
                     _ => return Err(bad(&format!("M{value} is not written"))),
                 },
-                b'F' => feed = Some(value),
+                b'F' => block.feed = Some(value),
                 b'O' | b'N' => {}
                 b'P' if words.iter().any(|w| w.0 == b'G' && w.1 == 64.0) => {}
                 l => {
-                    let Some(axis) = letters.iter().position(|x| *x == Some(l)) else {
+                    let Some(axis) = frame.letters.iter().position(|x| *x == Some(l)) else {
                         return Err(bad(&format!("axis {} is not written", l as char)));
                     };
-                    axis_words[axis] = Some(value);
+                    block.axis_words[axis] = Some(value);
                 }
             }
         }
-        if set_position {
+        Ok(block)
+    }
+
+    /// Carries out a block: `G92` sets the offset; a block with axis words moves them (the move
+    /// in the planner's frame, its duration from the feed word).
+    fn apply(&mut self, block: &Block, frame: &Frame) -> Option<Move> {
+        let axis_words = &block.axis_words;
+        let pos = self.pos;
+        if block.set_position {
             if let Some(v) = axis_words[0] {
-                offset = pos[0] - v;
+                self.offset = pos[0] - v;
             }
-            continue;
+            return None;
         }
         if axis_words.iter().all(Option::is_none) {
-            continue;
+            return None;
         }
-        let kind = motion.unwrap_or(MoveKind::Feed);
+        let kind = block.motion.unwrap_or(MoveKind::Feed);
         let mut next = pos;
         for i in 0..4 {
             if let Some(v) = axis_words[i] {
-                next[i] = if incremental {
+                next[i] = if self.incremental {
                     pos[i] + v
                 } else if i == 0 {
-                    v + offset
+                    v + self.offset
                 } else {
                     v
                 };
@@ -727,26 +798,25 @@ pub fn read_in_frame(text: &str, dialect: Dialect, frame: &Frame) -> Result<Reco
                 0.0
             }
         });
-        let duration_s = match (kind, feed) {
+        let duration_s = match (kind, block.feed) {
             (MoveKind::Rapid, _) => 0.0,
             (MoveKind::Feed, Some(f)) if f > 0.0 => {
-                let mode = if feed_mode == Feed::InverseTime && !inverse_time {
+                let mode = if frame.feed == Feed::InverseTime && !self.inverse_time {
                     Feed::AllWords
                 } else {
-                    feed_mode
+                    frame.feed
                 };
                 duration_from(mode, &delta, f)
             }
             (MoveKind::Feed, _) => 0.0,
         };
-        pos = next;
-        rec.moves.push(Move {
+        self.pos = next;
+        Some(Move {
             kind,
-            to: Axes::from_array(std::array::from_fn(|i| frame.to_planner(i, pos[i]))),
+            to: Axes::from_array(std::array::from_fn(|i| frame.to_planner(i, next[i]))),
             duration_s,
-        });
+        })
     }
-    Ok(rec)
 }
 
 /// Records a layer mark from a comment `layer N KIND: C circuits, …`.

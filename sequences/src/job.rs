@@ -550,6 +550,8 @@ impl Job {
         crate::error::written("job file", self, text, Job::parse)
     }
 
+    /// Checks every value the types do not: the name, the cell, the mandrel, the paths, in that
+    /// order (the first refusal is the one reported).
     fn validate(&self, text: &str) -> Result<(), Error> {
         if self.name.get_ref().chars().count() > MAX_NAME_CHARS {
             return Err(error_at(
@@ -568,164 +570,14 @@ impl Job {
                 "name must be letters, digits, `_` or `-` (it names the control files)",
             ));
         }
-        let c = &self.cell;
-        positive(text, &c.robot_distance_mm, "robot distance")?;
-        finite(text, &c.start_height_mm, "start height")?;
-        positive(text, &c.mandrel_speed_rps, "mandrel speed")?;
-        check(
-            text,
-            &c.eye_mechanism_length_mm,
-            *c.eye_mechanism_length_mm.get_ref() >= 0.0,
-            "is not a valid eye mechanism length: must be ≥ 0",
-        )?;
-        positive(text, &c.offset_mm, "offset")?;
-        positive(text, &c.base_speed_mm_s, "base speed")?;
-        positive(text, &c.max_speed_mm_s, "maximum speed")?;
-        if c.max_speed_mm_s.get_ref() < c.base_speed_mm_s.get_ref() {
-            return Err(error_at(
-                text,
-                c.max_speed_mm_s.span(),
-                "max_speed_mm_s is below base_speed_mm_s",
-            ));
-        }
-        let d = &c.drive;
-        if *d.steps_per_rev.get_ref() == 0 {
-            return Err(error_at(
-                text,
-                d.steps_per_rev.span(),
-                "steps_per_rev must be > 0",
-            ));
-        }
-        if d.gear_ratio.get_ref().contains(&0) {
-            return Err(error_at(
-                text,
-                d.gear_ratio.span(),
-                "gear_ratio teeth must be > 0",
-            ));
-        }
-        positive(text, &d.accel_rps2, "acceleration")?;
-        check(
-            text,
-            &d.start_stop_rps,
-            *d.start_stop_rps.get_ref() >= 0.0,
-            "is not a valid start/stop velocity: must be ≥ 0",
-        )?;
-        if d.start_stop_rps.get_ref() > c.mandrel_speed_rps.get_ref() {
-            return Err(error_at(
-                text,
-                d.start_stop_rps.span(),
-                "start_stop_rps exceeds mandrel_speed_rps",
-            ));
-        }
-        if let Some(eye) = &c.eye {
-            if let Some(l) = &eye.length_mm {
-                positive(text, l, "eye mechanism length")?;
-            }
-            if let Some(r) = &eye.radius_mm {
-                positive(text, r, "eye radius")?;
-            }
-            if let Some(t) = &eye.snag_tolerance_mm {
-                positive(text, t, "snag tolerance")?;
-            }
-            if let Some(h) = &eye.home_mm
-                && !h.get_ref().iter().all(|v| v.is_finite())
-            {
-                return Err(error_at(text, h.span(), "home_mm must be finite"));
-            }
-        }
-        if c.robot.is_none() {
-            arm::validate_robot(text, &Robot::default(), c)?;
-        }
-        arm::validate_placement(text, c)?;
-        for o in &c.obstacles {
-            let (lo, hi) = (o.min_mm.get_ref(), o.max_mm.get_ref());
-            if !lo.iter().chain(hi).all(|v| v.is_finite()) || (0..3).any(|k| lo[k] > hi[k]) {
-                return Err(error_at(
-                    text,
-                    o.max_mm.span(),
-                    "max_mm must be finite and not below min_mm on any axis",
-                ));
-            }
-            if o.name.get_ref().is_empty() {
-                return Err(error_at(text, o.name.span(), "an obstacle needs a name"));
-            }
-        }
-        if let Some(r) = &c.robot {
-            for length in [
-                &r.shoulder_height_mm,
-                &r.upper_arm_mm,
-                &r.forearm_mm,
-                &r.eye_mechanism_max_mm,
-            ]
-            .into_iter()
-            .flatten()
-            {
-                positive(text, length, "length")?;
-            }
-            for range in [
-                &r.base_yaw_deg,
-                &r.shoulder_deg,
-                &r.elbow_deg,
-                &r.pitch_deg,
-                &r.roll_deg,
-            ]
-            .into_iter()
-            .flatten()
-            {
-                let [lo, hi] = *range.get_ref();
-                if !(lo.is_finite() && hi.is_finite() && lo < hi && lo >= -360.0 && hi <= 360.0) {
-                    return Err(error_at(
-                        text,
-                        range.span(),
-                        "a joint range is [least, greatest] degrees, finite, least below \
-                         greatest, within ±360°",
-                    ));
-                }
-            }
-            if let Some(speeds) = &r.joint_speed_deg_s
-                && !speeds.get_ref().iter().all(|v| v.is_finite() && *v > 0.0)
-            {
-                return Err(error_at(
-                    text,
-                    speeds.span(),
-                    "joint speeds must be finite and > 0 degrees/s",
-                ));
-            }
-            arm::validate_robot(text, r, c)?;
-            if let Some(a) = &r.entry_angle_max_deg {
-                check(
-                    text,
-                    a,
-                    *a.get_ref() > 0.0 && *a.get_ref() <= 90.0,
-                    "is not a valid entry angle limit: must lie in (0°, 90°]",
-                )?;
-            }
-        }
-        if let Some(k) = &c.calibration {
-            for pair in [&k.axis_offset_mm, &k.axis_tilt_deg].into_iter().flatten() {
-                if !pair.get_ref().iter().all(|v| v.is_finite()) {
-                    return Err(error_at(text, pair.span(), "values must be finite"));
-                }
-            }
-            if let Some(tilt) = &k.axis_tilt_deg
-                && !tilt.get_ref().iter().all(|v| v.abs() < 10.0)
-            {
-                return Err(error_at(
-                    text,
-                    tilt.span(),
-                    "axis tilt must lie within ±10° (a measured misalignment)",
-                ));
-            }
-            if let Some(zero) = &k.zero_angle_deg {
-                finite(text, zero, "zero angle")?;
-            }
-            if let Some(sign) = &k.rotation_sign
-                && !matches!(sign.get_ref(), 1 | -1)
-            {
-                return Err(error_at(text, sign.span(), "rotation_sign must be 1 or -1"));
-            }
-        }
+        validate_cell(text, &self.cell)?;
         self.validate_mandrel(text)?;
+        self.validate_paths(text)
+    }
+
+    /// Every `[[path]]`: a program number once each, the fields of its kind (set or imported),
+    /// its segments and surface tolerance.
+    fn validate_paths(&self, text: &str) -> Result<(), Error> {
         if self.paths.is_empty() {
             return Err(Error::at_offset(
                 text,
@@ -750,64 +602,7 @@ impl Job {
                 ));
             }
             programs.push(*p.program.get_ref());
-            if let Some(dxf) = &p.dxf {
-                for (span, name) in [
-                    (p.direction.as_ref().map(Spanned::span), "direction"),
-                    (
-                        p.wind_angle_deg.as_ref().map(Spanned::span),
-                        "wind_angle_deg",
-                    ),
-                    (
-                        p.start_angle_deg.as_ref().map(Spanned::span),
-                        "start_angle_deg",
-                    ),
-                ] {
-                    if let Some(span) = span {
-                        return Err(error_at(
-                            text,
-                            span,
-                            format!("`{name}` does not apply to a path imported from `dxf`"),
-                        ));
-                    }
-                }
-                if dxf.get_ref().is_empty() {
-                    return Err(error_at(text, dxf.span(), "dxf must name a file"));
-                }
-            } else {
-                let missing = |name: &str| {
-                    error_at(
-                        text,
-                        p.program.span(),
-                        format!("missing field `{name}` (or `dxf` for an imported path)"),
-                    )
-                };
-                if p.direction.is_none() {
-                    return Err(missing("direction"));
-                }
-                let wind = p
-                    .wind_angle_deg
-                    .as_ref()
-                    .ok_or_else(|| missing("wind_angle_deg"))?;
-                let start = p
-                    .start_angle_deg
-                    .as_ref()
-                    .ok_or_else(|| missing("start_angle_deg"))?;
-                let angle = *wind.get_ref();
-                check(
-                    text,
-                    wind,
-                    angle > 0.0 && angle < 90.0,
-                    "is not a valid wind angle: must lie in (0°, 90°)",
-                )?;
-                finite(text, start, "start angle")?;
-                if let Some(layer) = &p.layer {
-                    return Err(error_at(
-                        text,
-                        layer.span(),
-                        "`layer` applies only to a path imported from `dxf`",
-                    ));
-                }
-            }
+            validate_path_source(text, p)?;
             let segments = *p.segments.get_ref();
             if !(MIN_SEGMENTS..=MAX_SEGMENTS).contains(&segments) {
                 return Err(error_at(
@@ -959,6 +754,256 @@ impl Job {
     }
 }
 
+/// `[cell]`: the robot's place and speeds, the drive, the eye, the arm and its placement, the
+/// obstacles, the calibration.
+fn validate_cell(text: &str, c: &Cell) -> Result<(), Error> {
+    positive(text, &c.robot_distance_mm, "robot distance")?;
+    finite(text, &c.start_height_mm, "start height")?;
+    positive(text, &c.mandrel_speed_rps, "mandrel speed")?;
+    check(
+        text,
+        &c.eye_mechanism_length_mm,
+        *c.eye_mechanism_length_mm.get_ref() >= 0.0,
+        "is not a valid eye mechanism length: must be ≥ 0",
+    )?;
+    positive(text, &c.offset_mm, "offset")?;
+    positive(text, &c.base_speed_mm_s, "base speed")?;
+    positive(text, &c.max_speed_mm_s, "maximum speed")?;
+    if c.max_speed_mm_s.get_ref() < c.base_speed_mm_s.get_ref() {
+        return Err(error_at(
+            text,
+            c.max_speed_mm_s.span(),
+            "max_speed_mm_s is below base_speed_mm_s",
+        ));
+    }
+    validate_drive(text, c)?;
+    if let Some(eye) = &c.eye {
+        if let Some(l) = &eye.length_mm {
+            positive(text, l, "eye mechanism length")?;
+        }
+        if let Some(r) = &eye.radius_mm {
+            positive(text, r, "eye radius")?;
+        }
+        if let Some(t) = &eye.snag_tolerance_mm {
+            positive(text, t, "snag tolerance")?;
+        }
+        if let Some(h) = &eye.home_mm
+            && !h.get_ref().iter().all(|v| v.is_finite())
+        {
+            return Err(error_at(text, h.span(), "home_mm must be finite"));
+        }
+    }
+    if c.robot.is_none() {
+        arm::validate_robot(text, &Robot::default(), c)?;
+    }
+    arm::validate_placement(text, c)?;
+    validate_obstacles(text, &c.obstacles)?;
+    if let Some(r) = &c.robot {
+        validate_robot_section(text, r, c)?;
+    }
+    if let Some(k) = &c.calibration {
+        validate_calibration(text, k)?;
+    }
+    Ok(())
+}
+
+/// `[cell.drive]`: steps, teeth, acceleration, and a start/stop speed below the mandrel speed.
+fn validate_drive(text: &str, c: &Cell) -> Result<(), Error> {
+    let d = &c.drive;
+    if *d.steps_per_rev.get_ref() == 0 {
+        return Err(error_at(
+            text,
+            d.steps_per_rev.span(),
+            "steps_per_rev must be > 0",
+        ));
+    }
+    if d.gear_ratio.get_ref().contains(&0) {
+        return Err(error_at(
+            text,
+            d.gear_ratio.span(),
+            "gear_ratio teeth must be > 0",
+        ));
+    }
+    positive(text, &d.accel_rps2, "acceleration")?;
+    check(
+        text,
+        &d.start_stop_rps,
+        *d.start_stop_rps.get_ref() >= 0.0,
+        "is not a valid start/stop velocity: must be ≥ 0",
+    )?;
+    if d.start_stop_rps.get_ref() > c.mandrel_speed_rps.get_ref() {
+        return Err(error_at(
+            text,
+            d.start_stop_rps.span(),
+            "start_stop_rps exceeds mandrel_speed_rps",
+        ));
+    }
+    Ok(())
+}
+
+/// `[[cell.obstacle]]`: a named box, finite, its corners in order.
+fn validate_obstacles(text: &str, obstacles: &[Obstacle]) -> Result<(), Error> {
+    for o in obstacles {
+        let (lo, hi) = (o.min_mm.get_ref(), o.max_mm.get_ref());
+        if !lo.iter().chain(hi).all(|v| v.is_finite()) || (0..3).any(|k| lo[k] > hi[k]) {
+            return Err(error_at(
+                text,
+                o.max_mm.span(),
+                "max_mm must be finite and not below min_mm on any axis",
+            ));
+        }
+        if o.name.get_ref().is_empty() {
+            return Err(error_at(text, o.name.span(), "an obstacle needs a name"));
+        }
+    }
+    Ok(())
+}
+
+/// `[cell.robot]`: lengths, joint ranges and speeds, the model's keys, the entry angle limit.
+fn validate_robot_section(text: &str, r: &Robot, c: &Cell) -> Result<(), Error> {
+    for length in [
+        &r.shoulder_height_mm,
+        &r.upper_arm_mm,
+        &r.forearm_mm,
+        &r.eye_mechanism_max_mm,
+    ]
+    .into_iter()
+    .flatten()
+    {
+        positive(text, length, "length")?;
+    }
+    for range in [
+        &r.base_yaw_deg,
+        &r.shoulder_deg,
+        &r.elbow_deg,
+        &r.pitch_deg,
+        &r.roll_deg,
+    ]
+    .into_iter()
+    .flatten()
+    {
+        let [lo, hi] = *range.get_ref();
+        if !(lo.is_finite() && hi.is_finite() && lo < hi && lo >= -360.0 && hi <= 360.0) {
+            return Err(error_at(
+                text,
+                range.span(),
+                "a joint range is [least, greatest] degrees, finite, least below \
+                 greatest, within ±360°",
+            ));
+        }
+    }
+    if let Some(speeds) = &r.joint_speed_deg_s
+        && !speeds.get_ref().iter().all(|v| v.is_finite() && *v > 0.0)
+    {
+        return Err(error_at(
+            text,
+            speeds.span(),
+            "joint speeds must be finite and > 0 degrees/s",
+        ));
+    }
+    arm::validate_robot(text, r, c)?;
+    if let Some(a) = &r.entry_angle_max_deg {
+        check(
+            text,
+            a,
+            *a.get_ref() > 0.0 && *a.get_ref() <= 90.0,
+            "is not a valid entry angle limit: must lie in (0°, 90°]",
+        )?;
+    }
+    Ok(())
+}
+
+/// `[cell.calibration]`: finite offsets and tilt, a tilt within ±10°, a rotation sign of ±1.
+fn validate_calibration(text: &str, k: &Calibration) -> Result<(), Error> {
+    for pair in [&k.axis_offset_mm, &k.axis_tilt_deg].into_iter().flatten() {
+        if !pair.get_ref().iter().all(|v| v.is_finite()) {
+            return Err(error_at(text, pair.span(), "values must be finite"));
+        }
+    }
+    if let Some(tilt) = &k.axis_tilt_deg
+        && !tilt.get_ref().iter().all(|v| v.abs() < 10.0)
+    {
+        return Err(error_at(
+            text,
+            tilt.span(),
+            "axis tilt must lie within ±10° (a measured misalignment)",
+        ));
+    }
+    if let Some(zero) = &k.zero_angle_deg {
+        finite(text, zero, "zero angle")?;
+    }
+    if let Some(sign) = &k.rotation_sign
+        && !matches!(sign.get_ref(), 1 | -1)
+    {
+        return Err(error_at(text, sign.span(), "rotation_sign must be 1 or -1"));
+    }
+    Ok(())
+}
+
+/// A path's source: the fields an imported (`dxf`) path must not have and a file name, or the
+/// fields a set path needs (direction, wind and start angle) and no `layer`.
+fn validate_path_source(text: &str, p: &PathSpec) -> Result<(), Error> {
+    if let Some(dxf) = &p.dxf {
+        for (span, name) in [
+            (p.direction.as_ref().map(Spanned::span), "direction"),
+            (
+                p.wind_angle_deg.as_ref().map(Spanned::span),
+                "wind_angle_deg",
+            ),
+            (
+                p.start_angle_deg.as_ref().map(Spanned::span),
+                "start_angle_deg",
+            ),
+        ] {
+            if let Some(span) = span {
+                return Err(error_at(
+                    text,
+                    span,
+                    format!("`{name}` does not apply to a path imported from `dxf`"),
+                ));
+            }
+        }
+        if dxf.get_ref().is_empty() {
+            return Err(error_at(text, dxf.span(), "dxf must name a file"));
+        }
+    } else {
+        let missing = |name: &str| {
+            error_at(
+                text,
+                p.program.span(),
+                format!("missing field `{name}` (or `dxf` for an imported path)"),
+            )
+        };
+        if p.direction.is_none() {
+            return Err(missing("direction"));
+        }
+        let wind = p
+            .wind_angle_deg
+            .as_ref()
+            .ok_or_else(|| missing("wind_angle_deg"))?;
+        let start = p
+            .start_angle_deg
+            .as_ref()
+            .ok_or_else(|| missing("start_angle_deg"))?;
+        let angle = *wind.get_ref();
+        check(
+            text,
+            wind,
+            angle > 0.0 && angle < 90.0,
+            "is not a valid wind angle: must lie in (0°, 90°)",
+        )?;
+        finite(text, start, "start angle")?;
+        if let Some(layer) = &p.layer {
+            return Err(error_at(
+                text,
+                layer.span(),
+                "`layer` applies only to a path imported from `dxf`",
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// When the job refuses a top-level table that belongs to another of windcell's files, what
 /// that file is and where it goes: a cell file (docs/file-formats.md, "Cell file") is given with
 /// `--cell`, a vessel job (docs/lathe.md) is the lathe winder's. Empty otherwise.
@@ -989,36 +1034,9 @@ fn other_kind_of_file(message: &str, text: &str) -> &'static str {
 mod tests {
     use super::*;
 
-    pub(crate) const CYLINDER: &str = r#"name = "CYL"
-
-[cell]
-robot_distance_mm = 800.0
-start_height_mm = 300.0
-mandrel_speed_rps = 0.1
-eye_mechanism_length_mm = 150.0
-offset_mm = 100.0
-base_speed_mm_s = 1000.0
-max_speed_mm_s = 2000.0
-movement = "fine"
-
-[cell.drive]
-steps_per_rev = 400
-gear_ratio = [13, 60]
-accel_rps2 = 1.0
-start_stop_rps = 0.05
-
-[mandrel]
-kind = "cylinder"
-diameter_mm = 63.5
-length_mm = 178.0
-
-[[path]]
-program = 1
-direction = "down"
-wind_angle_deg = 48.3
-start_angle_deg = 0.0
-segments = 50
-"#;
+    /// The cylinder job of the examples with its first path only, without comments (the line
+    /// and column figures of the tests count on its layout).
+    pub(crate) const CYLINDER: &str = include_str!("../tests/data/cylinder-one-path.toml");
 
     #[test]
     fn robot_and_calibration_tables_parse_and_round_trip() {

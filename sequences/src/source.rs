@@ -80,32 +80,20 @@ pub fn open(path: &Path, max_bytes: u64) -> Result<(std::fs::File, u64), Error> 
 /// than `max_bytes` (by its size, or by what it turns out to hold while it is read) is
 /// [`Error::FileTooLarge`].
 pub fn read_bytes(path: &Path, max_bytes: u64) -> Result<Vec<u8>, Error> {
-    let io = |source| Error::Io {
-        file: path.to_path_buf(),
-        source,
-    };
-    let metadata = std::fs::metadata(path).map_err(io)?;
-    if let Some(kind) = not_regular(metadata.file_type()) {
-        return Err(Error::NotRegularFile {
-            file: path.to_path_buf(),
-            kind,
-        });
-    }
-    let too_large = |bytes| Error::FileTooLarge {
-        file: path.to_path_buf(),
-        bytes,
-        limit_bytes: max_bytes,
-    };
-    if metadata.len() > max_bytes {
-        return Err(too_large(metadata.len()));
-    }
-    let file = std::fs::File::open(path).map_err(io)?;
-    let mut bytes = Vec::with_capacity(usize::try_from(metadata.len()).unwrap_or(0));
+    let (file, len) = open(path, max_bytes)?;
+    let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
     file.take(max_bytes + 1)
         .read_to_end(&mut bytes)
-        .map_err(io)?;
+        .map_err(|source| Error::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
     if bytes.len() as u64 > max_bytes {
-        return Err(too_large(bytes.len() as u64));
+        return Err(Error::FileTooLarge {
+            file: path.to_path_buf(),
+            bytes: bytes.len() as u64,
+            limit_bytes: max_bytes,
+        });
     }
     Ok(bytes)
 }

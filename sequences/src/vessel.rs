@@ -208,7 +208,29 @@ impl VesselFile {
         Ok((loaded, text))
     }
 
+    /// The job the file describes: the mandrel, the tow, the machine, the layers, each checked
+    /// at its place in the text.
     fn convert(&self, text: &str) -> Result<Loaded, Error> {
+        let mandrel = self.mandrel_of(text)?;
+        let tow = self.tow_of(text)?;
+        let machine = self.machine_of(text)?;
+        let (layers, spans) = self.layers_of(text)?;
+        Ok(Loaded {
+            name: self.name.get_ref().clone(),
+            job: Job {
+                mandrel,
+                tow,
+                machine,
+                layers,
+                build_up: self.machine.build_up.unwrap_or(true),
+            },
+            layer_spans: spans,
+        })
+    }
+
+    /// `[mandrel]`: a vessel or a tube, its fields finite and positive, the polar opening inside
+    /// the cylinder.
+    fn mandrel_of(&self, text: &str) -> Result<Mandrel, Error> {
         let m = &self.mandrel;
         let mandrel = match m.kind.get_ref().as_str() {
             "vessel" => Mandrel::Vessel {
@@ -254,14 +276,6 @@ impl VesselFile {
             }
         };
         // Field checks the planner would make, here with their place in the text.
-        let positive = |v: &Spanned<f64>, name: &str| -> Result<f64, Error> {
-            let x = finite(text, v, name)?;
-            if x > 0.0 {
-                Ok(x)
-            } else {
-                Err(at(text, v.span(), format!("{name} = {x} must be > 0")))
-            }
-        };
         for v in [
             (&m.cylinder_radius_mm, "cylinder_radius_mm"),
             (&m.polar_opening_radius_mm, "polar_opening_radius_mm"),
@@ -269,7 +283,7 @@ impl VesselFile {
             (&m.length_mm, "length_mm"),
         ] {
             if let Some(s) = v.0 {
-                positive(s, v.1)?;
+                positive(text, s, v.1)?;
             }
         }
         if let (Some(rc), Some(rp)) = (&m.cylinder_radius_mm, &m.polar_opening_radius_mm)
@@ -281,8 +295,13 @@ impl VesselFile {
                 "the polar opening must be smaller than the cylinder radius",
             ));
         }
+        Ok(mandrel)
+    }
+
+    /// `[tow]`: a positive band width, a thickness ≥ 0.
+    fn tow_of(&self, text: &str) -> Result<Tow, Error> {
         let tow = Tow {
-            band_mm: positive(&self.tow.band_width_mm, "band_width_mm")?,
+            band_mm: positive(text, &self.tow.band_width_mm, "band_width_mm")?,
             thickness_mm: finite(text, &self.tow.thickness_mm, "thickness_mm")?,
         };
         if tow.thickness_mm < 0.0 {
@@ -292,6 +311,11 @@ impl VesselFile {
                 "thickness_mm must be ≥ 0",
             ));
         }
+        Ok(tow)
+    }
+
+    /// `[machine]`: the axes, each axis's limits, the eye radius, the dome steps.
+    fn machine_of(&self, text: &str) -> Result<Machine, Error> {
         let mc = &self.machine;
         let axes = match mc.axes.get_ref() {
             2 => AxisSet::Two,
@@ -301,8 +325,8 @@ impl VesselFile {
         };
         let limit = |a: &AxisSpec, name: &str| -> Result<AxisLimit, Error> {
             Ok(AxisLimit {
-                velocity: positive(&a.velocity, &format!("{name}.velocity"))?,
-                acceleration: positive(&a.acceleration, &format!("{name}.acceleration"))?,
+                velocity: positive(text, &a.velocity, &format!("{name}.velocity"))?,
+                acceleration: positive(text, &a.acceleration, &format!("{name}.acceleration"))?,
             })
         };
         let dome_steps = match &mc.dome_steps {
@@ -310,9 +334,9 @@ impl VesselFile {
             Some(s) if (1..=10_000).contains(s.get_ref()) => *s.get_ref() as usize,
             Some(s) => return Err(at(text, s.span(), "dome_steps must be 1..=10000")),
         };
-        let machine = Machine {
+        Ok(Machine {
             axes,
-            eye_radius_mm: positive(&mc.eye_radius_mm, "eye_radius_mm")?,
+            eye_radius_mm: positive(text, &mc.eye_radius_mm, "eye_radius_mm")?,
             limits: Limits {
                 axes: [
                     limit(&mc.mandrel, "mandrel")?,
@@ -322,11 +346,16 @@ impl VesselFile {
                 ],
                 junction_deviation: match &mc.junction_deviation {
                     None => 0.01,
-                    Some(j) => positive(j, "junction_deviation")?,
+                    Some(j) => positive(text, j, "junction_deviation")?,
                 },
             },
             dome_steps,
-        };
+        })
+    }
+
+    /// `[[layer]]`s, each repeated `count` times, at most MAX_LAYERS in all; with each the span
+    /// of its `kind`.
+    fn layers_of(&self, text: &str) -> Result<(Vec<Layer>, Vec<Range<usize>>), Error> {
         if self.layers.is_empty() {
             return Err(Error::at(1, 1, "a job needs at least one [[layer]]"));
         }
@@ -347,30 +376,27 @@ impl VesselFile {
                     format!("more than {MAX_LAYERS} layers"),
                 ));
             }
-            let layer = layer(text, l, &positive)?;
+            let layer = layer(text, l)?;
             for _ in 0..count {
                 layers.push(layer);
                 spans.push(l.kind.span());
             }
         }
-        Ok(Loaded {
-            name: self.name.get_ref().clone(),
-            job: Job {
-                mandrel,
-                tow,
-                machine,
-                layers,
-                build_up: mc.build_up.unwrap_or(true),
-            },
-            layer_spans: spans,
-        })
+        Ok((layers, spans))
     }
 }
 
-/// A check of a positive value at its place in the text.
-type PositiveCheck<'a> = dyn Fn(&Spanned<f64>, &str) -> Result<f64, Error> + 'a;
+/// A value's check: finite and > 0, refused at its place in the text.
+fn positive(text: &str, v: &Spanned<f64>, name: &str) -> Result<f64, Error> {
+    let x = finite(text, v, name)?;
+    if x > 0.0 {
+        Ok(x)
+    } else {
+        Err(at(text, v.span(), format!("{name} = {x} must be > 0")))
+    }
+}
 
-fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Layer, Error> {
+fn layer(text: &str, l: &LayerSpec) -> Result<Layer, Error> {
     let kind = &l.kind;
     // Fields that do not belong to the kind are refused, not ignored.
     let fields: [(&str, bool); 13] = [
@@ -436,7 +462,7 @@ fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Laye
             advance_deg: l
                 .advance_deg
                 .as_ref()
-                .map(|a| positive(a, "advance_deg"))
+                .map(|a| positive(text, a, "advance_deg"))
                 .transpose()?,
         }),
         "tube-helical" => Layer::TubeHelical(TubeHelical {
@@ -447,9 +473,14 @@ fn layer(text: &str, l: &LayerSpec, positive: &PositiveCheck<'_>) -> Result<Laye
             )?,
             pattern_number: *need(text, &l.pattern_number, kind, "pattern_number")?.get_ref(),
             skip_index: *need(text, &l.skip_index, kind, "skip_index")?.get_ref(),
-            lock_deg: positive(need(text, &l.lock_deg, kind, "lock_deg")?, "lock_deg")?,
-            lead_in_mm: positive(need(text, &l.lead_in_mm, kind, "lead_in_mm")?, "lead_in_mm")?,
+            lock_deg: positive(text, need(text, &l.lock_deg, kind, "lock_deg")?, "lock_deg")?,
+            lead_in_mm: positive(
+                text,
+                need(text, &l.lead_in_mm, kind, "lead_in_mm")?,
+                "lead_in_mm",
+            )?,
             lead_out_deg: positive(
+                text,
                 need(text, &l.lead_out_deg, kind, "lead_out_deg")?,
                 "lead_out_deg",
             )?,

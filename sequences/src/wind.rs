@@ -156,179 +156,218 @@ fn key_offset(text: &str, key: &str) -> usize {
     text.find(&format!("\"{key}\"")).unwrap_or(0)
 }
 
+/// Refuses a key's value at the key.
+fn at_key(text: &str, key: &str, message: String) -> Error {
+    Error::at_offset(text, key_offset(text, key), message)
+}
+
+/// The schema version: 1.x (absent: 1.0).
+fn check_version(def: &Definition, text: &str) -> Result<(), Error> {
+    let version = def.schema_version.as_deref().unwrap_or("1.0");
+    let minor = version
+        .strip_prefix("1.")
+        .filter(|m| !m.is_empty() && m.bytes().all(|b| b.is_ascii_digit()));
+    if minor.is_none() {
+        return Err(at_key(
+            text,
+            "schemaVersion",
+            format!("schema version `{version}` is not 1.x"),
+        ));
+    }
+    Ok(())
+}
+
+/// The mandrel's and the tow's figures, a profile or an end diameter (a reducing frustum), and at
+/// least one layer.
+fn check_mandrel(def: &Definition, text: &str) -> Result<(), Error> {
+    let m = &def.mandrel_parameters;
+    for (key, v) in [
+        ("diameter", m.diameter),
+        ("windLength", m.wind_length),
+        ("width", def.tow_parameters.width),
+        ("thickness", def.tow_parameters.thickness),
+        ("defaultFeedRate", def.default_feed_rate),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(at_key(text, key, format!("{key} = {v} must be > 0")));
+        }
+    }
+    if m.profile.is_some() && m.end_diameter.is_some() {
+        return Err(at_key(
+            text,
+            "profile",
+            "profile and endDiameter are mutually exclusive (a profile defines the whole \
+             surface)"
+                .into(),
+        ));
+    }
+    if let Some(end) = m.end_diameter {
+        if !(end > 0.0 && end.is_finite()) {
+            return Err(at_key(
+                text,
+                "endDiameter",
+                format!("endDiameter = {end} must be > 0"),
+            ));
+        }
+        if end > m.diameter {
+            return Err(at_key(
+                text,
+                "endDiameter",
+                format!(
+                    "endDiameter {end} mm is larger than diameter {} mm: only a reducing \
+                     frustum is planned (mount the large end at the start, as diameter)",
+                    m.diameter
+                ),
+            ));
+        }
+    }
+    if def.layers.is_empty() {
+        return Err(at_key(
+            text,
+            "layers",
+            "a .wind file needs at least one layer".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The planner's layer of the definition's layer `i` (0-based; `last` for the last one).
+fn layer_of(l: &WindLayer, i: usize, last: bool, text: &str) -> Result<Layer, Error> {
+    let here = |message: String| {
+        Error::at_offset(
+            text,
+            layer_offset(text, i).unwrap_or(0),
+            format!("layer {}: {message}", i + 1),
+        )
+    };
+    Ok(match *l {
+        WindLayer::Hoop { terminal } => {
+            if terminal && !last {
+                return Err(here("a terminal layer must be the last layer".into()));
+            }
+            Layer::Hoop {
+                passes: if terminal { 1 } else { 2 },
+            }
+        }
+        WindLayer::Helical {
+            wind_angle,
+            pattern_number,
+            skip_index,
+            lock_degrees,
+            lead_in_mm,
+            lead_out_degrees,
+            skip_initial_near_lock,
+            friction_lambda,
+        } => {
+            for (k, v) in [
+                ("lockDegrees", lock_degrees),
+                ("leadInMM", lead_in_mm),
+                ("leadOutDegrees", lead_out_degrees),
+            ] {
+                if !(v > 0.0 && v.is_finite()) {
+                    return Err(here(format!("{k} = {v} must be > 0")));
+                }
+            }
+            if pattern_number == 0 || skip_index == 0 {
+                return Err(here("patternNumber and skipIndex must be ≥ 1".into()));
+            }
+            Layer::TubeHelical(TubeHelical {
+                wind_angle_deg: wind_angle,
+                pattern_number,
+                skip_index,
+                lock_deg: lock_degrees,
+                lead_in_mm,
+                lead_out_deg: lead_out_degrees,
+                initial_lock: !skip_initial_near_lock,
+                friction_lambda,
+            })
+        }
+        WindLayer::Skip { mandrel_rotation } => {
+            if !mandrel_rotation.is_finite() {
+                return Err(here("mandrelRotation must be finite".into()));
+            }
+            Layer::Skip {
+                mandrel_deg: mandrel_rotation,
+            }
+        }
+    })
+}
+
+/// The mandrel: a Von Kármán nose with a profile, a frustum with a smaller end diameter, else a
+/// tube.
+fn mandrel_of(m: &MandrelParameters) -> Mandrel {
+    let radius = m.diameter / 2.0;
+    match m.end_diameter {
+        _ if m.profile.is_some() => Mandrel::VonKarman {
+            base_radius_mm: radius,
+            length_mm: m.wind_length,
+        },
+        Some(end) if end < m.diameter => Mandrel::Cone {
+            large_radius_mm: radius,
+            small_radius_mm: end / 2.0,
+            length_mm: m.wind_length,
+        },
+        _ => Mandrel::Tube {
+            radius_mm: radius,
+            length_mm: m.wind_length,
+        },
+    }
+}
+
+/// The four-axis machine at the definition's feed (mm/min): the carriage at the feed, the
+/// mandrel at the feed on its surface of `radius` mm.
+fn machine_of(radius: f64, default_feed_rate: f64) -> Machine {
+    let feed_mm_s = default_feed_rate / 60.0;
+    let deg_per_mm = 360.0 / (std::f64::consts::TAU * radius);
+    let linear = AxisLimit {
+        velocity: feed_mm_s,
+        acceleration: SURFACE_ACCELERATION_MM_S2,
+    };
+    Machine {
+        axes: AxisSet::Four,
+        eye_radius_mm: radius + EYE_CLEARANCE_MM,
+        limits: Limits {
+            axes: [
+                AxisLimit {
+                    velocity: feed_mm_s * deg_per_mm,
+                    acceleration: SURFACE_ACCELERATION_MM_S2 * deg_per_mm,
+                },
+                linear,
+                linear,
+                AxisLimit {
+                    velocity: 360.0,
+                    acceleration: 3600.0,
+                },
+            ],
+            junction_deviation: 0.01,
+        },
+        dome_steps: 10,
+    }
+}
+
 impl WindFile {
     /// Parses a `.wind` definition into a job (checked for the format's rules, not yet planned).
     /// Returns the job and a name for its output files.
     pub fn parse(text: &str, name: &str) -> Result<Job, Error> {
         let def: Definition = serde_json::from_str(text)
             .map_err(|e| Error::at(e.line().max(1), e.column().max(1), lower(&e.to_string())))?;
-        let at_key =
-            |key: &str, message: String| Error::at_offset(text, key_offset(text, key), message);
-        let version = def.schema_version.as_deref().unwrap_or("1.0");
-        let minor = version
-            .strip_prefix("1.")
-            .filter(|m| !m.is_empty() && m.bytes().all(|b| b.is_ascii_digit()));
-        if minor.is_none() {
-            return Err(at_key(
-                "schemaVersion",
-                format!("schema version `{version}` is not 1.x"),
-            ));
-        }
-        let m = &def.mandrel_parameters;
-        for (key, v) in [
-            ("diameter", m.diameter),
-            ("windLength", m.wind_length),
-            ("width", def.tow_parameters.width),
-            ("thickness", def.tow_parameters.thickness),
-            ("defaultFeedRate", def.default_feed_rate),
-        ] {
-            if !(v > 0.0 && v.is_finite()) {
-                return Err(at_key(key, format!("{key} = {v} must be > 0")));
-            }
-        }
-        if m.profile.is_some() && m.end_diameter.is_some() {
-            return Err(at_key(
-                "profile",
-                "profile and endDiameter are mutually exclusive (a profile defines the whole \
-                 surface)"
-                    .into(),
-            ));
-        }
-        if let Some(end) = m.end_diameter {
-            if !(end > 0.0 && end.is_finite()) {
-                return Err(at_key(
-                    "endDiameter",
-                    format!("endDiameter = {end} must be > 0"),
-                ));
-            }
-            if end > m.diameter {
-                return Err(at_key(
-                    "endDiameter",
-                    format!(
-                        "endDiameter {end} mm is larger than diameter {} mm: only a reducing \
-                         frustum is planned (mount the large end at the start, as diameter)",
-                        m.diameter
-                    ),
-                ));
-            }
-        }
-        if def.layers.is_empty() {
-            return Err(at_key(
-                "layers",
-                "a .wind file needs at least one layer".into(),
-            ));
-        }
-        let radius = m.diameter / 2.0;
-        let mut layers = Vec::with_capacity(def.layers.len());
+        check_version(&def, text)?;
+        check_mandrel(&def, text)?;
         let last = def.layers.len() - 1;
-        for (i, l) in def.layers.iter().enumerate() {
-            let here = |message: String| {
-                Error::at_offset(
-                    text,
-                    layer_offset(text, i).unwrap_or(0),
-                    format!("layer {}: {message}", i + 1),
-                )
-            };
-            layers.push(match *l {
-                WindLayer::Hoop { terminal } => {
-                    if terminal && i != last {
-                        return Err(here("a terminal layer must be the last layer".into()));
-                    }
-                    Layer::Hoop {
-                        passes: if terminal { 1 } else { 2 },
-                    }
-                }
-                WindLayer::Helical {
-                    wind_angle,
-                    pattern_number,
-                    skip_index,
-                    lock_degrees,
-                    lead_in_mm,
-                    lead_out_degrees,
-                    skip_initial_near_lock,
-                    friction_lambda,
-                } => {
-                    for (k, v) in [
-                        ("lockDegrees", lock_degrees),
-                        ("leadInMM", lead_in_mm),
-                        ("leadOutDegrees", lead_out_degrees),
-                    ] {
-                        if !(v > 0.0 && v.is_finite()) {
-                            return Err(here(format!("{k} = {v} must be > 0")));
-                        }
-                    }
-                    if pattern_number == 0 || skip_index == 0 {
-                        return Err(here("patternNumber and skipIndex must be ≥ 1".into()));
-                    }
-                    Layer::TubeHelical(TubeHelical {
-                        wind_angle_deg: wind_angle,
-                        pattern_number,
-                        skip_index,
-                        lock_deg: lock_degrees,
-                        lead_in_mm,
-                        lead_out_deg: lead_out_degrees,
-                        initial_lock: !skip_initial_near_lock,
-                        friction_lambda,
-                    })
-                }
-                WindLayer::Skip { mandrel_rotation } => {
-                    if !mandrel_rotation.is_finite() {
-                        return Err(here("mandrelRotation must be finite".into()));
-                    }
-                    Layer::Skip {
-                        mandrel_deg: mandrel_rotation,
-                    }
-                }
-            });
-        }
-        // Surface feed to axis limits: the carriage at the feed, the mandrel at the feed on its
-        // surface.
-        let feed_mm_s = def.default_feed_rate / 60.0;
-        let deg_per_mm = 360.0 / (std::f64::consts::TAU * radius);
-        let linear = AxisLimit {
-            velocity: feed_mm_s,
-            acceleration: SURFACE_ACCELERATION_MM_S2,
-        };
+        let layers = def
+            .layers
+            .iter()
+            .enumerate()
+            .map(|(i, l)| layer_of(l, i, i == last, text))
+            .collect::<Result<Vec<_>, _>>()?;
+        let m = &def.mandrel_parameters;
         let job = Job {
-            mandrel: match m.end_diameter {
-                _ if m.profile.is_some() => Mandrel::VonKarman {
-                    base_radius_mm: radius,
-                    length_mm: m.wind_length,
-                },
-                Some(end) if end < m.diameter => Mandrel::Cone {
-                    large_radius_mm: radius,
-                    small_radius_mm: end / 2.0,
-                    length_mm: m.wind_length,
-                },
-                _ => Mandrel::Tube {
-                    radius_mm: radius,
-                    length_mm: m.wind_length,
-                },
-            },
+            mandrel: mandrel_of(m),
             tow: Tow {
                 band_mm: def.tow_parameters.width,
                 thickness_mm: def.tow_parameters.thickness,
             },
-            machine: Machine {
-                axes: AxisSet::Four,
-                eye_radius_mm: radius + EYE_CLEARANCE_MM,
-                limits: Limits {
-                    axes: [
-                        AxisLimit {
-                            velocity: feed_mm_s * deg_per_mm,
-                            acceleration: SURFACE_ACCELERATION_MM_S2 * deg_per_mm,
-                        },
-                        linear,
-                        linear,
-                        AxisLimit {
-                            velocity: 360.0,
-                            acceleration: 3600.0,
-                        },
-                    ],
-                    junction_deviation: 0.01,
-                },
-                dome_steps: 10,
-            },
+            machine: machine_of(m.diameter / 2.0, def.default_feed_rate),
             layers,
             build_up: false,
         };
@@ -413,12 +452,12 @@ mod tests {
         assert_eq!(job.machine.limits.axes[1].acceleration, 1000.0);
     }
 
-    /// Each `(from, to, expect)`: [`TUBE`] with `from` replaced by `to` is refused with a message
+    /// Each `(from, to, expect)`: `base` with `from` replaced by `to` is refused with a message
     /// that begins with `expect` (its line and column first).
-    fn refused_as(cases: &[(&str, &str, &str)]) {
+    fn refused_as(base: &str, cases: &[(&str, &str, &str)]) {
         for &(from, to, expect) in cases {
-            let text = TUBE.replace(from, to);
-            assert_ne!(text, TUBE, "{from}");
+            let text = base.replace(from, to);
+            assert_ne!(text, base, "{from}");
             let err = WindFile::parse(&text, "t").unwrap_err().to_string();
             assert!(err.starts_with(expect), "{expect}: {err}");
         }
@@ -450,7 +489,7 @@ mod tests {
                 "8:5: layer 2: patternNumber and skipIndex must be ≥ 1",
             ),
         ];
-        refused_as(&cases);
+        refused_as(TUBE, &cases);
     }
 
     #[test]
@@ -528,21 +567,11 @@ mod tests {
                 "13:1: missing field `defaultFeedRate`",
             ),
         ];
-        refused_as(&cases);
+        refused_as(TUBE, &cases);
     }
 
     /// FiberPath's cone cases: 98 → 54 mm over 120 mm.
-    const CONE: &str = r#"{
-  "schemaVersion": "1.1",
-  "layers": [
-    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
-      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15 },
-    { "windType": "skip", "mandrelRotation": 45 }
-  ],
-  "mandrelParameters": { "diameter": 98.0, "windLength": 120.0, "endDiameter": 54.0 },
-  "towParameters": { "width": 6.0, "thickness": 0.5 },
-  "defaultFeedRate": 9000.0
-}"#;
+    const CONE: &str = include_str!("../tests/data/reducer.wind");
 
     #[test]
     fn a_reducing_cone_is_planned_with_the_large_end_first() {
@@ -586,12 +615,7 @@ mod tests {
                 "8:65: endDiameter 154 mm is larger than diameter 98 mm",
             ),
         ];
-        for (from, to, expect) in cases {
-            let text = CONE.replace(from, to);
-            assert_ne!(text, CONE, "{from}");
-            let err = WindFile::parse(&text, "c").unwrap_err().to_string();
-            assert!(err.starts_with(expect), "{expect}: {err}");
-        }
+        refused_as(CONE, &cases);
     }
 
     /// A von Kármán nose: 98 mm base, 300 mm long (the dimensions of FiberPath's example).
@@ -655,12 +679,7 @@ mod tests {
                 "3:107: unknown field `c`",
             ),
         ];
-        for (from, to, expect) in cases {
-            let text = NOSE.replace(from, to);
-            assert_ne!(text, NOSE, "{from}");
-            let err = WindFile::parse(&text, "n").unwrap_err().to_string();
-            assert!(err.starts_with(expect), "{expect}: {err}");
-        }
+        refused_as(NOSE, &cases);
         // FiberPath's unreachable case: 89° on the geodesic turns around 0.955 mm from the base,
         // inside the lead-in (r(5 mm) = 48.9109 mm is R·sin 86.5437°).
         let steep = NOSE

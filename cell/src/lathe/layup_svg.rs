@@ -114,36 +114,101 @@ pub struct Layup {
     pub thickness: Vec<(f64, f64)>,
 }
 
+/// The map's frame: the mandrel's start in the planner's frame and its length, mm, across the
+/// plot's width.
+#[derive(Clone, Copy)]
+struct MapFrame {
+    start_mm: f64,
+    length_mm: f64,
+    plot_w: f64,
+}
+
+impl MapFrame {
+    /// Picture x of a carriage position in the planner's frame.
+    fn sx(&self, x_mm: f64) -> f64 {
+        LEFT + (x_mm - self.start_mm) / self.length_mm * self.plot_w
+    }
+
+    /// Picture y of a mandrel angle.
+    fn sy(&self, deg: f64) -> f64 {
+        TOP + deg / 360.0 * MAP_H
+    }
+}
+
 /// Draws `plan` of `job` as SVG text; `start_mm` is where the mandrel starts in the planner's
 /// frame (`cli::lathe::machine::mandrel_start_mm`), `title` the job's name.
 pub fn draw(job: &Job, plan: &Plan, start_mm: f64, title: &str) -> (String, Layup) {
     let mut by = ByLayer::default();
     let Ok(()) = plan.emit(&mut by);
-    let length = -2.0 * start_mm;
-    let plot_w = WIDTH - LEFT - RIGHT;
-    let sx = |x: f64| LEFT + (x - start_mm) / length * plot_w;
-    let sy = |deg: f64| TOP + deg / 360.0 * MAP_H;
-    let height = TOP + MAP_H + GAP + PROFILE_H + 40.0 + 18.0 * by.marks.len() as f64;
+    let frame = MapFrame {
+        start_mm,
+        length_mm: -2.0 * start_mm,
+        plot_w: WIDTH - LEFT - RIGHT,
+    };
     let mut svg = String::with_capacity(1 << 20);
+    map_frame(&mut svg, &frame, title, by.marks.len());
+    let band_px = (job.tow.band_mm / frame.length_mm * frame.plot_w).clamp(0.4, 6.0);
+    let mut passes_drawn = Vec::new();
+    let mut turns_drawn = Vec::new();
+    for (i, moves) in by.moves.iter().enumerate() {
+        let start = by.starts[i].unwrap_or(Move {
+            kind: MoveKind::Rapid,
+            to: plan.start(),
+            duration_s: 0.0,
+        });
+        let (np, nt) = layer_paths(
+            &mut svg,
+            &frame,
+            moves,
+            start,
+            PALETTE[i % PALETTE.len()],
+            band_px,
+        );
+        passes_drawn.push(np);
+        turns_drawn.push(nt);
+    }
+    let thickness = thickness_profile(job, &by, start_mm, frame.length_mm);
+    let top = TOP + MAP_H + GAP;
+    thickness_panel(&mut svg, &frame, &thickness, top);
+    legend(
+        &mut svg,
+        &by.marks,
+        &passes_drawn,
+        &turns_drawn,
+        top + PROFILE_H + 30.0,
+    );
+    svg.push_str("</svg>\n");
+    (
+        svg,
+        Layup {
+            passes_drawn,
+            turns_drawn,
+            thickness,
+        },
+    )
+}
+
+/// The picture's opening, the title and the map's frame with its axes.
+fn map_frame(svg: &mut String, frame: &MapFrame, title: &str, layers: usize) {
+    let (start_mm, length, plot_w) = (frame.start_mm, frame.length_mm, frame.plot_w);
+    let height = TOP + MAP_H + GAP + PROFILE_H + 40.0 + 18.0 * layers as f64;
     let _ = write!(
         svg,
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{WIDTH}\" height=\"{height:.0}\" \
          viewBox=\"0 0 {WIDTH} {height:.0}\" font-family=\"sans-serif\" font-size=\"12\">\n\
          <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
          <text x=\"{LEFT}\" y=\"20\" font-size=\"15\">{}: the mandrel unwrapped \
-         (axial position from its start × mandrel angle), {} layers</text>\n\
+         (axial position from its start × mandrel angle), {layers} layers</text>\n\
          <rect x=\"{LEFT}\" y=\"{TOP}\" width=\"{plot_w}\" height=\"{MAP_H}\" fill=\"#f7f7f7\" \
          stroke=\"#444\"/>\n",
         escape(title),
-        by.marks.len()
     );
-    // Axes of the map.
     for k in 0..=10 {
         let x = start_mm + length * k as f64 / 10.0;
         let _ = writeln!(
             svg,
             "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{:.0}</text>",
-            sx(x),
+            frame.sx(x),
             TOP + MAP_H + 15.0,
             x - start_mm
         );
@@ -153,7 +218,7 @@ pub fn draw(job: &Job, plan: &Plan, start_mm: f64, title: &str) -> (String, Layu
             svg,
             "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{deg:.0}°</text>",
             LEFT - 6.0,
-            sy(deg) + 4.0
+            frame.sy(deg) + 4.0
         );
     }
     let _ = writeln!(
@@ -163,72 +228,81 @@ pub fn draw(job: &Job, plan: &Plan, start_mm: f64, title: &str) -> (String, Layu
         LEFT + plot_w / 2.0,
         TOP + MAP_H + 32.0
     );
-    let band_px = (job.tow.band_mm / length * plot_w).clamp(0.4, 6.0);
-    let mut passes_drawn = Vec::new();
-    let mut turns_drawn = Vec::new();
-    for (i, moves) in by.moves.iter().enumerate() {
-        let colour = PALETTE[i % PALETTE.len()];
-        let mut path = String::with_capacity(moves.len() * 40);
-        let mut turns = String::new();
-        let mut prev = by.starts[i].unwrap_or(Move {
-            kind: MoveKind::Rapid,
-            to: plan.start(),
-            duration_s: 0.0,
-        });
-        let (mut np, mut nt) = (0, 0);
-        // A pass: carriage moves one way, until it reverses or the mandrel turns with the
-        // carriage still.
-        let mut way = 0.0f64;
-        for m in moves {
-            let (x0, a0) = (prev.to.carriage_mm, prev.to.mandrel_deg);
-            let (x1, a1) = (m.to.carriage_mm, m.to.mandrel_deg);
-            prev = *m;
-            if m.kind == MoveKind::Rapid || (a1 == a0 && x1 == x0) {
-                continue;
-            }
-            if (x1 - x0).abs() < 1e-9 {
-                nt += 1;
-                way = 0.0;
-                for (p0, p1) in wrapped(a0, a1) {
-                    let _ = write!(turns, "M{:.1} {:.1}V{:.1}", sx(x0), sy(p0), sy(p1));
-                }
-                continue;
-            }
-            if (x1 - x0).signum() != way {
-                np += 1;
-                way = (x1 - x0).signum();
-            }
-            for (p0, p1, f0, f1) in wrapped_with_fraction(a0, a1) {
-                let xa = x0 + (x1 - x0) * f0;
-                let xb = x0 + (x1 - x0) * f1;
+}
+
+/// One layer's moves from `start`: the passes in `colour` at the band's width, the turnarounds
+/// as grey marks. Returns the passes and the turnarounds drawn.
+fn layer_paths(
+    svg: &mut String,
+    frame: &MapFrame,
+    moves: &[Move],
+    start: Move,
+    colour: &str,
+    band_px: f64,
+) -> (usize, usize) {
+    let mut path = String::with_capacity(moves.len() * 40);
+    let mut turns = String::new();
+    let mut prev = start;
+    let (mut np, mut nt) = (0, 0);
+    // A pass: carriage moves one way, until it reverses or the mandrel turns with the
+    // carriage still.
+    let mut way = 0.0f64;
+    for m in moves {
+        let (x0, a0) = (prev.to.carriage_mm, prev.to.mandrel_deg);
+        let (x1, a1) = (m.to.carriage_mm, m.to.mandrel_deg);
+        prev = *m;
+        if m.kind == MoveKind::Rapid || (a1 == a0 && x1 == x0) {
+            continue;
+        }
+        if (x1 - x0).abs() < 1e-9 {
+            nt += 1;
+            way = 0.0;
+            for (p0, p1) in wrapped(a0, a1) {
                 let _ = write!(
-                    path,
-                    "M{:.1} {:.1}L{:.1} {:.1}",
-                    sx(xa),
-                    sy(p0),
-                    sx(xb),
-                    sy(p1)
+                    turns,
+                    "M{:.1} {:.1}V{:.1}",
+                    frame.sx(x0),
+                    frame.sy(p0),
+                    frame.sy(p1)
                 );
             }
+            continue;
         }
-        passes_drawn.push(np);
-        turns_drawn.push(nt);
-        let _ = writeln!(
-            svg,
-            "<path d=\"{path}\" fill=\"none\" stroke=\"{colour}\" stroke-opacity=\"0.55\" \
-             stroke-width=\"{band_px:.2}\"/>"
-        );
-        if !turns.is_empty() {
-            let _ = writeln!(
-                svg,
-                "<path d=\"{turns}\" fill=\"none\" stroke=\"#555\" stroke-width=\"3\" \
-                 stroke-opacity=\"0.6\"/>"
+        if (x1 - x0).signum() != way {
+            np += 1;
+            way = (x1 - x0).signum();
+        }
+        for (p0, p1, f0, f1) in wrapped_with_fraction(a0, a1) {
+            let xa = x0 + (x1 - x0) * f0;
+            let xb = x0 + (x1 - x0) * f1;
+            let _ = write!(
+                path,
+                "M{:.1} {:.1}L{:.1} {:.1}",
+                frame.sx(xa),
+                frame.sy(p0),
+                frame.sx(xb),
+                frame.sy(p1)
             );
         }
     }
-    // Thickness profile.
-    let thickness = thickness_profile(job, &by, start_mm, length);
-    let top = TOP + MAP_H + GAP;
+    let _ = writeln!(
+        svg,
+        "<path d=\"{path}\" fill=\"none\" stroke=\"{colour}\" stroke-opacity=\"0.55\" \
+         stroke-width=\"{band_px:.2}\"/>"
+    );
+    if !turns.is_empty() {
+        let _ = writeln!(
+            svg,
+            "<path d=\"{turns}\" fill=\"none\" stroke=\"#555\" stroke-width=\"3\" \
+             stroke-opacity=\"0.6\"/>"
+        );
+    }
+    (np, nt)
+}
+
+/// The thickness profile below the map, its top edge at `top`.
+fn thickness_panel(svg: &mut String, frame: &MapFrame, thickness: &[(f64, f64)], top: f64) {
+    let (length, plot_w) = (frame.length_mm, frame.plot_w);
     let t_max = thickness
         .iter()
         .map(|p| p.1)
@@ -260,9 +334,12 @@ pub fn draw(job: &Job, plan: &Plan, start_mm: f64, title: &str) -> (String, Layu
             t_max * frac
         );
     }
-    // Legend.
-    let mut y = top + PROFILE_H + 30.0;
-    for (i, mark) in by.marks.iter().enumerate() {
+}
+
+/// One line a layer, from `y` down: its colour, kind, angle, circuits, passes, turnarounds and
+/// tow.
+fn legend(svg: &mut String, marks: &[LayerMark], passes: &[usize], turns: &[usize], mut y: f64) {
+    for (i, mark) in marks.iter().enumerate() {
         let kind = match mark.kind {
             LayerKind::Hoop => "hoop",
             LayerKind::Helical => "helical",
@@ -281,21 +358,12 @@ pub fn draw(job: &Job, plan: &Plan, start_mm: f64, title: &str) -> (String, Layu
             mark.number,
             mark.wind_angle_deg,
             mark.circuits,
-            passes_drawn[i],
-            turns_drawn[i],
+            passes[i],
+            turns[i],
             mark.tow_length_mm / 1000.0
         );
         y += 18.0;
     }
-    svg.push_str("</svg>\n");
-    (
-        svg,
-        Layup {
-            passes_drawn,
-            turns_drawn,
-            thickness,
-        },
-    )
 }
 
 /// Pieces of a mandrel turn from `a0` to `a1` (degrees, unwrapped) within 0…360°.

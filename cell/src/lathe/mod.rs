@@ -21,11 +21,12 @@ use mandrel_drive::servo::{
 };
 use nalgebra::{SVector, Vector3};
 use paths::control::Pd;
-use paths::limits::{fixed, shown};
+use paths::limits::fixed;
 use paths::trajectory::{AxisLimits, Interpolation, Planner, Trajectory, peaks};
 use sequences::part_program::{Location, MachineParameters, PartProgram, Position, Step};
 
 use crate::Error;
+use crate::error::LatheSetting;
 
 /// The machine and the run's settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -211,15 +212,13 @@ pub fn plan(program: &PartProgram, file: &Path, setup: &Setup) -> Result<Plan, E
     let top = setup.top_speed_counts_per_interrupt();
     if !(0.0..=top).contains(&setup.feed) {
         let (gain, pole) = setup.amplifier.plant();
-        return Err(Error::Run {
-            message: format!(
-                "feed {} counts/interrupt is above the axes' top speed of {top:.1} (the plant \
-                 {gain:.1}/(s (s + {pole})) at full DAC output, {} Hz)",
-                shown(setup.feed),
-                setup.interrupt_hz
-            ),
-            input: true,
-        });
+        return Err(Error::LatheSetting(LatheSetting::FeedAboveTopSpeed {
+            feed_counts_per_interrupt: setup.feed,
+            top_counts_per_interrupt: top,
+            plant_gain: gain,
+            pole_per_s: pole,
+            interrupt_hz: setup.interrupt_hz,
+        }));
     }
     let planner = setup.planner();
     let interpolation = if setup.single_block {
@@ -578,21 +577,17 @@ pub fn home(setup: &Setup, start_mm: [f64; 2], backoff: i64) -> Result<Vec<Homed
     let transfer = |e: mandrel_drive::Error| Error::Lathe { source: e };
     for (i, (&s, travel)) in start_mm.iter().zip(setup.travel_mm).enumerate() {
         if !(s > -5.0 && s < travel) {
-            return Err(Error::Run {
-                message: format!(
-                    "start {} = {} mm is outside the limit switches (−5 … {travel} mm)",
-                    ['X', 'Y'][i],
-                    shown(s)
-                ),
-                input: true,
-            });
+            return Err(Error::LatheSetting(LatheSetting::HomeStart {
+                axis: ['X', 'Y'][i],
+                start_mm: s,
+                travel_mm: travel,
+            }));
         }
     }
     if !(0..=4000).contains(&backoff) {
-        return Err(Error::Run {
-            message: format!("back-off {backoff} pulses is outside 0 … 4000"),
-            input: true,
-        });
+        return Err(Error::LatheSetting(LatheSetting::HomeBackoff {
+            pulses: backoff,
+        }));
     }
     let amp = setup.amplifier;
     let x = LatheAxis::X.counts_per_unit();
@@ -664,40 +659,34 @@ pub fn gear(
     turns: f64,
     ramp_s: f64,
 ) -> Result<Geared, Error> {
-    let bad = |message: String| Error::Run {
-        message,
-        input: true,
-    };
+    let bad = |setting| Err(Error::LatheSetting(setting));
     if !ratio_mm_per_deg.is_finite() {
-        return Err(bad(format!("ratio {ratio_mm_per_deg} mm/° is not finite")));
+        return bad(LatheSetting::GearRatio { ratio_mm_per_deg });
     }
     if !(speed_deg_s > 0.0 && speed_deg_s <= 3600.0) {
-        return Err(bad(format!(
-            "mandrel speed {speed_deg_s} °/s is outside (0, 3600]"
-        )));
+        return bad(LatheSetting::GearSpeed { speed_deg_s });
     }
     if !(turns > 0.0 && turns <= 1000.0) {
-        return Err(bad(format!("turns {turns} is outside (0, 1000]")));
+        return bad(LatheSetting::GearTurns { turns });
     }
     if !(0.0..=60.0).contains(&ramp_s) {
-        return Err(bad(format!("ramp {ramp_s} s is outside [0, 60]")));
+        return bad(LatheSetting::GearRamp { ramp_s });
     }
     let angle_deg = turns * 360.0;
     if angle_deg / speed_deg_s + ramp_s > 3600.0 {
-        return Err(bad(format!(
-            "{angle_deg}° at {speed_deg_s} °/s takes more than an hour"
-        )));
+        return bad(LatheSetting::GearTooLong {
+            angle_deg,
+            speed_deg_s,
+        });
     }
     let end_x = setup.part_zero.x_mm + ratio_mm_per_deg * angle_deg;
     if !(0.0..=setup.travel_mm[0]).contains(&end_x) {
-        return Err(bad(format!(
-            "the carriage would reach {} mm from machine zero, beyond the limit switches \
-             (0 … {} mm): ratio {} mm/° over {}°",
-            fixed(end_x, 2),
-            setup.travel_mm[0],
-            shown(ratio_mm_per_deg),
-            shown(angle_deg)
-        )));
+        return bad(LatheSetting::CarriageBeyondLimits {
+            end_mm: end_x,
+            travel_mm: setup.travel_mm[0],
+            ratio_mm_per_deg,
+            angle_deg,
+        });
     }
     // The master's profile: trapezoidal in speed (a triangle when the turns are few).
     let hz = setup.interrupt_hz;
@@ -821,8 +810,9 @@ mod tests {
         assert!(plan(&fig_9_1(), f, &setup(Interpolation::Linear, top)).is_ok());
         for feed in [top + 1.0, 1e308, f64::INFINITY] {
             match plan(&fig_9_1(), f, &setup(Interpolation::Linear, feed)) {
-                Err(Error::Run { message, input }) => {
-                    assert!(input);
+                Err(e @ Error::LatheSetting(LatheSetting::FeedAboveTopSpeed { .. })) => {
+                    assert!(e.is_input());
+                    let message = e.to_string();
                     assert!(
                         message.contains("above the axes' top speed of 174.8"),
                         "{message}"

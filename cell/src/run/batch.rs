@@ -57,12 +57,9 @@ pub fn load(seq: &Path, run: Option<&Path>, mode: Option<RunMode>) -> Result<Loa
     }
     let loaded = from_files(&files, mode, dir, &run_path)?;
     if needs_run(loaded.mode) && !files.contains_key("RUN") {
-        return Err(Error::Run {
-            message: format!(
-                "{}: missing (program mode runs the run file's programs)",
-                run_path.display()
-            ),
-            input: true,
+        return Err(Error::MissingFile {
+            file: run_path,
+            why: "program mode runs the run file's programs",
         });
     }
     Ok(Loaded {
@@ -87,9 +84,9 @@ pub fn from_files(
         let rob_path = dir.join(format!("{name}.ROB"));
         let text = files
             .get(&format!("{name}.ROB"))
-            .ok_or_else(|| Error::Run {
-                message: format!("{}: missing (named in the sequence)", rob_path.display()),
-                input: true,
+            .ok_or_else(|| Error::MissingFile {
+                file: rob_path.clone(),
+                why: "named in the sequence",
             })?;
         hash = fnv1a(hash, text.as_bytes());
         let rob = RobotFile::parse(text).map_err(|e| Error::File(e.in_file(&rob_path)))?;
@@ -129,13 +126,10 @@ pub fn from_files(
                 .iter()
                 .find(|(_, (r, _))| r.header.program == *p)
                 .map(|(n, _)| *n)
-                .ok_or_else(|| Error::Run {
-                    message: format!(
-                        "{}:{}:1: program {p} is not loaded by the sequence",
-                        run_path.display(),
-                        line + 1
-                    ),
-                    input: true,
+                .ok_or_else(|| Error::ProgramNotLoaded {
+                    file: run_path.to_path_buf(),
+                    line: line + 1,
+                    program: *p,
                 })?;
             items.push(item(name));
         }

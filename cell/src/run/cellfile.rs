@@ -9,6 +9,7 @@ use paths::Gearing;
 use serde::Deserialize;
 
 use crate::Error;
+use crate::error::CellProblem;
 
 /// `CELL.toml`.
 #[derive(Debug, Clone, PartialEq, Deserialize, Default)]
@@ -126,7 +127,7 @@ pub struct Cell {
     pub robot_io: sequences::program::SyncSignals,
 }
 
-fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, String> {
+fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, CellProblem> {
     Drive::new(
         Gearing {
             steps_per_motor_rev: steps_per_rev,
@@ -135,10 +136,10 @@ fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, Str
         },
         mandrel_drive::units::TRANSLATOR_LIMIT_PPS,
     )
-    .map_err(|e| e.to_string())
+    .map_err(CellProblem::Drive)
 }
 
-fn devices_of(p: &PortsSection) -> Result<Devices, String> {
+fn devices_of(p: &PortsSection) -> Result<Devices, CellProblem> {
     match (&p.robot, &p.indexer, &p.sync) {
         (None, None, None) => Ok(Devices::Simulated),
         (Some(r), Some(i), s) => Ok(Devices::Serial {
@@ -146,10 +147,7 @@ fn devices_of(p: &PortsSection) -> Result<Devices, String> {
             indexer: i.clone(),
             sync: s.clone(),
         }),
-        _ => Err(
-            "name the robot and indexer ports (and the sync port for program mode) or none (the simulated cell)"
-                .into(),
-        ),
+        _ => Err(CellProblem::Ports),
     }
 }
 
@@ -157,9 +155,10 @@ impl Cell {
     /// The cell of a job file's `[cell]`.
     pub fn of_job(job: &sequences::Job, file: &Path) -> Result<Cell, Error> {
         let c = &job.cell;
-        let bad = |m: String| Error::Run {
-            message: format!("{}: [cell]: {m}", file.display()),
-            input: true,
+        let bad = |problem| Error::Cell {
+            file: file.to_path_buf(),
+            place: None,
+            problem,
         };
         let drive = drive_of(
             *c.drive.steps_per_rev.get_ref(),
@@ -204,16 +203,14 @@ impl Cell {
 
     /// Parses the text of a cell file read from `path`.
     pub fn parse(text: &str, path: &Path) -> Result<Cell, Error> {
-        let at = |offset: usize, m: String| {
-            let (line, column) = sequences::error::line_column(text, offset);
-            Error::Run {
-                message: format!("{}:{line}:{column}: {m}", path.display()),
-                input: true,
-            }
+        let at = |offset: usize, problem| Error::Cell {
+            file: path.to_path_buf(),
+            place: Some(sequences::error::line_column(text, offset)),
+            problem,
         };
         let file: CellFile = toml::from_str(text).map_err(|e| {
             let (offset, message) = sequences::error::toml_refusal(&e);
-            at(offset, message)
+            at(offset, CellProblem::Syntax(message))
         })?;
         let locate = |key: &str| text.find(key).unwrap_or(0);
         let drive = match &file.drive {
@@ -229,10 +226,9 @@ impl Cell {
         if !(0.0..=1.0).contains(&opto_delay_s) {
             return Err(at(
                 locate("opto_delay_s"),
-                format!(
-                    "opto_delay_s = {}: expected 0–1 s",
-                    sequences::error::shown(opto_delay_s)
-                ),
+                CellProblem::OptoDelay {
+                    value_s: opto_delay_s,
+                },
             ));
         }
         let mut tolerances = Tolerances::default();
@@ -250,10 +246,7 @@ impl Cell {
                 .flatten()
                 .any(|v| !(v.is_finite() && (0.0..=100.0).contains(v)))
             {
-                return Err(at(
-                    locate("[tolerance]"),
-                    "[tolerance]: every figure must be finite and 0–100".into(),
-                ));
+                return Err(at(locate("[tolerance]"), CellProblem::Tolerance));
             }
             if let Some(v) = t.axis_offset_mm {
                 tolerances.axis_offset_mm = v;
@@ -274,7 +267,7 @@ impl Cell {
                     if !(1..=4096).contains(&v) {
                         return Err(at(
                             locate("[robot_io]"),
-                            format!("[robot_io]: signal {v}: expected 1–4096"),
+                            CellProblem::RobotIoSignal { signal: v },
                         ));
                     }
                 }

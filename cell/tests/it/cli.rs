@@ -2,7 +2,7 @@
 
 use crate::common;
 
-use common::{example, windcell};
+use common::{example, windcell, windcell_json};
 
 const EXAMPLES: [&str; 7] = [
     "cylinder.toml",
@@ -58,15 +58,13 @@ fn plans_every_example_into_control_files() {
 fn json_report_has_every_documented_field() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("cyl");
-    let result = windcell(&[
+    let report = windcell_json(&[
         "plan",
         example("cylinder.toml").to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
         "--json",
     ]);
-    assert!(result.status.success());
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
     let paths = report["paths"].as_array().unwrap();
     assert_eq!(paths.len(), 2);
     for path in paths {

@@ -3,7 +3,8 @@
 
 use crate::common;
 
-use common::{example, stderr, windcell};
+use common::lathe::{lathe_plan, lathe_plan_summary, refused_in_one_line, tube};
+use common::{example, stderr, variant, wind_job, windcell};
 use paths::motion::MoveKind;
 use sequences::gcode::{Dialect, Frame, read_in_frame};
 use sequences::machine::MachineProfile;
@@ -20,51 +21,7 @@ fn read(text: &str, dialect: Dialect, summary: &serde_json::Value) -> paths::mot
     read_in_frame(text, dialect, &frame_of(summary)).unwrap()
 }
 
-/// Seed 002 Appendix A, O0004 (forward stroke) as printed: ΔX mandrel °, ΔY carriage mm, ΔZ
-/// cross-feed mm, ΔA eye °; 20 dome moves, the cylinder, 20 dome moves.
-const O0004: [[f64; 4]; 41] = [
-    [2.283, 4.731, 3.535, 11.042],
-    [2.082, 5.005, 3.249, 10.225],
-    [1.92, 5.252, 2.931, 8.9],
-    [1.793, 5.472, 2.59, 7.436],
-    [1.69, 5.662, 2.227, 6.079],
-    [1.612, 5.822, 1.844, 4.93],
-    [1.55, 5.952, 1.45, 3.999],
-    [1.508, 6.048, 1.043, 3.257],
-    [1.479, 6.114, 0.629, 2.667],
-    [1.466, 6.147, 0.21, 2.197],
-    [1.690, 7.082, -0.279, 2.065],
-    [1.711, 7.033, -0.835, 1.666],
-    [1.755, 6.933, -1.382, 1.344],
-    [1.822, 6.783, -1.915, 1.078],
-    [1.918, 6.587, -2.430, 0.856],
-    [2.045, 6.344, -2.919, 0.664],
-    [2.214, 6.056, -3.376, 0.496],
-    [2.430, 5.724, -3.793, 0.343],
-    [2.711, 5.353, -4.164, 0.202],
-    [3.075, 4.944, -4.477, 0.067],
-    [30.006, 84.1, 0.0, 0.0],
-    [3.047, 3.931, -4.083, -0.05],
-    [3.498, 3.575, -4.208, -0.152],
-    [4.07, 3.201, -4.264, -0.256],
-    [4.797, 2.809, -4.231, -0.367],
-    [5.716, 2.403, -4.087, -0.487],
-    [6.855, 1.983, -3.797, -0.619],
-    [8.203, 1.554, -3.325, -0.768],
-    [9.662, 1.116, -2.633, -0.937],
-    [10.983, 0.672, -1.708, -1.134],
-    [11.798, 0.224, -0.594, -1.367],
-    [13.543, -0.298, 0.786, -1.926],
-    [12.34, -0.892, 2.232, -2.393],
-    [10.493, -1.479, 3.367, -2.991],
-    [8.601, -2.057, 4.149, -3.762],
-    [6.975, -2.619, 4.623, -4.769],
-    [5.687, -3.164, 4.858, -6.073],
-    [4.7, -3.685, 4.913, -7.712],
-    [3.95, -4.181, 4.833, -9.613],
-    [3.382, -4.647, 4.649, -11.465],
-    [2.946, -5.08, 4.382, -12.672],
-];
+include!("../../../paths/tests/data/seed002_o0004.rs");
 
 fn words(line: &str) -> [f64; 4] {
     let mut v = [0.0; 4];
@@ -85,22 +42,14 @@ fn words(line: &str) -> [f64; 4] {
 #[test]
 fn seed002_mach3_is_the_appendix_program() {
     let dir = tempfile::tempdir().unwrap();
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        example("seed002-vessel.toml").to_str().unwrap(),
-        "-o",
-        dir.path().to_str().unwrap(),
-        "--dialect",
-        "mach3",
-    ]);
+    let out = lathe_plan(&example("seed002-vessel.toml"), dir.path(), "mach3", &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     let text = std::fs::read_to_string(dir.path().join("seed002.tap")).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     let g91 = lines.iter().position(|l| *l == "G91").unwrap();
     // Forward stroke (O0004) then backward stroke (O0005: Y and A mirrored).
     for (stroke, sign) in [(0, 1.0), (1, -1.0)] {
-        for (i, want) in O0004.iter().enumerate() {
+        for (i, want) in APPENDIX_FORWARD.iter().enumerate() {
             if stroke == 1 && i == 40 {
                 continue; // the last move carries the cycle's turnaround extras (O0006/O0007)
             }
@@ -137,19 +86,7 @@ fn every_dialect_file_reads_back_to_the_plan() {
         } else {
             example("seed002-vessel.toml")
         };
-        let out = windcell(&[
-            "lathe",
-            "plan",
-            source.to_str().unwrap(),
-            "-o",
-            dir.path().to_str().unwrap(),
-            "--dialect",
-            dialect.name(),
-            "--json",
-            "--force",
-        ]);
-        assert!(out.status.success(), "{dialect}: {}", stderr(&out));
-        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let summary = lathe_plan_summary(&source, dir.path(), dialect.name(), &["--force"]);
         let file = summary["file"].as_str().unwrap();
         let written = std::fs::read_to_string(file).unwrap();
         assert_eq!(
@@ -187,22 +124,8 @@ fn every_dialect_file_reads_back_to_the_plan() {
 
 /// `windcell lathe plan JOB -o OUT --dialect grbl` refused as bad input: exit 2, one line that
 /// contains `expect`, and nothing written (`OUT` not even created). Returns the line.
-fn refused_in_one_line(job: &std::path::Path, out_dir: &std::path::Path, expect: &str) -> String {
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
-        "grbl",
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = stderr(&out);
-    assert!(err.contains(expect), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(!out_dir.exists());
-    err
+fn refused_in_grbl(job: &std::path::Path, out_dir: &std::path::Path, expect: &str) -> String {
+    refused_in_one_line(&lathe_plan(job, out_dir, "grbl", &[]), expect, out_dir)
 }
 
 #[test]
@@ -217,22 +140,14 @@ fn bad_input_exits_2_with_file_line_column_and_writes_nothing() {
         );
     std::fs::write(&job, text).unwrap();
     let out_dir = dir.path().join("out");
-    let err = refused_in_one_line(
+    let err = refused_in_grbl(
         &job,
         &out_dir,
         "bad.toml:30:8: layer 1: the winding pattern does not close",
     );
     assert!(err.contains("nearest valid"), "{err}");
     // fw-cnc on a 4-axis machine: refused, nothing written.
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        example("seed002-vessel.toml").to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
-        "fw-cnc",
-    ]);
+    let out = lathe_plan(&example("seed002-vessel.toml"), &out_dir, "fw-cnc", &[]);
     assert_eq!(out.status.code(), Some(2));
     assert!(!out_dir.exists());
     let out = windcell(&["lathe", "plan", "x.toml", "-o", "y", "--dialect", "haas"]);
@@ -242,43 +157,16 @@ fn bad_input_exits_2_with_file_line_column_and_writes_nothing() {
 #[test]
 fn wind_files_plan_and_their_rules_are_located() {
     let dir = tempfile::tempdir().unwrap();
-    let wind = dir.path().join("tube.wind");
-    let text = r#"{
-  "schemaVersion": "1.1",
-  "mandrelParameters": { "diameter": 70, "windLength": 500 },
-  "towParameters": { "width": 6.5, "thickness": 0.25 },
-  "defaultFeedRate": 6000,
-  "layers": [
-    { "windType": "hoop" },
-    { "windType": "helical", "windAngle": 45, "patternNumber": 3, "skipIndex": 1,
-      "lockDegrees": 720, "leadInMM": 10, "leadOutDegrees": 10 }
-  ]
-}"#;
-    std::fs::write(&wind, text).unwrap();
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        dir.path().to_str().unwrap(),
-        "--dialect",
-        "grbl",
-        "--json",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let summary = lathe_plan_summary(&tube(), dir.path(), "grbl", &[]);
     assert_eq!(summary["circuits"].as_u64(), Some(24));
     assert!(dir.path().join("tube.nc").exists());
-    std::fs::write(&wind, text.replace("\"skipIndex\": 1", "\"skipIndex\": 3")).unwrap();
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        dir.path().join("o2").to_str().unwrap(),
-        "--dialect",
-        "grbl",
-    ]);
+    let wind = variant(
+        &tube(),
+        dir.path(),
+        "tube.wind",
+        &[("\"skipIndex\": 1", "\"skipIndex\": 3")],
+    );
+    let out = lathe_plan(&wind, &dir.path().join("o2"), "grbl", &[]);
     assert_eq!(out.status.code(), Some(2));
     assert!(
         stderr(&out).contains("tube.wind:8:5: layer 2: skip index 3"),
@@ -295,17 +183,7 @@ fn reads_back_in_every_dialect(job: &std::path::Path, plan: &paths::vessel::Plan
     let dir = tempfile::tempdir().unwrap();
     let mut written = 0;
     for dialect in Dialect::ALL {
-        let out = windcell(&[
-            "lathe",
-            "plan",
-            job.to_str().unwrap(),
-            "-o",
-            dir.path().to_str().unwrap(),
-            "--dialect",
-            dialect.name(),
-            "--json",
-            "--force",
-        ]);
+        let out = lathe_plan(job, dir.path(), dialect.name(), &["--json", "--force"]);
         if axes == 4 && dialect == Dialect::FwCnc {
             // FW-CNC has no fourth axis: refused before anything is written.
             assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
@@ -353,33 +231,20 @@ fn polar_layers_read_back_in_every_dialect() {
 #[test]
 fn cone_layers_read_back_in_every_dialect() {
     let dir = tempfile::tempdir().unwrap();
-    let wind = dir.path().join("reducer.wind");
-    std::fs::write(
-        &wind,
-        r#"{
-  "schemaVersion": "1.1",
-  "layers": [
-    { "windType": "helical", "windAngle": 30, "patternNumber": 3, "skipIndex": 1,
-      "lockDegrees": 180, "leadInMM": 5, "leadOutDegrees": 15 },
-    { "windType": "skip", "mandrelRotation": 45 }
-  ],
-  "mandrelParameters": { "diameter": 98.0, "windLength": 120.0, "endDiameter": 54.0 },
-  "towParameters": { "width": 6.0, "thickness": 0.5 },
-  "defaultFeedRate": 9000.0
-}"#,
-    )
-    .unwrap();
+    let wind = wind_job("reducer.wind");
     let job = sequences::wind::WindFile::load(&wind).unwrap().0;
     let plan = job.check().unwrap();
     // ⌈π·98·cos 30° / 6⌉ = ⌈44.44⌉ = 45 circuits, counted at the large end.
     assert_eq!(plan.layers[0].mark.circuits, 45);
     reads_back_in_every_dialect(&wind, &plan, 4);
     // Too steep for the taper: refused at the layer, nothing written.
-    let text = std::fs::read_to_string(&wind)
-        .unwrap()
-        .replace("\"windAngle\": 30", "\"windAngle\": 40");
-    std::fs::write(&wind, text).unwrap();
-    refused_in_one_line(
+    let wind = variant(
+        &wind_job("reducer.wind"),
+        dir.path(),
+        "reducer.wind",
+        &[("\"windAngle\": 30", "\"windAngle\": 40")],
+    );
+    refused_in_grbl(
         &wind,
         &dir.path().join("refused"),
         "reducer.wind:4:5: layer 1: wind angle 40° is too steep for the cone",
@@ -412,18 +277,7 @@ fn nose_layers_read_back_in_every_dialect() {
     reads_back_in_every_dialect(&wind, &plan, 4);
     // The geodesic's passes reach the turnaround where the Haack radius is 49·sin 30° = 24.5 mm
     // (210.596 mm from the base), the friction passes deeper; never the tip.
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        dir.path().to_str().unwrap(),
-        "--dialect",
-        "linuxcnc",
-        "--json",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let summary = lathe_plan_summary(&wind, dir.path(), "linuxcnc", &[]);
     assert_eq!(summary["circuits"].as_u64(), Some(78));
     let gcode = std::fs::read_to_string(summary["file"].as_str().unwrap()).unwrap();
     let mut far = [f64::MIN; 3];
@@ -448,7 +302,7 @@ fn nose_layers_read_back_in_every_dialect() {
         text.replace("\"frictionLambda\": 0.15", "\"frictionLambda\": 0.5"),
     )
     .unwrap();
-    refused_in_one_line(
+    refused_in_grbl(
         &wind,
         &dir.path().join("refused"),
         "ogive.wind:7:5: layer 3: frictionLambda 0.5 exceeds the machine slip limit",

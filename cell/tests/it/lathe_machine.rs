@@ -5,26 +5,11 @@
 
 use crate::common;
 
-use common::{example, stderr, windcell};
+use std::path::Path;
+
+use common::lathe::{lathe_plan, refused_in_one_line, tube};
+use common::{example, stderr};
 use paths::motion::Recording;
-
-const TUBE: &str = r#"{
-  "schemaVersion": "1.1",
-  "mandrelParameters": { "diameter": 70, "windLength": 500 },
-  "towParameters": { "width": 6.5, "thickness": 0.25 },
-  "defaultFeedRate": 6000,
-  "layers": [
-    { "windType": "hoop" },
-    { "windType": "helical", "windAngle": 45, "patternNumber": 3, "skipIndex": 1,
-      "lockDegrees": 720, "leadInMM": 10, "leadOutDegrees": 10 }
-  ]
-}"#;
-
-fn tube(dir: &std::path::Path) -> std::path::PathBuf {
-    let wind = dir.join("tube.wind");
-    std::fs::write(&wind, TUBE).unwrap();
-    wind
-}
 
 fn planned(job: &std::path::Path) -> Recording {
     let (job, _) = sequences::wind::WindFile::load(job).unwrap();
@@ -34,11 +19,17 @@ fn planned(job: &std::path::Path) -> Recording {
     rec
 }
 
-fn plan(args: &[&str]) -> (std::process::Output, serde_json::Value) {
-    let mut all = vec!["lathe", "plan"];
-    all.extend_from_slice(args);
-    all.push("--json");
-    let out = windcell(&all);
+/// `windcell lathe plan JOB -o OUT --dialect DIALECT EXTRA… --json`: the run and, when it
+/// succeeds, its summary.
+fn plan(
+    job: &Path,
+    out: &Path,
+    dialect: &str,
+    extra: &[&str],
+) -> (std::process::Output, serde_json::Value) {
+    let mut extra = extra.to_vec();
+    extra.push("--json");
+    let out = lathe_plan(job, out, dialect, &extra);
     let summary = if out.status.success() {
         serde_json::from_slice(&out.stdout).unwrap()
     } else {
@@ -63,15 +54,9 @@ fn motion_words(text: &str) -> Vec<Vec<(char, f64)>> {
 #[test]
 fn a_wind_job_in_marlin_is_written_for_fiberpaths_xab_machine() {
     let dir = tempfile::tempdir().unwrap();
-    let job = tube(dir.path());
+    let job = tube();
     let out_dir = dir.path().join("out");
-    let (out, summary) = plan(&[
-        job.to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
-        "marlin",
-    ]);
+    let (out, summary) = plan(&job, &out_dir, "marlin", &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(summary["machine"]["name"], "fiberpath-xab");
     let text = std::fs::read_to_string(out_dir.join("tube.gcode")).unwrap();
@@ -122,7 +107,7 @@ fn a_wind_job_in_marlin_is_written_for_fiberpaths_xab_machine() {
 #[test]
 fn the_written_frame_is_the_plan_moved_by_the_origin_and_scaled_by_the_units() {
     let dir = tempfile::tempdir().unwrap();
-    let job = tube(dir.path());
+    let job = tube();
     let planned = planned(&job);
     let profile = dir.path().join("inch.toml");
     std::fs::write(
@@ -133,15 +118,12 @@ fn the_written_frame_is_the_plan_moved_by_the_origin_and_scaled_by_the_units() {
     )
     .unwrap();
     let out_dir = dir.path().join("out");
-    let (out, summary) = plan(&[
-        job.to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
+    let (out, summary) = plan(
+        &job,
+        &out_dir,
         "linuxcnc",
-        "--machine",
-        profile.to_str().unwrap(),
-    ]);
+        &["--machine", profile.to_str().unwrap()],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(summary["machine"]["name"], "inch-winder");
     let text = std::fs::read_to_string(out_dir.join("tube.ngc")).unwrap();
@@ -178,55 +160,44 @@ fn the_written_frame_is_the_plan_moved_by_the_origin_and_scaled_by_the_units() {
 #[test]
 fn bad_machines_are_refused_in_one_located_line_and_nothing_is_written() {
     let dir = tempfile::tempdir().unwrap();
-    let job = tube(dir.path());
+    let job = tube();
     let out_dir = dir.path().join("out");
     let refused = |machine: &str, expect: &str| {
-        let (out, _) = plan(&[
-            job.to_str().unwrap(),
-            "-o",
-            out_dir.to_str().unwrap(),
-            "--dialect",
-            "marlin",
-            "--machine",
-            machine,
-        ]);
-        assert_eq!(out.status.code(), Some(2), "{machine}");
-        let err = stderr(&out);
-        assert_eq!(err.lines().count(), 1, "{err}");
-        assert!(err.contains(expect), "{machine}: {err}");
-        assert!(!out_dir.exists(), "{machine}");
+        let (out, _) = plan(&job, &out_dir, "marlin", &["--machine", machine]);
+        refused_in_one_line(&out, expect, &out_dir);
     };
     refused("haas", "--machine `haas`: neither a built-in");
-    // A travel shorter than the mandrel: refused at the profile's `max`.
-    let short = dir.path().join("short.toml");
-    std::fs::write(
-        &short,
-        "name = \"short\"\nfeed = \"linear-words\"\n[axes.mandrel]\nletter = \"A\"\n\
-         [axes.carriage]\nletter = \"X\"\nmin = 0\nmax = 400.0\n[axes.eye]\nletter = \"B\"\n",
-    )
-    .unwrap();
-    refused(
-        short.to_str().unwrap(),
-        "short.toml:8:7: the plan moves X to 500 mm, beyond max = 400 mm",
-    );
-    // A machine without the eye a .wind plan turns.
-    let no_eye = dir.path().join("noeye.toml");
-    std::fs::write(
-        &no_eye,
-        "name = \"noeye\"\nfeed = \"linear-words\"\n[axes.mandrel]\nletter = \"A\"\n\
-         [axes.carriage]\nletter = \"X\"\n",
-    )
-    .unwrap();
-    refused(
-        no_eye.to_str().unwrap(),
-        "machine `noeye` has no eye-rotation axis, and the plan moves it",
-    );
-    // A malformed profile.
-    let bad = dir.path().join("bad.toml");
-    std::fs::write(&bad, "name = \"bad\"\nfeed = 3\n").unwrap();
-    refused(bad.to_str().unwrap(), "bad.toml:2:8:");
-    let missing = dir.path().join("missing.toml");
-    refused(missing.to_str().unwrap(), "missing.toml");
+    // Profiles `NAME.toml` holding the text (none: no such file).
+    let cases = [
+        // A travel shorter than the mandrel: refused at the profile's `max`.
+        (
+            "short",
+            Some(
+                "name = \"short\"\nfeed = \"linear-words\"\n[axes.mandrel]\nletter = \"A\"\n\
+                 [axes.carriage]\nletter = \"X\"\nmin = 0\nmax = 400.0\n[axes.eye]\nletter = \"B\"\n",
+            ),
+            "short.toml:8:7: the plan moves X to 500 mm, beyond max = 400 mm",
+        ),
+        // A machine without the eye a .wind plan turns.
+        (
+            "noeye",
+            Some(
+                "name = \"noeye\"\nfeed = \"linear-words\"\n[axes.mandrel]\nletter = \"A\"\n\
+                 [axes.carriage]\nletter = \"X\"\n",
+            ),
+            "machine `noeye` has no eye-rotation axis, and the plan moves it",
+        ),
+        // A malformed profile.
+        ("bad", Some("name = \"bad\"\nfeed = 3\n"), "bad.toml:2:8:"),
+        ("missing", None, "missing.toml"),
+    ];
+    for (name, text, expect) in cases {
+        let path = dir.path().join(format!("{name}.toml"));
+        if let Some(text) = text {
+            std::fs::write(&path, text).unwrap();
+        }
+        refused(path.to_str().unwrap(), expect);
+    }
 }
 
 #[test]
@@ -239,26 +210,17 @@ fn seed_000s_machine_keeps_part_zero_and_its_travel() {
         &[("axes = 4", "axes = 3")],
     );
     let out_dir = dir.path().join("out");
-    let (out, summary) = plan(&[
-        job.to_str().unwrap(),
-        "-o",
-        out_dir.to_str().unwrap(),
-        "--dialect",
-        "fw-cnc",
-    ]);
+    let (out, summary) = plan(&job, &out_dir, "fw-cnc", &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(summary["machine"]["name"], "fw-cnc");
     assert_eq!(summary["machine"]["carriage_offset_mm"], 0.0);
     // The vessel with cross-feed on FiberPath's machine: the cross-feed moves, refused.
-    let (out, _) = plan(&[
-        example("seed002-vessel.toml").to_str().unwrap(),
-        "-o",
-        dir.path().join("o2").to_str().unwrap(),
-        "--dialect",
+    let (out, _) = plan(
+        &example("seed002-vessel.toml"),
+        &dir.path().join("o2"),
         "marlin",
-        "--machine",
-        "fiberpath-xab",
-    ]);
+        &["--machine", "fiberpath-xab"],
+    );
     assert_eq!(out.status.code(), Some(2));
     assert!(
         stderr(&out).contains("has no cross-feed axis"),

@@ -3,39 +3,22 @@
 
 use crate::common;
 
-use common::{example, stderr, windcell};
+use common::lathe::{lathe_plan, refused_in_one_line};
+use common::{example, stderr, variant};
 
+/// The test tube ([`common::lathe::tube`]) with its helical layer only, written into `dir` as `tube.wind`.
 fn tube(dir: &std::path::Path) -> std::path::PathBuf {
-    let wind = dir.join("tube.wind");
-    std::fs::write(
-        &wind,
-        r#"{
-  "schemaVersion": "1.1",
-  "mandrelParameters": { "diameter": 70, "windLength": 500 },
-  "towParameters": { "width": 6.5, "thickness": 0.25 },
-  "defaultFeedRate": 6000,
-  "layers": [
-    { "windType": "helical", "windAngle": 45, "patternNumber": 3, "skipIndex": 1,
-      "lockDegrees": 720, "leadInMM": 10, "leadOutDegrees": 10 }
-  ]
-}"#,
+    variant(
+        &common::lathe::tube(),
+        dir,
+        "tube.wind",
+        &[("    { \"windType\": \"hoop\" },\n", "")],
     )
-    .unwrap();
-    wind
 }
 
+/// `windcell lathe plan JOB -o OUT --dialect marlin EXTRA…`.
 fn plan(job: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> std::process::Output {
-    let mut args = vec![
-        "lathe",
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--dialect",
-        "marlin",
-    ];
-    args.extend_from_slice(extra);
-    windcell(&args)
+    lathe_plan(job, out, "marlin", extra)
 }
 
 #[cfg(unix)]
@@ -76,15 +59,8 @@ fn out_names_a_folder_never_a_file() {
     let job = tube(dir.path());
     // A file name that does not exist yet: refused, nothing created.
     let file = dir.path().join("part.gcode");
-    let o = plan(&job, &file, &[]);
-    assert_eq!(o.status.code(), Some(2));
-    let err = stderr(&o);
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(
-        err.contains("looks like a file name") && err.contains("folder"),
-        "{err}"
-    );
-    assert!(!file.exists());
+    let err = refused_in_one_line(&plan(&job, &file, &[]), "looks like a file name", &file);
+    assert!(err.contains("folder"), "{err}");
     // An existing file: refused, left as it was.
     std::fs::write(&file, b"keep").unwrap();
     let o = plan(&job, &file, &[]);
@@ -124,15 +100,7 @@ fn dialect_refusals_point_at_the_help() {
     let dir = tempfile::tempdir().unwrap();
     let job = tube(dir.path());
     let out = dir.path().join("out");
-    let o = windcell(&[
-        "lathe",
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--dialect",
-        "haas",
-    ]);
+    let o = lathe_plan(&job, &out, "haas", &[]);
     assert_eq!(o.status.code(), Some(2));
     let err = stderr(&o);
     assert!(err.contains("unknown dialect `haas`"), "{err}");
@@ -140,31 +108,11 @@ fn dialect_refusals_point_at_the_help() {
     assert!(!out.exists());
     // A .wind job on fw-cnc: the message says what a .wind job needs, not the vessel file's
     // `axes` field it does not have.
-    let o = windcell(&[
-        "lathe",
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--dialect",
-        "fw-cnc",
-    ]);
-    assert_eq!(o.status.code(), Some(2));
-    let err = stderr(&o);
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = refused_in_one_line(&lathe_plan(&job, &out, "fw-cnc", &[]), "tube.wind", &out);
     assert!(!err.contains("axes = 3"), "{err}");
-    assert!(err.contains("tube.wind") && err.contains("marlin"), "{err}");
-    assert!(!out.exists());
+    assert!(err.contains("marlin"), "{err}");
     // A vessel file: pointed at its [machine] table.
-    let o = windcell(&[
-        "lathe",
-        "plan",
-        example("seed002-vessel.toml").to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--dialect",
-        "fw-cnc",
-    ]);
+    let o = lathe_plan(&example("seed002-vessel.toml"), &out, "fw-cnc", &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("[machine]"), "{}", stderr(&o));
     assert!(!out.exists());

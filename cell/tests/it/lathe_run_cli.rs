@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use common::{example, stderr, windcell};
+use common::{example, stderr, windcell, windcell_json};
 use serde_json::Value;
 
 fn fig_9_1() -> String {
@@ -25,18 +25,12 @@ fn one_circuit(dir: &Path) -> String {
     path.display().to_string()
 }
 
-fn json(args: &[&str]) -> Value {
-    let out = windcell(args);
-    assert!(out.status.success(), "{args:?}: {}", stderr(&out));
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
 #[test]
 fn record_writes_every_interrupt_of_the_axes_as_mcap() {
     let dir = tempfile::tempdir().unwrap();
     let prg = one_circuit(dir.path());
     let mcap_path = dir.path().join("run.mcap");
-    let report = json(&[
+    let report = windcell_json(&[
         "lathe",
         "run",
         &prg,
@@ -107,7 +101,7 @@ fn counters_that_wrap_mid_move_give_the_same_run() {
     let dir = tempfile::tempdir().unwrap();
     let prg = one_circuit(dir.path());
     let run = |start: &str| {
-        json(&[
+        windcell_json(&[
             "lathe",
             "run",
             &prg,
@@ -132,7 +126,7 @@ fn counters_that_wrap_mid_move_give_the_same_run() {
 fn machine_zero_search_ends_at_the_same_encoder_count_from_any_start() {
     let mut ends = Vec::new();
     for (from, counter) in [("3,5", "0"), ("57.3,150", "65500"), ("611.1,42", "1234")] {
-        let v = json(&[
+        let v = windcell_json(&[
             "lathe",
             "home",
             "--from",
@@ -163,7 +157,7 @@ fn machine_zero_search_ends_at_the_same_encoder_count_from_any_start() {
 #[test]
 fn electronic_gearing_holds_the_carriage_at_the_ratio() {
     for (ratio, turns) in [("0.2", "2"), ("-0.1", "1")] {
-        let v = json(&[
+        let v = windcell_json(&[
             "lathe", "gear", "--ratio", ratio, "--turns", turns, "--json",
         ]);
         let r: f64 = ratio.parse().unwrap();
@@ -186,8 +180,9 @@ fn electronic_gearing_holds_the_carriage_at_the_ratio() {
     );
 }
 
-#[test]
-fn single_block_waits_for_the_operator_before_every_block() {
+/// `windcell lathe run three.prg --single-block` with `input` on standard input: three blocks
+/// (at lines 3, 4 and 5) of a relative program.
+fn single_block(input: &[u8]) -> std::process::Output {
     let dir = tempfile::tempdir().unwrap();
     let prg = dir.path().join("three.prg");
     std::fs::write(
@@ -202,8 +197,13 @@ fn single_block_waits_for_the_operator_before_every_block() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    child.stdin.take().unwrap().write_all(b"\n\n\n").unwrap();
-    let out = child.wait_with_output().unwrap();
+    child.stdin.take().unwrap().write_all(input).unwrap();
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn single_block_waits_for_the_operator_before_every_block() {
+    let out = single_block(b"\n\n\n");
     assert!(out.status.success(), "{}", stderr(&out));
     let err = stderr(&out);
     let prompts: Vec<&str> = err.split("press Enter").collect();
@@ -218,23 +218,8 @@ fn single_block_waits_for_the_operator_before_every_block() {
 
 #[test]
 fn single_block_stops_when_standard_input_closes() {
-    let dir = tempfile::tempdir().unwrap();
-    let prg = dir.path().join("three.prg");
-    std::fs::write(
-        &prg,
-        "%\nO 1 G91;\nN 10 X 10;\nN 20 Y 5 A 90;\nN 30 X -10 Y -5;\nM30;\n",
-    )
-    .unwrap();
     // One Enter, then end of input: the first block runs, the second is not started.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_windcell"))
-        .args(["lathe", "run", prg.to_str().unwrap(), "--single-block"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(b"\n").unwrap();
-    let out = child.wait_with_output().unwrap();
+    let out = single_block(b"\n");
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let err = stderr(&out);
     assert_eq!(err.matches("press Enter").count(), 2, "{err}");
@@ -276,14 +261,14 @@ fn progress_counts_layers() {
 fn tune_reports_the_eq8_gain_and_refuses_what_routh_refuses() {
     // τ = 1 s and T/τ = π/2: seed 003's worked value K = 0.4569.
     let rate = format!("{}", 2.0 / std::f64::consts::PI);
-    let v = json(&["lathe", "tune", "--tau", "1", "--rate", &rate, "--json"]);
+    let v = windcell_json(&["lathe", "tune", "--tau", "1", "--rate", &rate, "--json"]);
     assert!(
         (v["eq8_gain_per_s"].as_f64().unwrap() - 0.4569).abs() < 5e-5,
         "{v}"
     );
     assert_eq!(v["stable"], true);
     // X of the seed 000 plant at 200 Hz: a loop gain K gives K_p = K·46.7/(1772·0.45).
-    let v = json(&["lathe", "tune", "--json"]);
+    let v = windcell_json(&["lathe", "tune", "--json"]);
     let k = v["eq8_gain_per_s"].as_f64().unwrap();
     let kp = v["kp_dac_codes_per_count"].as_f64().unwrap();
     assert!((kp - k * 46.7 / (1772.0 * 0.45)).abs() < 1e-9, "{v}");

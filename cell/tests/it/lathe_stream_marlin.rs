@@ -10,6 +10,7 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
+use common::lathe::lathe_plan;
 use common::{serve_on_pty, stderr, stop_cleanly, windcell};
 
 const TUBE: &str = r#"{
@@ -26,19 +27,38 @@ const TUBE: &str = r#"{
   ]
 }"#;
 
+/// Runs `windcell lathe stream PROGRAM --port PORT --flow ok-per-line EXTRA…` (Marlin's flow).
+fn stream_ok_per_line(program: &Path, port: &str, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "lathe",
+        "stream",
+        program.to_str().unwrap(),
+        "--port",
+        port,
+        "--flow",
+        "ok-per-line",
+    ];
+    args.extend_from_slice(extra);
+    windcell(&args)
+}
+
+/// `windcell sim-marlin --log LOG --time-scale SCALE` on a pseudo-terminal: the server and its
+/// device.
+fn serve_marlin(log: &Path, time_scale: &str) -> (Child, String) {
+    serve_on_pty(&[
+        "sim-marlin",
+        "--log",
+        log.to_str().unwrap(),
+        "--time-scale",
+        time_scale,
+    ])
+}
+
 /// Plans the tube for Marlin (the default machine, fiberpath-xab) into `dir`.
 fn program(dir: &Path) -> PathBuf {
     let wind = dir.join("tube.wind");
     std::fs::write(&wind, TUBE).unwrap();
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        dir.to_str().unwrap(),
-        "--dialect",
-        "marlin",
-    ]);
+    let out = lathe_plan(&wind, dir, "marlin", &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     dir.join("tube.gcode")
 }
@@ -74,6 +94,7 @@ fn lathe_stream_runs_a_fiberpath_machine_program_to_the_end() {
     let d = tempfile::tempdir().unwrap();
     let program = program(d.path());
     let log = d.path().join("marlin.log");
+    // `--pty` given (it is also the default).
     let (child, pty) = serve_on_pty(&[
         "sim-marlin",
         "--pty",
@@ -82,15 +103,7 @@ fn lathe_stream_runs_a_fiberpath_machine_program_to_the_end() {
         "--time-scale",
         "1000",
     ]);
-    let out = windcell(&[
-        "lathe",
-        "stream",
-        program.to_str().unwrap(),
-        "--port",
-        &pty,
-        "--flow",
-        "ok-per-line",
-    ]);
+    let out = stream_ok_per_line(&program, &pty, &[]);
     stop_cleanly(child);
     assert!(out.status.success(), "{}", stderr(&out));
     let (ran, other) = executed(&log);
@@ -202,25 +215,9 @@ fn progress_is_shown_as_plain_lines_and_json_events() {
         .count();
     assert_eq!(layers, 3);
     let log = d.path().join("marlin.log");
-    let (child, pty) = serve_on_pty(&[
-        "sim-marlin",
-        "--log",
-        log.to_str().unwrap(),
-        "--time-scale",
-        "300",
-    ]);
+    let (child, pty) = serve_marlin(&log, "300");
     // Not a terminal: plain lines every 0.2 s, the last at 100 %.
-    let out = windcell(&[
-        "lathe",
-        "stream",
-        program.to_str().unwrap(),
-        "--port",
-        &pty,
-        "--flow",
-        "ok-per-line",
-        "--progress-every-s",
-        "0.2",
-    ]);
+    let out = stream_ok_per_line(&program, &pty, &["--progress-every-s", "0.2"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let err = stderr(&out);
     let total = commands(&program).len();
@@ -234,16 +231,7 @@ fn progress_is_shown_as_plain_lines_and_json_events() {
     );
     assert!(progress.iter().any(|l| l.contains("left ")), "{err}");
     // JSON: start, one event per layer in order, progress, done.
-    let out = windcell(&[
-        "lathe",
-        "stream",
-        program.to_str().unwrap(),
-        "--port",
-        &pty,
-        "--flow",
-        "ok-per-line",
-        "--json",
-    ]);
+    let out = stream_ok_per_line(&program, &pty, &["--json"]);
     stop_cleanly(child);
     assert!(out.status.success(), "{}", stderr(&out));
     let events: Vec<serde_json::Value> = String::from_utf8(out.stdout)

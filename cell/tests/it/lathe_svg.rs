@@ -6,39 +6,19 @@
 
 use crate::common;
 
-use common::{example, stderr, windcell};
-
-const TUBE: &str = r#"{
-  "mandrelParameters": { "diameter": 70, "windLength": 500 },
-  "towParameters": { "width": 6.5, "thickness": 0.25 },
-  "defaultFeedRate": 6000,
-  "layers": [
-    { "windType": "hoop" },
-    { "windType": "helical", "windAngle": 45, "patternNumber": 3, "skipIndex": 1,
-      "lockDegrees": 720, "leadInMM": 10, "leadOutDegrees": 10 }
-  ]
-}"#;
+use common::lathe::{lathe_plan, lathe_plan_summary, refused_in_one_line, tube};
+use common::{example, stderr};
 
 #[test]
 fn the_layup_is_drawn_with_every_pass_and_its_thickness() {
     let dir = tempfile::tempdir().unwrap();
-    let wind = dir.path().join("tube.wind");
-    std::fs::write(&wind, TUBE).unwrap();
     let svg = dir.path().join("tube.svg");
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        dir.path().join("out").to_str().unwrap(),
-        "--dialect",
+    let s = lathe_plan_summary(
+        &tube(),
+        &dir.path().join("out"),
         "marlin",
-        "--svg",
-        svg.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        &["--svg", svg.to_str().unwrap()],
+    );
     // ⌈π·70·cos 45° / 6.5⌉ = ⌈23.92⌉ = 24 circuits, 48 passes; the hoop out and back.
     let circuits = (std::f64::consts::PI * 70.0 * 45f64.to_radians().cos() / 6.5).ceil();
     assert_eq!(circuits, 24.0);
@@ -75,20 +55,12 @@ fn the_layup_is_drawn_with_every_pass_and_its_thickness() {
 fn a_vessel_is_thickest_toward_its_openings() {
     let dir = tempfile::tempdir().unwrap();
     let svg = dir.path().join("v.svg");
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        example("seed002-vessel.toml").to_str().unwrap(),
-        "-o",
-        dir.path().join("out").to_str().unwrap(),
-        "--dialect",
+    let s = lathe_plan_summary(
+        &example("seed002-vessel.toml"),
+        &dir.path().join("out"),
         "grbl",
-        "--svg",
-        svg.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        &["--svg", svg.to_str().unwrap()],
+    );
     let t: Vec<(f64, f64)> = s["svg"]["thickness_mm"]
         .as_array()
         .unwrap()
@@ -109,41 +81,26 @@ fn a_bad_svg_path_writes_nothing() {
         (dir.path().join("missing/x.svg"), "does not exist"),
         (dir.path().to_path_buf(), "is a folder"),
     ] {
-        let out = windcell(&[
-            "lathe",
-            "plan",
-            example("seed002-vessel.toml").to_str().unwrap(),
-            "-o",
-            out_dir.to_str().unwrap(),
-            "--dialect",
+        let out = lathe_plan(
+            &example("seed002-vessel.toml"),
+            &out_dir,
             "grbl",
-            "--svg",
-            svg.to_str().unwrap(),
-        ]);
-        assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
-        assert_eq!(stderr(&out).lines().count(), 1);
-        assert!(stderr(&out).contains(expect), "{}", stderr(&out));
-        assert!(!out_dir.exists());
+            &["--svg", svg.to_str().unwrap()],
+        );
+        refused_in_one_line(&out, expect, &out_dir);
     }
 }
 
 #[test]
 fn the_layup_is_recorded_in_3d_on_the_mandrels_surface() {
     let dir = tempfile::tempdir().unwrap();
-    let wind = dir.path().join("tube.wind");
-    std::fs::write(&wind, TUBE).unwrap();
     let record = dir.path().join("tube.mcap");
-    let out = windcell(&[
-        "lathe",
-        "plan",
-        wind.to_str().unwrap(),
-        "-o",
-        dir.path().join("out").to_str().unwrap(),
-        "--dialect",
+    let out = lathe_plan(
+        &tube(),
+        &dir.path().join("out"),
         "marlin",
-        "--record",
-        record.to_str().unwrap(),
-    ]);
+        &["--record", record.to_str().unwrap()],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let bytes = std::fs::read(&record).unwrap();
     let messages: Vec<_> = mcap::MessageStream::new(&bytes)

@@ -4,18 +4,56 @@
 use crate::common;
 
 use std::path::{Path, PathBuf};
+use std::process::Output;
 
-use common::{example, stderr, windcell};
+use common::{example, stderr, windcell, windcell_json};
+
+/// `windcell plan JOB -o OUT EXTRA…`.
+fn plan(job: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["plan", job.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    windcell(&args)
+}
+
+/// `windcell geodesic MESH --start START --heading HEADING EXTRA…`.
+fn geodesic(mesh: &Path, start: &str, heading: &str, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "geodesic",
+        mesh.to_str().unwrap(),
+        "--start",
+        start,
+        "--heading",
+        heading,
+    ];
+    args.extend_from_slice(extra);
+    windcell(&args)
+}
+
+/// A point of `examples/sbend.stl`: the spine's offset at 200 mm is −18 mm, so (−18, 28.5, 200)
+/// mm lies on the surface at 90° around.
+const SBEND_START: &str = "-18,28.5,200";
+
+/// `geodesic` on `examples/sbend.stl` from [`SBEND_START`] with `--json`: the report.
+fn sbend_geodesic_json(heading: &str, extra: &[&str]) -> serde_json::Value {
+    let r = geodesic(
+        &example("sbend.stl"),
+        SBEND_START,
+        heading,
+        &[extra, &["--json"]].concat(),
+    );
+    assert!(r.status.success(), "{}", stderr(&r));
+    serde_json::from_slice(&r.stdout).unwrap()
+}
+
+/// A refusal as bad input: exit code 2, and standard error names `what`.
+fn refused_naming(r: &Output, what: &str) {
+    assert_eq!(r.status.code(), Some(2), "{}", stderr(r));
+    assert!(stderr(r).contains(what), "{} lacks {what}", stderr(r));
+}
 
 /// `windcell plan JOB -o OUT --json`: each path's total mandrel steps.
 fn planned_steps(job: &Path, out: &Path) -> Vec<i64> {
-    let r = windcell(&[
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
+    let r = plan(job, out, &["--json"]);
     assert!(r.status.success(), "{}: {}", job.display(), stderr(&r));
     let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     v["paths"]
@@ -52,17 +90,7 @@ fn triasym_reproduces_the_shipped_sbend_stl() {
 #[test]
 fn geodesic_prints_points_and_faces_and_stops_at_the_end_cap() {
     // Spine offset at 200 mm is −18 mm: (−18, 28.5, 200) lies on the surface at 90° around.
-    let r = windcell(&[
-        "geodesic",
-        example("sbend.stl").to_str().unwrap(),
-        "--start",
-        "-18,28.5,200",
-        "--heading",
-        "45",
-        "--json",
-    ]);
-    assert!(r.status.success(), "{}", stderr(&r));
-    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let v = sbend_geodesic_json("45", &[]);
     let points = v["points_mm"].as_array().unwrap();
     assert_eq!(points.len(), v["faces"].as_array().unwrap().len());
     assert!(points.len() > 100);
@@ -70,20 +98,12 @@ fn geodesic_prints_points_and_faces_and_stops_at_the_end_cap() {
     let last_z = points.last().unwrap()[2].as_f64().unwrap();
     assert!(last_z > 340.0, "ends on the top rim, z = {last_z}");
     // Text output, a height limit and a slip ratio within the friction.
-    let r = windcell(&[
-        "geodesic",
-        example("sbend.stl").to_str().unwrap(),
-        "--start",
-        "-18,28.5,200",
-        "--heading",
+    let r = geodesic(
+        &example("sbend.stl"),
+        SBEND_START,
         "-30",
-        "--heights",
-        "150,250",
-        "--lambda",
-        "0.1",
-        "--mu",
-        "0.2",
-    ]);
+        &["--heights", "150,250", "--lambda", "0.1", "--mu", "0.2"],
+    );
     assert!(r.status.success(), "{}", stderr(&r));
     let text = String::from_utf8(r.stdout).unwrap();
     assert!(
@@ -92,19 +112,7 @@ fn geodesic_prints_points_and_faces_and_stops_at_the_end_cap() {
         "{text}"
     );
     // Smoothed and cut into equal lengths on the surface.
-    let r = windcell(&[
-        "geodesic",
-        example("sbend.stl").to_str().unwrap(),
-        "--start",
-        "-18,28.5,200",
-        "--heading",
-        "45",
-        "--segments",
-        "20",
-        "--json",
-    ]);
-    assert!(r.status.success(), "{}", stderr(&r));
-    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let v = sbend_geodesic_json("45", &["--segments", "20"]);
     let seg = &v["segments"];
     assert_eq!(seg["points_mm"].as_array().unwrap().len(), 21);
     let dev = seg["max_deviation_mm"].as_f64().unwrap();
@@ -137,41 +145,18 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
         (&empty, "empty.stl: byte 0: the file is empty"),
     ];
     for (file, message) in cases {
-        let r = windcell(&[
-            "geodesic",
-            file.to_str().unwrap(),
-            "--start",
-            "0,0,0",
-            "--heading",
-            "0",
-        ]);
-        assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
-        assert!(
-            stderr(&r).contains(message),
-            "{} lacks {message}",
-            stderr(&r)
-        );
+        let r = geodesic(file, "0,0,0", "0", &[]);
+        refused_naming(&r, message);
         assert!(r.stdout.is_empty());
     }
     // Slip beyond the friction, before anything is read.
-    let r = windcell(&[
-        "geodesic",
-        example("sbend.stl").to_str().unwrap(),
-        "--start",
-        "-18,28.5,200",
-        "--heading",
+    let r = geodesic(
+        &example("sbend.stl"),
+        SBEND_START,
         "45",
-        "--lambda",
-        "0.4",
-        "--mu",
-        "0.3",
-    ]);
-    assert_eq!(r.status.code(), Some(2));
-    assert!(
-        stderr(&r).contains("exceeds the friction coefficient"),
-        "{}",
-        stderr(&r)
+        &["--lambda", "0.4", "--mu", "0.3"],
     );
+    refused_naming(&r, "exceeds the friction coefficient");
     // A mesh job whose mesh is bad writes nothing.
     let job = std::fs::read_to_string(example("sbend-mesh.toml"))
         .unwrap()
@@ -179,14 +164,7 @@ fn bad_input_exits_2_naming_the_file_and_line_or_triangle() {
     let job_file = dir.path().join("job.toml");
     std::fs::write(&job_file, job).unwrap();
     let out = dir.path().join("out");
-    let r = windcell(&[
-        "plan",
-        job_file.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(r.status.code(), Some(2));
-    assert!(stderr(&r).contains("bad.stl:5:15: "), "{}", stderr(&r));
+    refused_naming(&plan(&job_file, &out, &[]), "bad.stl:5:15: ");
     assert!(!out.exists());
 }
 
@@ -282,14 +260,12 @@ fn plan_takes_a_dxf_path_on_mesh_and_tube_mandrels() {
         "0\nSECTION\n2\nENTITIES\n0\nPOINT\n10\nx\n",
     )
     .unwrap();
-    let r = windcell(&[
-        "plan",
-        dir.path().join("sbend.toml").to_str().unwrap(),
-        "-o",
-        dir.path().join("bad-out").to_str().unwrap(),
-    ]);
-    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
-    assert!(stderr(&r).contains("path.dxf:"), "{}", stderr(&r));
+    let r = plan(
+        &dir.path().join("sbend.toml"),
+        &dir.path().join("bad-out"),
+        &[],
+    );
+    refused_naming(&r, "path.dxf:");
     assert!(!dir.path().join("bad-out").exists());
 }
 
@@ -297,7 +273,7 @@ fn plan_takes_a_dxf_path_on_mesh_and_tube_mandrels() {
 fn sweep_plans_a_coverage_set_with_readable_files() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("cover");
-    let r = windcell(&[
+    let v = windcell_json(&[
         "sweep",
         example("sbend-mesh.toml").to_str().unwrap(),
         "-o",
@@ -306,8 +282,6 @@ fn sweep_plans_a_coverage_set_with_readable_files() {
         "4",
         "--json",
     ]);
-    assert!(r.status.success(), "{}", stderr(&r));
-    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     assert_eq!(v["paths"].as_array().unwrap().len(), 4);
     for k in 1..=4 {
         let file = out.join(format!("SBENDM_{k}.ROB"));
@@ -364,14 +338,8 @@ fn spine_profile_from_dxf_plans_like_spine_mm() {
         steps(&example("sbend.toml"), "b")
     );
     std::fs::remove_file(dir.path().join("spine.dxf")).unwrap();
-    let r = windcell(&[
-        "plan",
-        dir.path().join("job.toml").to_str().unwrap(),
-        "-o",
-        dir.path().join("c").to_str().unwrap(),
-    ]);
-    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
-    assert!(stderr(&r).contains("spine.dxf"), "{}", stderr(&r));
+    let r = plan(&dir.path().join("job.toml"), &dir.path().join("c"), &[]);
+    refused_naming(&r, "spine.dxf");
 }
 
 #[test]
@@ -394,14 +362,7 @@ fn obj_and_ascii_stl_of_the_same_mesh_trace_the_same_path() {
         args.extend(extra);
         let r = windcell(&args);
         assert!(r.status.success(), "{}", stderr(&r));
-        let r = windcell(&[
-            "geodesic",
-            file.to_str().unwrap(),
-            "--start",
-            "-18,28.5,200",
-            "--heading",
-            "45",
-        ]);
+        let r = geodesic(&file, SBEND_START, "45", &[]);
         assert!(r.status.success(), "{}", stderr(&r));
         outputs.push(r.stdout);
     }

@@ -9,7 +9,7 @@ use crate::common;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use common::{example, example_variant, stderr, windcell};
+use common::{example, example_variant, stderr, windcell, windcell_json};
 
 /// The S-bend DXF job and its drawing, copied into a scratch folder so that they can be edited.
 struct Scratch {
@@ -116,6 +116,17 @@ fn place(dir: &Path, file: &str, line_column: &str) -> String {
     format!("{}:{line_column}:", dir.join(file).display())
 }
 
+/// `windcell plan JOB -o OUT --json`, which must succeed: the report.
+fn plan_json(job: &Path, out: &Path) -> serde_json::Value {
+    windcell_json(&[
+        "plan",
+        job.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ])
+}
+
 #[test]
 fn absurd_dxf_coordinates_are_refused_at_their_value() {
     let s = Scratch::new();
@@ -157,20 +168,7 @@ fn a_drawing_in_metres_is_refused_unless_it_says_so() {
     let (comment, rest) = metres.split_at(metres.find("  0\nSECTION").unwrap());
     let job = s.case("metres-said", &format!("{comment}{header}{rest}"), ("", ""));
     let out = d.join("metres-said-out");
-    let result = windcell(&[
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    assert_eq!(
-        result.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&result.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+    let report = plan_json(&job, &out);
     // Scaled by 1000 after a round trip through 16 significant digits: on the surface to 1 nm.
     let worst = report["paths"][0]["dxf_max_surface_distance_mm"]
         .as_f64()
@@ -205,15 +203,7 @@ fn paths_off_the_mandrel_are_refused_at_the_first_point_off_it() {
     let text = moved.write().unwrap();
     let job = s.case("out-by-0.3", &text, ("", ""));
     let out = d.join("out-by-0.3-out");
-    let result = windcell(&[
-        "plan",
-        job.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    assert_eq!(result.status.code(), Some(0));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+    let report = plan_json(&job, &out);
     let distances = report["paths"][0]["dxf_surface_distance_mm"]
         .as_array()
         .unwrap();

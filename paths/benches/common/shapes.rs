@@ -6,6 +6,7 @@
 use std::f64::consts::{PI, TAU};
 
 use nalgebra::{Point3, Vector3};
+use paths::mesh::trace::{Mode, TraceOptions};
 use paths::mesh::{DEFAULT_WELD_MM, Mesh, triasym};
 
 /// The three surfaces.
@@ -20,6 +21,16 @@ pub enum Shape {
 }
 
 impl Shape {
+    /// Tracing options for the shape: its length limit and axis, in `mode`.
+    pub fn trace_options(self, mode: Mode) -> TraceOptions {
+        TraceOptions {
+            max_length_mm: self.length_mm(),
+            axis: self.axis(),
+            mode,
+            ..TraceOptions::default()
+        }
+    }
+
     pub const ALL: [Shape; 3] = [Shape::Cylinder, Shape::Sphere, Shape::Torus];
 
     pub fn name(self) -> &'static str {

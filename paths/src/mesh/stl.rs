@@ -8,7 +8,7 @@
 
 use std::io::{BufRead, Read, Write};
 
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 
 use super::{Lines, Mesh, Welder, at_byte, coordinates, syntax, with_column_in_row};
 use crate::Error;
@@ -350,12 +350,7 @@ pub fn write_binary_to(mesh: &Mesh, header: &str, out: &mut impl Write) -> std::
     out.write_all(&(tris.len() as u32).to_le_bytes())?;
     let mut rec = [0u8; 50];
     for t in 0..tris.len() {
-        let corners = mesh.corners(t);
-        let [a, b, c] = corners;
-        let n = (b - a)
-            .cross(&(c - a))
-            .try_normalize(0.0)
-            .unwrap_or_default();
+        let (corners, n) = facet(mesh, t);
         let values = n.iter().chain(corners.iter().flat_map(|p| p.coords.iter()));
         for (k, v) in values.enumerate() {
             rec[4 * k..4 * k + 4].copy_from_slice(&(*v as f32).to_le_bytes());
@@ -363,6 +358,18 @@ pub fn write_binary_to(mesh: &Mesh, header: &str, out: &mut impl Write) -> std::
         out.write_all(&rec)?;
     }
     Ok(())
+}
+
+/// Triangle `t`'s corners and its unit normal by the right-hand rule (zero for a degenerate
+/// triangle), as an STL facet carries them.
+fn facet(mesh: &Mesh, t: usize) -> ([Point3<f64>; 3], Vector3<f64>) {
+    let corners = mesh.corners(t);
+    let [a, b, c] = corners;
+    let n = (b - a)
+        .cross(&(c - a))
+        .try_normalize(0.0)
+        .unwrap_or_default();
+    (corners, n)
 }
 
 /// ASCII STL of `mesh`.
@@ -376,12 +383,7 @@ pub fn write_ascii(mesh: &Mesh, name: &str) -> String {
 pub fn write_ascii_to(mesh: &Mesh, name: &str, out: &mut impl Write) -> std::io::Result<()> {
     writeln!(out, "solid {name}")?;
     for t in 0..mesh.triangles().len() {
-        let corners = mesh.corners(t);
-        let [a, b, c] = corners;
-        let n = (b - a)
-            .cross(&(c - a))
-            .try_normalize(0.0)
-            .unwrap_or_default();
+        let (corners, n) = facet(mesh, t);
         write!(
             out,
             "  facet normal {:e} {:e} {:e}\n    outer loop\n",

@@ -1,63 +1,15 @@
 use super::*;
-use crate::motion::{AxisLimit, Estimate, Recording};
+use crate::motion::tests::limits;
+use crate::motion::{Estimate, Recording};
 use approx::assert_abs_diff_eq;
 
-/// Seed 002 Appendix A, O0004 (the forward stroke): ΔX (mandrel, °), ΔY (carriage, mm),
-/// ΔZ (cross-feed, mm), ΔA (eye, °), as printed (print damage repaired as in `docs/seed-readings.md` R002-2):
-/// 20 moves leaving the near pole, the cylinder, 20 moves arriving at the far pole.
-pub(crate) const APPENDIX_FORWARD: [[f64; 4]; 41] = [
-    [2.283, 4.731, 3.535, 11.042],
-    [2.082, 5.005, 3.249, 10.225],
-    [1.92, 5.252, 2.931, 8.9],
-    [1.793, 5.472, 2.59, 7.436],
-    [1.69, 5.662, 2.227, 6.079],
-    [1.612, 5.822, 1.844, 4.93],
-    [1.55, 5.952, 1.45, 3.999],
-    [1.508, 6.048, 1.043, 3.257],
-    [1.479, 6.114, 0.629, 2.667],
-    [1.466, 6.147, 0.21, 2.197],
-    [1.690, 7.082, -0.279, 2.065],
-    [1.711, 7.033, -0.835, 1.666],
-    [1.755, 6.933, -1.382, 1.344],
-    [1.822, 6.783, -1.915, 1.078],
-    [1.918, 6.587, -2.430, 0.856],
-    [2.045, 6.344, -2.919, 0.664],
-    [2.214, 6.056, -3.376, 0.496],
-    [2.430, 5.724, -3.793, 0.343],
-    [2.711, 5.353, -4.164, 0.202],
-    [3.075, 4.944, -4.477, 0.067],
-    [30.006, 84.1, 0.0, 0.0],
-    [3.047, 3.931, -4.083, -0.05],
-    [3.498, 3.575, -4.208, -0.152],
-    [4.07, 3.201, -4.264, -0.256],
-    [4.797, 2.809, -4.231, -0.367],
-    [5.716, 2.403, -4.087, -0.487],
-    [6.855, 1.983, -3.797, -0.619],
-    [8.203, 1.554, -3.325, -0.768],
-    [9.662, 1.116, -2.633, -0.937],
-    [10.983, 0.672, -1.708, -1.134],
-    [11.798, 0.224, -0.594, -1.367],
-    [13.543, -0.298, 0.786, -1.926],
-    [12.34, -0.892, 2.232, -2.393],
-    [10.493, -1.479, 3.367, -2.991],
-    [8.601, -2.057, 4.149, -3.762],
-    [6.975, -2.619, 4.623, -4.769],
-    [5.687, -3.164, 4.858, -6.073],
-    [4.7, -3.685, 4.913, -7.712],
-    [3.95, -4.181, 4.833, -9.613],
-    [3.382, -4.647, 4.649, -11.465],
-    [2.946, -5.08, 4.382, -12.672],
-];
+include!("../../tests/data/seed002_o0004.rs");
 
-fn limits() -> Limits {
-    let l = AxisLimit {
-        velocity: 100.0,
-        acceleration: 1000.0,
-    };
-    Limits {
-        axes: [l; 4],
-        junction_deviation: 0.01,
-    }
+/// `job` is refused with a message that contains `expect`; the message.
+fn refused_with(job: &Job, expect: &str) -> String {
+    let err = job.check().unwrap_err().to_string();
+    assert!(err.contains(expect), "{err}");
+    err
 }
 
 pub(crate) fn seed_job(length_mm: f64, advance_deg: Option<f64>) -> Job {
@@ -360,8 +312,7 @@ fn tube_rules_are_enforced_with_reasons() {
             initial_lock: true,
             friction_lambda: 0.0,
         })];
-        let err = job.check().unwrap_err().to_string();
-        assert!(err.contains(expect), "{err}");
+        refused_with(&job, expect);
     }
     let mut job = tube_job(1);
     job.layers = vec![Layer::TubeHelical(TubeHelical {
@@ -509,8 +460,7 @@ fn cone_helical_follows_the_geodesic_and_counts_at_the_large_end() {
 fn cone_refusals_give_the_reason() {
     let mut job = cone_job();
     job.layers = vec![Layer::Hoop { passes: 2 }];
-    let err = job.check().unwrap_err().to_string();
-    assert!(err.contains("layer 1: hoop layers on a cone"), "{err}");
+    refused_with(&job, "layer 1: hoop layers on a cone");
     let mut job = cone_job();
     if let Layer::TubeHelical(t) = &mut job.layers[0] {
         t.wind_angle_deg = 40.0;
@@ -523,8 +473,7 @@ fn cone_refusals_give_the_reason() {
         small_radius_mm: 49.0,
         length_mm: 120.0,
     };
-    let err = job.check().unwrap_err().to_string();
-    assert!(err.contains("reducing frustum"), "{err}");
+    refused_with(&job, "reducing frustum");
     // A skip layer needs no geodesic.
     let mut job = cone_job();
     job.layers = vec![Layer::Skip { mandrel_deg: 90.0 }];
@@ -714,18 +663,10 @@ fn nose_friction_lays_deeper_and_keeps_the_pattern() {
 fn nose_refusals_give_the_reason() {
     let mut job = nose_job(0.0);
     job.layers = vec![Layer::Hoop { passes: 2 }];
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("layer 1: hoop layers on a nose profile"),
-        "{err}"
-    );
+    refused_with(&job, "layer 1: hoop layers on a nose profile");
     let mut job = nose_job(0.0);
     job.layers.push(Layer::Helical(PatternRequest::default()));
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("layer 2: a geodesic dome layer needs a vessel"),
-        "{err}"
-    );
+    refused_with(&job, "layer 2: a geodesic dome layer needs a vessel");
     for (lambda, expect) in [
         (-0.1, "frictionLambda = -0.1 must be ≥ 0"),
         (f64::NAN, "frictionLambda = NaN must be ≥ 0"),
@@ -734,8 +675,7 @@ fn nose_refusals_give_the_reason() {
             "frictionLambda 0.21 exceeds the machine slip limit 0.2",
         ),
     ] {
-        let err = nose_job(lambda).check().unwrap_err().to_string();
-        assert!(err.contains(expect), "{err}");
+        refused_with(&nose_job(lambda), expect);
     }
     assert!(nose_job(NOSE_SLIP_LIMIT).check().is_ok());
     // Friction on a cone or a tube is refused: they are wound on their geodesics.
@@ -743,20 +683,12 @@ fn nose_refusals_give_the_reason() {
     if let Layer::TubeHelical(t) = &mut cone.layers[0] {
         t.friction_lambda = 0.1;
     }
-    let err = cone.check().unwrap_err().to_string();
-    assert!(
-        err.contains("frictionLambda = 0.1: a cylinder or cone"),
-        "{err}"
-    );
+    refused_with(&cone, "frictionLambda = 0.1: a cylinder or cone");
     // Build-up would wind on an offset of the ogive: refused on the second layer.
     let mut job = nose_job(0.0);
     job.build_up = true;
     job.layers.push(job.layers[0]);
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("layer 2: layer build-up on a nose profile"),
-        "{err}"
-    );
+    refused_with(&job, "layer 2: layer build-up on a nose profile");
     // A path that reaches the tip: a shallow geodesic, C = 49·sin 0.4° < 1 % of 49 mm.
     let mut job = nose_job(0.0);
     if let Layer::TubeHelical(t) = &mut job.layers[0] {
@@ -780,8 +712,7 @@ fn nose_refusals_give_the_reason() {
         if let Layer::TubeHelical(t) = &mut job.layers[0] {
             t.friction_lambda = lambda;
         }
-        let err = job.check().unwrap_err().to_string();
-        assert!(err.contains(expect), "{err}");
+        let err = refused_with(&job, expect);
         if lambda == 0.05 {
             assert!(
                 err.contains("above 0.4900 mm (1% of") && err.contains("sin α, 0.8552 mm"),
@@ -796,10 +727,9 @@ fn nose_refusals_give_the_reason() {
         base_radius_mm: 0.5,
         length_mm: 1e6,
     };
-    let err = job.check().unwrap_err().to_string();
-    assert!(
-        err.contains("wind angle 30° with frictionLambda 0: the pass needs more than 400000"),
-        "{err}"
+    refused_with(
+        &job,
+        "wind angle 30° with frictionLambda 0: the pass needs more than 400000",
     );
     // No usable pass: 89° turns around inside the lead-in.
     let mut job = nose_job(0.0);

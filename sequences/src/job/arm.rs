@@ -124,27 +124,14 @@ fn array(text: &str, v: &Spanned<Vec<f64>>, key: &str, n: usize) -> Result<(), E
     Ok(())
 }
 
-/// Checks `[cell.robot]` for its kind (and `[cell.tool]`, which only six-axis arms have).
+/// Checks `[cell.robot]` for its kind (and `[cell.tool]`, which only six-axis arms have): the
+/// keys of other kinds refused, a known model or every parameter, each value, the joint ranges
+/// against each other, the tool, and last the arm as a whole.
 pub(super) fn validate_robot(text: &str, r: &Robot, c: &Cell) -> Result<(), Error> {
     let kind = r.kind.as_ref().map_or(RobotKind::Irb6, |k| *k.get_ref());
     let kind_span = r.kind.as_ref().map(Spanned::span);
-    let speeds = r.joint_speed_deg_s.as_ref();
     if kind == RobotKind::Irb6 {
-        refuse(text, &opw_keys(r), kind)?;
-        refuse(text, &ur_keys(r), kind)?;
-        refuse(text, &six_axis_keys(r), kind)?;
-        if let Some(s) = speeds {
-            array(text, s, "joint_speed_deg_s", 5)?;
-        }
-        if let Some(t) = &c.tool {
-            return Err(error_at(
-                text,
-                t.tcp_mm.span(),
-                "[cell.tool] applies to six-axis arms (kind = \"opw\" or \"ur\"); the IRB 6/2's \
-                 eye sits on its roll axis at eye_mechanism_length_mm",
-            ));
-        }
-        return Ok(());
+        return validate_irb6(text, r, c);
     }
     let kind_span = kind_span.unwrap_or(0..0);
     refuse(text, &irb_keys(r), kind)?;
@@ -152,6 +139,45 @@ pub(super) fn validate_robot(text: &str, r: &Robot, c: &Cell) -> Result<(), Erro
         RobotKind::Opw => refuse(text, &ur_keys(r), kind)?,
         _ => refuse(text, &opw_keys(r), kind)?,
     }
+    validate_model(text, r, kind, &kind_span)?;
+    validate_six_axis_values(text, r)?;
+    validate_joint_ranges(text, r, kind, &kind_span)?;
+    let tool = validate_tool(text, c, kind, &kind_span)?;
+    // Whatever the per-key checks let through, the arm itself must accept.
+    if let Some(Err(e)) = six_axis(r, Some(tool)).map(|a| a.validate()) {
+        return Err(error_at(text, kind_span, e.to_string()));
+    }
+    Ok(())
+}
+
+/// The IRB 6/2 (the default kind): no six-axis key, five joint speeds, no `[cell.tool]`.
+fn validate_irb6(text: &str, r: &Robot, c: &Cell) -> Result<(), Error> {
+    let kind = RobotKind::Irb6;
+    let speeds = r.joint_speed_deg_s.as_ref();
+    refuse(text, &opw_keys(r), kind)?;
+    refuse(text, &ur_keys(r), kind)?;
+    refuse(text, &six_axis_keys(r), kind)?;
+    if let Some(s) = speeds {
+        array(text, s, "joint_speed_deg_s", 5)?;
+    }
+    if let Some(t) = &c.tool {
+        return Err(error_at(
+            text,
+            t.tcp_mm.span(),
+            "[cell.tool] applies to six-axis arms (kind = \"opw\" or \"ur\"); the IRB 6/2's \
+             eye sits on its roll axis at eye_mechanism_length_mm",
+        ));
+    }
+    Ok(())
+}
+
+/// A six-axis arm's `model` must be a known one; without a model every parameter is needed.
+fn validate_model(
+    text: &str,
+    r: &Robot,
+    kind: RobotKind,
+    kind_span: &Range<usize>,
+) -> Result<(), Error> {
     if let Some(model) = &r.model {
         let known = match kind {
             RobotKind::Opw => opw::preset(model.get_ref()).is_some(),
@@ -210,6 +236,12 @@ pub(super) fn validate_robot(text: &str, r: &Robot, c: &Cell) -> Result<(), Erro
             ));
         }
     }
+    Ok(())
+}
+
+/// A six-axis arm's values, key by key: finite lengths, offsets, signs, joint ends and speeds,
+/// link radii, margins and the joint step.
+fn validate_six_axis_values(text: &str, r: &Robot) -> Result<(), Error> {
     for v in [
         &r.a1_mm, &r.a2_mm, &r.b_mm, &r.c1_mm, &r.c2_mm, &r.c3_mm, &r.c4_mm, &r.d1_mm, &r.a3_mm,
         &r.d4_mm, &r.d5_mm, &r.d6_mm,
@@ -315,7 +347,17 @@ pub(super) fn validate_robot(text: &str, r: &Robot, c: &Cell) -> Result<(), Erro
             "is not a valid joint step limit: must lie in (0°, 180°]",
         )?;
     }
-    // The ranges against each other, once both ends are known (a model's ends for a missing one).
+    Ok(())
+}
+
+/// The joint ranges against each other, once both ends are known (a model's ends for a missing
+/// one).
+fn validate_joint_ranges(
+    text: &str,
+    r: &Robot,
+    kind: RobotKind,
+    kind_span: &Range<usize>,
+) -> Result<(), Error> {
     let limits = limits(r, kind);
     for i in 0..6 {
         if limits.min_rad[i] >= limits.max_rad[i] {
@@ -336,10 +378,20 @@ pub(super) fn validate_robot(text: &str, r: &Robot, c: &Cell) -> Result<(), Erro
             ));
         }
     }
+    Ok(())
+}
+
+/// `[cell.tool]`, which a six-axis arm needs: the payout eye's place (and turn) on the flange.
+fn validate_tool<'c>(
+    text: &str,
+    c: &'c Cell,
+    kind: RobotKind,
+    kind_span: &Range<usize>,
+) -> Result<&'c super::Tool, Error> {
     let Some(tool) = &c.tool else {
         return Err(error_at(
             text,
-            kind_span,
+            kind_span.clone(),
             format!(
                 "kind = \"{}\" needs [cell.tool] with tcp_mm, where the payout eye sits on the \
                  flange",
@@ -371,11 +423,7 @@ pub(super) fn validate_robot(text: &str, r: &Robot, c: &Cell) -> Result<(), Erro
             "rpy_deg must be finite and within ±360°",
         ));
     }
-    // Whatever the per-key checks let through, the arm itself must accept.
-    if let Some(Err(e)) = six_axis(r, Some(tool)).map(|a| a.validate()) {
-        return Err(error_at(text, kind_span, e.to_string()));
-    }
-    Ok(())
+    Ok(tool)
 }
 
 /// Checks `[cell.mandrel]` and its combination with the arm and the calibration.

@@ -92,37 +92,8 @@ fn robot_file() -> impl Strategy<Value = RobotFile> {
     )
 }
 
-/// The cylinder job of the examples, as text.
-const CYLINDER: &str = r#"name = "CYL"
-
-[cell]
-robot_distance_mm = 800.0
-start_height_mm = 300.0
-mandrel_speed_rps = 0.1
-eye_mechanism_length_mm = 150.0
-offset_mm = 100.0
-base_speed_mm_s = 1000.0
-max_speed_mm_s = 2000.0
-movement = "fine"
-
-[cell.drive]
-steps_per_rev = 400
-gear_ratio = [13, 60]
-accel_rps2 = 1.0
-start_stop_rps = 0.05
-
-[mandrel]
-kind = "cylinder"
-diameter_mm = 63.5
-length_mm = 178.0
-
-[[path]]
-program = 1
-direction = "down"
-wind_angle_deg = 48.3
-start_angle_deg = 0.0
-segments = 50
-"#;
+/// The cylinder job of the examples with its first path only, as text.
+const CYLINDER: &str = include_str!("../data/cylinder-one-path.toml");
 
 /// A value for a job field; the span is irrelevant to equality.
 fn at<T>(value: T) -> Spanned<T> {

@@ -233,20 +233,23 @@ fn check_program(name: &str, path: &PlannedPath, job: &Job, movement: Movement) 
     worst
 }
 
+/// The example job `name`'s first path, in fine and in medium movement, through
+/// [`check_program`].
+fn path_1_runs_within_its_zones(name: &str) {
+    let (job, plan) = planned(name);
+    for movement in [Movement::Fine, Movement::Medium] {
+        check_program(name, &plan.paths[0], &job, movement);
+    }
+}
+
 #[test]
 fn sbend_path_1_runs_on_the_simulated_robot_within_its_zones() {
-    let (job, plan) = planned("sbend");
-    let path = &plan.paths[0];
-    check_program("sbend", path, &job, Movement::Fine);
-    check_program("sbend", path, &job, Movement::Medium);
+    path_1_runs_within_its_zones("sbend");
 }
 
 #[test]
 fn cylinder_path_1_runs_on_the_simulated_robot_within_its_zones() {
-    let (job, plan) = planned("cylinder");
-    let path = &plan.paths[0];
-    check_program("cylinder", path, &job, Movement::Fine);
-    check_program("cylinder", path, &job, Movement::Medium);
+    path_1_runs_within_its_zones("cylinder");
 }
 
 #[test]
@@ -315,16 +318,24 @@ fn run_x_move(
     assert!(!out.contains(&b'?'), "{what}: refused: {out:?}");
 }
 
-fn check_indexer(name: &str) {
-    let (job, plan) = planned(name);
-    let path = &plan.paths[0];
-    let ind = cell::plan::tool::mandrel_file(&job, path);
-    let (setup, _) = cell::plan::tool::setup(&job);
+/// The job's setup and the indexer as the coordinator drives it: the job's gearing at the
+/// translator's pulse limit, the start velocity commanded.
+fn indexer_of(job: &Job) -> (paths::Setup, IndexerSetup) {
+    let (setup, _) = cell::plan::tool::setup(job);
     let drive = Drive::new(setup.gearing, TRANSLATOR_LIMIT_PPS).unwrap();
     let indexer = IndexerSetup {
         drive,
         start_velocity_command: true,
     };
+    (setup, indexer)
+}
+
+fn check_indexer(name: &str) {
+    let (job, plan) = planned(name);
+    let path = &plan.paths[0];
+    let ind = cell::plan::tool::mandrel_file(&job, path);
+    let (setup, indexer) = indexer_of(&job);
+    let drive = indexer.drive;
     let program = transfer::indexer_program(&ind, &indexer).unwrap();
     let clock = mandrel_drive::sim::VirtualClock::new();
     let mut card = Card::new(Machine::new(drive, PULL_IN_SPS), 1);
@@ -366,12 +377,8 @@ fn check_discrete_mandrel_moves(name: &str) {
     let path = &plan.paths[0];
     let rob = cell::plan::tool::robot_file(&job, path).unwrap();
     let ind = cell::plan::tool::mandrel_file(&job, path);
-    let (setup, _) = cell::plan::tool::setup(&job);
-    let drive = Drive::new(setup.gearing, TRANSLATOR_LIMIT_PPS).unwrap();
-    let indexer = IndexerSetup {
-        drive,
-        start_velocity_command: true,
-    };
+    let (_, indexer) = indexer_of(&job);
+    let drive = indexer.drive;
     let clock = mandrel_drive::sim::VirtualClock::new();
     let mut card = Card::new(Machine::new(drive, PULL_IN_SPS), 1);
     send_x(

@@ -12,7 +12,7 @@ use clap::{Args, ValueEnum};
 use mandrel_drive::lathe::{InterruptClock, Jitter, SimulatedClock, WallClock};
 use mandrel_drive::servo::{Amplifier, LatheAxis};
 use paths::trajectory::{Interpolation, Remedy};
-use sequences::part_program::{MachineParameters, PartProgram, Position};
+use sequences::part_program::{Location, MachineParameters, PartProgram, Position};
 use serde_json::json;
 
 use crate::cli::{Failure, print};
@@ -133,9 +133,31 @@ fn parse_part_zero(text: &str) -> Result<Position, Failure> {
     }
 }
 
-/// Runs `windcell lathe run`.
+/// Runs `windcell lathe run`: arguments → checks (the setup, the plan) → the run → the report.
 pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     let program = PartProgram::load(&args.program).map_err(Failure::input)?;
+    let setup = setup_of(&args, &program)?;
+    // Everything that can be refused is refused here, before any motion.
+    let plan = lathe::plan(&program, &args.program, &setup).map_err(Failure::from_cell)?;
+    let mut controller = lathe::start_at_part_zero(&setup).map_err(Failure::from_cell)?;
+    let deviations = deviations(&plan);
+    let wound = wind(&args, &setup, &plan, &mut controller)?;
+    write_trace_files(&args, &setup, &wound.trace)?;
+    let report = Report {
+        args: &args,
+        setup: &setup,
+        wound: &wound,
+        deviations: &deviations,
+    };
+    if args.json {
+        report.json()
+    } else {
+        report.text()
+    }
+}
+
+/// The setup the arguments and the parameter file make, every argument checked.
+fn setup_of(args: &LatheRunArgs, program: &PartProgram) -> Result<Setup, Failure> {
     let params = match &args.params {
         Some(p) => MachineParameters::load(p).map_err(Failure::input)?,
         None => MachineParameters::default(),
@@ -171,17 +193,22 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
         counter_start: args.counter_start,
         ..Setup::default()
     };
-    if let Some(z) = lathe::part_zero_of(&program) {
+    if let Some(z) = lathe::part_zero_of(program) {
         setup.part_zero = z;
     }
     if let Some(text) = &args.part_zero {
         setup.part_zero = parse_part_zero(text)?;
     }
-    // Everything that can be refused is refused here, before any motion.
-    let plan = lathe::plan(&program, &args.program, &setup).map_err(Failure::from_cell)?;
-    let mut controller = lathe::start_at_part_zero(&setup).map_err(Failure::from_cell)?;
+    Ok(setup)
+}
 
-    // Deviation report: how far the planned path passes from each given point.
+/// A given point the planned path passes farther than the tolerance from: the block, the offset
+/// (A °, X mm, Y mm) and the remedies.
+type Deviation = (Location, [f64; 3], Vec<Remedy>);
+
+/// Deviation report: how far the planned path passes from each given point (0.5 mm or 0.5° on
+/// every axis).
+fn deviations(plan: &lathe::Plan) -> Vec<Deviation> {
     let tolerance = nalgebra::Vector3::new(
         0.5 * LatheAxis::A.counts_per_unit(),
         0.5 * LatheAxis::X.counts_per_unit(),
@@ -198,7 +225,42 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
             }
         }
     }
+    deviations
+}
 
+/// What a finished run leaves: the controller's report, the trace rows and, on the wall clock,
+/// the interrupts' lateness.
+struct Wound {
+    report: lathe::Report,
+    trace: Vec<TraceRow>,
+    jitter: Option<Jitter>,
+}
+
+/// The MCAP recorder of `--record`, if asked for.
+fn open_recorder(path: Option<&PathBuf>) -> Result<Option<Recorder>, Failure> {
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let epoch_ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    let sinks = Sinks {
+        mcap: Some(path.clone()),
+        live: None,
+    };
+    Recorder::open(&sinks, epoch_ns)
+        .map(Some)
+        .map_err(Failure::from_cell)
+}
+
+/// Runs the plan on the controller, paced by the chosen clock: progress on standard error (and
+/// in the recording), Enter awaited before every block with `--single-block`.
+fn wind(
+    args: &LatheRunArgs,
+    setup: &Setup,
+    plan: &lathe::Plan,
+    controller: &mut mandrel_drive::lathe::Controller<mandrel_drive::servo::SimulatedAxes>,
+) -> Result<Wound, Failure> {
     let mut trace: Vec<TraceRow> = Vec::new();
     let every = if args.plot.is_some() {
         1
@@ -220,24 +282,7 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
         Some(w) => w,
         None => &mut sim_clock,
     };
-    let recorder = match &args.record {
-        Some(path) => {
-            let epoch_ns = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_nanos() as u64);
-            Some(
-                Recorder::open(
-                    &Sinks {
-                        mcap: Some(path.clone()),
-                        live: None,
-                    },
-                    epoch_ns,
-                )
-                .map_err(Failure::from_cell)?,
-            )
-        }
-        None => None,
-    };
+    let recorder = open_recorder(args.record.as_ref())?;
     let hz = args.rate;
     let interrupts_done = std::cell::Cell::new(0u64);
     let mut on_tick = |k: u64, desired: &[f64; 3], measured: &[i64; 3]| {
@@ -248,16 +293,56 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
             rec.lathe_axes(k as f64 / hz, &LatheAxes::new(k, commanded, actual));
         }
     };
-    let quiet = args.json;
-    let per_layer = args.circuits_per_layer;
-    let single = args.single_block;
-    let mut stdin = std::io::stdin().lock();
     let log = |message: &str| {
         if let Some(rec) = &recorder {
             rec.log(interrupts_done.get() as f64 / hz, Level::Info, message);
         }
     };
-    let mut on_progress = |p: Progress| {
+    let report = lathe::execute(
+        plan,
+        setup,
+        controller,
+        clock,
+        every,
+        &mut trace,
+        &mut progress_display(args, plan, &log),
+        &mut on_tick,
+    )
+    .map_err(Failure::from_cell)?;
+    if let Some(rec) = recorder {
+        rec.finish().map_err(Failure::from_cell)?;
+    }
+    if let Some(run) = report.halted_before_run {
+        let at = plan.runs[run].blocks[0];
+        return Err(Failure::runtime(format!(
+            "{}:{}:{}: --single-block: standard input closed before this block; stopped with the \
+             axes at rest ({run} of {} blocks run; each block waits for Enter)",
+            args.program.display(),
+            at.line,
+            at.column,
+            plan.runs.len()
+        )));
+    }
+    Ok(Wound {
+        report,
+        trace,
+        jitter: wall.as_ref().map(WallClock::jitter),
+    })
+}
+
+/// The operator's view of the run: each circuit with its layer and each program stop on
+/// standard error (not with `--json`) and to `log`; with `--single-block`, the block to run
+/// next, waiting for Enter (end of input stops the program).
+fn progress_display<'a>(
+    args: &'a LatheRunArgs,
+    plan: &'a lathe::Plan,
+    log: &'a dyn Fn(&str),
+) -> impl FnMut(Progress) -> std::ops::ControlFlow<()> + 'a {
+    let quiet = args.json;
+    let per_layer = args.circuits_per_layer;
+    let single = args.single_block;
+    let mut stdin = std::io::stdin().lock();
+    move |p: Progress| {
         match p {
             Progress::Circuit { done, total } => {
                 let text = format!(
@@ -296,40 +381,23 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
             }
         }
         std::ops::ControlFlow::Continue(())
-    };
-    let report = lathe::execute(
-        &plan,
-        &setup,
-        &mut controller,
-        clock,
-        every,
-        &mut trace,
-        &mut on_progress,
-        &mut on_tick,
-    )
-    .map_err(Failure::from_cell)?;
-    if let Some(rec) = recorder {
-        rec.finish().map_err(Failure::from_cell)?;
     }
-    if let Some(run) = report.halted_before_run {
-        let at = plan.runs[run].blocks[0];
-        return Err(Failure::runtime(format!(
-            "{}:{}:{}: --single-block: standard input closed before this block; stopped with the \
-             axes at rest ({run} of {} blocks run; each block waits for Enter)",
-            args.program.display(),
-            at.line,
-            at.column,
-            plan.runs.len()
-        )));
-    }
-    let jitter: Option<Jitter> = wall.as_ref().map(WallClock::jitter);
+}
+
+/// `--plot` (every interrupt) and `--trace` (every record interval) files.
+fn write_trace_files(
+    args: &LatheRunArgs,
+    setup: &Setup,
+    trace: &[TraceRow],
+) -> Result<(), Failure> {
     if let Some(path) = &args.plot {
         let title = format!(
-            "{}: {:?}, feed {feed} counts/interrupt",
+            "{}: {:?}, feed {} counts/interrupt",
             args.program.display(),
-            args.interp
+            args.interp,
+            setup.feed
         );
-        cell::lathe::trace_plot::write_svg(path, &trace, &title).map_err(Failure::from_cell)?;
+        cell::lathe::trace_plot::write_svg(path, trace, &title).map_err(Failure::from_cell)?;
     }
     if let Some(path) = &args.trace {
         let interval = u64::from(setup.params.record_interval);
@@ -340,42 +408,62 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
             .collect();
         lathe::write_trace(path, &rows).map_err(Failure::from_cell)?;
     }
+    Ok(())
+}
 
-    let interp_name = match args.interp {
+fn interp_name(interp: InterpArg) -> &'static str {
+    match interp {
         InterpArg::Linear => "linear",
         InterpArg::Bspline => "bspline",
         InterpArg::PointToPoint => "point-to-point",
         InterpArg::Blend => "blend",
-    };
-    let remedy_name = |r: &Remedy| match r {
+    }
+}
+
+fn remedy_name(r: &Remedy) -> &'static str {
+    match r {
         Remedy::TriplePoint => "triple the point",
         Remedy::InsertMidpoints => "insert the chord midpoints",
         Remedy::UseLinear => "use linear interpolation here",
-    };
-    if args.json {
-        let devs: Vec<_> = deviations
+    }
+}
+
+/// What the run reports on: its arguments and setup, what it wound, the deviations planned.
+struct Report<'a> {
+    args: &'a LatheRunArgs,
+    setup: &'a Setup,
+    wound: &'a Wound,
+    deviations: &'a [Deviation],
+}
+
+impl Report<'_> {
+    /// The `--json` report.
+    fn json(&self) -> Result<(), Failure> {
+        let report = &self.wound.report;
+        let devs: Vec<_> = self
+            .deviations
             .iter()
             .map(|(at, off, rem)| {
                 json!({
-                    "block": format!("{}:{}:{}", args.program.display(), at.line, at.column),
+                    "block": format!("{}:{}:{}", self.args.program.display(), at.line, at.column),
                     "offset": {"a_deg": off[0], "x_mm": off[1], "y_mm": off[2]},
                     "remedies": rem.iter().map(remedy_name).collect::<Vec<_>>(),
                 })
             })
             .collect();
         let value = json!({
-            "program": args.program.display().to_string(),
-            "interpolation": interp_name,
-            "feed_counts_per_interrupt": feed,
-            "interrupt_hz": args.rate,
-            "clock": if wall.is_some() { "real" } else { "sim" },
+            "program": self.args.program.display().to_string(),
+            "interpolation": interp_name(self.args.interp),
+            "feed_counts_per_interrupt": self.setup.feed,
+            "interrupt_hz": self.args.rate,
+            "clock": if self.wound.jitter.is_some() { "real" } else { "sim" },
             "axes": report.axes,
             "interrupts": report.interrupts,
             "completion_time_s": report.completion_time_s,
             "circuits": report.circuits,
             "stops": report.stops,
             "deviations": devs,
-            "jitter": jitter.map(|j| json!({
+            "jitter": self.wound.jitter.map(|j| json!({
                 "interrupts": j.interrupts,
                 "p50_us": j.p50_us,
                 "p99_us": j.p99_us,
@@ -384,62 +472,68 @@ pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
             })),
         });
         let text = serde_json::to_string_pretty(&value).map_err(Failure::runtime)?;
-        return print(&format!("{text}\n"));
+        print(&format!("{text}\n"))
     }
-    let mut out = format!(
-        "{}: {} circuit(s), {interp_name}, feed {feed} counts/interrupt at {} Hz\n",
-        args.program.display(),
-        report.circuits,
-        args.rate
-    );
-    out.push_str("axis  max err     rms err     peak v/s     peak a/s²     peak j/s³\n");
-    for a in &report.axes {
+
+    /// The plain report: the axes' figures, the completion time, the worst deviation and the wall
+    /// clock's lateness.
+    fn text(&self) -> Result<(), Failure> {
+        let report = &self.wound.report;
+        let mut out = format!(
+            "{}: {} circuit(s), {}, feed {} counts/interrupt at {} Hz\n",
+            self.args.program.display(),
+            report.circuits,
+            interp_name(self.args.interp),
+            self.setup.feed,
+            self.args.rate
+        );
+        out.push_str("axis  max err     rms err     peak v/s     peak a/s²     peak j/s³\n");
+        for a in &report.axes {
+            out.push_str(&format!(
+                "{}     {:>8.3}    {:>8.3}    {:>9.1}    {:>10.0}    {:>11.0}   ({})\n",
+                a.axis,
+                a.max_following_error,
+                a.rms_following_error,
+                a.peak_velocity,
+                a.peak_acceleration,
+                a.peak_jerk,
+                a.unit
+            ));
+        }
         out.push_str(&format!(
-            "{}     {:>8.3}    {:>8.3}    {:>9.1}    {:>10.0}    {:>11.0}   ({})\n",
-            a.axis,
-            a.max_following_error,
-            a.rms_following_error,
-            a.peak_velocity,
-            a.peak_acceleration,
-            a.peak_jerk,
-            a.unit
+            "completed in {:.2} s ({} interrupts)\n",
+            report.completion_time_s, report.interrupts
         ));
-    }
-    out.push_str(&format!(
-        "completed in {:.2} s ({} interrupts)\n",
-        report.completion_time_s, report.interrupts
-    ));
-    if !deviations.is_empty() {
-        let worst = deviations
+        let largest = |o: &[f64; 3]| o.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if let Some(worst) = self
+            .deviations
             .iter()
-            .max_by(|a, b| {
-                let m = |o: &[f64; 3]| o.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                m(&a.1).total_cmp(&m(&b.1))
-            })
-            .expect("not empty");
-        out.push_str(&format!(
-            "deviation: the path passes more than 0.5 mm (or 0.5°) from {} given point(s); \
+            .max_by(|a, b| largest(&a.1).total_cmp(&largest(&b.1)))
+        {
+            out.push_str(&format!(
+                "deviation: the path passes more than 0.5 mm (or 0.5°) from {} given point(s); \
              worst {}:{}:{} (A {:.2}°, X {:.2} mm, Y {:.2} mm); remedies: {}\n",
-            deviations.len(),
-            args.program.display(),
-            worst.0.line,
-            worst.0.column,
-            worst.1[0],
-            worst.1[1],
-            worst.1[2],
-            worst
-                .2
-                .iter()
-                .map(remedy_name)
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-    }
-    if let Some(j) = jitter {
-        out.push_str(&format!(
+                self.deviations.len(),
+                self.args.program.display(),
+                worst.0.line,
+                worst.0.column,
+                worst.1[0],
+                worst.1[1],
+                worst.1[2],
+                worst
+                    .2
+                    .iter()
+                    .map(remedy_name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        if let Some(j) = self.wound.jitter {
+            out.push_str(&format!(
             "wall clock: {} interrupts, lateness p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} missed\n",
             j.interrupts, j.p50_us, j.p99_us, j.max_us, j.missed
         ));
+        }
+        print(&out)
     }
-    print(&out)
 }

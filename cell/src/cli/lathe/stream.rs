@@ -116,8 +116,27 @@ fn show(out: Option<Shown>) {
     }
 }
 
-/// Streams the program until every line is acknowledged.
+/// Streams the program until every line is acknowledged: arguments → the whole file checked →
+/// the port opened → the stream → the report.
 pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
+    check_args(&args)?;
+    let (program, outline) = load(&args.file)?;
+    let flow = match args.flow {
+        FlowArg::Counting => Flow::CharacterCounting {
+            rx_buffer: GRBL_RX_BUFFER,
+        },
+        FlowArg::OkPerLine => Flow::OkPerLine,
+    };
+    let stop = stop_on_signals()?;
+    let port = open_port(&args)?;
+    let console = operator_console();
+    let mut stream = Stream::new(&args, &outline, program, flow, port);
+    stream.send_all(&stop, &console)?;
+    stream.finish();
+    Ok(())
+}
+
+fn check_args(args: &LatheStreamArgs) -> Result<(), Failure> {
     if !(args.silence_s.is_finite() && args.silence_s > 0.0) {
         return Err(Failure::input(format!(
             "lathe stream: --silence-s {} must be a positive number",
@@ -130,32 +149,37 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
             sequences::error::shown(args.progress_every_s)
         )));
     }
-    let (program, outline) = load(&args.file)?;
-    let total = program.lines.len();
-    let file = args.file.display().to_string();
-    let layers = program.layer_starts.clone();
-    let flow = match args.flow {
-        FlowArg::Counting => Flow::CharacterCounting {
-            rx_buffer: GRBL_RX_BUFFER,
-        },
-        FlowArg::OkPerLine => Flow::OkPerLine,
-    };
-    let mut streamer = Streamer::new(program, flow);
+    Ok(())
+}
 
+/// A flag Ctrl-C (and SIGTERM) raises.
+fn stop_on_signals() -> Result<Arc<AtomicBool>, Failure> {
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())
             .map_err(|e| Failure::runtime(format!("lathe stream: signal handler: {e}")))?;
     }
+    Ok(stop)
+}
+
+/// The controller's serial port.
+type Port = mandrel_drive::link::SerialLink<Box<dyn serialport::SerialPort>>;
+
+/// The controller's serial port, its stale input discarded.
+fn open_port(args: &LatheStreamArgs) -> Result<Port, Failure> {
     let mut port = serialport::new(&args.port, args.baud)
         .timeout(Duration::from_millis(10))
         .open()
         .map(mandrel_drive::link::SerialLink)
         .map_err(|e| Failure::runtime(format!("{}: {e}", args.port)))?;
-    let link_failure = |e: std::io::Error| Failure::runtime(format!("{}: {e}", args.port));
-    port.discard_input().map_err(link_failure)?;
+    port.discard_input()
+        .map_err(|e| Failure::runtime(format!("{}: {e}", args.port)))?;
+    Ok(port)
+}
 
-    // Operator console on standard input: `p` pause at the next layer, `r` resume.
+/// Operator console on standard input: `p` pause at the next layer, `r` resume (the first
+/// character of each line).
+fn operator_console() -> mpsc::Receiver<char> {
     let (tx, console) = mpsc::channel::<char>();
     std::thread::spawn(move || {
         let mut line = String::new();
@@ -168,149 +192,217 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
             line.clear();
         }
     });
+    console
+}
 
-    let mut watch = Watch::new(
-        &outline,
-        if args.json {
-            Show::Json
-        } else if std::io::stderr().is_terminal() {
-            Show::Terminal
-        } else {
-            Show::Plain(Duration::from_secs_f64(args.progress_every_s))
-        },
-    );
-    if args.json {
-        show(Some(Shown::Event(
-            serde_json::json!({"event": "start", "file": file,
-                "lines": total, "layers": outline.layers.len()}),
-        )));
-    }
-    // Every failure from here names the line to restart from.
-    let restart = |streamer: &Streamer| restart_hint(&outline, &file, streamer.acknowledged());
-    let mut replies = ReplyLines::new();
-    let mut buf = [0u8; 512];
-    let mut last_heard = Instant::now();
-    let mut last_status = Instant::now();
-    let mut announced_pause = false;
-    let silence = Duration::from_secs_f64(args.silence_s);
-    while !streamer.is_done() {
-        if stop.load(Ordering::Relaxed) {
-            let bytes = streamer.stop();
-            watch.end_line();
-            let sent = port.write_all(&bytes);
-            let message = format!(
-                "lathe stream: interrupted after {} of {total} lines: feed hold and reset {}; {}",
-                streamer.sent(),
-                if sent.is_ok() {
-                    "sent"
-                } else {
-                    "could not be sent"
-                },
-                restart(&streamer)
-            );
+/// A stream under way: the program's streamer, the port, the progress display.
+struct Stream<'a> {
+    args: &'a LatheStreamArgs,
+    outline: &'a Outline,
+    /// The file's name as shown.
+    file: String,
+    /// Lines to send.
+    total: usize,
+    /// The lines that start a layer.
+    layer_starts: Vec<usize>,
+    streamer: Streamer,
+    port: Port,
+    watch: Watch<'a>,
+    announced_pause: bool,
+}
+
+impl<'a> Stream<'a> {
+    /// Announces the start (`--json`).
+    fn new(
+        args: &'a LatheStreamArgs,
+        outline: &'a Outline,
+        program: Program,
+        flow: Flow,
+        port: Port,
+    ) -> Self {
+        let watch = Watch::new(
+            outline,
             if args.json {
-                show(Some(Shown::Event(serde_json::json!({"event": "stopped",
-                        "reason": "interrupted", "acknowledged": streamer.acknowledged(),
-                        "restart": restart(&streamer)}))));
-            }
-            return Err(Failure {
-                message,
-                exit_code: EXIT_INTERRUPTED,
-            });
+                Show::Json
+            } else if std::io::stderr().is_terminal() {
+                Show::Terminal
+            } else {
+                Show::Plain(Duration::from_secs_f64(args.progress_every_s))
+            },
+        );
+        let stream = Stream {
+            args,
+            outline,
+            file: args.file.display().to_string(),
+            total: program.lines.len(),
+            layer_starts: program.layer_starts.clone(),
+            streamer: Streamer::new(program, flow),
+            port,
+            watch,
+            announced_pause: false,
+        };
+        if args.json {
+            show(Some(Shown::Event(
+                serde_json::json!({"event": "start", "file": stream.file,
+                    "lines": stream.total, "layers": outline.layers.len()}),
+            )));
         }
-        let out = watch.update(streamer.sent(), streamer.acknowledged(), false);
-        show(out);
+        stream
+    }
+
+    /// Where to restart after a stop now.
+    fn restart(&self) -> String {
+        restart_hint(self.outline, &self.file, self.streamer.acknowledged())
+    }
+
+    /// A failure that ends the stream: what went wrong, then the line to restart from.
+    fn fail(&mut self, what: String) -> Failure {
+        self.watch.end_line();
+        Failure::runtime(format!("{what}; {}", self.restart()))
+    }
+
+    /// Sends, listens and shows progress until every line is acknowledged; every failure names
+    /// the line to restart from.
+    fn send_all(
+        &mut self,
+        stop: &AtomicBool,
+        console: &mpsc::Receiver<char>,
+    ) -> Result<(), Failure> {
+        let mut buf = [0u8; 512];
+        let mut replies = ReplyLines::new();
+        let mut last_heard = Instant::now();
+        let mut last_status = Instant::now();
+        while !self.streamer.is_done() {
+            if stop.load(Ordering::Relaxed) {
+                return Err(self.interrupted());
+            }
+            show(
+                self.watch
+                    .update(self.streamer.sent(), self.streamer.acknowledged(), false),
+            );
+            self.obey(console);
+            self.send_ready()?;
+            self.announce_pause();
+            // `?` is GRBL's real-time status request; a Marlin controller (one line per `ok`)
+            // would take it as part of the next line.
+            if self.args.flow == FlowArg::Counting && last_status.elapsed() >= STATUS_PERIOD {
+                if let Err(e) = self.port.write_all(&[STATUS]) {
+                    return Err(self.fail(format!("{}: {e}", self.args.port)));
+                }
+                last_status = Instant::now();
+            }
+            let n = match self.port.read_timeout(&mut buf, Duration::from_millis(5)) {
+                Ok(n) => n,
+                Err(e) => return Err(self.fail(format!("{}: {e}", self.args.port))),
+            };
+            if n > 0 {
+                last_heard = Instant::now();
+            } else if last_heard.elapsed() > Duration::from_secs_f64(self.args.silence_s) {
+                return Err(self.fail(format!(
+                    "{}: no reply from the controller in {} s after {} of {} lines",
+                    self.args.port,
+                    self.args.silence_s,
+                    self.streamer.sent(),
+                    self.total
+                )));
+            }
+            for &b in buf.get(..n).unwrap_or_default() {
+                if let Some(text) = replies.push(b)
+                    && let Err(e) = self.streamer.on_reply(&text)
+                {
+                    return Err(self.fail(format!("{}: {e}", self.args.file.display())));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Ctrl-C: feed hold and soft reset sent, the stop reported, exit 130.
+    fn interrupted(&mut self) -> Failure {
+        let bytes = self.streamer.stop();
+        self.watch.end_line();
+        let sent = self.port.write_all(&bytes);
+        let message = format!(
+            "lathe stream: interrupted after {} of {} lines: feed hold and reset {}; {}",
+            self.streamer.sent(),
+            self.total,
+            if sent.is_ok() {
+                "sent"
+            } else {
+                "could not be sent"
+            },
+            self.restart()
+        );
+        if self.args.json {
+            show(Some(Shown::Event(serde_json::json!({"event": "stopped",
+                    "reason": "interrupted", "acknowledged": self.streamer.acknowledged(),
+                    "restart": self.restart()}))));
+        }
+        Failure {
+            message,
+            exit_code: EXIT_INTERRUPTED,
+        }
+    }
+
+    /// The operator's `p` (pause at the next layer) and `r` (resume).
+    fn obey(&mut self, console: &mpsc::Receiver<char>) {
         while let Ok(c) = console.try_recv() {
             match c {
-                'p' => streamer.request_pause(),
+                'p' => self.streamer.request_pause(),
                 'r' => {
-                    streamer.resume();
-                    announced_pause = false;
+                    self.streamer.resume();
+                    self.announced_pause = false;
                     eprintln!("lathe stream: resumed");
                 }
                 _ => {}
             }
         }
-        while let Some(line) = streamer.poll_send() {
+    }
+
+    /// Writes every line the flow control lets go now.
+    fn send_ready(&mut self) -> Result<(), Failure> {
+        while let Some(line) = self.streamer.poll_send() {
             let line = line.to_string();
-            if let Err(e) = port.write_all(line.as_bytes()) {
-                watch.end_line();
-                return Err(Failure::runtime(format!(
-                    "{}: {e}; {}",
-                    args.port,
-                    restart(&streamer)
-                )));
+            if let Err(e) = self.port.write_all(line.as_bytes()) {
+                return Err(self.fail(format!("{}: {e}", self.args.port)));
             }
         }
-        if let Some(at) = streamer.paused_at()
-            && !announced_pause
+        Ok(())
+    }
+
+    /// Says once where a requested pause took hold.
+    fn announce_pause(&mut self) {
+        if let Some(at) = self.streamer.paused_at()
+            && !self.announced_pause
         {
-            let layer = layers.iter().position(|&s| s == at).map_or(0, |i| i + 1);
-            watch.end_line();
+            let layer = self
+                .layer_starts
+                .iter()
+                .position(|&s| s == at)
+                .map_or(0, |i| i + 1);
+            self.watch.end_line();
             eprintln!(
-                "lathe stream: paused before layer {layer} (line {} of {total}); `r` resumes",
-                at + 1
+                "lathe stream: paused before layer {layer} (line {} of {}); `r` resumes",
+                at + 1,
+                self.total
             );
-            announced_pause = true;
+            self.announced_pause = true;
         }
-        // `?` is GRBL's real-time status request; a Marlin controller (one line per `ok`) would
-        // take it as part of the next line.
-        if args.flow == FlowArg::Counting && last_status.elapsed() >= STATUS_PERIOD {
-            if let Err(e) = port.write_all(&[STATUS]) {
-                watch.end_line();
-                return Err(Failure::runtime(format!(
-                    "{}: {e}; {}",
-                    args.port,
-                    restart(&streamer)
-                )));
-            }
-            last_status = Instant::now();
-        }
-        let n = match port.read_timeout(&mut buf, Duration::from_millis(5)) {
-            Ok(n) => n,
-            Err(e) => {
-                watch.end_line();
-                return Err(Failure::runtime(format!(
-                    "{}: {e}; {}",
-                    args.port,
-                    restart(&streamer)
-                )));
-            }
-        };
-        if n > 0 {
-            last_heard = Instant::now();
-        } else if last_heard.elapsed() > silence {
-            watch.end_line();
-            return Err(Failure::runtime(format!(
-                "{}: no reply from the controller in {} s after {} of {total} lines; {}",
-                args.port,
-                args.silence_s,
-                streamer.sent(),
-                restart(&streamer)
+    }
+
+    /// The last progress, the `done` event, the closing line.
+    fn finish(&mut self) {
+        show(
+            self.watch
+                .update(self.streamer.sent(), self.streamer.acknowledged(), true),
+        );
+        self.watch.end_line();
+        if self.args.json {
+            show(Some(Shown::Event(
+                serde_json::json!({"event": "done", "lines": self.total,
+                    "elapsed_s": self.watch.elapsed().as_secs_f64()}),
             )));
         }
-        for &b in buf.get(..n).unwrap_or_default() {
-            if let Some(text) = replies.push(b)
-                && let Err(e) = streamer.on_reply(&text)
-            {
-                watch.end_line();
-                return Err(Failure::runtime(format!(
-                    "{}: {e}; {}",
-                    args.file.display(),
-                    restart(&streamer)
-                )));
-            }
-        }
+        eprintln!("lathe stream: {} lines sent and acknowledged", self.total);
     }
-    let out = watch.update(streamer.sent(), streamer.acknowledged(), true);
-    show(out);
-    watch.end_line();
-    if args.json {
-        show(Some(Shown::Event(
-            serde_json::json!({"event": "done", "lines": total,
-                "elapsed_s": watch.elapsed().as_secs_f64()}),
-        )));
-    }
-    eprintln!("lathe stream: {total} lines sent and acknowledged");
-    Ok(())
 }

@@ -4,6 +4,7 @@
 // Each test file uses its own part of this module.
 #![allow(dead_code)]
 
+pub mod lathe;
 pub mod limited;
 
 use std::io::{BufRead, BufReader};
@@ -28,14 +29,35 @@ pub fn example(name: &str) -> PathBuf {
 /// A copy of `examples/NAME` written into `dir` as `new_name`, each `(from, to)` replaced (every
 /// `from` must be in the example: a replacement that matches nothing fails the test).
 pub fn example_variant(dir: &Path, name: &str, new_name: &str, edits: &[(&str, &str)]) -> PathBuf {
-    let mut text = std::fs::read_to_string(example(name)).expect("the example reads");
+    variant(&example(name), dir, new_name, edits)
+}
+
+/// A copy of the file `source` written into `dir` as `new_name`, each `(from, to)` replaced
+/// (every `from` must be in the file).
+pub fn variant(source: &Path, dir: &Path, new_name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(source).expect("the file reads");
     for (from, to) in edits {
-        assert!(text.contains(from), "{name} has no `{from}`");
+        assert!(text.contains(from), "{} has no `{from}`", source.display());
         text = text.replace(from, to);
     }
     let path = dir.join(new_name);
     std::fs::write(&path, text).expect("the variant writes");
     path
+}
+
+/// A `.wind` job of the format tests, `sequences/tests/data/NAME` (not in `examples/`, whose
+/// `.wind` files FiberPath's own tools are run on).
+pub fn wind_job(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../sequences/tests/data")
+        .join(name)
+}
+
+/// Runs `windcell ARGS`, which must succeed, and reads its standard output as JSON.
+pub fn windcell_json(args: &[&str]) -> serde_json::Value {
+    let out = windcell(args);
+    assert!(out.status.success(), "{args:?}: {}", stderr(&out));
+    serde_json::from_slice(&out.stdout).unwrap()
 }
 
 /// The process's standard error as text.
