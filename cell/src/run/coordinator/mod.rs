@@ -413,9 +413,11 @@ impl<'a> Coordinator<'a> {
                 .append(json!({"rec": "resume", "items_done": from.items_done}))?;
         }
         self.check()?;
-        // Attach: the indexer without zeroing, then zero it once for a fresh batch.
+        // Attach: each link resynchronised before its first command (a run killed before this
+        // one may have left stale bytes, a move under way, an armed move, a robot homing); the
+        // indexer without zeroing, then zeroed once for a fresh batch.
         self.dev.sync.set_start(false)?;
-        self.cancel_armed_move()?;
+        self.dev.robot.attach()?;
         let counter = self.dev.mandrel.attach()?;
         if fresh {
             self.dev.mandrel.zero()?;

@@ -26,6 +26,13 @@ impl Coordinator<'_> {
                 Ok(d.robot.state()?.state != State::Running)
             })?;
         }
+        if self.dev.robot.state()?.state == State::Homing {
+            // A home synchronisation a killed run started: any command now would be refused
+            // (robot error 7, busy); it is waited out.
+            self.wait("the robot's home synchronisation", HOME_TIMEOUT_S, |d| {
+                Ok(d.robot.state()?.state != State::Homing)
+            })?;
+        }
         let s = self.dev.robot.state()?;
         if !s.operate {
             self.dev.robot.set_operate(true)?;
