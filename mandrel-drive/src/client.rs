@@ -162,6 +162,10 @@ pub const ATTACH_QUIET_LIMIT: Duration = Duration::from_secs(5);
 /// also empties the card's buffer), as nobody will raise that edge for it.
 pub const ARMED_STILL: Duration = Duration::from_millis(500);
 
+/// How often [`XClient::attach`] asks a query that got no recognised answer within the reply
+/// timeout before it gives up.
+pub const RECOGNISED_ASKS: u32 = 3;
+
 /// Reads lines ending in `end` (other line-end bytes dropped) from a link with a deadline.
 #[derive(Debug, Default)]
 struct LineReader {
@@ -374,29 +378,35 @@ impl<L: Link, C: Clock> XClient<L, C> {
     /// echo, a stale reply of another kind, a completion) is skipped.
     fn recognised<T>(&mut self, cmd: &Command, parse: impl Fn(&Reply) -> Option<T>) -> Result<T> {
         let text = xlang::encode(Some(self.cfg.address), cmd);
-        self.link.write_all(format!("{text}\r").as_bytes())?;
-        let deadline = self.clock.now() + self.cfg.reply_timeout;
-        loop {
-            let left = deadline.saturating_sub(self.clock.now());
-            let line =
-                match self
-                    .reader
-                    .next_line(&mut self.link, &self.clock, b'\r', b'\n', left, &text)
-                {
-                    Err(Error::Timeout { command, .. }) => {
-                        return Err(Error::Timeout {
-                            command,
-                            waited_ms: self.cfg.reply_timeout.as_millis() as u64,
-                        });
-                    }
+        // Asked again after a reply timeout (a loaded host, a card slow to come back): a late
+        // answer to the first ask is as good an answer as the second's.
+        for _ in 0..RECOGNISED_ASKS {
+            self.link.write_all(format!("{text}\r").as_bytes())?;
+            let deadline = self.clock.now() + self.cfg.reply_timeout;
+            loop {
+                let left = deadline.saturating_sub(self.clock.now());
+                let line = match self.reader.next_line(
+                    &mut self.link,
+                    &self.clock,
+                    b'\r',
+                    b'\n',
+                    left,
+                    &text,
+                ) {
+                    Err(Error::Timeout { .. }) => break,
                     r => r?,
                 };
-            let reply = xlang::parse_reply(cmd, &line, None)
-                .or_else(|_| xlang::parse_reply(cmd, &line, Some(self.cfg.address)));
-            if let Some(t) = reply.ok().as_ref().and_then(&parse) {
-                return Ok(t);
+                let reply = xlang::parse_reply(cmd, &line, None)
+                    .or_else(|_| xlang::parse_reply(cmd, &line, Some(self.cfg.address)));
+                if let Some(t) = reply.ok().as_ref().and_then(&parse) {
+                    return Ok(t);
+                }
             }
         }
+        Err(Error::Timeout {
+            command: text,
+            waited_ms: (self.cfg.reply_timeout * RECOGNISED_ASKS).as_millis() as u64,
+        })
     }
 
     /// The immediate status (busy, attention), recognised among stale lines.

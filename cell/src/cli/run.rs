@@ -67,6 +67,11 @@ pub struct RunArgs {
     /// Resume the batch this journal records.
     #[arg(long, value_name = "JOURNAL")]
     pub resume: Option<PathBuf>,
+    /// With `--resume`: the operator confirms that the mandrel stands at the angle of the
+    /// journal's last confirmed step (the step and angle the refusal named); the indexer's
+    /// counter is re-referenced to it, and journaled (docs/operator.md, "Re-referencing").
+    #[arg(long, requires = "resume")]
+    pub rereference: bool,
     /// Run every program in the robot's standby mode first (§5.3.1).
     #[arg(long)]
     pub standby: bool,
@@ -882,7 +887,13 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
                     p.display()
                 )));
             }
-            Some((j, from))
+            Some((
+                j,
+                ResumePoint {
+                    rereference: args.rereference,
+                    ..from
+                },
+            ))
         }
         None => None,
     };
@@ -1140,7 +1151,14 @@ fn report(
                 Halt::Interrupted { reason } => (reason.clone(), EXIT_INTERRUPTED, "stopped"),
                 Halt::Fault(fault) => (fault.to_string(), super::EXIT_RUNTIME, "fault"),
             };
-            let resume = resume_command(args, batch.mode, journal_path);
+            let mut resume = resume_command(args, batch.mode, journal_path);
+            if stopped
+                .halt
+                .fault()
+                .is_some_and(cell::run::coordinator::Fault::needs_rereference)
+            {
+                resume += " --rereference";
+            }
             let stop_errors: Vec<String> =
                 stopped.stop_errors.iter().map(|e| e.to_string()).collect();
             if display.json {
