@@ -769,6 +769,15 @@ impl Display {
 
 /// Runs `windcell run`.
 pub fn run(args: RunArgs) -> Result<(), Failure> {
+    // SIGXFSZ caught, not left to its default action: a file-size limit comes back as EFBIG
+    // from the journal's write, which the journal cuts back to its last whole record, and the
+    // run stops both devices and says so in one line, where the signal would kill the process
+    // with no stop sent and no line.
+    signal_hook::flag::register(
+        signal_hook::consts::SIGXFSZ,
+        Arc::new(std::sync::atomic::AtomicBool::new(false)),
+    )
+    .map_err(Failure::runtime)?;
     let checked = check(&args)?;
     let Checked {
         batch,
@@ -890,7 +899,10 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
             Some((
                 j,
                 ResumePoint {
-                    rereference: args.rereference,
+                    // The built-in simulated cell is powered up anew by each process: it stands
+                    // where the journal says because nothing else can say otherwise.
+                    rereference: args.rereference
+                        || matches!(cell.devices, cell::run::cellfile::Devices::Simulated),
                     ..from
                 },
             ))

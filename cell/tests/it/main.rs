@@ -25,6 +25,7 @@ mod predict_setup;
 mod record_cli;
 mod run_cli;
 mod run_pty;
+mod run_resume_safety;
 mod sim_indexer;
 mod sim_robot;
 mod simcell_events;

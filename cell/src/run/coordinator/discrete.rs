@@ -20,7 +20,7 @@ impl Coordinator<'_> {
         let n = prep.targets_mm.len();
         // Where the robot is: read before the first segment, then what each segment confirmed.
         let mut here = None;
-        if from > 0 && from < n {
+        if from > 0 && from < n && !resume.is_some_and(|r| r.rereference) {
             // A resume mid-path: the arm is the second witness. It stands on the move from the
             // last confirmed point to the next one, or the run stops before anything moves.
             let at = self.dev.robot.position_mm()?;

@@ -31,8 +31,10 @@ pub struct ResumePoint {
     /// The run before stopped on a stall of the mandrel motor: its counter counted steps the
     /// motor did not make, so it is no witness until the mandrel is re-referenced.
     pub stalled: bool,
-    /// The operator confirms that the mandrel stands at the angle of the last confirmed step
-    /// (`windcell run --resume … --rereference`): the counter is re-referenced to it.
+    /// The operator confirms that the cell stands where the journal's last confirmed step left
+    /// it, the mandrel at that step's angle and the arm at its point (`windcell run --resume …
+    /// --rereference`; implied on the built-in simulated cell, which a new process powers up
+    /// anew): the counter is re-referenced to it and the arm is not checked against it.
     pub rereference: bool,
 }
 
