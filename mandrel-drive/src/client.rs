@@ -334,12 +334,31 @@ impl<L: Link, C: Clock> XClient<L, C> {
             self.reader
                 .pause(&mut self.link, &self.clock, RESET_POLL_PERIOD)?;
         }
-        // The card at rest has run what its buffer held: its replies are stale.
+        // The card at rest has run what its buffer held: its replies are stale. A reply that
+        // comes later than the waits allowed (a loaded host) puts the set-up's echoes out of
+        // step: the set-up is then done again from a quiet line.
+        let mut tries = 0;
+        loop {
+            tries += 1;
+            match self.set_up_attached() {
+                Err(Error::Echo { .. } | Error::BadReply { .. } | Error::Timeout { .. })
+                    if tries < RECOGNISED_ASKS => {}
+                r => return r,
+            }
+        }
+    }
+
+    /// The set-up of [`XClient::attach`] once the card is at rest: a quiet line, echo off (its
+    /// echo read past), the device-ID prefix off, echo on, the configured prefix and resolution,
+    /// then the state and position.
+    fn set_up_attached(&mut self) -> Result<IndexerStatus> {
         self.quiet_line()?;
         // Echo off first: whatever the echo state was, the next commands' echo is known.
         let off = xlang::encode(Some(self.cfg.address), &Command::Echo(false));
         self.link.write_all(format!("{off}\r").as_bytes())?;
-        self.quiet_line()?;
+        // Its echo, if echo was on, comes before the answer to a status asked after it (the
+        // card answers in order): the status is recognised past it, however late it comes.
+        self.recognised_status()?;
         self.echo = false;
         self.device_id = false;
         self.completions = 0;

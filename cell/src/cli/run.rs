@@ -554,6 +554,9 @@ fn open_port(
     .map_err(|e| Failure::input(format!("{path}: {e}")))
 }
 
+/// Longest wait for one indexer reply line on a serial port.
+const INDEXER_REPLY_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(1500);
+
 /// The devices of `cell` (and the simulated cell, to keep its log). A serial port is opened with
 /// an exclusive lock (`serialport`'s `flock`): a port another program holds is refused as bad
 /// input.
@@ -613,6 +616,10 @@ pub fn devices(
                 LinkTap::indexer(indexer_port, slot.clone(), time.clone()),
                 mandrel_drive::IndexerConfig {
                     drive: cell.drive,
+                    // A card answers within milliseconds; the margin is for the host (a loaded
+                    // PC, or simulators on pseudo-terminals sharing its cores), where 500 ms
+                    // stopped runs at their first status poll.
+                    reply_timeout: INDEXER_REPLY_TIMEOUT,
                     ..mandrel_drive::IndexerConfig::default()
                 },
             );
