@@ -18,6 +18,8 @@
 //! ([`Client::cancel_token`]): the exchange under way ends with an EOT and [`Error::Cancelled`]
 //! within [`POLL_PERIOD`], and [`Client::stop`] still goes through while the token is set.
 
+use std::time::Duration;
+
 use crate::clock::{Clock, WallClock};
 use crate::command::{
     Command, Control, Instruction, Pose, Positioning, Reply, RobotError, Selector, Speed, Status,
@@ -125,6 +127,13 @@ pub struct Client<L, C = WallClock> {
     /// effect was sent since (stores make it unknown).
     last_executed: Option<u16>,
 }
+
+/// How long the line must say nothing before [`Client::attach`] starts its first session: longer
+/// than the robot's gaps inside a session it answers (a byte at 9600 baud is about 1 ms).
+pub const ATTACH_QUIET: Duration = Duration::from_millis(100);
+
+/// Longest [`Client::attach`] waits for the line to go quiet.
+pub const ATTACH_QUIET_LIMIT: Duration = Duration::from_secs(5);
 
 impl<L: Link> Client<L, WallClock> {
     /// A client on `link` in wall time.
@@ -320,6 +329,27 @@ impl<L: Link, C: Clock> Client<L, C> {
             }
         }
         Err(last.unwrap_or(Error::UnexpectedReply("no reply")))
+    }
+
+    /// Attaches to a robot computer that may have been talking to a run that was killed: waits
+    /// until the line has been quiet for [`ATTACH_QUIET`] (dropping what comes: the end of a
+    /// session the killed run left, the robot's retransmissions), at most [`ATTACH_QUIET_LIMIT`]
+    /// ([`Error::LineNotQuiet`]), then starts a session of its own with ENQUIRE status: its answer
+    /// is the status reply telegram, recognised by its code and check value, never a stray byte
+    /// (docs/protocol.md §6). Reading the status does not clear a latched error.
+    pub fn attach(&mut self) -> Result<Status> {
+        let d = paths::link::drain_until_quiet(
+            &mut self.link,
+            &self.clock,
+            ATTACH_QUIET,
+            ATTACH_QUIET_LIMIT,
+        )?;
+        if !d.quiet {
+            return Err(Error::LineNotQuiet {
+                waited_ms: ATTACH_QUIET_LIMIT.as_millis() as u64,
+            });
+        }
+        self.status()
     }
 
     /// ENQUIRE status, one reply (reading it does not clear the robot's latched error).

@@ -164,6 +164,13 @@ pub enum Error {
     /// The exchange was cancelled through the client's [`crate::client::Cancel`] token.
     #[error("cancelled")]
     Cancelled,
+    /// A re-attach found the line talking without pause for its whole wait
+    /// ([`crate::Client::attach`]).
+    #[error("the line did not go quiet within {waited_ms} ms: something on it keeps sending")]
+    LineNotQuiet {
+        /// How long the client waited.
+        waited_ms: u64,
+    },
     /// The robot's execution count shows that a command was not executed exactly once: a
     /// corrupted twin or an unsent telegram was executed (or the command twice). Reported, never
     /// repaired by sending again.

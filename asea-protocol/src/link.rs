@@ -43,18 +43,55 @@ pub fn open_serial(
     baud: u32,
     format: CharFormat,
 ) -> Result<SerialLink<Box<dyn serialport::SerialPort>>, serialport::Error> {
+    use std::os::fd::AsRawFd;
     let (bits, parity) = match format {
         CharFormat::EightN1 => (serialport::DataBits::Eight, serialport::Parity::None),
         CharFormat::SevenE1 => (serialport::DataBits::Seven, serialport::Parity::Even),
     };
-    serialport::new(path, baud)
+    // Not the library's exclusive mode: its TIOCEXCL is a flag on the device that outlives a
+    // process killed with SIGKILL (every later open but root's fails, EBUSY). The library takes
+    // a shared advisory lock (flock) on the descriptor instead, which is turned into an
+    // exclusive one here: the kernel drops it when the process dies, however it dies.
+    let port = serialport::new(path, baud)
         .data_bits(bits)
         .parity(parity)
         .stop_bits(serialport::StopBits::One)
         .flow_control(serialport::FlowControl::None)
         .timeout(Duration::from_millis(100))
-        .open()
-        .map(SerialLink)
+        .exclusive(false)
+        .open_native()
+        .map_err(held_elsewhere)?;
+    nix::fcntl::flock(
+        port.as_raw_fd(),
+        nix::fcntl::FlockArg::LockExclusiveNonblock,
+    )
+    .map_err(|e| {
+        if e == nix::errno::Errno::EWOULDBLOCK {
+            port_held()
+        } else {
+            serialport::Error::from(std::io::Error::from(e))
+        }
+    })?;
+    Ok(SerialLink(Box::new(port)))
+}
+
+/// The error of a port another process holds (its advisory lock).
+fn port_held() -> serialport::Error {
+    serialport::Error::new(serialport::ErrorKind::NoDevice, PORT_HELD)
+}
+
+/// What [`open_serial`] says of a port another process holds.
+pub const PORT_HELD: &str =
+    "in use: another program (another windcell?) holds the port's lock; stop it first";
+
+/// The library's refusal of its shared lock (another process holds an exclusive one) in the
+/// words of [`PORT_HELD`].
+fn held_elsewhere(e: serialport::Error) -> serialport::Error {
+    if e.kind() == serialport::ErrorKind::NoDevice && e.description.contains("lock") {
+        port_held()
+    } else {
+        e
+    }
 }
 
 paths::serial_link!();

@@ -60,6 +60,9 @@ pub struct IndexerConfig {
     pub no_limit_switches: bool,
     /// GRBL: grblHAL rotary-axis mask to send as `$376` (`None` for classic GRBL).
     pub rotary_mask: Option<u8>,
+    /// Longest [`XClient::attach`] waits for a move it finds under way (the move a killed run
+    /// left the card finishing) before it fails with [`Error::StillMoving`].
+    pub attach_wait: Duration,
 }
 
 impl Default for IndexerConfig {
@@ -73,6 +76,7 @@ impl Default for IndexerConfig {
             device_id: true,
             no_limit_switches: true,
             rotary_mask: None,
+            attach_wait: Duration::from_secs(60),
         }
     }
 }
@@ -143,6 +147,24 @@ pub use paths::link::Cancel;
 
 /// How often a card busy after its reset (`Z`) is asked for its status (`R`).
 pub const RESET_POLL_PERIOD: Duration = Duration::from_millis(50);
+
+/// How long the line must say nothing before [`XClient::attach`] asks its first question: a
+/// stale line of the run before (an echo, a reply to a command the card had buffered) is a few
+/// bytes at most 1 ms apart at 9600 baud; 100 ms of silence means its burst is over.
+pub const ATTACH_QUIET: Duration = Duration::from_millis(100);
+
+/// Longest [`XClient::attach`] waits for the line to go quiet before it fails with
+/// [`Error::LineNotQuiet`] (something on the line keeps talking: not an indexer that answers).
+pub const ATTACH_QUIET_LIMIT: Duration = Duration::from_secs(5);
+
+/// A busy card whose step count (`W3`) has not moved for this long is not turning: a move armed
+/// on the start line (`TR1`) that never saw its edge. [`XClient::attach`] stops it (`S`, which
+/// also empties the card's buffer), as nobody will raise that edge for it.
+pub const ARMED_STILL: Duration = Duration::from_millis(500);
+
+/// How often [`XClient::attach`] asks a query that got no recognised answer within the reply
+/// timeout before it gives up.
+pub const RECOGNISED_ASKS: u32 = 3;
 
 /// Reads lines ending in `end` (other line-end bytes dropped) from a link with a deadline.
 #[derive(Debug, Default)]
@@ -267,27 +289,80 @@ impl<L: Link, C: Clock> XClient<L, C> {
         self.reader.cancel.clone()
     }
 
-    /// Attaches to an indexer that may have been running (a restarted coordinator): no reset
-    /// (`Z`) and no zeroing (`PZ`), so the step counter keeps the mandrel's position. Echo and
-    /// the device-ID prefix are set to what this client expects, then the state and position are
-    /// read. The position is `None` while the indexer is busy (it answers `PR` only when its
-    /// buffer reaches it).
+    /// Attaches to an indexer that may have been running (a restarted coordinator, a resume
+    /// after `kill -9`): no reset (`Z`) and no zeroing (`PZ`), so the step counter keeps the
+    /// mandrel's position.
+    ///
+    /// The card may still be finishing what the run before left it: a move under way, with
+    /// that run's later commands in its buffer (their replies, `PR`'s position and `CR`'s
+    /// completion, come when the move ends), its echo and device-ID settings unknown. So the
+    /// client first waits for the line to go quiet ([`ATTACH_QUIET`]), dropping what comes, then
+    /// asks the immediate status (`R`) and takes as its answer only a line that is a status reply
+    /// (`*R`, `*B`, `*S`, `*C`, with or without the device-ID prefix): an echo of that run's
+    /// commands (`1G`, `1R`), a position or a completion is skipped. While the card is busy it is
+    /// polled until at rest ([`IndexerConfig::attach_wait`], else [`Error::StillMoving`]); a busy
+    /// card whose step count does not move for [`ARMED_STILL`] holds an armed move that never saw
+    /// its start edge, and is stopped. Once at rest the line is drained again (the buffered
+    /// replies), then echo and the device-ID prefix are set to what this client expects and the
+    /// state and position read.
     pub fn attach(&mut self) -> Result<IndexerStatus> {
-        self.link.discard_input()?;
-        self.reader.pending.clear();
+        self.quiet_line()?;
+        let t0 = self.clock.now();
+        let mut steps: Option<(i64, Duration)> = None;
+        loop {
+            let (busy, _) = self.recognised_status()?;
+            if !busy {
+                break;
+            }
+            let now = self.clock.now();
+            if now.saturating_sub(t0) >= self.cfg.attach_wait {
+                return Err(Error::StillMoving {
+                    waited_ms: self.cfg.attach_wait.as_millis() as u64,
+                });
+            }
+            let w3 = self.recognised_move_steps()?;
+            match steps {
+                Some((n, since)) if n == w3 => {
+                    if now.saturating_sub(since) >= ARMED_STILL {
+                        let stop = xlang::encode(Some(self.cfg.address), &Command::Stop);
+                        self.link.write_all(format!("{stop}\r").as_bytes())?;
+                        steps = None;
+                    }
+                }
+                _ => steps = Some((w3, now)),
+            }
+            self.reader
+                .pause(&mut self.link, &self.clock, RESET_POLL_PERIOD)?;
+        }
+        // The card at rest has run what its buffer held: its replies are stale. A reply that
+        // comes later than the waits allowed (a loaded host) puts the set-up's echoes out of
+        // step: the set-up is then done again from a quiet line.
+        let mut tries = 0;
+        loop {
+            tries += 1;
+            match self.set_up_attached() {
+                Err(Error::Echo { .. } | Error::BadReply { .. } | Error::Timeout { .. })
+                    if tries < RECOGNISED_ASKS => {}
+                r => return r,
+            }
+        }
+    }
+
+    /// The set-up of [`XClient::attach`] once the card is at rest: a quiet line, echo off (its
+    /// echo read past), the device-ID prefix off, echo on, the configured prefix and resolution,
+    /// then the state and position.
+    fn set_up_attached(&mut self) -> Result<IndexerStatus> {
+        self.quiet_line()?;
         // Echo off first: whatever the echo state was, the next commands' echo is known.
         let off = xlang::encode(Some(self.cfg.address), &Command::Echo(false));
         self.link.write_all(format!("{off}\r").as_bytes())?;
-        self.reader.pause(
-            &mut self.link,
-            &self.clock,
-            self.cfg.reply_timeout.min(Duration::from_millis(100)),
-        )?;
-        self.link.discard_input()?;
-        self.reader.pending.clear();
+        // Its echo, if echo was on, comes before the answer to a status asked after it (the
+        // card answers in order): the status is recognised past it, however late it comes.
+        self.recognised_status()?;
         self.echo = false;
         self.device_id = false;
         self.completions = 0;
+        self.send(&Command::DeviceId(false))?;
         self.send(&Command::Echo(true))?;
         self.echo = true;
         if self.cfg.device_id {
@@ -297,6 +372,76 @@ impl<L: Link, C: Clock> XClient<L, C> {
             self.cfg.drive.gearing.steps_per_motor_rev,
         ))?;
         self.status()
+    }
+
+    /// Drops what comes until the line has been quiet for [`ATTACH_QUIET`]
+    /// ([`paths::link::drain_until_quiet`]).
+    fn quiet_line(&mut self) -> Result<()> {
+        let d = paths::link::drain_until_quiet(
+            &mut self.link,
+            &self.clock,
+            ATTACH_QUIET,
+            ATTACH_QUIET_LIMIT,
+        )?;
+        self.reader.pending.clear();
+        if !d.quiet {
+            return Err(Error::LineNotQuiet {
+                waited_ms: ATTACH_QUIET_LIMIT.as_millis() as u64,
+            });
+        }
+        Ok(())
+    }
+
+    /// Asks an immediate query (`R`, `W3`) in whatever echo and device-ID state the card is in,
+    /// and returns the first line that `parse` recognises as its answer; every other line (an
+    /// echo, a stale reply of another kind, a completion) is skipped.
+    fn recognised<T>(&mut self, cmd: &Command, parse: impl Fn(&Reply) -> Option<T>) -> Result<T> {
+        let text = xlang::encode(Some(self.cfg.address), cmd);
+        // Asked again after a reply timeout (a loaded host, a card slow to come back): a late
+        // answer to the first ask is as good an answer as the second's.
+        for _ in 0..RECOGNISED_ASKS {
+            self.link.write_all(format!("{text}\r").as_bytes())?;
+            let deadline = self.clock.now() + self.cfg.reply_timeout;
+            loop {
+                let left = deadline.saturating_sub(self.clock.now());
+                let line = match self.reader.next_line(
+                    &mut self.link,
+                    &self.clock,
+                    b'\r',
+                    b'\n',
+                    left,
+                    &text,
+                ) {
+                    Err(Error::Timeout { .. }) => break,
+                    r => r?,
+                };
+                let reply = xlang::parse_reply(cmd, &line, None)
+                    .or_else(|_| xlang::parse_reply(cmd, &line, Some(self.cfg.address)));
+                if let Some(t) = reply.ok().as_ref().and_then(&parse) {
+                    return Ok(t);
+                }
+            }
+        }
+        Err(Error::Timeout {
+            command: text,
+            waited_ms: (self.cfg.reply_timeout * RECOGNISED_ASKS).as_millis() as u64,
+        })
+    }
+
+    /// The immediate status (busy, attention), recognised among stale lines.
+    fn recognised_status(&mut self) -> Result<(bool, bool)> {
+        self.recognised(&Command::Status, |r| match r {
+            Reply::Status { busy, attention } => Some((*busy, *attention)),
+            _ => None,
+        })
+    }
+
+    /// The steps of the current or last move (`W3`), recognised among stale lines.
+    fn recognised_move_steps(&mut self) -> Result<i64> {
+        self.recognised(&Command::MoveSteps, |r| match r {
+            Reply::MoveSteps(n) => Some(*n),
+            _ => None,
+        })
     }
 
     /// Arms a preset move on the trigger input (X-language `TR1` before `G`): the move waits in
@@ -1108,9 +1253,12 @@ mod tests {
                     };
                     got.push(line);
                     std::thread::sleep(pause);
-                    card.write_all(bytes.as_bytes()).unwrap();
+                    if card.write_all(bytes.as_bytes()).is_err() {
+                        return got;
+                    }
                 }
-                let n = card.read_timeout(&mut buf, CARD_IDLE).unwrap();
+                // A client gone (its end dropped) ends the card as silence does.
+                let n = card.read_timeout(&mut buf, CARD_IDLE).unwrap_or(0);
                 if n == 0 {
                     return got;
                 }
@@ -1221,6 +1369,143 @@ mod tests {
         let lines = card.join().unwrap();
         let polls = reset_polls(&lines);
         assert!((2..=8).contains(&polls), "{polls} polls");
+    }
+
+    /// A re-attach to a card a killed run left finishing its move: the card answers the first
+    /// three status polls busy, each behind the stale echoes `1G` and `1R` of that run's last
+    /// commands (the issue's "echo \"1G\" does not match command \"1R\""), its step count
+    /// moving; then ready, with that run's buffered `PR` reply and completion coming after. The
+    /// client skips every stale line, polls until the card is at rest, asks `PR` only then (a
+    /// `PR` sent while busy would wait in the card's buffer), and reads the counter the card
+    /// reports (+66), not the stale one (+12).
+    #[test]
+    fn attach_skips_stale_echoes_and_waits_out_the_move_before_asking_the_position() {
+        let (host, card) = Pipe::pair();
+        let mut polls = 0u32;
+        let mut echo = true;
+        let mut w3 = 0u32;
+        let card = x_card(card, move |line| {
+            let echoed = |l: &str| {
+                if echo {
+                    format!("{l}\r")
+                } else {
+                    String::new()
+                }
+            };
+            let out = match line {
+                "1R" => {
+                    polls += 1;
+                    if polls <= 3 {
+                        "1G\r1R\r*B\r".to_string()
+                    } else if polls == 4 {
+                        "1R\r*R\r\r\n*+0000000012\r".to_string()
+                    } else {
+                        format!("{}*R\r", echoed(line))
+                    }
+                }
+                "1W3" => {
+                    w3 += 25;
+                    format!("{}*{w3:08X}\r", echoed(line))
+                }
+                "1SSA1" => {
+                    let e = echoed(line);
+                    echo = false;
+                    e
+                }
+                "1SSA0" => {
+                    echo = true;
+                    String::new()
+                }
+                "1PR" => format!("{}*+0000000066\r", echoed(line)),
+                _ => echoed(line),
+            };
+            Some((Duration::ZERO, out))
+        });
+        let mut c = x_client(host, Duration::ZERO, Duration::from_millis(300));
+        let s = c.attach().unwrap();
+        assert_eq!(
+            s,
+            IndexerStatus {
+                busy: false,
+                fault: false,
+                position_steps: Some(66)
+            }
+        );
+        drop(c);
+        let lines = card.join().unwrap();
+        let first_pr = lines.iter().position(|l| l == "1PR").unwrap();
+        let ready_poll = lines
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| *l == "1R")
+            .nth(3)
+            .unwrap()
+            .0;
+        assert!(first_pr > ready_poll, "{lines:?}");
+        // No reset, no zeroing, no stop of a move that was turning.
+        for never in ["1Z", "1PZ", "1S"] {
+            assert!(!lines.iter().any(|l| l == never), "{lines:?}");
+        }
+    }
+
+    /// A card busy with a step count that does not move holds an armed move that never saw its
+    /// start edge: the re-attach stops it (`S`) once it has stood still for `ARMED_STILL`, and
+    /// one still busy past the attach wait fails naming the wait.
+    #[test]
+    fn attach_stops_an_armed_move_and_gives_up_on_a_move_that_does_not_end() {
+        for stops in [true, false] {
+            let (host, card) = Pipe::pair();
+            let mut stopped = false;
+            let mut echo = true;
+            let mut w3 = 0u32;
+            let card = x_card(card, move |line| {
+                let e = if echo {
+                    format!("{line}\r")
+                } else {
+                    String::new()
+                };
+                let out = match line {
+                    "1S" => {
+                        stopped = stops;
+                        e
+                    }
+                    "1R" if !stopped => format!("{e}*B\r"),
+                    "1W3" => {
+                        // Without the stop taking effect the count moves: a move that turns
+                        // but never ends.
+                        if !stops {
+                            w3 += 1;
+                        }
+                        format!("{e}*{w3:08X}\r")
+                    }
+                    "1PR" => format!("{e}*-0000000040\r"),
+                    "1R" => format!("{e}*R\r"),
+                    "1SSA1" => {
+                        echo = false;
+                        e
+                    }
+                    "1SSA0" => {
+                        echo = true;
+                        e
+                    }
+                    _ => e,
+                };
+                Some((Duration::ZERO, out))
+            });
+            let mut c = x_client(host, Duration::ZERO, Duration::from_millis(300));
+            c.cfg.attach_wait = Duration::from_millis(1500);
+            let r = c.attach();
+            drop(c);
+            let lines = card.join().unwrap();
+            if stops {
+                assert_eq!(r.unwrap().position_steps, Some(-40));
+                assert!(lines.iter().any(|l| l == "1S"), "{lines:?}");
+            } else {
+                let e = r.unwrap_err();
+                assert!(matches!(e, Error::StillMoving { waited_ms: 1500 }), "{e:?}");
+                assert!(!lines.iter().any(|l| l == "1S"), "{lines:?}");
+            }
+        }
     }
 
     /// A card busy for `busy_after_zero` after `PZ` and silent `silent_after_zero` after it.

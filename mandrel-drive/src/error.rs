@@ -94,6 +94,22 @@ pub enum Error {
         /// How long the client waited.
         waited_ms: u64,
     },
+    /// A re-attach found the line talking without pause for its whole wait: not an indexer
+    /// that answers (or one that keeps sending).
+    #[error("the line did not go quiet within {waited_ms} ms: something on it keeps sending")]
+    LineNotQuiet {
+        /// How long the client waited.
+        waited_ms: u64,
+    },
+    /// A re-attach found the card still moving at the end of its wait (a move of the run before
+    /// that does not end).
+    #[error(
+        "still moving after {waited_ms} ms of waiting for the move under way to end; stop the mandrel and re-reference it"
+    )]
+    StillMoving {
+        /// How long the client waited.
+        waited_ms: u64,
+    },
     /// A lathe axis ran onto a hardware limit switch; the drives were stopped (seed 000 §9.11).
     #[error("axis {axis} hit its {side} limit switch at {position_counts} counts; drives stopped")]
     LimitTripped {

@@ -67,6 +67,11 @@ pub struct RunArgs {
     /// Resume the batch this journal records.
     #[arg(long, value_name = "JOURNAL")]
     pub resume: Option<PathBuf>,
+    /// With `--resume`: the operator confirms that the mandrel stands at the angle of the
+    /// journal's last confirmed step (the step and angle the refusal named); the indexer's
+    /// counter is re-referenced to it, and journaled (docs/operator.md, "Re-referencing").
+    #[arg(long, requires = "resume")]
+    pub rereference: bool,
     /// Run every program in the robot's standby mode first (§5.3.1).
     #[arg(long)]
     pub standby: bool,
@@ -551,6 +556,9 @@ fn open_port(
     .map_err(|e| Failure::input(format!("{path}: {e}")))
 }
 
+/// Longest wait for one indexer reply line on a serial port.
+const INDEXER_REPLY_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(1500);
+
 /// The devices of `cell` (and the simulated cell, to keep its log). A serial port is opened with
 /// an exclusive lock (`serialport`'s `flock`): a port another program holds is refused as bad
 /// input.
@@ -610,6 +618,10 @@ pub fn devices(
                 LinkTap::indexer(indexer_port, slot.clone(), time.clone()),
                 mandrel_drive::IndexerConfig {
                     drive: cell.drive,
+                    // A card answers within milliseconds; the margin is for the host (a loaded
+                    // PC, or simulators on pseudo-terminals sharing its cores), where 500 ms
+                    // stopped runs at their first status poll.
+                    reply_timeout: INDEXER_REPLY_TIMEOUT,
                     ..mandrel_drive::IndexerConfig::default()
                 },
             );
@@ -766,6 +778,15 @@ impl Display {
 
 /// Runs `windcell run`.
 pub fn run(args: RunArgs) -> Result<(), Failure> {
+    // SIGXFSZ caught, not left to its default action: a file-size limit comes back as EFBIG
+    // from the journal's write, which the journal cuts back to its last whole record, and the
+    // run stops both devices and says so in one line, where the signal would kill the process
+    // with no stop sent and no line.
+    signal_hook::flag::register(
+        signal_hook::consts::SIGXFSZ,
+        Arc::new(std::sync::atomic::AtomicBool::new(false)),
+    )
+    .map_err(Failure::runtime)?;
     let checked = check(&args)?;
     let Checked {
         batch,
@@ -884,7 +905,16 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
                     p.display()
                 )));
             }
-            Some((j, from))
+            Some((
+                j,
+                ResumePoint {
+                    // The built-in simulated cell is powered up anew by each process: it stands
+                    // where the journal says because nothing else can say otherwise.
+                    rereference: args.rereference
+                        || matches!(cell.devices, cell::run::cellfile::Devices::Simulated),
+                    ..from
+                },
+            ))
         }
         None => None,
     };
@@ -1142,7 +1172,14 @@ fn report(
                 Halt::Interrupted { reason } => (reason.clone(), EXIT_INTERRUPTED, "stopped"),
                 Halt::Fault(fault) => (fault.to_string(), super::EXIT_RUNTIME, "fault"),
             };
-            let resume = resume_command(args, batch.mode, journal_path);
+            let mut resume = resume_command(args, batch.mode, journal_path);
+            if stopped
+                .halt
+                .fault()
+                .is_some_and(cell::run::coordinator::Fault::needs_rereference)
+            {
+                resume += " --rereference";
+            }
             let stop_errors: Vec<String> =
                 stopped.stop_errors.iter().map(|e| e.to_string()).collect();
             if display.json {

@@ -125,6 +125,12 @@ pub struct RobotState {
 pub trait RobotDevice: Send {
     /// Status (mode, state, instruction, homed, error).
     fn state(&mut self) -> DeviceResult<RobotState>;
+    /// The first exchange of a run: the link resynchronised (a quiet line, stale bytes
+    /// dropped, a query whose answer is recognised as its own), then the status. By default the
+    /// status alone.
+    fn attach(&mut self) -> DeviceResult<RobotState> {
+        self.state()
+    }
     /// The eye position, mm, cell frame.
     fn position_mm(&mut self) -> DeviceResult<[f64; 3]>;
     /// Base and maximum speed (the control file's header, §5.4.1).
@@ -153,7 +159,9 @@ pub trait RobotDevice: Send {
 
 /// The mandrel indexer as the coordinator drives it (seed 001 §5.3.2, §5.6.2).
 pub trait MandrelDevice: Send {
-    /// Attaches without zeroing: the indexer's step counter as it stands.
+    /// Attaches without zeroing: the link resynchronised, a move still under way waited out (a
+    /// move armed on the start line that nobody will start cancelled), then the indexer's step
+    /// counter as it stands.
     fn attach(&mut self) -> DeviceResult<i64>;
     /// Zeroes the step counter (`.IND` init).
     fn zero(&mut self) -> DeviceResult<()>;
@@ -244,16 +252,23 @@ impl<L: Link, C: Clock> ProtocolRobot<L, C> {
     }
 }
 
+fn robot_state(s: &asea_protocol::Status) -> RobotState {
+    RobotState {
+        operate: s.mode == Mode::Operate,
+        state: s.state,
+        instruction: s.instruction,
+        homed: s.homed,
+        last_error: s.last_error,
+    }
+}
+
 impl<L: Link, C: Clock> RobotDevice for ProtocolRobot<L, C> {
     fn state(&mut self) -> DeviceResult<RobotState> {
-        let s = self.client.status()?;
-        Ok(RobotState {
-            operate: s.mode == Mode::Operate,
-            state: s.state,
-            instruction: s.instruction,
-            homed: s.homed,
-            last_error: s.last_error,
-        })
+        Ok(robot_state(&self.client.status()?))
+    }
+
+    fn attach(&mut self) -> DeviceResult<RobotState> {
+        Ok(robot_state(&self.client.attach()?))
     }
 
     fn position_mm(&mut self) -> DeviceResult<[f64; 3]> {
@@ -347,9 +362,15 @@ impl<L: Link, C: Clock> XIndexer<L, C> {
 
 impl<L: Link, C: Clock> MandrelDevice for XIndexer<L, C> {
     fn attach(&mut self) -> DeviceResult<i64> {
-        // Not `Z` or `PZ`: a restarted coordinator must find the mandrel where it is.
-        self.send(&X::Resolution(self.setup.drive.gearing.steps_per_motor_rev))?;
-        self.counter_steps()
+        // Not `Z` or `PZ`: a restarted coordinator must find the mandrel where it is. The
+        // client's attach waits for a quiet line, recognises the status among stale lines and
+        // polls until the card is at rest before it asks the position (`PR`, which a busy card
+        // would answer only when its buffer reaches it).
+        let s = self.client.attach()?;
+        match s.position_steps {
+            Some(n) => Ok(n),
+            None => self.counter_steps(),
+        }
     }
 
     fn zero(&mut self) -> DeviceResult<()> {

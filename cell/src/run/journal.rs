@@ -58,6 +58,8 @@ pub struct Journal {
     file: Option<File>,
     path: PathBuf,
     chain: u64,
+    /// The file's length after its last whole record: a failed write is cut back to it.
+    len: u64,
 }
 
 /// The text before `,"chain":"…"}` at the end of a journal line.
@@ -75,6 +77,7 @@ impl Journal {
             file: Some(file),
             path: path.to_path_buf(),
             chain: FNV_BASIS,
+            len: 0,
         })
     }
 
@@ -95,11 +98,19 @@ impl Journal {
                 path: path.to_path_buf(),
                 source,
             })?;
+        let len = file
+            .metadata()
+            .map_err(|source| JournalError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?
+            .len();
         Ok((
             Journal {
                 file: Some(file),
                 path: path.to_path_buf(),
                 chain,
+                len,
             },
             records,
         ))
@@ -111,6 +122,7 @@ impl Journal {
             file: None,
             path: PathBuf::new(),
             chain: FNV_BASIS,
+            len: 0,
         }
     }
 
@@ -119,7 +131,11 @@ impl Journal {
         &self.path
     }
 
-    /// Appends `record` (a JSON object; `chain` is added) and syncs it to disk.
+    /// Appends `record` (a JSON object; `chain` is added) and syncs it to disk: a whole record or
+    /// nothing. The line is made in one buffer and written; a write that fails or is cut short (a
+    /// full disk, `ENOSPC`; the file-size limit, `EFBIG`, with `SIGXFSZ` ignored) is cut back to
+    /// the journal's length before it, so that the journal stays whole and resumable and the
+    /// system's error is reported.
     pub fn append(&mut self, record: Value) -> Result<(), JournalError> {
         let mut map = match record {
             Value::Object(m) => m,
@@ -140,8 +156,17 @@ impl Journal {
             source,
         };
         if let Some(file) = self.file.as_mut() {
-            file.write_all(format!("{line}\n").as_bytes()).map_err(io)?;
-            file.sync_data().map_err(io)?;
+            let bytes = format!("{line}\n").into_bytes();
+            // One buffer, written whole (a write cut short is followed by one for the rest,
+            // which brings the system's error: EFBIG, ENOSPC).
+            let written = file.write_all(&bytes).and_then(|()| file.sync_data());
+            if let Err(e) = written {
+                // Cut back to the last whole record (the append position follows the length).
+                let _ = file.set_len(self.len);
+                let _ = file.sync_data();
+                return Err(io(e));
+            }
+            self.len += bytes.len() as u64;
         }
         self.chain = chain;
         Ok(())

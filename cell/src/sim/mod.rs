@@ -652,11 +652,12 @@ impl SimCell {
             time.clone(),
         );
         let client = asea_protocol::Client::with_clock(robot_link, self.clock.clone(), client_cfg);
-        // The X client keeps wall-time timeouts here: a resumed run asks the indexer's position
-        // (`PR`) while a move of the run before may still be under way, and the card answers
-        // only when its buffer reaches it; on the cell's clock that is a reply timeout.
-        let x = mandrel_drive::XClient::new(
+        // The X client runs on the cell's clock, as the robot's does: its attach polls the card
+        // until at rest before it asks the position (`PR`, answered only when the card's buffer
+        // reaches it), so no reply waits on a move of the run before.
+        let x = mandrel_drive::XClient::with_clock(
             LinkTap::indexer(self.indexer_link(), slot.clone(), time.clone()),
+            self.clock.clone(),
             mandrel_drive::IndexerConfig {
                 drive,
                 address: INDEXER_ADDRESS,

@@ -358,6 +358,97 @@ fn discrete_batch_winds_every_segment_once_and_resumes_after_a_stop() {
         .map(|n| n.mandrel.steps)
         .sum();
     assert_eq!(counter, syncs[1] + path2, "total {total}");
+    // The mandrel never turned back: the steps of every move it made (the one the stop cut
+    // and its remainder included), taken without their sign, add up to the plan's travel, the
+    // two syncs and every segment once. A resume that turned the mandrel back to the path's
+    // start angle and forward again would add twice the 30 segments' steps.
+    let (_, done, partial) = completed(&cell);
+    let turned: i64 = done.iter().chain(&partial).map(|s| s.abs()).sum();
+    assert_eq!(turned, plan_travel(&b, &syncs));
+}
+
+/// An indexer that lost power mid-batch comes back with its counter at 0 where the journal
+/// leaves the mandrel 30 segments into path 1: the resume believes neither witness alone, stops
+/// before anything turns (no move after the power loss), says how to re-reference the mandrel,
+/// and does so again on the next try; nothing of the journal's record of the batch is lost.
+#[test]
+fn a_power_cycled_indexer_is_refused_with_the_rereference_line() {
+    let b = checked(&sbend(Some(RunMode::Discrete)));
+    let dir = tempfile::tempdir().unwrap();
+    let jp = dir.path().join("J.journal");
+    let cell = SimCell::new(&SimCellConfig::default());
+    let journal = Journal::create(&jp).unwrap();
+    wind(&cell, &b, journal, &ResumePoint::default(), true, Some(30)).unwrap_err();
+    cell.timebase_sleep(Duration::from_secs(2));
+    // The power loss: the card's counter and state as at power-up.
+    cell.with(|p| p.card.machine.reset(0.0)).unwrap();
+    let moves_before = cell
+        .with(|p| {
+            p.log
+                .iter()
+                .filter(|r| matches!(r, LogRecord::Indexer { .. }))
+                .count()
+        })
+        .unwrap();
+    for _ in 0..2 {
+        let (journal, records) = Journal::resume(&jp).unwrap();
+        let from = resume_point(&b, &records).unwrap();
+        let confirmed = from.sync_counter.unwrap() + plan_steps(&b, 0, 30);
+        assert_eq!(from.counter_confirmed, Some(confirmed));
+        let refused = wind(&cell, &b, journal, &from, false, None).unwrap_err();
+        match refused.halt.fault() {
+            Some(Fault::MandrelUnreferenced {
+                cause: cell::run::coordinator::Disagreement::Counter,
+                counter_steps: 0,
+                confirmed_steps,
+                ..
+            }) => assert_eq!(*confirmed_steps, confirmed),
+            other => panic!("{other:?}"),
+        }
+        let line = refused.halt.reason();
+        assert!(
+            line.contains("re-reference") && line.contains(&format!("step {confirmed}")),
+            "{line}"
+        );
+        assert_eq!(line.lines().count(), 1);
+    }
+    let moves_after = cell
+        .with(|p| {
+            p.log
+                .iter()
+                .filter(|r| matches!(r, LogRecord::Indexer { .. }))
+                .count()
+        })
+        .unwrap();
+    assert_eq!(
+        moves_after, moves_before,
+        "the mandrel turned after the power loss"
+    );
+    let recs = journal::read(&jp).unwrap();
+    assert_eq!(
+        recs.iter().filter(|r| r["rec"] == "segment").count(),
+        30,
+        "the journal's segments"
+    );
+}
+
+/// The mandrel's travel the plan asks for, steps without sign: each path's sync from where the
+/// one before left the mandrel (the zero for the first), then every instruction's move.
+fn plan_travel(b: &Batch, syncs: &[i64]) -> i64 {
+    let mut at = 0;
+    let mut travel = 0;
+    for (item, sync) in b.items.iter().zip(syncs) {
+        travel += (sync - at).abs();
+        let steps: Vec<i64> = item
+            .rob
+            .instructions
+            .iter()
+            .map(|i| i.mandrel.steps)
+            .collect();
+        travel += steps.iter().map(|s| s.abs()).sum::<i64>();
+        at = sync + steps.iter().sum::<i64>();
+    }
+    travel
 }
 
 /// Sync lines that press "stop" `polls` in-position polls after the start edge.
@@ -887,8 +978,43 @@ fn an_indexer_stall_stops_the_robot_and_resume_completes() {
     );
     cell.with(|p| p.card.machine.pull_in_sps = mandrel_drive::sim::machine::PULL_IN_SPS)
         .unwrap();
-    resume(&cell, &b, &jp);
+    // The stall's counter counted steps the motor never made: it is no witness, and the resume
+    // stops before anything turns, saying how to re-reference the mandrel.
+    let (journal, records) = Journal::resume(&jp).unwrap();
+    let from = resume_point(&b, &records).unwrap();
+    assert!(from.stalled);
+    let refused = wind(&cell, &b, journal, &from, false, None).unwrap_err();
+    assert!(
+        matches!(
+            refused.halt.fault(),
+            Some(Fault::MandrelUnreferenced {
+                cause: cell::run::coordinator::Disagreement::Stalled,
+                ..
+            })
+        ),
+        "{refused:?}"
+    );
+    assert!(
+        refused.halt.reason().contains("--rereference"),
+        "{refused:?}"
+    );
+    // The operator turns the mandrel to the last confirmed step and confirms: the counter is
+    // re-referenced to that step's destination (the path's sync plus the plan's steps of the
+    // confirmed segments) and the batch completes.
+    let (journal, records) = Journal::resume(&jp).unwrap();
+    let from = ResumePoint {
+        rereference: true,
+        ..resume_point(&b, &records).unwrap()
+    };
+    let confirmed = from.sync_counter.unwrap() + plan_steps(&b, 0, from.segments_done);
+    wind(&cell, &b, journal, &from, false, None).unwrap();
     let recs = journal::read(&jp).unwrap();
+    let re = recs.iter().find(|r| r["rec"] == "rereference").unwrap();
+    assert_eq!(re["counter"].as_i64(), Some(confirmed));
+    assert_eq!(
+        re["offset"].as_i64(),
+        Some(re["counter_before"].as_i64().unwrap() - confirmed)
+    );
     assert_eq!(recs.last().unwrap()["rec"], "done");
 }
 
@@ -2278,6 +2404,31 @@ fn a_discrete_move_is_read_back_once_and_not_read_before() {
 /// segments; discrete mode journals each instruction); a journal naming instruction 52, path 3
 /// done, a counter a thousand revolutions away or a record out of order is refused, naming
 /// the record (its line) and the range that fits.
+/// The mandrel steps of the first `segments` instructions of path `item`, from its .ROB (each
+/// discrete segment is one instruction: its eye point and its mandrel move).
+fn plan_steps(b: &Batch, item: usize, segments: usize) -> i64 {
+    b.items[item].rob.instructions[..segments]
+        .iter()
+        .map(|i| i.mandrel.steps)
+        .sum()
+}
+
+fn refused_counter(r: &Result<ResumePoint, cell::Error>) {
+    assert!(
+        matches!(
+            r,
+            Err(cell::Error::JournalMismatch(
+                cell::error::JournalMismatch::OutOfRange {
+                    record: 2,
+                    field: "counter",
+                    ..
+                }
+            ))
+        ),
+        "{r:?}"
+    );
+}
+
 #[test]
 fn a_journal_that_does_not_fit_its_batch_is_refused() {
     use cell::error::JournalMismatch;
@@ -2290,15 +2441,26 @@ fn a_journal_that_does_not_fit_its_batch_is_refused() {
         records.extend(extra.into_iter().map(rec));
         resume_point(&b, &records)
     };
-    // What fits: path 1 done, 50 segments of path 2.
+    // What fits: path 1 done, 50 segments of path 2 (the 50th's destination is the sync plus
+    // the plan's steps of the first 50 instructions; the 51st, the path's last, may be under way).
+    let end = -3262 + plan_steps(&b, 1, 50);
+    let last = -3262 + plan_steps(&b, 1, 51);
     let p = fits(vec![
         serde_json::json!({"rec": "item_done", "item": 1}),
         serde_json::json!({"rec": "sync", "item": 1, "counter": -3262}),
-        serde_json::json!({"rec": "segment", "item": 1, "segment": 50}),
+        serde_json::json!({"rec": "segment", "item": 1, "segment": 50, "counter": end}),
     ])
     .unwrap();
     assert_eq!((p.items_done, p.segments_done), (1, 50));
     assert_eq!(p.sync_counter, Some(-3262));
+    assert_eq!(
+        (p.counter_confirmed, p.counter_next),
+        (Some(end), Some(last))
+    );
+    // A segment record without its counter does not fit: the counter is a witness.
+    refused_counter(&fits(vec![
+        serde_json::json!({"rec": "segment", "item": 0, "segment": 1}),
+    ]));
     let refused = |extra: Vec<serde_json::Value>, field: &str, line: usize| match fits(extra) {
         Err(cell::Error::JournalMismatch(JournalMismatch::OutOfRange {
             record, field: f, ..

@@ -26,6 +26,7 @@ mod record_cli;
 mod robot_programs;
 mod run_cli;
 mod run_pty;
+mod run_resume_safety;
 mod sim_indexer;
 mod sim_robot;
 mod simcell_events;

@@ -308,7 +308,7 @@ fn a_port_another_windcell_holds_is_busy_bad_input() {
         format!("[ports]\nrobot = \"{robot_pty}\"\nindexer = \"{indexer_pty}\"\n"),
     )
     .unwrap();
-    // What a running `windcell run` holds on its ports (the serial port's exclusive lock).
+    // What a running `windcell run` holds on its ports (an exclusive advisory lock, flock).
     let held = std::fs::OpenOptions::new()
         .read(true)
         .write(true)
@@ -327,7 +327,7 @@ fn a_port_another_windcell_holds_is_busy_bad_input() {
             "--cell",
             cell.to_str().unwrap(),
         ],
-        &format!("{indexer_pty}: Unable to acquire exclusive lock"),
+        &format!("{indexer_pty}: in use: another program"),
     );
     assert!(!journal.exists());
     drop(held);

@@ -300,14 +300,14 @@ fn fine_or_medium_over_ptys_to_sim_cell(mode: &str) {
 
 /// The discrete cylinder batch (`n` instructions per path) over separate `sim-robot --pty` and
 /// `sim-indexer --pty` processes with logs; the cell file in `d`.
-struct PtyCell {
-    robot: std::process::Child,
-    indexer: std::process::Child,
-    robot_log: std::path::PathBuf,
-    indexer_log: std::path::PathBuf,
+pub(crate) struct PtyCell {
+    pub(crate) robot: std::process::Child,
+    pub(crate) indexer: std::process::Child,
+    pub(crate) robot_log: std::path::PathBuf,
+    pub(crate) indexer_log: std::path::PathBuf,
 }
 
-fn pty_cell(d: &Path, n: usize) -> PtyCell {
+pub(crate) fn pty_cell(d: &Path, n: usize) -> PtyCell {
     short_cylinder(d, n);
     let robot_log = d.join("robot.log");
     let indexer_log = d.join("indexer.log");
@@ -339,7 +339,7 @@ fn pty_cell(d: &Path, n: usize) -> PtyCell {
     }
 }
 
-fn log_records(p: &Path) -> Vec<serde_json::Value> {
+pub(crate) fn log_records(p: &Path) -> Vec<serde_json::Value> {
     std::fs::read_to_string(p)
         .unwrap_or_default()
         .lines()
@@ -348,7 +348,7 @@ fn log_records(p: &Path) -> Vec<serde_json::Value> {
 }
 
 /// Starts `windcell run CYL.SEQ --mode discrete` on the cell of `d`.
-fn start_run(d: &Path) -> std::process::Child {
+pub(crate) fn start_run(d: &Path) -> std::process::Child {
     let seq = d.join("CYL.SEQ");
     let cell = d.join("cell.toml");
     Command::new(env!("CARGO_BIN_EXE_windcell"))
@@ -369,7 +369,7 @@ fn start_run(d: &Path) -> std::process::Child {
 }
 
 /// Waits until the journal of `d` holds `segments` segment records.
-fn wait_for_segments(d: &Path, segments: usize) {
+pub(crate) fn wait_for_segments(d: &Path, segments: usize) {
     let journal = d.join("CYL.journal");
     let t_start = std::time::Instant::now();
     while std::fs::read_to_string(&journal)

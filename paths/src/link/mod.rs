@@ -253,6 +253,54 @@ pub fn read_within<L: Link + ?Sized, C: Clock + ?Sized>(
     }
 }
 
+/// How [`drain_until_quiet`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Drained {
+    /// Bytes read and dropped.
+    pub dropped: usize,
+    /// True when the line stayed quiet for the asked span; false when bytes kept coming until
+    /// the limit.
+    pub quiet: bool,
+}
+
+/// Waits until `link` has been quiet for `quiet` (of `clock`), reading and dropping whatever
+/// comes meanwhile, for at most `limit`: a client that attaches to a device a killed run left
+/// talking (stale echoes, replies to commands the device still had buffered) starts on a line
+/// that says nothing, so that the first answer it reads is the answer to its own query. A quiet
+/// span is measured from the last byte read.
+pub fn drain_until_quiet<L: Link + ?Sized, C: Clock + ?Sized>(
+    link: &mut L,
+    clock: &C,
+    quiet: Duration,
+    limit: Duration,
+) -> io::Result<Drained> {
+    let deadline = clock.now() + limit;
+    let mut last = clock.now();
+    let mut dropped = 0;
+    let mut buf = [0u8; 256];
+    loop {
+        let now = clock.now();
+        if now.saturating_sub(last) >= quiet {
+            return Ok(Drained {
+                dropped,
+                quiet: true,
+            });
+        }
+        if now >= deadline {
+            return Ok(Drained {
+                dropped,
+                quiet: false,
+            });
+        }
+        let left = (last + quiet).min(deadline).saturating_sub(now);
+        let n = link.read_timeout(&mut buf, left.clamp(Duration::from_nanos(1), POLL_PERIOD))?;
+        if n > 0 {
+            dropped += n;
+            last = clock.now();
+        }
+    }
+}
+
 /// A monotonic clock: time since its epoch.
 pub trait Clock: Send + Sync + std::fmt::Debug {
     /// Time since the epoch.
@@ -473,6 +521,64 @@ mod tests {
         let t0 = w.now();
         std::thread::sleep(Duration::from_millis(2));
         assert!(w.now() >= t0 + Duration::from_millis(2));
+    }
+
+    /// A line that talks for a while is drained until it has been quiet for the span asked,
+    /// measured from its last byte; a line that never stops talking ends at the limit, not quiet.
+    #[test]
+    fn a_line_is_drained_until_it_goes_quiet() {
+        let (mut a, mut b) = Pipe::pair();
+        let talker = std::thread::spawn(move || {
+            for _ in 0..5 {
+                a.write_all(b"1G\r").unwrap();
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            a
+        });
+        let clock = WallClock::new();
+        let t0 = Instant::now();
+        let d = drain_until_quiet(
+            &mut b,
+            &clock,
+            Duration::from_millis(80),
+            Duration::from_secs(5),
+        )
+        .unwrap();
+        let a = talker.join().unwrap();
+        assert!(d.quiet);
+        assert_eq!(d.dropped, 15);
+        // Five lines 20 ms apart, then 80 ms of quiet.
+        assert!(
+            t0.elapsed() >= Duration::from_millis(80 + 4 * 20),
+            "{:?}",
+            t0.elapsed()
+        );
+        let mut buf = [0u8; 4];
+        assert_eq!(
+            b.read_timeout(&mut buf, Duration::from_millis(1)).unwrap(),
+            0
+        );
+        // A line that keeps talking: the limit ends the wait.
+        let stop = Arc::new(AtomicBool::new(false));
+        let s2 = stop.clone();
+        let mut a2 = a.clone();
+        let chatter = std::thread::spawn(move || {
+            while !s2.load(Ordering::SeqCst) {
+                let _ = a2.write_all(b"x");
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        });
+        let d = drain_until_quiet(
+            &mut b,
+            &clock,
+            Duration::from_millis(50),
+            Duration::from_millis(200),
+        )
+        .unwrap();
+        stop.store(true, Ordering::SeqCst);
+        chatter.join().unwrap();
+        assert!(!d.quiet && d.dropped > 0, "{d:?}");
+        drop(a);
     }
 
     /// A cancel token shared by clones: set, seen, reset.

@@ -20,12 +20,29 @@ impl Coordinator<'_> {
         let n = prep.targets_mm.len();
         // Where the robot is: read before the first segment, then what each segment confirmed.
         let mut here = None;
+        if from > 0 && from < n && !resume.is_some_and(|r| r.rereference) {
+            // A resume mid-path: the arm is the second witness. It stands on the move from the
+            // last confirmed point to the next one, or the run stops before anything moves.
+            let at = self.dev.robot.position_mm()?;
+            let confirmed = prep.targets_mm[from - 1];
+            let off_mm = distance_to_segment_mm(at, confirmed, prep.targets_mm[from]);
+            if off_mm > ARM_WITNESS_MM {
+                return Err(Fault::ArmUnreferenced(Box::new(ArmWitness {
+                    at_mm: at,
+                    confirmed_mm: confirmed,
+                    off_mm,
+                    segment: from + 1,
+                }))
+                .into());
+            }
+            here = Some(at);
+        }
         for s in from..n {
             self.check()?;
             let target = base + prep.cumulative_steps[s + 1];
             // Send both, then wait for both (seed 001 §5.3.3).
             let counter = if s == from {
-                self.dev.mandrel.counter_steps()?
+                self.counter()?
             } else {
                 base + prep.cumulative_steps[s]
             };

@@ -133,9 +133,86 @@ pub enum Fault {
         /// How far from the last point, mm.
         off_mm: f64,
     },
+    /// On a resume the witnesses of the mandrel's angle disagree: the indexer's counter is not
+    /// where the journal leaves the mandrel (a power-cycled indexer reads 0, a journal cut short
+    /// is behind the devices), or the run before stopped on a stall (its counter counted steps
+    /// the motor never made). Winding on would wind off-angle; the mandrel is re-referenced
+    /// first.
+    #[error(
+        "indexer: {cause}: the counter reads {counter_steps} steps where the journal leaves the mandrel at {}; re-reference the mandrel: turn it to step {confirmed_steps} of the batch ({confirmed_deg:.1}° from the batch's zero, the last confirmed step) and resume with --rereference, or start over with --restart",
+        window(*confirmed_steps, *next_steps)
+    )]
+    MandrelUnreferenced {
+        /// Which witness failed.
+        cause: Disagreement,
+        /// The indexer's counter in the batch's frame, steps.
+        counter_steps: i64,
+        /// The journal's last confirmed destination, steps.
+        confirmed_steps: i64,
+        /// The destination of the step that may have been under way, steps.
+        next_steps: Option<i64>,
+        /// The last confirmed destination as a mandrel angle from the batch's zero, degrees.
+        confirmed_deg: f64,
+    },
+    /// On a discrete resume the arm does not stand where the journal leaves it (on the move
+    /// from the last confirmed point to the next): homed again after a power loss, or moved by
+    /// hand.
+    #[error("{0}")]
+    ArmUnreferenced(Box<ArmWitness>),
+}
+
+/// Where the arm stands against the journal on a discrete resume ([`Fault::ArmUnreferenced`]).
+#[derive(Debug, Clone, thiserror::Error)]
+#[error(
+    "robot: the arm stands at ({:.1}, {:.1}, {:.1}) mm, {off_mm:.1} mm from segment {segment}'s move where the journal leaves it; bring it to the last confirmed point with `windcell jog --pos {:.3},{:.3},{:.3}` and resume",
+    at_mm[0], at_mm[1], at_mm[2], confirmed_mm[0], confirmed_mm[1], confirmed_mm[2]
+)]
+pub struct ArmWitness {
+    /// Where the arm stands, cell frame, mm.
+    pub at_mm: [f64; 3],
+    /// The last confirmed point, cell frame, mm.
+    pub confirmed_mm: [f64; 3],
+    /// How far from the move it may have been on, mm.
+    pub off_mm: f64,
+    /// The segment (from 1) after the last confirmed one.
+    pub segment: usize,
+}
+
+/// Which witness of the mandrel's angle disagreed on a resume ([`Fault::MandrelUnreferenced`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Disagreement {
+    /// The counter is outside what the journal allows.
+    Counter,
+    /// The run before stopped on a stall.
+    Stalled,
+}
+
+impl std::fmt::Display for Disagreement {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Disagreement::Counter => {
+                "the counter and the journal disagree (a power-cycled indexer, a journal cut short, or a counter moved by another program)"
+            }
+            Disagreement::Stalled => {
+                "the motor stalled in the run before, so its counter holds steps the mandrel never made"
+            }
+        })
+    }
+}
+
+fn window(confirmed: i64, next: Option<i64>) -> String {
+    match next {
+        Some(n) => format!("{confirmed} to {n} steps"),
+        None => format!("{confirmed} steps"),
+    }
 }
 
 impl Fault {
+    /// True where the run stopped because the mandrel must be re-referenced before a resume.
+    pub fn needs_rereference(&self) -> bool {
+        matches!(self, Fault::MandrelUnreferenced { .. })
+    }
+
     /// The device error behind the fault, if a device reported it.
     pub fn device_error(&self) -> Option<&DeviceError> {
         match self {

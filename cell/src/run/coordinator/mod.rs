@@ -40,8 +40,8 @@ mod resume;
 mod stop;
 
 pub use checked::{Batch, Item, Reach, handshake_program, program_units};
-pub use halt::{Fault, Halt, Stopped};
-pub use resume::{ResumePoint, resume_point};
+pub use halt::{ArmWitness, Disagreement, Fault, Halt, Stopped};
+pub use resume::{ARM_WITNESS_MM, ResumePoint, distance_to_segment_mm, resume_point};
 pub use stop::StopRequest;
 
 /// The coordinator's control tick: the longest it goes without looking at the stop request and
@@ -230,6 +230,8 @@ pub struct Coordinator<'a> {
     events: &'a mut dyn FnMut(Event),
     item: usize,
     segments_done: usize,
+    /// The indexer's counter minus the batch's counter (a re-reference's offset, 0 before any).
+    offset_steps: i64,
 }
 
 impl std::fmt::Debug for Coordinator<'_> {
@@ -294,6 +296,7 @@ impl<'a> Coordinator<'a> {
             events,
             item: 0,
             segments_done: 0,
+            offset_steps: 0,
         }
     }
 
@@ -319,6 +322,11 @@ impl<'a> Coordinator<'a> {
             }));
         }
         Ok(())
+    }
+
+    /// The indexer's counter in the batch's frame (a re-reference's offset taken off).
+    fn counter(&mut self) -> Result<i64, DeviceError> {
+        Ok(self.dev.mandrel.counter_steps()? - self.offset_steps)
     }
 
     /// Waits (one control tick at a time, looking at the stop request) until `done`.
@@ -367,11 +375,14 @@ impl<'a> Coordinator<'a> {
                     h => h,
                 };
                 let item = self.item.min(batch.items.len().saturating_sub(1));
+                // A stall is kept as a flag: its counter is no witness on the resume.
+                let stall = halt.fault().is_some_and(Fault::is_stall);
                 let _ = self.journal.append(json!({
                     "rec": "stopped",
                     "item": item,
                     "segments_done": self.segments_done,
                     "reason": halt.reason(),
+                    "stall": stall,
                     "t_s": self.dev.time.now_s(),
                 }));
                 Err(Stopped {
@@ -413,14 +424,19 @@ impl<'a> Coordinator<'a> {
                 .append(json!({"rec": "resume", "items_done": from.items_done}))?;
         }
         self.check()?;
-        // Attach: the indexer without zeroing, then zero it once for a fresh batch.
+        // Attach: each link resynchronised before its first command (a run killed before this
+        // one may have left stale bytes, a move under way, an armed move, a robot homing); the
+        // indexer without zeroing, then zeroed once for a fresh batch.
         self.dev.sync.set_start(false)?;
-        self.cancel_armed_move()?;
+        self.dev.robot.attach()?;
         let counter = self.dev.mandrel.attach()?;
         if fresh {
             self.dev.mandrel.zero()?;
             self.journal
                 .append(json!({"rec": "mandrel_zero", "counter_before": counter}))?;
+        } else {
+            // Never one witness: the counter against the journal before anything turns.
+            self.reconcile_mandrel(batch, from, counter)?;
         }
         self.ready_robot()?;
         if batch.mode != RunMode::Discrete {

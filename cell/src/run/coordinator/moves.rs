@@ -26,6 +26,13 @@ impl Coordinator<'_> {
                 Ok(d.robot.state()?.state != State::Running)
             })?;
         }
+        if self.dev.robot.state()?.state == State::Homing {
+            // A home synchronisation a killed run started: any command now would be refused
+            // (robot error 7, busy); it is waited out.
+            self.wait("the robot's home synchronisation", HOME_TIMEOUT_S, |d| {
+                Ok(d.robot.state()?.state != State::Homing)
+            })?;
+        }
         let s = self.dev.robot.state()?;
         if !s.operate {
             self.dev.robot.set_operate(true)?;
@@ -137,7 +144,7 @@ impl Coordinator<'_> {
             }
             Ok(!busy)
         })?;
-        let c = self.dev.mandrel.counter_steps()?;
+        let c = self.counter()?;
         if c != target {
             return Err(Fault::CounterMismatch {
                 counter_steps: c,
@@ -171,7 +178,18 @@ impl Coordinator<'_> {
         resume: Option<&ResumePoint>,
     ) -> Result<i64, Step> {
         let prep = &batch.prepared[k];
-        let counter = self.dev.mandrel.counter_steps()?;
+        let (base, max) = transfer::speeds(&batch.items[k].rob.header)
+            .map_err(|e| Fault::Transfer(Arc::new(e)))?;
+        if let Some(r) = resume.filter(|r| r.segments_done > 0)
+            && let Some(sync) = r.sync_counter
+        {
+            // Mid-path: the path's start angle is behind the mandrel. It continues from where it
+            // stands (checked against the journal on attach), never turned back to the start
+            // and forward again.
+            self.dev.robot.set_speeds(base, max)?;
+            return Ok(sync);
+        }
+        let counter = self.counter()?;
         let target = match resume.and_then(|r| r.sync_counter) {
             Some(t) => t,
             None => {
@@ -181,8 +199,6 @@ impl Coordinator<'_> {
                 t
             }
         };
-        let (base, max) = transfer::speeds(&batch.items[k].rob.header)
-            .map_err(|e| Fault::Transfer(Arc::new(e)))?;
         self.dev.robot.set_speeds(base, max)?;
         let moving = self.mandrel_start(prep.mandrel[0], counter, target, false)?;
         if moving {

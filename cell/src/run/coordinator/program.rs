@@ -68,7 +68,7 @@ impl Coordinator<'_> {
             // A move still turning (the devices ran on after `kill -9`) finishes (an armed
             // move that never saw its start edge was cancelled before the attach).
             self.wait("mandrel move", MOVE_TIMEOUT_S, |d| Ok(!d.mandrel.busy()?.0))?;
-            let counter = self.dev.mandrel.counter_steps()?;
+            let counter = self.counter()?;
             if distance_mm(here, last) <= POSITION_TOLERANCE_MM && counter == end {
                 return Ok(());
             }

@@ -89,20 +89,4 @@ impl Coordinator<'_> {
         let _ = self.dev.sync.set_start(false);
         errors
     }
-
-    /// Cancels a mandrel move armed on the start line that never saw its start edge (the PC
-    /// stopped between arming the indexer and the edge, and nobody cancelled it since): it holds
-    /// the indexer's command buffer, so that nothing buffered after it (the attach's position
-    /// request) is answered. A move still turning (its step count moves within 100 ms) is left
-    /// to finish.
-    pub(super) fn cancel_armed_move(&mut self) -> Result<(), Step> {
-        if self.dev.mandrel.busy()?.0 {
-            let before = self.dev.mandrel.move_steps()?;
-            self.dev.time.sleep(Duration::from_millis(100));
-            if self.dev.mandrel.move_steps()? == before {
-                self.dev.mandrel.stop()?;
-            }
-        }
-        Ok(())
-    }
 }
