@@ -325,6 +325,18 @@ mod tests {
             assert!(a.pose.entry_angle_rad < 1e-6);
         }
         assert!(matches!(six_plan.arm, PathArm::SixAxis(_)));
+        // The same steps, so the same drift from the ideal angles (at most half a step).
+        assert!((six_plan.max_drift_rad - irb_plan.max_drift_rad).abs() < 1e-12);
+        assert!(six_plan.max_drift_rad > 0.0);
+        assert!(six_plan.max_drift_rad <= 0.5 * Gearing::default().step_angle_rad() + 1e-12);
+        // An eye inside the mandrel (or a clearance that is not a number) is refused.
+        for inside in [-1.0, 0.0, f64::NAN] {
+            let e = plan_path(&points, |_| inside, &setup(800.0, Some(six)), &s);
+            assert!(
+                matches!(e, Err(crate::Error::EyeInsideMandrel { segment: 0, .. })),
+                "{inside}: {e:?}"
+            );
+        }
         // Decoupled: no external axis.
         let decoupled = SixAxisCell {
             axis: MandrelAxis {
