@@ -171,15 +171,10 @@ impl Checked {
         if let Some(six) = &self.setup.six_axis {
             return joints.map_or_else(Vec::new, |q| six.arm.links(q).to_vec());
         }
-        let rho = eye_mm.x.hypot(eye_mm.y);
-        if rho <= 1e-9 {
+        if eye_mm.x.hypot(eye_mm.y) <= 1e-9 {
             return Vec::new();
         }
-        let across = nalgebra::Vector3::new(-eye_mm.y / rho, eye_mm.x / rho, 0.0);
-        let Some(roll) = nalgebra::Unit::try_new(axis - across * axis.dot(&across), 1e-9) else {
-            return Vec::new();
-        };
-        match self.arm.inverse(eye_mm, &roll, 0.0, ELBOW_BRANCH) {
+        match clearance::sweep::irb_joints_at(&self.arm, ELBOW_BRANCH, eye_mm, axis) {
             Ok(j) => self.arm.links(&j).iter().take(4).copied().collect(),
             Err(_) => Vec::new(),
         }

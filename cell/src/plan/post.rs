@@ -51,13 +51,7 @@ pub fn six_axis_arm(
     if let Some(arm) = job.six_axis_arm() {
         return Ok(arm);
     }
-    let span = job
-        .cell
-        .robot
-        .as_ref()
-        .and_then(|r| r.kind.as_ref().map(|k| k.span()))
-        .unwrap_or_else(|| job.name.span());
-    let (line, column) = sequences::error::line_column(text, span.start);
+    let (line, column) = tool::kind_place(job, text);
     Err(Error::PostNeedsSixAxis {
         file: file.to_path_buf(),
         line,
@@ -69,9 +63,7 @@ pub fn six_axis_arm(
 /// The tool frame in the flange frame, as the programs declare it.
 pub fn tool_frame(arm: &SixAxisArm) -> Frame {
     let f = arm.tool.frame();
-    let q = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(
-        f.rotation,
-    ));
+    let q = f.quaternion();
     Frame {
         position_mm: [f.translation_mm.x, f.translation_mm.y, f.translation_mm.z],
         orientation: wxyz(&q),

@@ -369,15 +369,12 @@ fn error_span(job: &Job, spec: &PathSpec, error: &paths::Error) -> Range<usize> 
 /// Refuses a job for a six-axis arm in `command`, a command that drives or simulates the IRB 6/2
 /// cell (`run`, `predict`): one line at the job's `[cell.robot] kind`.
 pub fn irb62_only(job: &Job, text: &str, file: &Path, command: &'static str) -> Result<(), Error> {
-    let Some(kind) = job.cell.robot.as_ref().and_then(|r| r.kind.as_ref()) else {
-        return Ok(());
-    };
-    let name = match kind.get_ref() {
+    let name = match job.robot_kind() {
         sequences::job::RobotKind::Irb6 => return Ok(()),
         sequences::job::RobotKind::Opw => "opw",
         sequences::job::RobotKind::Ur => "ur",
     };
-    let (line, column) = sequences::error::line_column(text, kind.span().start);
+    let (line, column) = kind_place(job, text);
     Err(Error::SixAxisNotDriven {
         file: file.to_path_buf(),
         line,
@@ -385,6 +382,18 @@ pub fn irb62_only(job: &Job, text: &str, file: &Path, command: &'static str) -> 
         kind: name,
         command,
     })
+}
+
+/// Where a refusal about the job's arm points: `[cell.robot] kind`, or the job's name when the
+/// job names no kind (the IRB 6/2 by default), as line and column of `text`.
+pub fn kind_place(job: &Job, text: &str) -> (usize, usize) {
+    let span = job
+        .cell
+        .robot
+        .as_ref()
+        .and_then(|r| r.kind.as_ref().map(|k| k.span()))
+        .unwrap_or_else(|| job.name.span());
+    sequences::error::line_column(text, span.start)
 }
 
 /// Plans every path of `job`. `text` and `file` locate errors in the job file.

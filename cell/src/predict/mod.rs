@@ -611,6 +611,46 @@ fn setup_errors(
     Ok(setup)
 }
 
+/// The largest placement errors of a path's segment chords alone, mm: the eye on straight chords
+/// between the planned eye points and the mandrel moving in proportion, first at the ideal
+/// (eq 3.7) angles, then at the commanded (whole-step) ones (the module's "segment chords" and
+/// "step quantisation").
+fn chord_errors(
+    path: &PlannedPath,
+    tube: &Tube,
+    transform: &paths::calibration::CellTransform,
+) -> Result<(f64, f64), Error> {
+    let start = path.plan.start.tangent_point_mm;
+    let poses: Vec<&paths::Pose> = std::iter::once(&path.plan.start)
+        .chain(path.plan.segments.iter().map(|s| &s.pose))
+        .collect();
+    let model = |angle: &dyn Fn(&paths::Pose) -> f64| -> Result<LaidPath, Error> {
+        let eye: Vec<(f64, [f64; 3])> = poses
+            .iter()
+            .enumerate()
+            .map(|(k, p)| (k as f64, eye_cell(transform, &p.eye_mandrel_mm, angle(p))))
+            .collect();
+        let mandrel: Vec<(f64, f64)> = poses
+            .iter()
+            .enumerate()
+            .map(|(k, p)| (k as f64, angle(p)))
+            .collect();
+        lay_model(
+            tube,
+            &start,
+            &eye,
+            &mandrel,
+            transform,
+            MODEL_STEPS_PER_SEGMENT,
+        )
+    };
+    let desired = &path.desired_mm;
+    Ok((
+        max_error(&model(&|p| p.ideal_mandrel_rad)?, desired),
+        max_error(&model(&|p| p.mandrel_rad)?, desired),
+    ))
+}
+
 /// One path's prediction: the laid fibre of the simulated motion against the desired path, the
 /// error's sources (chords, quantisation, the robot's corners, timing) and the setup's spread.
 #[allow(clippy::too_many_arguments)]
@@ -641,32 +681,10 @@ fn predict_path(
         .fold((0, 0.0f64), |a, (k, &e)| if e > a.1 { (k, e) } else { a });
     let at = pts.get(k_max).copied().unwrap_or(start);
 
-    // Chords at the ideal angles, and at the commanded angles.
     let poses: Vec<&paths::Pose> = std::iter::once(&path.plan.start)
         .chain(path.plan.segments.iter().map(|s| &s.pose))
         .collect();
-    let model = |angle: &dyn Fn(&paths::Pose) -> f64| -> Result<LaidPath, Error> {
-        let eye: Vec<(f64, [f64; 3])> = poses
-            .iter()
-            .enumerate()
-            .map(|(k, p)| (k as f64, eye_cell(transform, &p.eye_mandrel_mm, angle(p))))
-            .collect();
-        let mandrel: Vec<(f64, f64)> = poses
-            .iter()
-            .enumerate()
-            .map(|(k, p)| (k as f64, angle(p)))
-            .collect();
-        lay_model(
-            tube,
-            &start,
-            &eye,
-            &mandrel,
-            transform,
-            MODEL_STEPS_PER_SEGMENT,
-        )
-    };
-    let chords = max_error(&model(&|p| p.ideal_mandrel_rad)?, desired);
-    let quantised = max_error(&model(&|p| p.mandrel_rad)?, desired);
+    let (chords, quantised) = chord_errors(path, tube, transform)?;
     let corners = robot_path_error(
         tube, &start, &poses, trace, window, transform, desired, quantised,
     )?;

@@ -25,10 +25,7 @@ use nalgebra::Point3;
 use paths::placement::{self, SampledEye};
 use paths::{Calibration, Tube};
 
-use super::{
-    MODEL_STEPS_PER_SEGMENT, Options, PathPrediction, Sources, eye_cell, lay_model, max_error,
-    run_error, segment_of,
-};
+use super::{Options, PathPrediction, Sources, chord_errors, eye_cell, run_error, segment_of};
 use crate::Error;
 use crate::plan::tool::PlannedPath;
 
@@ -52,30 +49,7 @@ pub fn predict_path(
     let poses: Vec<&paths::Pose> = std::iter::once(&plan.start)
         .chain(plan.segments.iter().map(|s| &s.pose))
         .collect();
-
-    // Chords at the ideal angles, and at the commanded angles.
-    let model = |angle: &dyn Fn(&paths::Pose) -> f64| {
-        let eye: Vec<(f64, [f64; 3])> = poses
-            .iter()
-            .enumerate()
-            .map(|(k, p)| (k as f64, eye_cell(&transform, &p.eye_mandrel_mm, angle(p))))
-            .collect();
-        let mandrel: Vec<(f64, f64)> = poses
-            .iter()
-            .enumerate()
-            .map(|(k, p)| (k as f64, angle(p)))
-            .collect();
-        lay_model(
-            tube,
-            &start,
-            &eye,
-            &mandrel,
-            &transform,
-            MODEL_STEPS_PER_SEGMENT,
-        )
-    };
-    let chords = max_error(&model(&|p| p.ideal_mandrel_rad)?, desired);
-    let quantised = max_error(&model(&|p| p.mandrel_rad)?, desired);
+    let (chords, quantised) = chord_errors(path, tube, &transform)?;
 
     // The timed motion: the eye linear in time within each segment, the mandrel as its drive
     // turns it.

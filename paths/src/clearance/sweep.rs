@@ -666,7 +666,16 @@ fn eye_lipschitz(ctx: &Context<'_>, from: &End, to: &End) -> f64 {
 /// the arm plane (the vertical plane through the pedestal axis and the eye; a five-axis arm has
 /// no wrist yaw, seed 001 §4.1.1).
 fn irb_joints(arm: &Arm, branch: ElbowBranch, at: &At) -> Result<crate::Joints, Error> {
-    let (eye, axis) = (&at.eye, at.axis());
+    irb_joints_at(arm, branch, &at.eye, &at.axis())
+}
+
+/// [`irb_joints`] for an eye (cell frame) and a tool axis (eye toward the mandrel).
+pub fn irb_joints_at(
+    arm: &Arm,
+    branch: ElbowBranch,
+    eye: &Point3<f64>,
+    axis: &Vector3<f64>,
+) -> Result<crate::Joints, Error> {
     let rho = eye.x.hypot(eye.y);
     let across = if rho > 1e-9 {
         Vector3::new(-eye.y / rho, eye.x / rho, 0.0)
