@@ -119,13 +119,6 @@ fn discrete_batch_over_ptys_to_separate_simulators() {
     assert!(journal.lines().last().unwrap().contains("\"rec\":\"done\""));
     // The simulators' own logs: every robot target once, in order; every segment's mandrel move
     // once, in order (the syncs at each path's start between them).
-    let records = |p: &std::path::Path| -> Vec<serde_json::Value> {
-        std::fs::read_to_string(p)
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect()
-    };
     let mut targets = Vec::new();
     let mut steps = Vec::new();
     for k in 1..=2 {
@@ -149,18 +142,7 @@ fn discrete_batch_over_ptys_to_separate_simulators() {
             }
         }
     }
-    let done: Vec<Vec<f64>> = records(&robot_log)
-        .iter()
-        .filter(|r| r["completed"] == true)
-        .map(|r| {
-            r["target_mm"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        })
-        .collect();
+    let done: Vec<Vec<f64>> = completed_targets(&robot_log);
     assert_eq!(done.len(), targets.len(), "{done:?}");
     for (got, want) in done.iter().zip(&targets) {
         assert!(
@@ -168,7 +150,7 @@ fn discrete_batch_over_ptys_to_separate_simulators() {
             "{got:?} against {want:?}"
         );
     }
-    let turned: Vec<i64> = records(&indexer_log)
+    let turned: Vec<i64> = log_records(&indexer_log)
         .iter()
         .map(|r| r["steps"].as_i64().unwrap())
         .collect();
@@ -344,6 +326,22 @@ pub(crate) fn log_records(p: &Path) -> Vec<serde_json::Value> {
         .unwrap_or_default()
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+/// The targets of a robot simulator's log (`log_records`) that it completed, in order, mm.
+pub(crate) fn completed_targets(log: &Path) -> Vec<Vec<f64>> {
+    log_records(log)
+        .iter()
+        .filter(|r| r["completed"] == true)
+        .map(|r| {
+            r["target_mm"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
         .collect()
 }
 
@@ -589,18 +587,7 @@ fn resume_and_check(d: &Path, cell: PtyCell) {
             );
         }
     }
-    let done: Vec<Vec<f64>> = log_records(&cell.robot_log)
-        .iter()
-        .filter(|r| r["completed"] == true)
-        .map(|r| {
-            r["target_mm"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        })
-        .collect();
+    let done: Vec<Vec<f64>> = completed_targets(&cell.robot_log);
     assert_eq!(done.len(), targets.len(), "{done:?}");
     for (got, want) in done.iter().zip(&targets) {
         assert!(

@@ -12,7 +12,9 @@ use std::time::{Duration, Instant};
 use cell::run::journal;
 use common::{example, stderr, windcell};
 
-use crate::run_pty::{PtyCell, log_records, pty_cell, start_run, wait_for_segments};
+use crate::run_pty::{
+    PtyCell, completed_targets, log_records, pty_cell, start_run, wait_for_segments,
+};
 
 /// The pty tests of this file one at a time: each runs two simulators and up to two `windcell`
 /// processes in real time, and on a loaded two-core machine several at once starve the
@@ -202,18 +204,7 @@ fn kill_trial(kill_after: Duration, resume_after: Duration) -> Trial {
     let records = journal::read(&jp).unwrap_or_default();
     let completed = o.status.success() && records.last().and_then(journal::kind) == Some("done");
     let want = plan_targets(d);
-    let done: Vec<Vec<f64>> = log_records(&robot_log)
-        .iter()
-        .filter(|r| r["completed"] == true)
-        .map(|r| {
-            r["target_mm"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        })
-        .collect();
+    let done: Vec<Vec<f64>> = completed_targets(&robot_log);
     let targets_once_in_order = done.len() == want.len()
         && done
             .iter()
