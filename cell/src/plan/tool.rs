@@ -445,7 +445,8 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         )
     };
     std::thread::scope(|scope| {
-        let solid = scope.spawn(|| paths::clearance::MeshSolid::new(&prepared));
+        let solid =
+            scope.spawn(|| paths::clearance::MeshSolid::with_adjacency(&prepared, &adjacency));
         let tracer = paths::mesh::trace::Tracer::new(
             prepared.clone(),
             &adjacency,

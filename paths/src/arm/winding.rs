@@ -203,6 +203,38 @@ pub fn lever_arms_mm(arm: &SixAxisArm, extra_mm: f64) -> [f64; 6] {
     std::array::from_fn(|j| chain[j] + extra_mm)
 }
 
+/// Per link, [`lever_arms_mm`] without the eye mechanism: `[k][j]` bounds how far a point of link
+/// `k` ([`SixAxisArm::links`]) can lie from joint `j`'s axis, the chain's length from joint `j`'s
+/// link point to the link's far end (0 for the joints after the link, which do not move it).
+pub fn link_lever_arms_mm(arm: &SixAxisArm) -> [[f64; 6]; super::LINKS] {
+    let q = [0.0; 6];
+    let p = arm.kind.link_points(&q);
+    let eye = arm.tool_frame(&q).origin();
+    // along[i]: the chain's length from the base to point i (point 7: the eye).
+    let mut along = [0.0; 8];
+    for i in 1..8 {
+        let here = if i < 7 { p[i] } else { eye };
+        along[i] = along[i - 1] + (here - p[i - 1]).norm();
+    }
+    std::array::from_fn(|k| {
+        std::array::from_fn(|j| if j <= k { along[k + 1] - along[j] } else { 0.0 })
+    })
+}
+
+/// For the links that move with the tool frame, the farthest of their points from the eye, mm:
+/// the wrist link (wrist centre to flange, on axis 6, which turning axis 6 leaves in place) and
+/// the tool (flange to eye). The other links: `None`.
+pub fn tool_reach_mm(arm: &SixAxisArm) -> [Option<f64>; super::LINKS] {
+    let q = [0.0; 6];
+    let p = arm.kind.link_points(&q);
+    let eye = arm.tool_frame(&q).origin();
+    let from_eye = |i: usize| (p[i] - eye).norm();
+    let mut reach = [None; super::LINKS];
+    reach[5] = Some(from_eye(5).max(from_eye(6)));
+    reach[6] = Some(from_eye(6));
+    reach
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -438,6 +470,76 @@ mod tests {
                 }
                 let moved = (arm.tool_frame(&q2).origin() - arm.tool_frame(&q).origin()).norm();
                 assert!(moved <= bound * (1.0 + 1e-6) + 1e-12);
+            }
+        }
+    }
+    /// Per link: a small joint move moves link `k`'s ends no further than `Σ_{j≤k} |Δqⱼ| ·
+    /// lever[k][j]`, and the joints after it do not move it at all; the wrist link and the tool
+    /// sit still in the tool frame whatever the joints (so on a straight move they move as the
+    /// frame does), within their reach of the eye.
+    #[test]
+    fn link_levers_and_tool_reach_bound_each_link() {
+        for arm in [
+            irb2600(),
+            SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap(),
+        ] {
+            let levers = link_lever_arms_mm(&arm);
+            let reach = tool_reach_mm(&arm);
+            assert!(reach[..5].iter().all(Option::is_none));
+            let ends = |q: &Joints6| {
+                let p = arm.kind.link_points(q);
+                let eye = arm.tool_frame(q).origin();
+                let at = |i: usize| if i < 7 { p[i] } else { eye };
+                std::array::from_fn::<_, 7, _>(|k| [at(k), at(k + 1)])
+            };
+            let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+            let mut next = || {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            };
+            let in_tool = |q: &Joints6, p: &Point3<f64>| {
+                let f = arm.tool_frame(q);
+                f.rotation.transpose() * (p.coords - f.translation_mm)
+            };
+            let home = [0.0; 6];
+            for _ in 0..500 {
+                let q: Joints6 = std::array::from_fn(|_| 3.0 * next());
+                let dq: Joints6 = std::array::from_fn(|_| 1e-4 * next());
+                let q2: Joints6 = std::array::from_fn(|j| q[j] + dq[j]);
+                let (a, b) = (ends(&q), ends(&q2));
+                for k in 0..7 {
+                    let bound: f64 = (0..6).map(|j| dq[j].abs() * levers[k][j]).sum();
+                    for e in 0..2 {
+                        let moved = (b[k][e] - a[k][e]).norm();
+                        assert!(
+                            moved <= bound * (1.0 + 1e-6) + 1e-12,
+                            "link {k}: {moved} > {bound}"
+                        );
+                    }
+                    // Only the joints up to the link's own move it.
+                    let later: Joints6 = std::array::from_fn(|j| if j > k { q2[j] } else { q[j] });
+                    let c = ends(&later);
+                    for e in 0..2 {
+                        assert!(
+                            (c[k][e] - a[k][e]).norm() < 1e-9,
+                            "link {k} moved by a later joint"
+                        );
+                    }
+                }
+                for k in 5..7 {
+                    let r = reach[k].unwrap();
+                    for (e, end) in a[k].iter().enumerate() {
+                        let here = in_tool(&q, end);
+                        let there = in_tool(&home, &ends(&home)[k][e]);
+                        assert!(
+                            (here - there).norm() < 1e-6,
+                            "link {k} moves in the tool frame"
+                        );
+                        assert!(here.norm() <= r + 1e-9, "link {k} beyond its reach {r}");
+                    }
+                }
             }
         }
     }

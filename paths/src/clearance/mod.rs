@@ -5,7 +5,7 @@
 //!
 //! - [`solid`]: the mandrel as a solid with a signed distance (negative inside): the analytic tube
 //!   ([`solid::TubeSolid`], closed form on straight spines) and triangle meshes
-//!   ([`solid::MeshSolid`], parry3d's BVH).
+//!   ([`solid::MeshSolid`], its [`bvh`]).
 //! - [`minimum`]: the certified minimum of a Lipschitz function on an interval, used both along a
 //!   segment (the free fibre) and over the time of a move (the sweep between segment ends).
 //! - [`sweep`]: every segment of every path of a job, and the approach and link moves between
@@ -16,6 +16,7 @@
 //! the **cell frame** and are turned into the mandrel frame at the mandrel angle of the moment:
 //! `p_mandrel = R_z(−φ) (p_cell − (b, 0, h))` (see [`crate::plan`]).
 
+pub mod bvh;
 pub mod minimum;
 pub mod solid;
 pub mod sweep;
