@@ -92,10 +92,69 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
         out += &check_line;
         out.push('\n');
         out += &format!(
-            "wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
+            "wrote {} file{} ({}) to {}\n",
             files.len(),
+            if files.len() == 1 { "" } else { "s" },
+            file_kinds(&files),
             args.out.display()
         );
     }
     super::print(&out)
+}
+
+/// What the written files are, by extension, in the order first written: the IRB 6/2's control
+/// files (`.ROB` robot, `.IND` mandrel, `.SEQ` sequence, `.RUN` run) or a six-axis arm's plan
+/// (`.plan.json`, for `windcell post`) and mandrel indexer program.
+pub(crate) fn file_kinds(files: &[(std::path::PathBuf, String)]) -> String {
+    let mut kinds: Vec<&str> = Vec::new();
+    for (path, _) in files {
+        let name = path.to_string_lossy().to_ascii_lowercase();
+        let kind = if name.ends_with(".plan.json") {
+            ".plan.json six-axis plan"
+        } else if name.ends_with(".rob") {
+            ".ROB robot"
+        } else if name.ends_with(".ind") {
+            ".IND mandrel"
+        } else if name.ends_with(".seq") {
+            ".SEQ sequence"
+        } else if name.ends_with(".run") {
+            ".RUN run"
+        } else {
+            "other"
+        };
+        if !kinds.contains(&kind) {
+            kinds.push(kind);
+        }
+    }
+    kinds.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::file_kinds;
+    use std::path::PathBuf;
+
+    #[test]
+    fn the_summary_names_the_kinds_of_file_written() {
+        let f = |names: &[&str]| -> Vec<(PathBuf, String)> {
+            names
+                .iter()
+                .map(|n| (PathBuf::from(n), String::new()))
+                .collect()
+        };
+        assert_eq!(
+            file_kinds(&f(&[
+                "SB_1.ROB", "SB_1.IND", "SB_2.ROB", "SB_2.IND", "SB.SEQ", "SB.RUN"
+            ])),
+            ".ROB robot, .IND mandrel, .SEQ sequence, .RUN run"
+        );
+        assert_eq!(
+            file_kinds(&f(&["IRB2600.plan.json"])),
+            ".plan.json six-axis plan"
+        );
+        assert_eq!(
+            file_kinds(&f(&["UR.plan.json", "UR_1.IND", "UR_2.IND"])),
+            ".plan.json six-axis plan, .IND mandrel"
+        );
+    }
 }

@@ -79,10 +79,12 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
             .fold(0.0f64, f64::max);
         format!(
             "{} paths of {} segments planned, smoothed paths ≤ {worst:.4} mm from the traced ones\n\
-             wrote {} control files (.ROB robot, .IND mandrel, .SEQ sequence, .RUN run) to {}\n",
+             wrote {} file{} ({}) to {}\n",
             plan.paths.len(),
             pattern.segments.get_ref(),
             files.len(),
+            if files.len() == 1 { "" } else { "s" },
+            super::plan::file_kinds(&files),
             args.out.display()
         )
     };
