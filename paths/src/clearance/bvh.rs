@@ -81,7 +81,7 @@ impl Bvh {
             .collect();
         let mut nodes = Vec::with_capacity(2 * boxes.len().div_ceil(LEAF_ITEMS).max(1));
         if !boxes.is_empty() {
-            build(&mut nodes, &mut order, 0, boxes);
+            build_split(&mut nodes, &mut order, boxes);
         }
         Bvh {
             nodes,
@@ -187,6 +187,73 @@ struct Centred {
     item: u32,
 }
 
+/// Items from which the two halves under the root are built on two threads.
+const PARALLEL_ITEMS: usize = 1 << 16;
+
+/// [`build`] of the whole tree; on a large one, the root's two subtrees on two threads (each into
+/// its own nodes, then joined behind the root with their node indices moved).
+fn build_split(nodes: &mut Vec<Node>, items: &mut [Centred], boxes: &[Box3]) {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if items.len() < PARALLEL_ITEMS || threads < 2 {
+        build(nodes, items, 0, boxes);
+        return;
+    }
+    let mid = split(items);
+    let (left, right) = items.split_at_mut(mid);
+    let ((left_nodes, left_bounds), (right_nodes, right_bounds)) = std::thread::scope(|scope| {
+        let right_half = scope.spawn(|| {
+            let mut n = Vec::with_capacity(right.len());
+            let b = build(&mut n, right, mid, boxes);
+            (n, b)
+        });
+        let mut n = Vec::with_capacity(left.len());
+        let b = build(&mut n, left, 0, boxes);
+        let r = right_half
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        ((n, b), r)
+    });
+    let right_root = 1 + left_nodes.len() as u32;
+    nodes.push(Node {
+        bounds: left_bounds.union(&right_bounds),
+        first: right_root,
+        count: 0,
+    });
+    let moved = |base: u32| {
+        move |n: Node| {
+            if n.count == 0 {
+                Node {
+                    first: n.first + base,
+                    ..n
+                }
+            } else {
+                n
+            }
+        }
+    };
+    nodes.extend(left_nodes.into_iter().map(moved(1)));
+    nodes.extend(right_nodes.into_iter().map(moved(right_root)));
+}
+
+/// Splits `items` at the median of their centres along the axis where the centres spread
+/// widest (ties and a zero spread take the lowest axis: the split still halves the items);
+/// returns the index of the first item of the upper half.
+fn split(items: &mut [Centred]) -> usize {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for c in items.iter() {
+        for axis in 0..3 {
+            lo[axis] = lo[axis].min(c.centre[axis]);
+            hi[axis] = hi[axis].max(c.centre[axis]);
+        }
+    }
+    let axis = (0..3)
+        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])).then(b.cmp(&a)))
+        .unwrap_or(0);
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |a, b| a.centre[axis].total_cmp(&b.centre[axis]));
+    mid
+}
+
 /// Builds the subtree of `items`, whose first is item `offset` of the whole order; returns its
 /// root's box. Its root is the node at the index `nodes` has on entry.
 fn build(nodes: &mut Vec<Node>, items: &mut [Centred], offset: usize, boxes: &[Box3]) -> Box3 {
@@ -202,20 +269,7 @@ fn build(nodes: &mut Vec<Node>, items: &mut [Centred], offset: usize, boxes: &[B
         });
         return bounds;
     }
-    // The axis where the centres spread widest; ties and a zero spread take the lowest axis
-    // (the median split still halves the items).
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for c in items.iter() {
-        for axis in 0..3 {
-            lo[axis] = lo[axis].min(c.centre[axis]);
-            hi[axis] = hi[axis].max(c.centre[axis]);
-        }
-    }
-    let axis = (0..3)
-        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])).then(b.cmp(&a)))
-        .unwrap_or(0);
-    let mid = items.len() / 2;
-    items.select_nth_unstable_by(mid, |a, b| a.centre[axis].total_cmp(&b.centre[axis]));
+    let mid = split(items);
     nodes.push(Node {
         bounds: Box3::EMPTY,
         first: 0,
@@ -414,6 +468,45 @@ mod tests {
                 |i, _| Some((point_box(p, &boxes[i as usize]), ())),
             );
             assert_eq!(capped.map(|c| c.1), Some(want));
+        }
+    }
+
+    /// A tree large enough to be built on two threads: each inner node's box holds its
+    /// children's, every item sits once in a leaf, and the nearest box is brute force's.
+    #[test]
+    fn a_tree_built_on_two_threads_is_whole() {
+        let n = PARALLEL_ITEMS + 4321;
+        let boxes = random_boxes(n, 42);
+        let bvh = Bvh::new(&boxes);
+        let holds = |a: &Box3, b: &Box3| (0..3).all(|k| a.lo[k] <= b.lo[k] && a.hi[k] >= b.hi[k]);
+        for (i, node) in bvh.nodes.iter().enumerate() {
+            if node.count == 0 {
+                let (l, r) = (&bvh.nodes[i + 1], &bvh.nodes[node.first as usize]);
+                assert!(node.first as usize > i + 1, "node {i}");
+                assert!(holds(&node.bounds, &l.bounds) && holds(&node.bounds, &r.bounds));
+            } else {
+                let first = node.first as usize;
+                for &item in &bvh.items[first..first + node.count as usize] {
+                    assert!(holds(&node.bounds, &boxes[item as usize]), "leaf {i}");
+                }
+            }
+        }
+        let mut seen: Vec<u32> = bvh.leaves(|_| true).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..n as u32).collect::<Vec<_>>());
+        assert!(depth(&bvh, 0) <= (n.div_ceil(LEAF_ITEMS) as f64).log2().ceil() as usize + 2);
+        for q in random_boxes(20, 8) {
+            let p = [q.lo[0] * 1.5 - 20.0, q.lo[1], q.lo[2] * 4.0];
+            let want = boxes
+                .iter()
+                .map(|b| point_box(p, b))
+                .fold(f64::INFINITY, f64::min);
+            let got = bvh.find_best(
+                f64::INFINITY,
+                |b| point_box(p, b),
+                |i, _| Some((point_box(p, &boxes[i as usize]), ())),
+            );
+            assert_eq!(got.map(|g| g.1), Some(want));
         }
     }
 

@@ -615,7 +615,7 @@ impl MeshSolid {
             let p = corners(t);
             for k in 0..3 {
                 let (u, v) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
-                let angle = u.cross(&v).norm().atan2(u.dot(&v));
+                let angle = crate::arm::atan2(u.cross(&v).norm(), u.dot(&v));
                 vertex_normals[tri[k] as usize] += face_normals[t] * angle;
             }
         }
