@@ -518,4 +518,365 @@ mod tests {
         assert!((f.translation_mm - expected).norm() < 1e-9, "{f:?}");
         assert!((f.rotation - Matrix3::identity()).norm() < 1e-12);
     }
+
+    /// The controller's zero is each arm's calibration position and lies inside every range
+    /// (the makers' data sheets give each range as a negative and a positive end).
+    #[test]
+    fn the_controllers_zero_is_inside_every_range() {
+        for p in &OPW_PRESETS {
+            for i in 0..6 {
+                assert!(
+                    p.joint_min_deg[i] < 0.0 && 0.0 < p.joint_max_deg[i],
+                    "{} axis {}: {}..{}",
+                    p.model,
+                    i + 1,
+                    p.joint_min_deg[i],
+                    p.joint_max_deg[i]
+                );
+            }
+        }
+    }
+
+    /// One revolute joint of a ROS-Industrial URDF: its origin in the parent link (mm; every
+    /// `rpy` of these arms' revolute joints is zero) and its axis.
+    type UrdfJoint = ([f64; 3], [f64; 3]);
+
+    /// The fixed joint to `tool0`: its origin (mm) and `rpy` (rad).
+    type Tool0 = ([f64; 3], [f64; 3]);
+
+    /// The flange (`tool0`) of a URDF chain written here from the joint list:
+    /// `Π Trans(origin_i)·Rot(axis_i, joint_i)`, then the fixed `tool0` joint (origin, `rpy` =
+    /// `Rz(yaw)·Ry(pitch)·Rx(roll)`).
+    fn urdf_flange(chain: &[UrdfJoint; 6], tool0: Tool0, q: &Joints6) -> Pose6 {
+        use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion};
+        let mut t = Isometry3::identity();
+        for ((origin, axis), angle) in chain.iter().zip(q) {
+            let axis = Unit::new_normalize(Vector3::from(*axis));
+            t = t
+                * Translation3::from(Vector3::from(*origin))
+                * UnitQuaternion::from_axis_angle(&axis, *angle);
+        }
+        let [r, p, y] = tool0.1;
+        t = t
+            * Translation3::from(Vector3::from(tool0.0))
+            * UnitQuaternion::from_euler_angles(r, p, y);
+        Pose6 {
+            rotation: *t.rotation.to_rotation_matrix().matrix(),
+            translation_mm: t.translation.vector,
+        }
+    }
+
+    /// Each preset against the arm's URDF in ROS-Industrial's support package (joint origins
+    /// and axes of `abb_irb2600_support/urdf/irb2600_12_165_macro.xacro`,
+    /// `abb_irb4600_support/urdf/irb4600_60_205_macro.xacro`,
+    /// `kuka_kr16_support/urdf/kr16_2_macro.xacro`, `fanuc_m20ia_support/urdf/m20ia_macro.xacro`,
+    /// metres there, mm here): a description made for the arm's meshes, independent of the
+    /// OPW parameter set, with each axis's sense (`0 0 -1` for KUKA's A1, `-1 0 0` for its A4
+    /// and A6, FANUC's J3 to J6 negative) and the flange frame at the joints' zero. Over joint
+    /// vectors spread through each arm's ranges the flange must agree within 1e-9 mm and rad.
+    /// For the KR 16-2 the orientation only: its preset's `a2` (−35, the forearm above axis 3)
+    /// and `c4` (115) differ from that URDF (forearm 35 mm below axis 3, flange 158 mm from the
+    /// wrist centre; `docs/testing.md`).
+    #[test]
+    fn presets_turn_as_the_makers_urdf_chains_do() {
+        let x = [1.0, 0.0, 0.0];
+        let y = [0.0, 1.0, 0.0];
+        let z = [0.0, 0.0, 1.0];
+        let neg = |a: [f64; 3]| a.map(|v| -v);
+        let half_pi = PI / 2.0;
+        let chains: [(&str, [UrdfJoint; 6], Tool0, bool); 4] = [
+            (
+                "irb2600-12/1.65",
+                [
+                    ([0.0, 0.0, 445.0], z),
+                    ([150.0, 0.0, 0.0], y),
+                    ([0.0, 0.0, 700.0], y),
+                    ([0.0, 0.0, 115.0], x),
+                    ([795.0, 0.0, 0.0], y),
+                    ([85.0, 0.0, 0.0], x),
+                ],
+                ([0.0; 3], [0.0, half_pi, 0.0]),
+                true,
+            ),
+            (
+                "irb4600-60/2.05",
+                [
+                    ([0.0, 0.0, 495.0], z),
+                    ([175.0, 0.0, 0.0], y),
+                    ([0.0, 0.0, 900.0], y),
+                    ([0.0, 0.0, 175.0], x),
+                    ([960.0, 0.0, 0.0], y),
+                    ([135.0, 0.0, 0.0], x),
+                ],
+                ([0.0; 3], [0.0, half_pi, 0.0]),
+                true,
+            ),
+            (
+                "kr16-2",
+                [
+                    ([0.0, 0.0, 675.0], neg(z)),
+                    ([260.0, 0.0, 0.0], y),
+                    ([680.0, 0.0, 0.0], y),
+                    ([670.0, 0.0, -35.0], neg(x)),
+                    ([0.0; 3], y),
+                    ([0.0; 3], neg(x)),
+                ],
+                ([158.0, 0.0, 0.0], [0.0, half_pi, 0.0]),
+                false,
+            ),
+            (
+                "m-20ia",
+                [
+                    ([0.0, 0.0, 525.0], z),
+                    ([150.0, 0.0, 0.0], y),
+                    ([0.0, 0.0, 790.0], neg(y)),
+                    ([0.0, 0.0, 250.0], neg(x)),
+                    ([835.0, 0.0, 0.0], neg(y)),
+                    ([100.0, 0.0, 0.0], neg(x)),
+                ],
+                ([0.0; 3], [PI, -half_pi, 0.0]),
+                true,
+            ),
+        ];
+        for (model, chain, tool0, position) in chains {
+            let p = preset(model).unwrap();
+            // Joint vectors through the ranges (a Weyl sequence per axis), the zero among them.
+            for s in 0..200 {
+                let q: Joints6 = std::array::from_fn(|i| {
+                    let f = (s as f64 * (0.618_033_988_75 + 0.1 * i as f64)).fract();
+                    let deg = p.joint_min_deg[i] + (p.joint_max_deg[i] - p.joint_min_deg[i]) * f;
+                    if s == 0 { 0.0 } else { deg.to_radians() }
+                });
+                let want = urdf_flange(&chain, tool0, &q);
+                let got = p.opw.forward(&q);
+                assert!(
+                    (got.rotation - want.rotation).norm() < 1e-9,
+                    "{model} {q:?}: {} vs {}",
+                    got.rotation,
+                    want.rotation
+                );
+                if position {
+                    assert!(
+                        (got.translation_mm - want.translation_mm).norm() < 1e-9,
+                        "{model} {q:?}: {} vs {}",
+                        got.translation_mm,
+                        want.translation_mm
+                    );
+                }
+            }
+        }
+    }
+
+    /// The flange as the product of rotations about the six joint axes where the parameter
+    /// figure (the paper's Fig. 1, module documentation) places them with every model angle
+    /// zero: written here from the figure, not from [`Opw::forward`]'s closed form.
+    fn figure_fk(o: &Opw, q: &Joints6) -> Pose6 {
+        use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion};
+        let m: Joints6 = std::array::from_fn(|i| f64::from(o.signs[i]) * q[i] - o.offsets_rad[i]);
+        let centre = Vector3::new(o.a1_mm + o.a2_mm, o.b_mm, o.c1_mm + o.c2_mm + o.c3_mm);
+        let axes = [
+            (Vector3::zeros(), Vector3::z()),
+            (Vector3::new(o.a1_mm, 0.0, o.c1_mm), Vector3::y()),
+            (Vector3::new(o.a1_mm, 0.0, o.c1_mm + o.c2_mm), Vector3::y()),
+            (Vector3::new(o.a1_mm + o.a2_mm, o.b_mm, 0.0), Vector3::z()),
+            (centre, Vector3::y()),
+            (centre, Vector3::z()),
+        ];
+        let mut t = Isometry3::identity();
+        for ((p, a), angle) in axes.iter().zip(m) {
+            t = t
+                * Translation3::from(*p)
+                * UnitQuaternion::from_axis_angle(&Unit::new_normalize(*a), angle)
+                * Translation3::from(-*p);
+        }
+        t *= Translation3::from(centre + Vector3::z() * o.c4_mm);
+        Pose6 {
+            rotation: *t.rotation.to_rotation_matrix().matrix(),
+            translation_mm: t.translation.vector,
+        }
+    }
+
+    /// Every branch the inverse returns gives the pose again through [`figure_fk`].
+    fn assert_branches_reproduce(o: &Opw, pose: &Pose6, at_least: usize) {
+        let s = o.inverse(pose);
+        let valid = s.valid.iter().filter(|v| **v).count();
+        assert!(valid >= at_least, "{valid} branches: {s:?}");
+        for b in 0..8 {
+            if s.valid[b] {
+                let back = figure_fk(o, &s.joints[b]);
+                assert!(
+                    (back.translation_mm - pose.translation_mm).norm() < 1e-9
+                        && (back.rotation - pose.rotation).norm() < 1e-9,
+                    "branch {b}: {:?} gives {back:?}, not {pose:?}",
+                    s.joints[b]
+                );
+            }
+        }
+    }
+
+    /// A small arm with a lateral offset, for the cylinder of radius `b` about axis 1.
+    fn offset_arm() -> Opw {
+        Opw {
+            a1_mm: 100.0,
+            a2_mm: -50.0,
+            b_mm: 35.0,
+            c1_mm: 400.0,
+            c2_mm: 500.0,
+            c3_mm: 450.0,
+            c4_mm: 80.0,
+            offsets_rad: [0.0; 6],
+            signs: [1; 6],
+        }
+    }
+
+    /// Lengths beyond ±100 m and offsets beyond ±720° are refused though finite; the ends
+    /// themselves are taken.
+    #[test]
+    fn parameters_beyond_their_bounds_are_refused_and_the_bounds_taken() {
+        let good = OPW_PRESETS[0].opw;
+        let mut offsets = [0.0; 6];
+        offsets[5] = 800f64.to_radians();
+        for bad in [
+            Opw {
+                a1_mm: 200_000.0,
+                ..good
+            },
+            Opw {
+                offsets_rad: offsets,
+                ..good
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+        offsets[5] = -700f64.to_radians();
+        let edge = Opw {
+            c4_mm: 100_000.0,
+            offsets_rad: offsets,
+            ..good
+        };
+        edge.validate().unwrap();
+    }
+
+    /// A wrist centre nearer axis 1 than the lateral offset `b`, or on axis 1 when `b` is 0,
+    /// has no branch; the fault gives the distance from axis 2 taken as if the centre were on
+    /// axis 1, `√(a1² + (z − c1)²)`, and the reach `|c2 − k| .. c2 + k`, `k = √(a2² + c3²)`.
+    /// A centre exactly `b` from axis 1 is reached (the wrist straight over `y`) by all eight.
+    #[test]
+    fn a_wrist_centre_inside_the_offset_cylinder_has_no_branch() {
+        let o = offset_arm();
+        let k = (50.0f64 * 50.0 + 450.0 * 450.0).sqrt();
+        let flange = |x: f64, y: f64| Pose6 {
+            rotation: Matrix3::identity(),
+            translation_mm: Vector3::new(x, y, 900.0 + o.c4_mm),
+        };
+        let inside = flange(10.0, 0.0);
+        assert!(o.inverse(&inside).valid.iter().all(|v| !v));
+        match o.inverse_branch(&inside, Config::from_index(0)) {
+            Err(SixAxisFault::OutOfReach {
+                distance_mm,
+                min_mm,
+                max_mm,
+                ..
+            }) => {
+                assert!(
+                    (distance_mm - 100f64.hypot(500.0)).abs() < 1e-9,
+                    "{distance_mm}"
+                );
+                assert!((min_mm - (500.0 - k)).abs() < 1e-9, "{min_mm}");
+                assert!((max_mm - (500.0 + k)).abs() < 1e-9, "{max_mm}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_branches_reproduce(&o, &flange(0.0, 35.0), 8);
+        // b = 0: the wrist centre on axis 1 leaves q1 undefined.
+        let p = OPW_PRESETS[0].opw;
+        let on_axis = Pose6 {
+            rotation: Matrix3::identity(),
+            translation_mm: Vector3::new(0.0, 0.0, 1500.0 + p.c4_mm),
+        };
+        let s = p.inverse(&on_axis);
+        assert!(s.valid.iter().all(|v| !v), "{s:?}");
+        match p.inverse_branch(&on_axis, Config::from_index(0)) {
+            Err(SixAxisFault::OutOfReach { distance_mm, .. }) => {
+                assert!((distance_mm - 150f64.hypot(1500.0 - 445.0)).abs() < 1e-9);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// Axes 4 and 6 in line (`q5 = 0`, and `q5 = π`, the wrist folded back): only `q4 ± q6` is
+    /// defined; the branches the inverse gives must still give the pose.
+    #[test]
+    fn a_straight_or_folded_wrist_still_gives_the_pose() {
+        let o = OPW_PRESETS[0].opw;
+        for q5 in [0.0, PI] {
+            let q = [0.3, 0.2, -0.4, 0.5, q5, -0.7];
+            assert_branches_reproduce(&o, &figure_fk(&o, &q), 4);
+        }
+    }
+
+    /// The configuration of joints by its definitions, from the figure: the wrist centre ahead
+    /// of axis 1 along the arm's heading `(cos q1, sin q1)` or behind it, the sign of the
+    /// forearm's turn from the upper arm's line `sin(q3 + atan2(a2, c3))`, the sign of `sin q5`.
+    #[test]
+    fn configurations_follow_their_definitions() {
+        for o in [OPW_PRESETS[0].opw, OPW_PRESETS[3].opw, offset_arm()] {
+            let mut seen = [false; 8];
+            for s in 0..400 {
+                let q: Joints6 = std::array::from_fn(|i| {
+                    PI * (2.0 * (s as f64 * (0.618_033_988_75 + 0.13 * i as f64)).fract() - 1.0)
+                });
+                let m: Joints6 =
+                    std::array::from_fn(|i| f64::from(o.signs[i]) * q[i] - o.offsets_rad[i]);
+                let f = figure_fk(&o, &q);
+                let centre = f.translation_mm - f.rotation.column(2) * o.c4_mm;
+                let ahead = centre.x * m[0].cos() + centre.y * m[0].sin();
+                let bend = (m[2] + o.a2_mm.atan2(o.c3_mm)).sin();
+                let wrist = m[4].sin();
+                if ahead.abs() < 1e-6 || bend.abs() < 1e-9 || wrist.abs() < 1e-9 {
+                    continue;
+                }
+                let want = Config {
+                    shoulder: if ahead > 0.0 {
+                        Shoulder::Front
+                    } else {
+                        Shoulder::Back
+                    },
+                    elbow: if bend > 0.0 { Elbow::Up } else { Elbow::Down },
+                    wrist: if wrist > 0.0 {
+                        Wrist::NoFlip
+                    } else {
+                        Wrist::Flip
+                    },
+                };
+                assert_eq!(o.config_of(&q), want, "{q:?}");
+                seen[want.index()] = true;
+            }
+            assert!(seen.iter().all(|s| *s), "{seen:?}");
+        }
+    }
+
+    /// The closed-form forward kinematics against the figure's product of rotations, on arms
+    /// with a lateral offset `b`, offsets and mixed signs (the presets have `b = 0`).
+    #[test]
+    fn forward_is_the_figures_product_of_rotations() {
+        let mixed = Opw {
+            offsets_rad: [0.1, -0.3, -PI / 2.0, 0.2, 0.0, PI],
+            signs: [-1, 1, -1, 1, -1, 1],
+            ..offset_arm()
+        };
+        for o in [offset_arm(), mixed] {
+            for s in 0..200 {
+                let q: Joints6 = std::array::from_fn(|i| {
+                    PI * (2.0 * (s as f64 * (0.618_033_988_75 + 0.13 * i as f64)).fract() - 1.0)
+                });
+                let (got, want) = (o.forward(&q), figure_fk(&o, &q));
+                assert!(
+                    (got.translation_mm - want.translation_mm).norm() < 1e-9,
+                    "{q:?}"
+                );
+                assert!((got.rotation - want.rotation).norm() < 1e-12, "{q:?}");
+            }
+        }
+    }
 }
