@@ -124,12 +124,12 @@ pub const OPW_PRESETS: [OpwPreset; 4] = [
         title: "KUKA KR 16-2",
         opw: Opw {
             a1_mm: 260.0,
-            a2_mm: -35.0,
+            a2_mm: 35.0,
             b_mm: 0.0,
             c1_mm: 675.0,
             c2_mm: 680.0,
             c3_mm: 670.0,
-            c4_mm: 115.0,
+            c4_mm: 158.0,
             offsets_rad: [0.0, deg(-90.0), 0.0, 0.0, 0.0, 0.0],
             signs: [-1, 1, 1, -1, 1, -1],
         },
@@ -574,9 +574,6 @@ mod tests {
     /// OPW parameter set, with each axis's sense (`0 0 -1` for KUKA's A1, `-1 0 0` for its A4
     /// and A6, FANUC's J3 to J6 negative) and the flange frame at the joints' zero. Over joint
     /// vectors spread through each arm's ranges the flange must agree within 1e-9 mm and rad.
-    /// For the KR 16-2 the orientation only: its preset's `a2` (−35, the forearm above axis 3)
-    /// and `c4` (115) differ from that URDF (forearm 35 mm below axis 3, flange 158 mm from the
-    /// wrist centre; `docs/testing.md`).
     #[test]
     fn presets_turn_as_the_makers_urdf_chains_do() {
         let x = [1.0, 0.0, 0.0];
@@ -622,7 +619,7 @@ mod tests {
                     ([0.0; 3], neg(x)),
                 ],
                 ([158.0, 0.0, 0.0], [0.0, half_pi, 0.0]),
-                false,
+                true,
             ),
             (
                 "m-20ia",

@@ -192,12 +192,12 @@ const IRB2600: OpwParams = OpwParams {
 /// KUKA KR 16-2 (opw_parameters_kr16_2.yaml; KUKA data sheet ranges).
 const KR16: OpwParams = OpwParams {
     a1: 260.0,
-    a2: -35.0,
+    a2: 35.0,
     b: 0.0,
     c1: 675.0,
     c2: 680.0,
     c3: 670.0,
-    c4: 115.0,
+    c4: 158.0,
     offsets_deg: [0.0, -90.0, 0.0, 0.0, 0.0, 0.0],
     signs: [-1.0, 1.0, 1.0, -1.0, 1.0, -1.0],
     min_deg: [-185.0, -155.0, -130.0, -350.0, -130.0, -350.0],
