@@ -510,6 +510,46 @@ mod tests {
         }
     }
 
+    /// Boxes in a row across the origin (not centred on it): every split is at the median centre, so at every inner
+    /// node the two children's boxes lie apart along the row (a split by anything but the
+    /// centres, or a centre computed wrongly, interleaves them), and each half holds half.
+    #[test]
+    fn a_row_of_boxes_splits_into_apart_halves() {
+        let boxes: Vec<Box3> = (-300..700)
+            .map(|i| Box3 {
+                lo: [i as f64, 0.0, 0.0],
+                hi: [i as f64 + 0.5, 1.0, 1.0],
+            })
+            .collect();
+        let bvh = Bvh::new(&boxes);
+        fn leaves_under(bvh: &Bvh, index: u32) -> usize {
+            let node = &bvh.nodes[index as usize];
+            if node.count > 0 {
+                node.count as usize
+            } else {
+                leaves_under(bvh, index + 1) + leaves_under(bvh, node.first)
+            }
+        }
+        for (i, node) in bvh.nodes.iter().enumerate() {
+            if node.count > 0 {
+                continue;
+            }
+            let (l, r) = (
+                &bvh.nodes[i + 1].bounds,
+                &bvh.nodes[node.first as usize].bounds,
+            );
+            assert!(
+                l.hi[0] < r.lo[0] || r.hi[0] < l.lo[0],
+                "node {i}: {l:?} {r:?}"
+            );
+            let (nl, nr) = (
+                leaves_under(&bvh, i as u32 + 1),
+                leaves_under(&bvh, node.first),
+            );
+            assert!(nl.abs_diff(nr) <= 1, "node {i}: {nl} and {nr}");
+        }
+    }
+
     #[test]
     fn an_empty_hierarchy_finds_nothing() {
         let bvh = Bvh::new(&[]);
