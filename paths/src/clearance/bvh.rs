@@ -94,11 +94,6 @@ impl Bvh {
         self.nodes.first().map(|n| n.bounds)
     }
 
-    /// Bytes held by the nodes and the item order.
-    pub fn heap_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<Node>() + self.items.capacity() * 4
-    }
-
     /// Every item in a leaf whose box, and every box above it, passes `test`; in depth-first
     /// order, left before right.
     pub fn leaves<F: FnMut(&Box3) -> bool>(&self, test: F) -> Leaves<'_, F> {
