@@ -323,6 +323,8 @@ impl Ur {
 
 #[cfg(test)]
 mod tests {
+    use std::f64::consts::PI;
+
     use super::*;
 
     #[test]
@@ -332,6 +334,8 @@ mod tests {
             assert_eq!(preset(&p.model.to_uppercase()).unwrap().model, p.model);
         }
         assert!(preset("ur3").is_none());
+        // The names a job's `model` takes, as UR names its arms.
+        assert_eq!(preset_names(), "\"ur5e\", \"ur10e\", \"ur16e\"");
         assert!(
             Ur {
                 a3_mm: f64::NAN,
@@ -359,5 +363,145 @@ mod tests {
         let f = u.forward(&[0.0; 6]);
         let expected = Vector3::new(-425.0 - 392.2, -(133.3 + 99.6), 162.5 - 99.7);
         assert!((f.translation_mm - expected).norm() < 1e-9, "{f:?}");
+    }
+
+    /// UR's flange by standard Denavit–Hartenberg, one 4×4 matrix per joint,
+    /// `Rz(θ)·Tz(d)·Tx(a)·Rx(α)`, from UR's table typed here in metres (UR5e: d1 0.1625,
+    /// a2 −0.425, a3 −0.3922, d4 0.1333, d5 0.0997, d6 0.0996; α = π/2, 0, 0, π/2, −π/2, 0).
+    fn ur5e_dh(q: &Joints6) -> Pose6 {
+        use nalgebra::Matrix4;
+        let d = [0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996].map(|v: f64| v * 1000.0);
+        let a = [0.0, -0.425, -0.3922, 0.0, 0.0, 0.0].map(|v: f64| v * 1000.0);
+        let alpha = [FRAC_PI_2, 0.0, 0.0, FRAC_PI_2, -FRAC_PI_2, 0.0];
+        let mut t = Matrix4::identity();
+        for i in 0..6 {
+            let (st, ct) = q[i].sin_cos();
+            let (sa, ca) = alpha[i].sin_cos();
+            #[rustfmt::skip]
+            let step = Matrix4::new(
+                ct, -st * ca, st * sa, a[i] * ct,
+                st, ct * ca, -ct * sa, a[i] * st,
+                0.0, sa, ca, d[i],
+                0.0, 0.0, 0.0, 1.0,
+            );
+            t *= step;
+        }
+        Pose6 {
+            rotation: t.fixed_view::<3, 3>(0, 0).into_owned(),
+            translation_mm: t.fixed_view::<3, 1>(0, 3).into_owned(),
+        }
+    }
+
+    /// Every branch the inverse returns gives the pose again through [`ur5e_dh`].
+    fn assert_branches_reproduce(pose: &Pose6, at_least: usize) {
+        let s = UR_PRESETS[0].ur.inverse(pose);
+        let valid = s.valid.iter().filter(|v| **v).count();
+        assert!(valid >= at_least, "{valid} branches: {s:?}");
+        for b in 0..8 {
+            if s.valid[b] {
+                let back = ur5e_dh(&s.joints[b]);
+                assert!(
+                    (back.translation_mm - pose.translation_mm).norm() < 1e-9
+                        && (back.rotation - pose.rotation).norm() < 1e-9,
+                    "branch {b}: {:?} gives {back:?}, not {pose:?}",
+                    s.joints[b]
+                );
+            }
+        }
+    }
+
+    /// The configuration of joints by its definitions, from the DH chain: the wrist point
+    /// `p5 = p6 − d6·z6` ahead of axis 1 along `x1 = (cos θ1, sin θ1, 0)` or behind it, the
+    /// signs of `sin θ3` and `sin θ5`.
+    #[test]
+    fn configurations_follow_their_definitions() {
+        let u = UR_PRESETS[0].ur;
+        let mut seen = [false; 8];
+        for s in 0..400 {
+            let q: Joints6 = std::array::from_fn(|i| {
+                PI * (2.0 * (s as f64 * (0.618_033_988_75 + 0.13 * i as f64)).fract() - 1.0)
+            });
+            let f = ur5e_dh(&q);
+            let p5 = f.translation_mm - f.rotation.column(2) * 99.6;
+            let ahead = p5.x * q[0].cos() + p5.y * q[0].sin();
+            let (elbow, wrist) = (q[2].sin(), q[4].sin());
+            if ahead.abs() < 1e-6 || elbow.abs() < 1e-9 || wrist.abs() < 1e-9 {
+                continue;
+            }
+            let want = Config {
+                shoulder: if ahead > 0.0 {
+                    Shoulder::Front
+                } else {
+                    Shoulder::Back
+                },
+                elbow: if elbow > 0.0 { Elbow::Up } else { Elbow::Down },
+                wrist: if wrist > 0.0 {
+                    Wrist::NoFlip
+                } else {
+                    Wrist::Flip
+                },
+            };
+            assert_eq!(u.config_of(&q), want, "{q:?}");
+            seen[want.index()] = true;
+        }
+        assert!(seen.iter().all(|s| *s), "{seen:?}");
+    }
+
+    /// The wrist point must lie at least `d4` from axis 1 (it is `d4` along `z1` from the arm's
+    /// plane through axis 1): nearer, no branch, and the fault gives its height over the
+    /// shoulder `|z − d1|` and the reach `| |a2| − |a3| | .. |a2| + |a3|`; exactly `d4` away
+    /// (the arm's plane through the wrist point) it is reached.
+    #[test]
+    fn a_wrist_point_inside_the_d4_cylinder_has_no_branch() {
+        let u = UR_PRESETS[0].ur;
+        let flange = |x: f64| Pose6 {
+            rotation: Matrix3::identity(),
+            translation_mm: Vector3::new(x, 0.0, 500.0 + 99.6),
+        };
+        let inside = flange(100.0);
+        assert!(u.inverse(&inside).valid.iter().all(|v| !v));
+        match u.inverse_branch(&inside, Config::from_index(0)) {
+            Err(SixAxisFault::OutOfReach {
+                distance_mm,
+                min_mm,
+                max_mm,
+                ..
+            }) => {
+                assert!(
+                    (distance_mm - (500.0 - 162.5)).abs() < 1e-9,
+                    "{distance_mm}"
+                );
+                assert!((min_mm - (425.0 - 392.2)).abs() < 1e-9, "{min_mm}");
+                assert!((max_mm - (425.0 + 392.2)).abs() < 1e-9, "{max_mm}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_branches_reproduce(&flange(133.3), 4);
+    }
+
+    /// `θ5 = 0` (and π): axes 4 and 6 in line, only their sum is defined; the branches the
+    /// inverse gives must still give the pose.
+    #[test]
+    fn a_singular_wrist_still_gives_the_pose() {
+        for q5 in [0.0, PI] {
+            let q = [0.3, -1.2, 1.1, 0.4, q5, -0.7];
+            assert_branches_reproduce(&ur5e_dh(&q), 4);
+        }
+    }
+
+    /// A finite length beyond ±100 m is refused; 100 m itself is taken.
+    #[test]
+    fn lengths_beyond_100_m_are_refused() {
+        let good = UR_PRESETS[0].ur;
+        let far = Ur {
+            d6_mm: 200_000.0,
+            ..good
+        };
+        assert!(far.validate().is_err());
+        let edge = Ur {
+            d1_mm: 100_000.0,
+            ..good
+        };
+        edge.validate().unwrap();
     }
 }
