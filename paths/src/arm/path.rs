@@ -681,3 +681,173 @@ impl SixAxisArm {
         r
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::arm::Tool;
+
+    fn irb2600() -> SixAxisArm {
+        SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap()
+    }
+
+    fn deg(q: [f64; 6]) -> Joints6 {
+        q.map(f64::to_radians)
+    }
+
+    /// [`SixAxisArm::admissible`] at the flange pose of the joints `q` (the eye at the flange,
+    /// the tool frame the flange's), in `q`'s configuration.
+    fn at(q_deg: [f64; 6], reference_deg: Option<[f64; 6]>) -> Result<[f64; 6], SixAxisFault> {
+        let arm = irb2600();
+        let q = deg(q_deg);
+        let f = arm.kind.forward(&q);
+        let tool = inverted_tool(&arm.tool.frame());
+        let x = f.rotation.column(0).into_owned();
+        let d = f.rotation.column(2).into_owned();
+        let reference = reference_deg.map(deg);
+        arm.admissible(
+            &Point3::from(f.translation_mm),
+            &x,
+            &d,
+            &tool,
+            arm.kind.config_of(&q),
+            reference.as_ref(),
+        )
+        .map(|q| q.map(f64::to_degrees))
+    }
+
+    fn close(a: [f64; 6], b: [f64; 6]) -> bool {
+        a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-6)
+    }
+
+    const BASE: [f64; 6] = [20.0, 30.0, -20.0, 40.0, 50.0, 60.0];
+
+    /// The IRB 2600's ranges (`docs/arms.md`): axis 1 ±180°, axis 2 −95..155°, axis 3
+    /// −180..75°, axes 4 and 6 ±400°, axis 5 ±120°; the default margins 2° from the ends, 5°
+    /// from the wrist singularity, 45° a step.
+    #[test]
+    fn admissible_joints_are_the_pose_s_own_within_the_margins() {
+        assert!(close(at(BASE, Some(BASE)).unwrap(), BASE));
+        // Without a reference, the whole-turn shift nearest each range's middle.
+        assert!(close(at(BASE, None).unwrap(), BASE));
+    }
+
+    /// Axes 4 and 6 turn more than a whole turn: the angle taken is the whole-turn shift of
+    /// the inverse kinematics' one nearest the previous pose's, when it lies in range.
+    #[test]
+    fn a_wrist_axis_past_a_whole_turn_follows_the_previous_pose() {
+        let q = [20.0, 30.0, -20.0, 10.0, 50.0, 60.0];
+        let reference = [20.0, 30.0, -20.0, 367.0, 50.0, -298.0];
+        let got = at(q, Some(reference)).unwrap();
+        assert!(
+            close(got, [20.0, 30.0, -20.0, 370.0, 50.0, -300.0]),
+            "{got:?}"
+        );
+        // From a reference two turns away the nearest shift is beyond the range (730° > 398°):
+        // the one in range is taken, and then the step from the reference is too large.
+        let far = [20.0, 30.0, -20.0, 725.0, 50.0, 60.0];
+        assert!(matches!(
+            at(q, Some(far)),
+            Err(SixAxisFault::JointStep { axis: 4, .. })
+        ));
+    }
+
+    #[test]
+    fn a_joint_within_the_margin_of_its_end_is_refused_with_its_figures() {
+        match at([179.0, 30.0, -20.0, 40.0, 50.0, 60.0], None) {
+            Err(SixAxisFault::JointLimit {
+                axis: 1,
+                value_deg,
+                min_deg,
+                max_deg,
+                margin_deg,
+            }) => {
+                assert!((value_deg - 179.0).abs() < 1e-6, "{value_deg}");
+                assert_eq!((min_deg, max_deg), (-180.0, 180.0));
+                assert!((margin_deg - 2.0).abs() < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(matches!(
+            at([20.0, 154.0, -20.0, 40.0, 50.0, 60.0], None),
+            Err(SixAxisFault::JointLimit { axis: 2, .. })
+        ));
+        assert!(matches!(
+            at([20.0, -94.0, -20.0, 40.0, 50.0, 60.0], None),
+            Err(SixAxisFault::JointLimit { axis: 2, .. })
+        ));
+        // 3° inside the margin's edge is taken.
+        assert!(at([20.0, 150.0, -20.0, 40.0, 50.0, 60.0], None).is_ok());
+        assert!(at([20.0, -90.0, 70.0, 40.0, 50.0, 60.0], None).is_ok());
+        assert!(matches!(
+            at([20.0, -90.0, 74.0, 40.0, 50.0, 60.0], None),
+            Err(SixAxisFault::JointLimit { axis: 3, .. })
+        ));
+    }
+
+    #[test]
+    fn a_wrist_bend_near_its_singularity_is_refused() {
+        match at([20.0, 30.0, -20.0, 40.0, 3.0, 60.0], None) {
+            Err(SixAxisFault::WristSingular {
+                distance_deg,
+                margin_deg,
+            }) => {
+                assert!((distance_deg - 3.0).abs() < 1e-6, "{distance_deg}");
+                assert!((margin_deg - 5.0).abs() < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(at([20.0, 30.0, -20.0, 40.0, 6.0, 60.0], None).is_ok());
+    }
+
+    #[test]
+    fn a_joint_step_over_the_limit_is_refused_and_one_under_it_taken() {
+        let mut reference = BASE;
+        reference[0] = BASE[0] - 46.0;
+        match at(BASE, Some(reference)) {
+            Err(SixAxisFault::JointStep {
+                axis: 1,
+                change_deg,
+                limit_deg,
+            }) => {
+                assert!((change_deg - 46.0).abs() < 1e-6, "{change_deg}");
+                assert!((limit_deg - 45.0).abs() < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+        reference[0] = BASE[0] - 44.0;
+        assert!(close(at(BASE, Some(reference)).unwrap(), BASE));
+        let mut wrist = BASE;
+        wrist[5] = BASE[5] + 46.0;
+        assert!(matches!(
+            at(BASE, Some(wrist)),
+            Err(SixAxisFault::JointStep { axis: 6, .. })
+        ));
+    }
+
+    #[test]
+    fn margins_are_checked_against_their_documented_ranges() {
+        let ok = Margins::default();
+        ok.validate().unwrap();
+        let with = |limit: f64, wrist: f64, step: f64| Margins {
+            limit_rad: limit.to_radians(),
+            wrist_rad: wrist.to_radians(),
+            step_max_rad: step.to_radians(),
+        };
+        // The ends of each range are taken; zero only where it is allowed.
+        with(0.0, 0.0, 180.0).validate().unwrap();
+        with(30.0, 45.0, 0.5).validate().unwrap();
+        for bad in [
+            with(-1.0, 5.0, 45.0),
+            with(31.0, 5.0, 45.0),
+            with(f64::NAN, 5.0, 45.0),
+            with(2.0, -1.0, 45.0),
+            with(2.0, 46.0, 45.0),
+            with(2.0, 5.0, 0.0),
+            with(2.0, 5.0, 181.0),
+            with(2.0, 5.0, f64::INFINITY),
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+    }
+}
