@@ -188,19 +188,12 @@ pub fn joints_for_tool(
 /// the eye) can lie from that joint's axis: the chain's length from the joint's link point on
 /// (link lengths do not change with the joints). A point's speed is at most `Σ |q̇ⱼ| · bound[j]`.
 pub fn lever_arms_mm(arm: &SixAxisArm, extra_mm: f64) -> [f64; 6] {
-    let q = [0.0; 6];
-    let p = arm.kind.link_points(&q);
-    let eye = arm.tool_frame(&q).origin();
-    let mut chain = [0.0; 8];
-    // chain[i]: length from point i to the eye along the links.
-    for i in (0..7).rev() {
-        let next = if i + 1 < 7 { p[i + 1] } else { eye };
-        chain[i] = (next - p[i]).norm() + chain[i + 1];
-    }
-    // Joint j's axis passes through link point j − 1 or a later one (the UR's DH origins lie on
-    // the axes; an OPW arm's shoulder, elbow and wrist centre come one point later), and the
-    // chain from an earlier point is the longer.
-    std::array::from_fn(|j| chain[j] + extra_mm)
+    // The tool, the last link, ends at the eye: its levers are the chain's length from each
+    // joint's link point to the eye. Joint j's axis passes through link point j − 1 or a later
+    // one (the UR's DH origins lie on the axes; an OPW arm's shoulder, elbow and wrist centre
+    // come one point later), and the chain from an earlier point is the longer.
+    let to_eye = link_lever_arms_mm(arm)[super::LINKS - 1];
+    to_eye.map(|lever| lever + extra_mm)
 }
 
 /// Per link, [`lever_arms_mm`] without the eye mechanism: `[k][j]` bounds how far a point of link
