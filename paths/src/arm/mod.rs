@@ -711,6 +711,30 @@ pub(crate) fn wrap(a: f64) -> f64 {
     }
 }
 
+/// The configuration by its definitions' three signs, for the tests of both arm kinds: the wrist
+/// point ahead of axis 1 (front), the elbow bend positive (up), the wrist bend positive (no
+/// flip); written here once, apart from each kind's own `config_of`.
+#[cfg(test)]
+pub(crate) fn config_by_signs(ahead: f64, elbow_bend: f64, wrist_bend: f64) -> Config {
+    Config {
+        shoulder: if ahead > 0.0 {
+            Shoulder::Front
+        } else {
+            Shoulder::Back
+        },
+        elbow: if elbow_bend > 0.0 {
+            Elbow::Up
+        } else {
+            Elbow::Down
+        },
+        wrist: if wrist_bend > 0.0 {
+            Wrist::NoFlip
+        } else {
+            Wrist::Flip
+        },
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

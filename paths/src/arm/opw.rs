@@ -833,19 +833,7 @@ mod tests {
                 if ahead.abs() < 1e-6 || bend.abs() < 1e-9 || wrist.abs() < 1e-9 {
                     continue;
                 }
-                let want = Config {
-                    shoulder: if ahead > 0.0 {
-                        Shoulder::Front
-                    } else {
-                        Shoulder::Back
-                    },
-                    elbow: if bend > 0.0 { Elbow::Up } else { Elbow::Down },
-                    wrist: if wrist > 0.0 {
-                        Wrist::NoFlip
-                    } else {
-                        Wrist::Flip
-                    },
-                };
+                let want = super::super::config_by_signs(ahead, bend, wrist);
                 assert_eq!(o.config_of(&q), want, "{q:?}");
                 seen[want.index()] = true;
             }
