@@ -485,13 +485,8 @@ mod tests {
                 let at = |i: usize| if i < 7 { p[i] } else { eye };
                 std::array::from_fn::<_, 7, _>(|k| [at(k), at(k + 1)])
             };
-            let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-            let mut next = || {
-                seed ^= seed << 13;
-                seed ^= seed >> 7;
-                seed ^= seed << 17;
-                (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-            };
+            let mut uniform = crate::clearance::test_support::uniform(0x9e37_79b9_7f4a_7c15);
+            let mut next = || uniform() * 2.0 - 1.0;
             let in_tool = |q: &Joints6, p: &Point3<f64>| {
                 let f = arm.tool_frame(q);
                 f.rotation.transpose() * (p.coords - f.translation_mm)

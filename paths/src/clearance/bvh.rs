@@ -330,15 +330,8 @@ impl<F: FnMut(&Box3) -> bool> Iterator for Leaves<'_, F> {
 mod tests {
     use super::*;
 
-    /// A small deterministic generator (xorshift), so the tests need no crate.
     fn random_boxes(n: usize, seed: u64) -> Vec<Box3> {
-        let mut s = seed;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::clearance::test_support::uniform(seed);
         (0..n)
             .map(|_| {
                 let c = [next() * 100.0, next() * 100.0, next() * 10.0];
