@@ -249,6 +249,7 @@ impl At {
 
 /// The link capsules at one instant, with their names; the first is checked against the mandrel
 /// only.
+#[derive(Clone, Copy)]
 struct Links {
     capsules: [Capsule; arm::LINKS],
     count: usize,
@@ -812,13 +813,11 @@ fn six_axis_links_min(
     mv: SixAxisMove<'_>,
     mut ceiling: f64,
 ) -> Result<Minimum, Error> {
-    let ends = |tau: f64| -> Result<Joints6, Error> {
-        Ok(ctx
-            .links(&instant(tau))?
-            .and_then(|(q, _)| q)
-            .unwrap_or([0.0; 6]))
-    };
-    let (q0, q1) = (ends(0.0)?, ends(1.0)?);
+    // The arm at the move's ends, posed once: every link's search starts there.
+    let (start, end) = (ctx.links(&instant(0.0))?, ctx.links(&instant(1.0))?);
+    let joints_of =
+        |l: &Option<(Option<Joints6>, Links)>| l.as_ref().and_then(|(q, _)| *q).unwrap_or([0.0; 6]);
+    let (q0, q1) = (joints_of(&start), joints_of(&end));
     let mut failure: Option<Error> = None;
     let mut combined: Option<Minimum> = None;
     let mut first: Option<(f64, f64)> = None;
@@ -827,8 +826,15 @@ fn six_axis_links_min(
     for k in 0..arm::LINKS {
         let mut link_fn = |tau: f64, cap: f64| {
             let at = instant(tau);
-            match ctx.links(&at) {
-                Ok(Some((_, links))) => {
+            let posed = if tau == 0.0 {
+                Ok(start.as_ref().map(|(_, l)| *l))
+            } else if tau == 1.0 {
+                Ok(end.as_ref().map(|(_, l)| *l))
+            } else {
+                ctx.links(&at).map(|l| l.map(|(_, l)| l))
+            };
+            match posed {
+                Ok(Some(links)) => {
                     let c = links.capsules[k];
                     ctx.capsule(&c.a, &c.b, c.radius_mm, at.phi, k > 0, cap).0
                 }
