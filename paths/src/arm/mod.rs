@@ -649,25 +649,34 @@ impl ArmModel {
     }
 }
 
-/// `atan(k/8)` for k = 0..8 (correctly rounded).
-const ATAN_EIGHTHS: [f64; 9] = [
+/// `atan(k/16)` for k = 0..16 (correctly rounded).
+const ATAN_SIXTEENTHS: [f64; 17] = [
     0.0,
+    0.062_418_809_995_957_35,
     0.124_354_994_546_761_44,
+    0.185_347_949_995_694_76,
     0.244_978_663_126_864_14,
+    0.302_884_868_374_971_4,
     0.358_770_670_270_572_25,
+    0.412_410_441_597_387_3,
     0.463_647_609_000_806_1,
+    0.512_389_460_310_737_7,
     0.558_599_315_343_562_4,
+    0.602_287_346_134_964_2,
     0.643_501_108_793_284_4,
+    0.682_316_554_874_748_1,
     0.718_829_999_621_624_5,
+    0.753_151_280_962_194_4,
     std::f64::consts::FRAC_PI_4,
 ];
 
 /// `atan2(y, x)` for the inverse kinematics, within a few units in the last place of the
 /// library's (tested against it): the ratio of the smaller to the larger magnitude `t ∈ [0, 1]`
-/// is reduced by the nearest eighth `c` to `u = (t − c)/(1 + t·c)`, `|u| ≤ 1/16`, and
-/// `atan t = atan c + atan u` with the Taylor series of `atan u` to `u¹⁵` (remainder below
-/// `16⁻¹⁷/17 ≈ 2·10⁻²²`). A third of the library's instructions; zeros, infinities and NaN go
-/// to the library.
+/// is reduced by the nearest sixteenth `c` to `u = (t − c)/(1 + t·c)`, `|u| ≤ 1/32`, and
+/// `atan t = atan c + atan u` with the Taylor series of `atan u` to `u⁹` (remainder below
+/// `32⁻¹¹/11 ≈ 3·10⁻¹⁸`, under a unit in the last place of any result), evaluated in two
+/// independent halves (Estrin's scheme) to shorten the chain of dependent operations the
+/// inverse kinematics waits on. Zeros, infinities and NaN go to the library.
 #[inline]
 pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
@@ -676,17 +685,14 @@ pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     }
     let swap = ay > ax;
     let t = if swap { ax / ay } else { ay / ax };
-    let k = (t * 8.0 + 0.5) as usize;
-    let c = k as f64 * 0.125;
+    let k = ((t * 16.0 + 0.5) as usize).min(16);
+    let c = k as f64 * 0.0625;
     let u = (t - c) / (1.0 + t * c);
     let u2 = u * u;
-    let series = u
-        * (1.0
-            + u2 * (-1.0 / 3.0
-                + u2 * (1.0 / 5.0
-                    + u2 * (-1.0 / 7.0
-                        + u2 * (1.0 / 9.0 + u2 * (-1.0 / 11.0 + u2 * (1.0 / 13.0 - u2 / 15.0)))))));
-    let mut a = ATAN_EIGHTHS[k.min(8)] + series;
+    let u4 = u2 * u2;
+    let series =
+        u * ((1.0 - u2 * (1.0 / 3.0)) + u4 * ((0.2 - u2 * (1.0 / 7.0)) + u4 * (1.0 / 9.0)));
+    let mut a = ATAN_SIXTEENTHS[k] + series;
     if swap {
         a = std::f64::consts::FRAC_PI_2 - a;
     }

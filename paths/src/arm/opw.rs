@@ -398,12 +398,14 @@ impl Opw {
             Shoulder::Front => (1.0, rho - self.a1_mm),
             Shoulder::Back => (-1.0, -rho - self.a1_mm),
         };
-        let n2 = rho2 + self.b_mm * self.b_mm;
+        // Sines and cosines below are carried unnormalised where only their ratios matter:
+        // (cos q1, sin q1)·n1 and (cos q23, sin q23)·n23 with n1, n23 > 0 scale every entry of
+        // M below by n1·n23, which no arctangent sees (a square root and two divisions off the
+        // dependent chain).
         let (ux, uy) = (sign * rho, self.b_mm);
-        let c1 = (c.x * ux + c.y * uy) / n2;
-        let s1 = (c.y * ux - c.x * uy) / n2;
+        let (c1, s1) = (c.x * ux + c.y * uy, c.y * ux - c.x * uy);
         let s2 = x * x + cz1 * cz1;
-        let cos_b = (s2 - self.c2_mm * self.c2_mm - k * k) / (2.0 * self.c2_mm * k);
+        let cos_b = (s2 - self.c2_mm * self.c2_mm - k * k) * (1.0 / (2.0 * self.c2_mm * k));
         if !(-1.0..=1.0).contains(&cos_b) {
             return Err(out_of_reach(s2.sqrt()));
         }
@@ -419,20 +421,23 @@ impl Opw {
         let (wr, wi) = (cz1, x);
         let (tr, ti) = (self.c2_mm + k * cos_b, k * sin_b);
         let (q2r, q2i) = (wr * tr + wi * ti, wi * tr - wr * ti);
-        let q2n = (q2r * q2r + q2i * q2i).sqrt();
-        let (c2, s2_) = (q2r / q2n, q2i / q2n);
-        let (c23, s23) = (c2 * c3 - s2_ * s3, s2_ * c3 + c2 * s3);
-        // M = (Rz(q1)·Ry(q23))ᵀ·R: its third column and third row give the wrist angles.
-        let col1 = Vector3::new(c1 * c23, s1 * c23, -s23);
-        let col2 = Vector3::new(-s1, c1, 0.0);
-        let col3 = Vector3::new(c1 * s23, s1 * s23, c23);
+        let (c23, s23) = (q2r * c3 - q2i * s3, q2i * c3 + q2r * s3);
+        // M = (Rz(q1)·Ry(q23))ᵀ·R (times n1·n23): its third column and third row give the
+        // wrist angles.
+        // |(c1, s1)| = |c_xy|·|u| = ρ² + b² = n1; |(c23, s23)| = |q2| = n23.
+        let n1 = rho2 + self.b_mm * self.b_mm;
+        let n23 = (q2r * q2r + q2i * q2i).sqrt();
+        let col1 = Vector3::new(c1 * c23, s1 * c23, -s23 * n1);
+        let col2 = Vector3::new(-s1, c1, 0.0) * n23;
+        let col3 = Vector3::new(c1 * s23, s1 * s23, c23 * n1);
         let m13 = col1.dot(&z);
         let m23 = col2.dot(&z);
         let m33 = col3.dot(&z);
         let m31 = col3.dot(&r.column(0));
         let m32 = col3.dot(&r.column(1));
         let sin5 = (m13 * m13 + m23 * m23).sqrt();
-        let (q4, q5, q6) = if sin5 > 1e-12 {
+        let scale = n1 * n23;
+        let (q4, q5, q6) = if sin5 > 1e-12 * scale {
             (atan2(m23, m13), atan2(sin5, m33), atan2(m32, -m31))
         } else {
             // Axes 4 and 6 in line: only q4 ± q6 is defined; q4 = 0.

@@ -12,13 +12,23 @@
 //! # Method
 //! The tool's `x` axis is carried from pose to pose by the least rotation that takes the previous
 //! tow direction onto the next (its part perpendicular to the new direction, normalised); the
-//! free turn `Δ` is measured from there. The least joint time is tracked along the path: each
-//! pose evaluates the turn the previous pose took (`Δ_g`) and one probe `Δ_g + s`; a probe that
-//! lowers the joint time is taken and its step doubles (up to 15°), otherwise `Δ_g` is kept and
-//! the next probe goes the other way with half the step (down to 0.25°). Two inverse kinematics
-//! per pose; since the best turn moves smoothly along a smooth path, the tracked turn follows it
-//! (a test compares every pose with a fine scan of the whole turn). When `Δ_g` is not admissible
-//! the other side is probed, and when no probe is, the whole turn is scanned in 5° steps.
+//! free turn `Δ` is measured from there. The least joint time is tracked along the path with
+//! about one inverse kinematics per pose:
+//!
+//! - Each pose first evaluates the turn the previous pose took, carried on by the trend of the
+//!   recent corrections (the guess).
+//! - Near the guess the joints are linear in a correction `δ` of the turn, `Δq_i + r_i·δ`, with
+//!   the rates `r_i = ∂q_i/∂Δ` measured from the last two poses evaluated at one target. The
+//!   joint time `max_i |Δq_i + r_i·δ| / speed_i` is then convex and piecewise linear in `δ`,
+//!   and its least is found in closed form (Helly's theorem on the line: the largest of the
+//!   pairs' least values, [`least_max_abs`]).
+//! - Only where that least is worth it (0.5 % of the guess's joint time, [`WORTHWHILE_GAIN`]),
+//!   or the rates are 32 poses old, is the correction evaluated (a second inverse kinematics);
+//!   the better of the two poses is taken and the rates are measured afresh from them.
+//!
+//! A test compares every pose of three paths with a brute-force scan of the whole turn: over a
+//! path the joint time is within 1 % of the scan's. When the guess is not admissible, a degree
+//! to either side is tried, and when neither is, the whole turn is scanned in 5° steps.
 //!
 //! The first pose's turn is the one (in 10° steps) with the greatest least margin, to the limits
 //! and to the wrist singularity; the configurations are tried in the order of that margin at up to five poses
@@ -128,7 +138,8 @@ pub struct SolvedPath {
     pub report: PathReport,
 }
 
-/// Angular steps of the searches.
+/// Angular steps of the searches: the side steps and first probe of the tracking search, the
+/// fallback scan, the first pose's starting turns and the configuration ranking.
 const LOCAL_STEP_RAD: f64 = PI / 180.0;
 const SCAN_STEPS: usize = 72;
 const START_STEPS: usize = 36;
@@ -168,47 +179,138 @@ impl Turn {
             s: self.s * o.c + self.c * o.s,
         }
     }
-
-    fn back(self) -> Turn {
-        Turn {
-            c: self.c,
-            s: -self.s,
-        }
-    }
-
-    fn double(self) -> Turn {
-        self.then(self)
-    }
-
-    /// Half the turn (for turns within ±π/2, which the steps are).
-    fn half(self) -> Turn {
-        let c = (0.5 * (1.0 + self.c)).sqrt();
-        Turn {
-            c,
-            s: self.s / (2.0 * c),
-        }
-    }
 }
 
-/// The cosines of the least (0.25°) and greatest (15°) probe of the tracking search.
-const COS_MIN_TRACK_STEP: f64 = 0.999_990_480_720_734_5;
-const COS_MAX_TRACK_STEP: f64 = 0.965_925_826_289_068_3;
+/// The largest correction of the turn the tracking search makes at one pose, rad (15°).
+const MAX_TRACK_STEP_RAD: f64 = PI / 12.0;
+/// The largest correction that is taken as a trend and carried on to the next pose (0.5°).
+const MAX_DRIFT_RAD: f64 = PI / 360.0;
+/// The least probe that measures the joints' rates with the turn, rad (0.25°).
+const MIN_TRACK_PROBE_RAD: f64 = PI / 720.0;
+/// The least correction evaluated as such (smaller ones probe [`MIN_TRACK_PROBE_RAD`] instead:
+/// the rates are measured from the difference of the two poses).
+const LEAST_CORRECTION_RAD: f64 = 1e-9;
+/// Poses after which the joints' rates with the turn are measured again even when the linear
+/// model sees nothing to gain.
+const SLOPE_REFRESH_POSES: u32 = 32;
+/// The share of the joint time below which a correction the linear model predicts is not worth
+/// a second inverse kinematics (0.5 %).
+const WORTHWHILE_GAIN: f64 = 0.005;
 
-/// The tracking search's state: the turn taken at the last pose (beyond the carried `x` axis)
-/// and the probe, signed in the direction that last helped.
+/// The tracking search's state.
 #[derive(Debug, Clone, Copy)]
 struct Tracker {
+    /// The turn taken at the last pose, beyond the carried `x` axis.
     turn: Turn,
-    step: Turn,
+    /// The pair of joints that last showed no correction worth it ([`least_max_abs_reaches`]).
+    binding: (usize, usize),
+    /// The trend of the corrections: their sum, each spread over the poses since the one
+    /// before, rad; and as a turn.
+    drift_rad: f64,
+    drift: Turn,
+    /// The joints' rates with the turn `∂q/∂Δ` (rad/rad) as last measured, and how many poses
+    /// ago.
+    slope: Option<Joints6>,
+    age: u32,
+    /// What makes joint changes joint time: `1/speed_i` (s/rad), or 1 without speeds.
+    weights: Joints6,
 }
 
-impl Default for Tracker {
-    fn default() -> Self {
+impl Tracker {
+    fn new(weights: Joints6) -> Self {
         Tracker {
             turn: Turn::ZERO,
-            step: Turn::of(LOCAL_STEP_RAD),
+            binding: (0, 1),
+            drift_rad: 0.0,
+            drift: Turn::ZERO,
+            slope: None,
+            age: 0,
+            weights,
         }
     }
+}
+
+/// The joint time from `a` to `b`: the largest `|b_i − a_i|·weight_i` (`weight_i = 1/speed_i`,
+/// s; or 1, the largest joint change in rad, when no speeds are known).
+fn joint_time(weights: &Joints6, a: &Joints6, b: &Joints6) -> f64 {
+    let mut worst = 0.0f64;
+    for i in 0..6 {
+        worst = worst.max((b[i] - a[i]).abs() * weights[i]);
+    }
+    worst
+}
+
+/// Whether the least over all `δ` of `f(δ) = max_j |a_j + b_j·δ|` is at least `t`: some pair's
+/// own least is ([`least_max_abs`]). The pair that showed it last time is tried first (it
+/// changes rarely along a path) and kept in `hint`.
+fn least_max_abs_reaches(a: &Joints6, b: &Joints6, t: f64, hint: &mut (usize, usize)) -> bool {
+    let reaches = |j: usize, k: usize| {
+        let rates = b[j].abs() + b[k].abs();
+        if rates > 0.0 {
+            (a[j] * b[k] - a[k] * b[j]).abs() >= t * rates
+        } else {
+            // Two flat terms: their least is the larger.
+            a[j].abs().max(a[k].abs()) >= t
+        }
+    };
+    if reaches(hint.0, hint.1) {
+        return true;
+    }
+    for j in 0..a.len() {
+        for k in j + 1..a.len() {
+            if reaches(j, k) {
+                *hint = (j, k);
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// The `δ` in `[−limit, limit]` that minimises `f(δ) = max_j |a_j + b_j·δ|`, and `f` there.
+///
+/// The sets `{δ : |a_j + b_j·δ| ≤ t}` are intervals, and intervals on a line share a point when
+/// every two of them do (Helly's theorem in one dimension), so the least of `f` is the largest
+/// over pairs of the pair's own least, `|a_j·b_k − a_k·b_j| / (|b_j| + |b_k|)`; the `δ` taken is
+/// the one nearest zero where every term is within it. Beyond `limit` the least (f being
+/// convex) is at the limit. With every `b_j` zero, `f` is flat and `δ = 0`.
+fn least_max_abs(a: &Joints6, b: &Joints6, limit: f64) -> (f64, f64) {
+    // The binding pair, compared as fractions num/den without dividing.
+    let (mut num, mut den, mut pair) = (0.0f64, 1.0f64, None);
+    for j in 0..a.len() {
+        for k in j + 1..a.len() {
+            let n = (a[j] * b[k] - a[k] * b[j]).abs();
+            let m = b[j].abs() + b[k].abs();
+            if m > 0.0 && n * den > num * m {
+                (num, den, pair) = (n, m, Some((j, k)));
+            }
+        }
+    }
+    // The least, and the correction nearest zero that reaches it: the common part of the
+    // intervals where each moving term stays within it (one point unless terms are flat;
+    // rounding may leave the ends a hair apart).
+    let least = if pair.is_some() { num / den } else { 0.0 };
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    for (aj, bj) in a.iter().zip(b) {
+        if *bj != 0.0 {
+            let (e1, e2) = ((-least - aj) / bj, (least - aj) / bj);
+            lo = lo.max(e1.min(e2));
+            hi = hi.min(e1.max(e2));
+        }
+    }
+    let d = if lo <= hi {
+        0.0f64.clamp(lo, hi)
+    } else if lo.is_finite() && hi.is_finite() {
+        0.5 * (lo + hi)
+    } else {
+        0.0
+    }
+    .clamp(-limit, limit);
+    let top = a
+        .iter()
+        .zip(b)
+        .fold(0.0f64, |m, (aj, bj)| m.max((aj + bj * d).abs()));
+    (d, top)
 }
 
 /// The tool frame with its rotation transposed, as the pose search uses it (`R_flange =
@@ -352,25 +454,6 @@ impl SixAxisArm {
         least
     }
 
-    /// The joint time from `a` to `b` in units of the slowest joint's share (rad/(rad/s)), or
-    /// the largest joint change when no speeds are known.
-    fn step_cost(&self, a: &Joints6, b: &Joints6) -> f64 {
-        let mut worst = 0.0f64;
-        match &self.limits.speed_rad_s {
-            Some(s) => {
-                for i in 0..6 {
-                    worst = worst.max((b[i] - a[i]).abs() / s[i]);
-                }
-            }
-            None => {
-                for i in 0..6 {
-                    worst = worst.max((b[i] - a[i]).abs());
-                }
-            }
-        }
-        worst
-    }
-
     /// The greater of the least margins (to the limits and to the wrist singularity) of the
     /// joints, rad: how comfortably the arm holds a pose.
     fn comfort(&self, q: &Joints6) -> f64 {
@@ -460,6 +543,76 @@ impl SixAxisArm {
         order
     }
 
+    /// The admissible `guess` (the turn the last pose took) or a better turn near it: the joint
+    /// time as a function of the correction `δ` of the turn is modelled as
+    /// `max_i |Δq_i + ∂q_i/∂Δ·δ| / speed_i` with the rates last measured; where the model's least
+    /// is worth it ([`WORTHWHILE_GAIN`]), or the rates are [`SLOPE_REFRESH_POSES`] old, the
+    /// correction is evaluated (a second inverse kinematics), the rates re-measured from the two
+    /// poses, and the better of the two taken.
+    fn refine(
+        &self,
+        guess: Candidate,
+        prev: &Joints6,
+        track: &mut Tracker,
+        eval: impl Fn(Turn) -> Result<Candidate, SixAxisFault>,
+    ) -> Candidate {
+        let w = &track.weights;
+        let probe = match track.slope {
+            Some(rate) => {
+                let a: Joints6 = std::array::from_fn(|i| (guess.q[i] - prev[i]) * w[i]);
+                let b: Joints6 = std::array::from_fn(|i| rate[i] * w[i]);
+                let worth = guess.cost * (1.0 - WORTHWHILE_GAIN);
+                if least_max_abs_reaches(&a, &b, worth, &mut track.binding) {
+                    (track.age >= SLOPE_REFRESH_POSES).then(|| {
+                        let (delta, _) = least_max_abs(&a, &b, MAX_TRACK_STEP_RAD);
+                        if delta.abs() >= MIN_TRACK_PROBE_RAD {
+                            delta
+                        } else {
+                            MIN_TRACK_PROBE_RAD
+                        }
+                    })
+                } else {
+                    let (delta, _) = least_max_abs(&a, &b, MAX_TRACK_STEP_RAD);
+                    Some(if delta.abs() >= LEAST_CORRECTION_RAD {
+                        delta
+                    } else {
+                        MIN_TRACK_PROBE_RAD
+                    })
+                }
+            }
+            None => Some(LOCAL_STEP_RAD),
+        };
+        let Some(delta) = probe else {
+            track.age += 1;
+            track.turn = guess.turn;
+            return guess;
+        };
+        let chosen = match eval(guess.turn.then(Turn::of(delta))) {
+            Ok(p) => {
+                track.slope = Some(std::array::from_fn(|i| (p.q[i] - guess.q[i]) / delta));
+                let since = f64::from(track.age + 1);
+                track.age = 0;
+                if p.cost < guess.cost {
+                    track.drift_rad = if delta.abs() < MAX_DRIFT_RAD {
+                        track.drift_rad + delta / since
+                    } else {
+                        0.0
+                    };
+                    track.drift = Turn::of(track.drift_rad);
+                    p
+                } else {
+                    guess
+                }
+            }
+            Err(_) => {
+                track.age += 1;
+                guess
+            }
+        };
+        track.turn = chosen.turn;
+        chosen
+    }
+
     /// The next pose after `prev` (joints) with tool `x` axis `x_prev`: the admissible turn
     /// that needs the least joint time, tracked from pose to pose (module documentation).
     fn next_pose(
@@ -474,47 +627,29 @@ impl SixAxisArm {
         let d = t.tow.into_inner();
         let x0 = transported(x_prev, &d);
         let y0 = d.cross(&x0);
+        let weights = track.weights;
         let eval = |turn: Turn| -> Result<Candidate, SixAxisFault> {
             let x = x0 * turn.c + y0 * turn.s;
             let q = self.admissible(&t.eye_mm, &x, &d, tool, config, Some(prev))?;
             Ok(Candidate {
                 q,
                 x,
-                cost: self.step_cost(prev, &q),
+                cost: joint_time(&weights, prev, &q),
                 turn,
             })
         };
-        let better =
-            |a: &Result<Candidate, SixAxisFault>, b: &Result<Candidate, SixAxisFault>| match (a, b)
-            {
-                (Ok(a), Ok(b)) => a.cost < b.cost,
-                (Ok(_), Err(_)) => true,
-                _ => false,
-            };
-        let guess = eval(track.turn);
-        let ahead = eval(track.turn.then(track.step));
-        let chosen = if better(&ahead, &guess) {
-            let doubled = track.step.double();
-            if doubled.c >= COS_MAX_TRACK_STEP {
-                track.step = doubled;
+        let predicted = track.turn.then(track.drift);
+        let chosen = match eval(predicted) {
+            Ok(guess) => Ok(self.refine(guess, prev, track, eval)),
+            Err(fault) => {
+                // The turn the last pose took is not admissible here: a degree to either side,
+                // and the rates are measured afresh.
+                track.slope = None;
+                match eval(predicted.then(Turn::of(LOCAL_STEP_RAD))) {
+                    Ok(c) => Ok(c),
+                    Err(_) => eval(predicted.then(Turn::of(-LOCAL_STEP_RAD))).map_err(|_| fault),
+                }
             }
-            ahead
-        } else if guess.is_ok() {
-            // The probe overshot or went the wrong way: keep the guess, probe the other way
-            // next time, with half the step.
-            let halved = track.step.half();
-            track.step = if halved.c <= COS_MIN_TRACK_STEP {
-                halved.back()
-            } else {
-                track.step.back()
-            };
-            guess
-        } else {
-            let behind = eval(track.turn.then(track.step.back()));
-            if behind.is_ok() {
-                track.step = track.step.back();
-            }
-            behind
         };
         let fault = match chosen {
             Ok(c) => {
@@ -533,7 +668,7 @@ impl SixAxisArm {
         }
         match scanned {
             Some(c) => {
-                *track = Tracker::default();
+                *track = Tracker::new(track.weights);
                 Ok(c)
             }
             None => Err(fault),
@@ -638,7 +773,11 @@ impl SixAxisArm {
         let mut joints = Vec::with_capacity(targets.len());
         joints.push(q0);
         let mut x = *x_start;
-        let mut track = Tracker::default();
+        let weights = match &self.limits.speed_rad_s {
+            Some(speed) => speed.map(|v| 1.0 / v),
+            None => [1.0; 6],
+        };
+        let mut track = Tracker::new(weights);
         for (i, t) in targets.iter().enumerate().skip(1) {
             let prev = joints[i - 1];
             let c = self
@@ -837,6 +976,74 @@ mod tests {
             at(BASE, Some(wrist)),
             Err(SixAxisFault::JointStep { axis: 6, .. })
         ));
+    }
+
+    /// `max_j |a_j + b_j·δ|` at `d`, written out.
+    fn max_abs(a: &Joints6, b: &Joints6, d: f64) -> f64 {
+        (0..6).map(|j| (a[j] + b[j] * d).abs()).fold(0.0, f64::max)
+    }
+
+    /// The closed form's least against a brute-force scan of `δ` (then refined about the scan's
+    /// best), for random terms, some with zero rates, some with the least beyond the limit; the
+    /// quick test agrees with the least on either side of it.
+    #[test]
+    fn least_max_abs_is_the_least_a_scan_finds() {
+        let mut rng = crate::clearance::test_support::uniform(77);
+        for case in 0..2000 {
+            let a: Joints6 = std::array::from_fn(|_| rng() * 2.0 - 1.0);
+            let b: Joints6 = std::array::from_fn(|j| {
+                if case % 7 == 0 && j % 2 == 0 {
+                    0.0
+                } else {
+                    (rng() * 2.0 - 1.0) * 3.0
+                }
+            });
+            let limit = if case % 5 == 0 { 0.05 } else { 4.0 };
+            let (d, least) = least_max_abs(&a, &b, limit);
+            assert!(d.abs() <= limit, "case {case}: δ {d}");
+            assert!((max_abs(&a, &b, d) - least).abs() < 1e-12, "case {case}");
+            let mut best = (0.0, f64::INFINITY);
+            for k in -2000..=2000 {
+                let x = limit * k as f64 / 2000.0;
+                let f = max_abs(&a, &b, x);
+                if f < best.1 {
+                    best = (x, f);
+                }
+            }
+            for k in -1000..=1000 {
+                let x = (best.0 + limit * k as f64 / 2e6).clamp(-limit, limit);
+                best.1 = best.1.min(max_abs(&a, &b, x));
+            }
+            assert!(
+                least <= best.1 + 1e-9,
+                "case {case}: {least} > scan {}",
+                best.1
+            );
+            // The scan's own resolution: 2·10⁻⁶ in δ, slopes up to 6.
+            assert!(
+                least >= best.1 - 1.5e-5,
+                "case {case}: {least} < scan {}",
+                best.1
+            );
+            if limit > 1.0 {
+                let mut hint = (0, 1);
+                assert!(least_max_abs_reaches(
+                    &a,
+                    &b,
+                    least * (1.0 - 1e-9),
+                    &mut hint
+                ));
+                assert!(!least_max_abs_reaches(
+                    &a,
+                    &b,
+                    least * (1.0 + 1e-6) + 1e-12,
+                    &mut hint
+                ));
+            }
+        }
+        // Every rate zero: flat, no correction.
+        let a = [0.3, -0.1, 0.0, 0.2, 0.0, 0.0];
+        assert_eq!(least_max_abs(&a, &[0.0; 6], 1.0), (0.0, 0.3));
     }
 
     #[test]

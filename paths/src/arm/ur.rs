@@ -263,8 +263,9 @@ impl Ur {
             return Err(out_of_reach((p5.z - self.d1_mm).abs()));
         }
         // θ1 = ψ + φ (front) or ψ + π − φ (back), sin φ = d4/ρ, cos φ ≥ 0: as complex numbers.
-        let (cpsi, spsi) = (p5.x / rho, p5.y / rho);
-        let sphi = self.d4_mm / rho;
+        let inv_rho = 1.0 / rho;
+        let (cpsi, spsi) = (p5.x * inv_rho, p5.y * inv_rho);
+        let sphi = self.d4_mm * inv_rho;
         let cphi = ((1.0 - sphi) * (1.0 + sphi)).sqrt();
         let cphi = match config.shoulder {
             Shoulder::Front => cphi,
@@ -280,9 +281,10 @@ impl Ur {
             Wrist::Flip => -s5_abs,
         };
         let (s6, c6) = if s5_abs > 1e-12 {
-            let (a, b) = (-y6.dot(&z1) / s5, x6.dot(&z1) / s5);
-            let n = (a * a + b * b).sqrt();
-            (a / n, b / n)
+            // (−y6·z1, x6·z1) / s5, normalised: only the sign of s5 is needed.
+            let (a, b) = (-y6.dot(&z1), x6.dot(&z1));
+            let scale = (1.0 / (a * a + b * b).sqrt()).copysign(s5);
+            (a * scale, b * scale)
         } else {
             (0.0, 1.0)
         };
@@ -293,7 +295,7 @@ impl Ur {
         let v = p4 - Vector3::new(0.0, 0.0, self.d1_mm) - z1 * self.d4_mm;
         let (px, py) = (v.dot(&x1), v.z);
         let (a2, a3) = (self.a2_mm, self.a3_mm);
-        let c3 = (px * px + py * py - a2 * a2 - a3 * a3) / (2.0 * a2 * a3);
+        let c3 = (px * px + py * py - a2 * a2 - a3 * a3) * (1.0 / (2.0 * a2 * a3));
         if !(-1.0..=1.0).contains(&c3) {
             return Err(out_of_reach(px.hypot(py)));
         }
@@ -306,9 +308,9 @@ impl Ur {
         // θ2 − θ3.
         let (tr, ti) = (a2 + a3 * c3, a3 * s3);
         let (q2r, q2i) = (px * tr + py * ti, py * tr - px * ti);
-        let n2 = (q2r * q2r + q2i * q2i).sqrt();
-        let (c2, s2) = (q2r / n2, q2i / n2);
-        let (c23, s23) = (c2 * c3 - s2 * s3, s2 * c3 + c2 * s3);
+        // (cos θ23, sin θ23) times |q2| > 0: θ4 below is an argument, which no positive scale
+        // changes.
+        let (c23, s23) = (q2r * c3 - q2i * s3, q2i * c3 + q2r * s3);
         let (xr, xi) = (x4.dot(&x1), x4.z);
         let (q4r, q4i) = (xr * c23 + xi * s23, xi * c23 - xr * s23);
         let t1 = atan2(s1, c1);

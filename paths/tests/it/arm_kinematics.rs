@@ -463,79 +463,128 @@ fn a_path_out_of_reach_is_refused_with_its_pose() {
     assert!(e.contains("out of reach"), "{e}");
 }
 
-/// The turn about the tow line is chosen so that the joints move no more than needed: at every
-/// pose of a winding path, the joint time from the previous pose (the largest `|Δq_i| / speed_i`)
-/// is compared with the least over a 0.25° scan of the whole turn, in the same configuration,
-/// with the same limits, margins and continuity limit, the same previous pose.
-#[test]
-fn the_chosen_turn_needs_no_more_joint_time_than_a_fine_scan() {
-    let tool = Tool {
-        tcp_mm: [0.0, 0.0, 150.0],
-        rpy_deg: [0.0, 90.0, 0.0],
-    };
-    let arm = SixAxisArm::opw_preset("irb2600-12/1.65", tool).unwrap();
-    let targets = winding(Point3::new(1000.0, 0.0, 500.0), 2.0, 400.0, 201);
-    let solved = arm.solve_path(&targets, None).unwrap();
+/// The least joint time from `prev` to an admissible pose at `target` in `config` over the
+/// whole turn about the tow line, found by brute force: a 0.25° scan of the whole turn, then a
+/// 0.0025° scan of the half degree about the scan's best (same limits, margins and continuity
+/// limit as the solver's, written out here from their definitions).
+fn least_joint_time_by_scan(
+    arm: &SixAxisArm,
+    target: &EyeTarget,
+    prev: &Joints6,
+    config: paths::arm::Config,
+) -> f64 {
     let speeds = arm.limits.speed_rad_s.unwrap();
     let m = arm.margins;
     let t_tool = arm.tool.frame();
-    let cost = |a: &Joints6, b: &Joints6| {
-        (0..6)
-            .map(|i| (b[i] - a[i]).abs() / speeds[i])
-            .fold(0.0, f64::max)
-    };
-    let mut worst: f64 = 0.0;
-    for k in 1..targets.len() {
-        let prev = solved.joints[k - 1];
-        let chosen = cost(&prev, &solved.joints[k]);
-        let d = targets[k].tow.into_inner();
-        let e1 = d.cross(&Vector3::z()).normalize();
-        let e2 = d.cross(&e1);
-        let mut least = f64::INFINITY;
-        for s in 0..1440 {
-            let g = s as f64 * TAU / 1440.0;
-            let x = e1 * g.cos() + e2 * g.sin();
-            let r_tool = Matrix3::from_columns(&[x, d.cross(&x), d]);
-            let rotation = r_tool * t_tool.rotation.transpose();
-            let flange = Pose6 {
-                translation_mm: targets[k].eye_mm.coords - rotation * t_tool.translation_mm,
-                rotation,
-            };
-            let Ok(raw) = arm.kind.inverse_branch(&flange, solved.report.config) else {
-                continue;
-            };
-            let mut q = raw;
-            let mut ok = true;
-            for i in 0..6 {
-                let (lo, hi) = (
-                    arm.limits.min_rad[i] + m.limit_rad,
-                    arm.limits.max_rad[i] - m.limit_rad,
-                );
-                let best = (-3..=3)
-                    .map(|n| raw[i] + n as f64 * TAU)
-                    .filter(|v| *v >= lo && *v <= hi)
-                    .min_by(|a, b| (a - prev[i]).abs().total_cmp(&(b - prev[i]).abs()));
-                match best {
-                    Some(v) if (v - prev[i]).abs() <= m.step_max_rad => q[i] = v,
-                    _ => ok = false,
-                }
-            }
-            if ok && arm.kind.wrist_distance_rad(&q) >= m.wrist_rad {
-                least = least.min(cost(&prev, &q));
-            }
+    let d = target.tow.into_inner();
+    let e1 = d.cross(&Vector3::z()).normalize();
+    let e2 = d.cross(&e1);
+    let time_at = |g: f64| -> Option<f64> {
+        let x = e1 * g.cos() + e2 * g.sin();
+        let r_tool = Matrix3::from_columns(&[x, d.cross(&x), d]);
+        let rotation = r_tool * t_tool.rotation.transpose();
+        let flange = Pose6 {
+            translation_mm: target.eye_mm.coords - rotation * t_tool.translation_mm,
+            rotation,
+        };
+        let raw = arm.kind.inverse_branch(&flange, config).ok()?;
+        let mut q = raw;
+        for i in 0..6 {
+            let (lo, hi) = (
+                arm.limits.min_rad[i] + m.limit_rad,
+                arm.limits.max_rad[i] - m.limit_rad,
+            );
+            q[i] = (-3..=3)
+                .map(|n| raw[i] + n as f64 * TAU)
+                .filter(|v| *v >= lo && *v <= hi)
+                .min_by(|a, b| (a - prev[i]).abs().total_cmp(&(b - prev[i]).abs()))
+                .filter(|v| (v - prev[i]).abs() <= m.step_max_rad)?;
         }
-        assert!(
-            least.is_finite(),
-            "pose {k}: the scan found no admissible turn"
-        );
-        // Within 5 % of the scan's least, or 0.2 ms of joint time (the scan's own 0.25° grid).
-        assert!(
-            chosen <= least * 1.05 + 2e-4,
-            "pose {k}: chosen {chosen} s, scan {least} s"
-        );
-        worst = worst.max(chosen / least);
+        (arm.kind.wrist_distance_rad(&q) >= m.wrist_rad).then(|| {
+            (0..6)
+                .map(|i| (q[i] - prev[i]).abs() / speeds[i])
+                .fold(0.0, f64::max)
+        })
+    };
+    let coarse = TAU / 1440.0;
+    let (best_g, mut least) = (0..1440)
+        .filter_map(|s| time_at(s as f64 * coarse).map(|t| (s as f64 * coarse, t)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("the scan found no admissible turn");
+    for s in -100..=100 {
+        if let Some(t) = time_at(best_g + s as f64 * coarse / 100.0) {
+            least = least.min(t);
+        }
     }
-    eprintln!("largest ratio of chosen to scanned joint time: {worst:.4}");
+    least
+}
+
+/// The turn about the tow line is chosen so that the joints move no more than needed: at every
+/// pose of a winding path, the joint time from the previous pose (the largest `|Δq_i| / speed_i`)
+/// is compared with the least a brute-force scan of the whole turn finds
+/// ([`least_joint_time_by_scan`]), from the same previous pose. Two arms, a short path and a
+/// long one with 500 poses a swing (the density of the pose benchmark).
+#[test]
+fn the_chosen_turn_needs_no_more_joint_time_than_a_fine_scan() {
+    let cases = [
+        (
+            SixAxisArm::opw_preset(
+                "irb2600-12/1.65",
+                Tool {
+                    tcp_mm: [0.0, 0.0, 150.0],
+                    rpy_deg: [0.0, 90.0, 0.0],
+                },
+            )
+            .unwrap(),
+            winding(Point3::new(1000.0, 0.0, 500.0), 2.0, 400.0, 201),
+        ),
+        (
+            SixAxisArm::opw_preset(
+                "irb2600-12/1.65",
+                Tool {
+                    tcp_mm: [0.0, 0.0, 150.0],
+                    rpy_deg: [0.0, 90.0, 0.0],
+                },
+            )
+            .unwrap(),
+            winding(Point3::new(1000.0, 0.0, 500.0), 2.0, 400.0, 1000),
+        ),
+        (
+            SixAxisArm::ur_preset(
+                "ur10e",
+                Tool {
+                    tcp_mm: [0.0, 50.0, 120.0],
+                    rpy_deg: [20.0, 0.0, 0.0],
+                },
+            )
+            .unwrap(),
+            winding(Point3::new(700.0, 200.0, 100.0), 2.0, 300.0, 1000),
+        ),
+    ];
+    for (arm, targets) in &cases {
+        let solved = arm.solve_path(targets, None).unwrap();
+        let speeds = arm.limits.speed_rad_s.unwrap();
+        let mut worst: f64 = 0.0;
+        let mut total = (0.0, 0.0);
+        for k in 1..targets.len() {
+            let prev = solved.joints[k - 1];
+            let chosen = (0..6)
+                .map(|i| (solved.joints[k][i] - prev[i]).abs() / speeds[i])
+                .fold(0.0, f64::max);
+            let least = least_joint_time_by_scan(arm, &targets[k], &prev, solved.report.config);
+            total = (total.0 + chosen, total.1 + least);
+            worst = worst.max(chosen / least);
+        }
+        eprintln!(
+            "{} poses: largest ratio of chosen to scanned joint time {worst:.4}, over the path {:.4}",
+            targets.len(),
+            total.0 / total.1
+        );
+        // Over the path within 1 % of the brute-force least; no pose more than 30 % above it
+        // (where the least joint switches, a pose or two may lag).
+        assert!(total.0 <= total.1 * 1.01, "{} {}", total.0, total.1);
+        assert!(worst <= 1.3, "{worst}");
+    }
 }
 
 /// The link capsules join the arm's joint origins: the wrist capsule ends at the flange and the
