@@ -1009,5 +1009,16 @@ mod tests {
         let mut short = Arm::default();
         short.forearm_mm = -1.0;
         assert!(ArmModel::Irb6(short).validate().is_err());
+        // The kinematics' own figures are checked with the arm's.
+        let mut opw_bad = opw;
+        if let SixAxisKind::Opw(o) = &mut opw_bad.kind {
+            o.c2_mm = f64::NAN;
+        }
+        assert!(opw_bad.validate().is_err());
+        let mut ur_bad = ur;
+        if let SixAxisKind::Ur(u) = &mut ur_bad.kind {
+            u.a2_mm = 0.0;
+        }
+        assert!(ur_bad.validate().is_err());
     }
 }
