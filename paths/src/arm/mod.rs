@@ -1006,8 +1006,10 @@ mod tests {
         let mut bad = ur;
         bad.link_radii_mm[0] = -1.0;
         assert!(ArmModel::SixAxis(bad).validate().is_err());
-        let mut short = Arm::default();
-        short.forearm_mm = -1.0;
+        let short = Arm {
+            forearm_mm: -1.0,
+            ..Arm::default()
+        };
         assert!(ArmModel::Irb6(short).validate().is_err());
         // The kinematics' own figures are checked with the arm's.
         let mut opw_bad = opw;
