@@ -1814,10 +1814,10 @@ mod tests {
     }
 
     /// Two links dip below zero on one move, the later-searched link first: a 0.2 mm cube
-    /// 0.3 mm inside the tool's leading side a quarter of the way along segment 5, another
-    /// inside the forearm's leading side three quarters of the way. The move's finding is the
-    /// earliest contact of any link, found by sampling every link densely (2 000 instants), and
-    /// names the tool.
+    /// 0.3 mm inside the tool's leading side a fifth of the way along segment 5, another inside
+    /// the forearm's leading side halfway, which the forearm then runs deeper into than the tool
+    /// into its own. The move's finding is the earliest contact of any link (not the deepest),
+    /// found by sampling every link densely (2 000 instants), and names the tool.
     #[test]
     fn a_moves_first_link_contact_is_the_earliest_of_any_link() {
         let (arm, setup, tube, p) = irb2600_on_a_positioner();
@@ -1858,8 +1858,8 @@ mod tests {
                 }
             };
             [
-                ahead(tool, 0.25, "tool post"),
-                ahead(forearm, 0.75, "forearm post"),
+                ahead(tool, 0.2, "tool post"),
+                ahead(forearm, 0.5, "forearm post"),
             ]
         };
         let mut c = cell(&setup, &cubes);
@@ -1868,6 +1868,7 @@ mod tests {
         // Each link's first sampled instant below zero.
         let n = 2000;
         let mut first = [None; arm::LINKS];
+        let mut least = [f64::INFINITY; arm::LINKS];
         for i in 0..=n {
             let tau = i as f64 / n as f64;
             let at = instant(tau);
@@ -1879,11 +1880,14 @@ mod tests {
                 if d < 0.0 && first[k].is_none() {
                     first[k] = Some(tau);
                 }
+                least[k] = least[k].min(d);
             }
         }
         let t_tool = first[tool].expect("the tool meets its post");
         let t_forearm = first[forearm].expect("the forearm meets its post");
-        assert!(t_tool < 0.3 && t_forearm > 0.6, "{first:?}");
+        assert!(t_tool < 0.25 && t_forearm > 0.45, "{first:?}");
+        // The forearm goes deeper than the tool: the earliest contact is not the deepest.
+        assert!(least[forearm] < least[tool] - 1.0, "{least:?}");
         assert!(
             first.iter().flatten().all(|&t| t >= t_tool),
             "another link first: {first:?}"
