@@ -824,4 +824,209 @@ mod tests {
             .is_err()
         );
     }
+
+    /// The name and value of an [`Error::OutOfRange`], or a panic naming what came instead.
+    fn refused<T: fmt::Debug>(r: Result<T, Error>) -> (&'static str, f64) {
+        match r {
+            Err(Error::OutOfRange { name, value, .. }) => (name, value),
+            other => panic!("expected a refusal, got {other:?}"),
+        }
+    }
+
+    /// The tool's bounds are inclusive: an eye 10 000 mm out on any axis and a turn of 360° are
+    /// taken; a hair beyond, a NaN or an infinity is refused with its name and value.
+    #[test]
+    fn tool_figures_are_taken_up_to_their_bounds_and_refused_beyond() {
+        let edge = Tool {
+            tcp_mm: [10_000.0, -10_000.0, 0.0],
+            rpy_deg: [360.0, -360.0, 0.0],
+        };
+        edge.validate().unwrap();
+        for v in [10_000.001, -10_000.001, f64::INFINITY, f64::NAN] {
+            for i in 0..3 {
+                let mut t = edge;
+                t.tcp_mm[i] = v;
+                let (name, value) = refused(t.validate());
+                assert_eq!(name, "tcp_mm");
+                assert!(
+                    value == v || (v.is_nan() && value.is_nan()),
+                    "{value} for {v}"
+                );
+            }
+        }
+        for v in [360.001, -360.001, f64::NEG_INFINITY, f64::NAN] {
+            for i in 0..3 {
+                let mut t = edge;
+                t.rpy_deg[i] = v;
+                let (name, value) = refused(t.validate());
+                assert_eq!(name, "rpy_deg");
+                assert!(
+                    value == v || (v.is_nan() && value.is_nan()),
+                    "{value} for {v}"
+                );
+            }
+        }
+    }
+
+    /// Joint ranges: any range inside two turns each side of zero with its least below its
+    /// greatest is taken, the ±720° ends included; an infinite end is refused naming that end,
+    /// an empty or reversed range naming its least end, an end beyond ±720° naming that end (in
+    /// degrees), and a speed that is not finite and positive naming the speed.
+    #[test]
+    fn joint_limits_are_taken_up_to_two_turns_and_refused_beyond() {
+        let turns = 2.0 * TAU;
+        let wide = JointLimits6 {
+            min_rad: [-turns; 6],
+            max_rad: [turns; 6],
+            speed_rad_s: Some([1e-6; 6]),
+        };
+        wide.validate().unwrap();
+        for axis in 0..6 {
+            let mut l = wide;
+            l.min_rad[axis] = f64::NEG_INFINITY;
+            assert_eq!(
+                refused(l.validate()),
+                ("joint_min_deg / joint_max_deg", f64::NEG_INFINITY)
+            );
+            let mut l = wide;
+            l.max_rad[axis] = f64::INFINITY;
+            assert_eq!(
+                refused(l.validate()),
+                ("joint_min_deg / joint_max_deg", f64::INFINITY)
+            );
+            // Empty and reversed ranges.
+            for hi in [0.5, 0.25] {
+                let mut l = wide;
+                l.min_rad[axis] = 0.5;
+                l.max_rad[axis] = hi;
+                assert_eq!(
+                    refused(l.validate()),
+                    ("joint_min_deg", 0.5f64.to_degrees())
+                );
+            }
+            // A hair beyond two turns at either end.
+            let beyond = turns * (1.0 + 1e-12);
+            let mut l = wide;
+            l.max_rad[axis] = beyond;
+            assert_eq!(
+                refused(l.validate()),
+                ("joint_max_deg", beyond.to_degrees())
+            );
+            let mut l = wide;
+            l.min_rad[axis] = -beyond;
+            assert_eq!(
+                refused(l.validate()),
+                ("joint_max_deg", -beyond.to_degrees())
+            );
+            // Speeds.
+            for v in [0.0, -1.0, f64::INFINITY] {
+                let mut l = wide;
+                let mut speed = [1.0; 6];
+                speed[axis] = v;
+                l.speed_rad_s = Some(speed);
+                assert_eq!(refused(l.validate()), ("joint_speed_deg_s", v.to_degrees()));
+            }
+            let mut l = wide;
+            let mut speed = [1.0; 6];
+            speed[axis] = f64::NAN;
+            l.speed_rad_s = Some(speed);
+            assert_eq!(refused(l.validate()).0, "joint_speed_deg_s");
+        }
+        let no_speeds = JointLimits6 {
+            speed_rad_s: None,
+            ..wide
+        };
+        no_speeds.validate().unwrap();
+        // Degrees in, radians kept.
+        let d = JointLimits6::degrees([-90.0; 6], [180.0; 6], Some([360.0; 6]));
+        assert_eq!(d.min_rad, [-std::f64::consts::FRAC_PI_2; 6]);
+        assert_eq!(d.max_rad, [PI; 6]);
+        assert_eq!(d.speed_rad_s, Some([TAU; 6]));
+    }
+
+    /// Link radii from 0 to 10 000 mm are taken; a negative, NaN, infinite or larger one is
+    /// refused naming `link_radii_mm`, on every link.
+    #[test]
+    fn link_radii_are_taken_from_zero_to_ten_metres() {
+        let mut arm = SixAxisArm::ur_preset("ur5e", Tool::default()).unwrap();
+        arm.link_radii_mm = [0.0, 10_000.0, 0.0, 10_000.0, 0.0, 10_000.0, 0.0];
+        arm.validate().unwrap();
+        for k in 0..LINKS {
+            for v in [-0.001, 10_000.001, f64::INFINITY, f64::NAN] {
+                let mut a = arm;
+                a.link_radii_mm[k] = v;
+                let (name, value) = refused(a.validate());
+                assert_eq!(name, "link_radii_mm");
+                assert!(
+                    value == v || (v.is_nan() && value.is_nan()),
+                    "{value} for {v}"
+                );
+            }
+        }
+    }
+
+    /// The out-of-reach message gives the shortfall from the nearer end of the reach: 2 000 mm
+    /// asked of a 300–1 500 mm reach is 500 mm short, 100 mm is 200 mm short.
+    #[test]
+    fn an_out_of_reach_message_gives_the_shortfall() {
+        let config = Config::from_index(0);
+        let fault = |distance_mm: f64| SixAxisFault::OutOfReach {
+            config,
+            distance_mm,
+            min_mm: 300.0,
+            max_mm: 1500.0,
+        };
+        assert_eq!(
+            fault(2000.0).to_string(),
+            "out of reach (front / elbow up / wrist no flip): the wrist centre is 2000.0 mm from \
+             the shoulder, the arm reaches 300.0–1500.0 mm (500.0 mm short)"
+        );
+        assert!(
+            fault(100.0).to_string().ends_with("(200.0 mm short)"),
+            "{}",
+            fault(100.0)
+        );
+    }
+
+    /// What each arm kind is called, how many axes it has and whether its controller can turn
+    /// the mandrel: the IRB 6/2 (the default) five axes and windcell's indexer; the OPW arms'
+    /// industrial controllers take an external axis; a UR controller does not.
+    #[test]
+    fn arm_kinds_name_their_axes_and_external_axis() {
+        let irb = ArmModel::default();
+        assert_eq!(
+            (irb.kind_name(), irb.axes(), irb.has_external_axis()),
+            ("irb6-2", 5, false)
+        );
+        irb.validate().unwrap();
+        let opw = SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap();
+        let ur = SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap();
+        let (opw_model, ur_model) = (ArmModel::SixAxis(opw), ArmModel::SixAxis(ur));
+        assert_eq!((opw_model.kind_name(), opw_model.axes()), ("opw", 6));
+        assert_eq!((ur_model.kind_name(), ur_model.axes()), ("ur", 6));
+        assert!(opw_model.has_external_axis() && opw.has_external_axis());
+        assert!(!ur_model.has_external_axis() && !ur.has_external_axis());
+        opw_model.validate().unwrap();
+        ur_model.validate().unwrap();
+        // Each model's validation is the arm's own.
+        let mut bad = ur;
+        bad.link_radii_mm[0] = -1.0;
+        assert!(ArmModel::SixAxis(bad).validate().is_err());
+        let short = Arm {
+            forearm_mm: -1.0,
+            ..Arm::default()
+        };
+        assert!(ArmModel::Irb6(short).validate().is_err());
+        // The kinematics' own figures are checked with the arm's.
+        let mut opw_bad = opw;
+        if let SixAxisKind::Opw(o) = &mut opw_bad.kind {
+            o.c2_mm = f64::NAN;
+        }
+        assert!(opw_bad.validate().is_err());
+        let mut ur_bad = ur;
+        if let SixAxisKind::Ur(u) = &mut ur_bad.kind {
+            u.a2_mm = 0.0;
+        }
+        assert!(ur_bad.validate().is_err());
+    }
 }

@@ -531,4 +531,55 @@ mod tests {
             }
         }
     }
+
+    /// The lever arms by hand from the makers' figures. The IRB 2600's chain from the base
+    /// through its link points (OPW `c1`, `a1`, `c2`, `|a2|`, `c3`, `c4`) to the eye 200 mm out
+    /// on the flange is 445, 150, 700, 115, 795, 85 and 200 mm long; the UR10e's DH origins
+    /// (`d1`, `|a2|`, `|a3|`, `d4`, `d5`, `d6` of UR's table) with the eye at the flange 180.7,
+    /// 612.7, 571.55, 174.15, 119.85, 116.55 and 0 mm. Link `k`'s lever for joint `j ≤ k` is the
+    /// chain from link point `j` to the link's far end, 0 for the joints after it; the whole
+    /// arm's is the chain to the eye plus the eye mechanism (150 mm here); the wrist link and the
+    /// tool reach as far from the eye as the wrist centre and the flange are.
+    #[test]
+    fn lever_arms_are_the_chain_lengths_by_hand() {
+        let ur10e = SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap();
+        for (arm, chain, wrist_reach, tool_reach) in [
+            (
+                irb2600(),
+                [445.0, 150.0, 700.0, 115.0, 795.0, 85.0, 200.0],
+                285.0,
+                200.0,
+            ),
+            (
+                ur10e,
+                [180.7, 612.7, 571.55, 174.15, 119.85, 116.55, 0.0],
+                116.55,
+                0.0,
+            ),
+        ] {
+            let mut along = [0.0f64; 8];
+            for i in 1..8 {
+                along[i] = along[i - 1] + chain[i - 1];
+            }
+            let levers = link_lever_arms_mm(&arm);
+            for (k, row) in levers.iter().enumerate() {
+                for (j, lever) in row.iter().enumerate() {
+                    let want = if j <= k { along[k + 1] - along[j] } else { 0.0 };
+                    assert!(
+                        (lever - want).abs() < 1e-9,
+                        "link {k} joint {j}: {lever} vs {want}"
+                    );
+                }
+            }
+            let whole = lever_arms_mm(&arm, 150.0);
+            for (j, lever) in whole.iter().enumerate() {
+                let want = along[7] - along[j] + 150.0;
+                assert!((lever - want).abs() < 1e-9, "joint {j}: {lever} vs {want}");
+            }
+            let reach = tool_reach_mm(&arm);
+            assert!(reach[..5].iter().all(Option::is_none));
+            assert!((reach[5].unwrap() - wrist_reach).abs() < 1e-9, "{reach:?}");
+            assert!((reach[6].unwrap() - tool_reach).abs() < 1e-9, "{reach:?}");
+        }
+    }
 }

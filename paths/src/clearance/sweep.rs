@@ -1677,4 +1677,231 @@ mod tests {
             );
         }
     }
+
+    /// Each link's Lipschitz bound by hand on the IRB 2600 (OPW parameters `c1 = 445`, `a1 =
+    /// 150`, `c2 = 700`, `|a2| = 115`, `c3 = 795`, `c4 = 85` mm, the eye 200 mm out on the
+    /// flange): the chain from the base through the link points is 445, 150, 700, 115, 795, 85
+    /// and 200 mm long, so link `k` lies within the chain's length from link point `j` to its far
+    /// end of joint `j`'s axis (`j ≤ k`). A joint move from `a` to `b` bounds link `k` by
+    /// `2 Σ_{j≤k} |bⱼ − aⱼ| · lever` plus the mandrel's turn times its radius (31.75 mm, the
+    /// 63.5 mm cylinder); on a straight move the wrist link and the tool move with the tool frame:
+    /// the eye's travel plus the frame's turn times their farthest point from the eye (the wrist
+    /// centre, 85 + 200 mm, and the flange, 200 mm), plus the same turn of the mandrel.
+    #[test]
+    fn each_links_bound_is_its_levers_by_hand() {
+        use crate::arm::Tool;
+        let arm = SixAxisArm::opw_preset(
+            "irb2600-12/1.65",
+            Tool {
+                tcp_mm: [0.0, 0.0, 200.0],
+                rpy_deg: [0.0, 0.0, 0.0],
+            },
+        )
+        .unwrap();
+        let setup = setup();
+        let tube = Tube::cylinder(63.5, 178.0, 0.0, 0.0).unwrap();
+        let solid = TubeSolid::new(&tube);
+        let mut c = cell(&setup, &[]);
+        c.arm = Some(SweptArm::SixAxis(&arm));
+        let ctx = Context::new(&c, &solid);
+        let chain = [445.0, 150.0, 700.0, 115.0, 795.0, 85.0, 200.0];
+        // along[i]: the chain's length from the base to link point i (7: the eye).
+        let mut along = [0.0f64; 8];
+        for i in 1..8 {
+            along[i] = along[i - 1] + chain[i - 1];
+        }
+        let radius_mm = 31.75;
+        let a: Joints6 = [0.1, -0.2, 0.3, -0.4, 0.5, -0.6];
+        let b: Joints6 = [0.25, -0.1, 0.1, 0.0, 0.2, -0.3];
+        let turn_rad = 0.2;
+        let from = End {
+            eye: Point3::new(1000.0, 20.0, 900.0),
+            q: UnitQuaternion::identity(),
+            phi: 0.4,
+            tangent: None,
+            joints: Some(a),
+            config: None,
+        };
+        let to = End {
+            eye: Point3::new(1003.0, 24.0, 900.0),
+            q: UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn_rad),
+            phi: 0.7,
+            ..from
+        };
+        let d_phi = 0.3;
+        let spin = d_phi * radius_mm;
+        for joint_move in [true, false] {
+            let mv = SixAxisMove {
+                from: &from,
+                to: &to,
+                joint_move,
+                d_phi,
+            };
+            for k in 0..arm::LINKS {
+                let by_joints: f64 = 2.0
+                    * (0..=k.min(5))
+                        .map(|j| (b[j] - a[j]).abs() * (along[k + 1] - along[j]))
+                        .sum::<f64>();
+                let by_frame = match k {
+                    5 => Some(5.0 + turn_rad * (85.0 + 200.0)),
+                    6 => Some(5.0 + turn_rad * 200.0),
+                    _ => None,
+                };
+                let want = match by_frame {
+                    Some(frame) if !joint_move => frame,
+                    _ => by_joints,
+                } + spin;
+                let got = link_lipschitz(&ctx, k, &a, &b, mv);
+                assert!(
+                    (got - want).abs() < 1e-9,
+                    "link {k}, joint move {joint_move}: {got} vs {want}"
+                );
+            }
+        }
+    }
+
+    /// The six-axis arm of `six_axis_links_least_clearance_agrees_with_dense_sampling` (the
+    /// IRB 2600 on a horizontal positioner, a slim wrist and tool) and its cylinder plan.
+    fn irb2600_on_a_positioner() -> (SixAxisArm, Setup, Tube, PathPlan) {
+        use crate::arm::{MandrelDrive, Tool};
+        use crate::plan::SixAxisCell;
+        let mut arm = SixAxisArm::opw_preset(
+            "irb2600-12/1.65",
+            Tool {
+                tcp_mm: [0.0, 0.0, 200.0],
+                rpy_deg: [0.0, 0.0, 0.0],
+            },
+        )
+        .unwrap();
+        arm.link_radii_mm[5] = 10.0;
+        arm.link_radii_mm[6] = 5.0;
+        let mut setup = setup();
+        setup.six_axis = Some(SixAxisCell {
+            arm,
+            axis: MandrelAxis::new([1000.0, -90.0, 700.0], [0.0, 1.0, 0.0], MandrelDrive::Robot)
+                .unwrap(),
+        });
+        let (tube, p) = cylinder_plan(&setup);
+        (arm, setup, tube, p)
+    }
+
+    /// The base stands on the floor and is checked against the mandrel only: a slab under it,
+    /// 60 mm into its 200 mm capsule, is no finding. The same slab raised to 15 mm into the
+    /// shoulder link's capsule (its axis 445 mm up, radius 160 mm, so its underside at 285 mm
+    /// whatever axis 1 does) is found on the first move, named, 15 mm deep.
+    #[test]
+    fn the_six_axis_base_is_not_checked_against_obstacles() {
+        let (arm, setup, tube, p) = irb2600_on_a_positioner();
+        let solid = TubeSolid::new(&tube);
+        let slab = |top_mm: f64| Obstacle {
+            name: "floor".into(),
+            min_mm: Point3::new(-400.0, -400.0, top_mm - 50.0),
+            max_mm: Point3::new(400.0, 400.0, top_mm),
+        };
+        let under = [slab(-140.0)];
+        let mut c = cell(&setup, &under);
+        c.arm = Some(SweptArm::SixAxis(&arm));
+        let r = sweep(&c, &solid, &[&p]).unwrap();
+        assert!(r.is_clear(), "{:?}", r.findings);
+        let raised = [slab(300.0)];
+        let mut c = cell(&setup, &raised);
+        c.arm = Some(SweptArm::SixAxis(&arm));
+        let r = sweep(&c, &solid, &[&p]).unwrap();
+        let f = r.findings.first().expect("the shoulder meets the slab");
+        assert_eq!(f.part, Part::Link("shoulder"), "{f:?}");
+        assert_eq!(f.against, "floor");
+        assert!((f.clearance_mm + 15.0).abs() < 0.01, "{f:?}");
+    }
+
+    /// Two links dip below zero on one move, the later-searched link first: a 0.2 mm cube
+    /// 0.3 mm inside the tool's leading side a fifth of the way along segment 5, another inside
+    /// the forearm's leading side halfway, which the forearm then runs deeper into than the tool
+    /// into its own. The move's finding is the earliest contact of any link (not the deepest),
+    /// found by sampling every link densely (2 000 instants), and names the tool.
+    #[test]
+    fn a_moves_first_link_contact_is_the_earliest_of_any_link() {
+        let (arm, setup, tube, p) = irb2600_on_a_positioner();
+        let solid = TubeSolid::new(&tube);
+        let config = match p.arm {
+            PathArm::SixAxis(report) => report.config,
+            PathArm::Irb62(_) => panic!("a six-axis plan"),
+        };
+        let (from, to) = (
+            End::of(&p.segments[3].pose, &p),
+            End::of(&p.segments[4].pose, &p),
+        );
+        let instant = |tau: f64| At {
+            eye: from.eye + (to.eye - from.eye) * tau,
+            q: from.q.try_slerp(&to.q, tau, 1e-12).unwrap_or(to.q),
+            phi: from.phi + (to.phi - from.phi) * tau,
+            joints: None,
+            config: Some(config),
+        };
+        let (tool, forearm) = (6, 4);
+        let cubes = {
+            let mut c0 = cell(&setup, &[]);
+            c0.arm = Some(SweptArm::SixAxis(&arm));
+            let ctx = Context::new(&c0, &solid);
+            let capsule =
+                |k: usize, tau: f64| ctx.links(&instant(tau)).unwrap().unwrap().1.capsules[k];
+            let ahead = |k: usize, tau: f64, name: &str| {
+                let c = capsule(k, tau);
+                let mid = |c: Capsule| c.a + (c.b - c.a) * 0.5;
+                let along = (c.b - c.a).normalize();
+                let v = mid(capsule(k, tau + 1e-3)) - mid(capsule(k, tau - 1e-3));
+                let n = (v - along * v.dot(&along)).normalize();
+                let centre = mid(c) + n * (c.radius_mm - 0.3);
+                Obstacle {
+                    name: name.into(),
+                    min_mm: centre - Vector3::repeat(0.1),
+                    max_mm: centre + Vector3::repeat(0.1),
+                }
+            };
+            [
+                ahead(tool, 0.2, "tool post"),
+                ahead(forearm, 0.5, "forearm post"),
+            ]
+        };
+        let mut c = cell(&setup, &cubes);
+        c.arm = Some(SweptArm::SixAxis(&arm));
+        let ctx = Context::new(&c, &solid);
+        // Each link's first sampled instant below zero.
+        let n = 2000;
+        let mut first = [None; arm::LINKS];
+        let mut least = [f64::INFINITY; arm::LINKS];
+        for i in 0..=n {
+            let tau = i as f64 / n as f64;
+            let at = instant(tau);
+            let (_, links) = ctx.links(&at).unwrap().unwrap();
+            for (k, l) in links.capsules.iter().enumerate() {
+                let d = ctx
+                    .capsule(&l.a, &l.b, l.radius_mm, at.phi, k > 0, f64::INFINITY)
+                    .0;
+                if d < 0.0 && first[k].is_none() {
+                    first[k] = Some(tau);
+                }
+                least[k] = least[k].min(d);
+            }
+        }
+        let t_tool = first[tool].expect("the tool meets its post");
+        let t_forearm = first[forearm].expect("the forearm meets its post");
+        assert!(t_tool < 0.25 && t_forearm > 0.45, "{first:?}");
+        // The forearm goes deeper than the tool: the earliest contact is not the deepest.
+        assert!(least[forearm] < least[tool] - 1.0, "{least:?}");
+        assert!(
+            first.iter().flatten().all(|&t| t >= t_tool),
+            "another link first: {first:?}"
+        );
+        let r = sweep(&c, &solid, &[&p]).unwrap();
+        let f = r
+            .findings
+            .iter()
+            .find(|f| f.segment == 5 && matches!(f.part, Part::Link(_)))
+            .expect("a link finding on segment 5");
+        assert_eq!(f.part, Part::Link("tool"), "{f:?}");
+        assert_eq!(f.against, "tool post");
+        let t4: f64 = p.segments[..4].iter().map(|s| s.duration_s).sum();
+        let tau = (f.time_s - t4) / p.segments[4].duration_s;
+        assert!((tau - t_tool).abs() < 0.01, "{tau} vs {t_tool}");
+    }
 }
