@@ -209,6 +209,16 @@ pub enum SixAxisFault {
         /// Greatest reachable distance, mm.
         max_mm: f64,
     },
+    /// The wrist centre lies within the arm's lateral offset of axis 1 (OPW `|b|`, UR `|d4|`),
+    /// where no branch reaches; or on axis 1 itself, where axis 1's angle is undefined.
+    InsideAxisOne {
+        /// The configuration tried.
+        config: Config,
+        /// Distance of the wrist centre from axis 1, mm.
+        radius_mm: f64,
+        /// The lateral offset, mm.
+        offset_mm: f64,
+    },
     /// A joint outside its range less the margin.
     JointLimit {
         /// Axis number, 1–6.
@@ -267,6 +277,17 @@ impl fmt::Display for SixAxisFault {
                      shoulder, the arm reaches {min_mm:.1}–{max_mm:.1} mm ({nearest:.1} mm short)"
                 )
             }
+            SixAxisFault::InsideAxisOne {
+                config,
+                radius_mm,
+                offset_mm,
+            } => write!(
+                f,
+                "out of reach ({config}): the wrist centre is {radius_mm:.1} mm from axis 1, \
+                 {:.1} mm inside the arm's {offset_mm:.1} mm lateral offset, where no branch \
+                 reaches (on axis 1 its angle is undefined)",
+                offset_mm - radius_mm
+            ),
             SixAxisFault::JointLimit {
                 axis,
                 value_deg,

@@ -390,7 +390,11 @@ impl Opw {
         if rho2 < 0.0 || (rho2 == 0.0 && self.b_mm == 0.0) {
             // The wrist centre lies inside the cylinder of radius |b| about axis 1 (or on axis
             // 1, where q1 is undefined).
-            return Err(out_of_reach(cz1.hypot(self.a1_mm)));
+            return Err(SixAxisFault::InsideAxisOne {
+                config,
+                radius_mm: (c.x * c.x + c.y * c.y).sqrt(),
+                offset_mm: self.b_mm.abs(),
+            });
         }
         let rho = rho2.sqrt();
         // Rz(q1)·(±ρ, b) = (cx, cy): (cos q1, sin q1) = (cx, cy)·(±ρ, −b) / (ρ² + b²).
@@ -760,13 +764,11 @@ mod tests {
     }
 
     /// A wrist centre nearer axis 1 than the lateral offset `b`, or on axis 1 when `b` is 0,
-    /// has no branch; the fault gives the distance from axis 2 taken as if the centre were on
-    /// axis 1, `√(a1² + (z − c1)²)`, and the reach `|c2 − k| .. c2 + k`, `k = √(a2² + c3²)`.
+    /// has no branch; the fault gives the centre's distance from axis 1 and the offset.
     /// A centre exactly `b` from axis 1 is reached (the wrist straight over `y`) by all eight.
     #[test]
     fn a_wrist_centre_inside_the_offset_cylinder_has_no_branch() {
         let o = offset_arm();
-        let k = (50.0f64 * 50.0 + 450.0 * 450.0).sqrt();
         let flange = |x: f64, y: f64| Pose6 {
             rotation: Matrix3::identity(),
             translation_mm: Vector3::new(x, y, 900.0 + o.c4_mm),
@@ -774,18 +776,13 @@ mod tests {
         let inside = flange(10.0, 0.0);
         assert!(o.inverse(&inside).valid.iter().all(|v| !v));
         match o.inverse_branch(&inside, Config::from_index(0)) {
-            Err(SixAxisFault::OutOfReach {
-                distance_mm,
-                min_mm,
-                max_mm,
+            Err(SixAxisFault::InsideAxisOne {
+                radius_mm,
+                offset_mm,
                 ..
             }) => {
-                assert!(
-                    (distance_mm - 100f64.hypot(500.0)).abs() < 1e-9,
-                    "{distance_mm}"
-                );
-                assert!((min_mm - (500.0 - k)).abs() < 1e-9, "{min_mm}");
-                assert!((max_mm - (500.0 + k)).abs() < 1e-9, "{max_mm}");
+                assert!((radius_mm - 10.0).abs() < 1e-9, "{radius_mm}");
+                assert!((offset_mm - o.b_mm.abs()).abs() < 1e-12, "{offset_mm}");
             }
             other => panic!("{other:?}"),
         }
@@ -799,8 +796,9 @@ mod tests {
         let s = p.inverse(&on_axis);
         assert!(s.valid.iter().all(|v| !v), "{s:?}");
         match p.inverse_branch(&on_axis, Config::from_index(0)) {
-            Err(SixAxisFault::OutOfReach { distance_mm, .. }) => {
-                assert!((distance_mm - 150f64.hypot(1500.0 - 445.0)).abs() < 1e-9);
+            Err(f @ SixAxisFault::InsideAxisOne { radius_mm, .. }) => {
+                assert_eq!(radius_mm, 0.0);
+                assert!(f.to_string().contains("0.0 mm from axis 1"), "{f}");
             }
             other => panic!("{other:?}"),
         }

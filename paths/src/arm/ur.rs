@@ -260,7 +260,11 @@ impl Ur {
             max_mm: la + lb,
         };
         if rho < self.d4_mm.abs() || rho == 0.0 {
-            return Err(out_of_reach((p5.z - self.d1_mm).abs()));
+            return Err(SixAxisFault::InsideAxisOne {
+                config,
+                radius_mm: rho,
+                offset_mm: self.d4_mm.abs(),
+            });
         }
         // θ1 = ψ + φ (front) or ψ + π − φ (back), sin φ = d4/ρ, cos φ ≥ 0: as complex numbers.
         let inv_rho = 1.0 / rho;
@@ -451,18 +455,13 @@ mod tests {
         let inside = flange(100.0);
         assert!(u.inverse(&inside).valid.iter().all(|v| !v));
         match u.inverse_branch(&inside, Config::from_index(0)) {
-            Err(SixAxisFault::OutOfReach {
-                distance_mm,
-                min_mm,
-                max_mm,
+            Err(SixAxisFault::InsideAxisOne {
+                radius_mm,
+                offset_mm,
                 ..
             }) => {
-                assert!(
-                    (distance_mm - (500.0 - 162.5)).abs() < 1e-9,
-                    "{distance_mm}"
-                );
-                assert!((min_mm - (425.0 - 392.2)).abs() < 1e-9, "{min_mm}");
-                assert!((max_mm - (425.0 + 392.2)).abs() < 1e-9, "{max_mm}");
+                assert!((radius_mm - 100.0).abs() < 1e-9, "{radius_mm}");
+                assert!((offset_mm - u.d4_mm.abs()).abs() < 1e-12, "{offset_mm}");
             }
             other => panic!("{other:?}"),
         }
