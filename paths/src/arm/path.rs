@@ -978,6 +978,76 @@ mod tests {
         ));
     }
 
+    /// `refine`'s decisions on joints that are exactly linear in the turn, `q(Δ) = a + r·Δ`
+    /// (every joint speed 1, the previous pose at zero), where the least joint time is known by
+    /// hand: no second inverse kinematics where nothing is worth gaining and the rates are
+    /// fresh; one, at the model's least, where it is; a refresh probe of 0.25° once the rates
+    /// are 32 poses old.
+    #[test]
+    fn refine_spends_a_second_inverse_kinematics_only_where_it_pays() {
+        use std::cell::RefCell;
+        let arm = irb2600();
+        let rate: Joints6 = [1.0, -1.0, 0.0, 0.0, 0.0, 0.0];
+        let calls = RefCell::new(Vec::new());
+        let run = |a: Joints6, age: u32| {
+            calls.borrow_mut().clear();
+            let mut track = Tracker::new([1.0; 6]);
+            track.slope = Some(rate);
+            track.age = age;
+            let at = |turn: Turn| -> Candidate {
+                let d = turn.s.atan2(turn.c);
+                let q: Joints6 = std::array::from_fn(|i| a[i] + rate[i] * d);
+                Candidate {
+                    q,
+                    x: Vector3::x(),
+                    cost: joint_time(&[1.0; 6], &[0.0; 6], &q),
+                    turn,
+                }
+            };
+            let eval = |turn: Turn| {
+                calls.borrow_mut().push(turn.s.atan2(turn.c));
+                Ok(at(turn))
+            };
+            let chosen = arm.refine(at(Turn::ZERO), &[0.0; 6], &mut track, eval);
+            (chosen, track, calls.borrow().clone())
+        };
+        // max(|0.1 + δ|, |0.1 − δ|): least 0.1 at δ = 0, the guess itself.
+        let balanced = [0.1, 0.1, 0.0, 0.0, 0.0, 0.0];
+        let (c, t, evals) = run(balanced, 0);
+        assert!(evals.is_empty(), "{evals:?}");
+        assert_eq!((c.cost, t.age), (0.1, 1));
+        let (_, t, evals) = run(balanced, SLOPE_REFRESH_POSES - 1);
+        assert!(evals.is_empty(), "{evals:?}");
+        assert_eq!(t.age, SLOPE_REFRESH_POSES);
+        // Rates 32 poses old: a 0.25° probe, worse than the guess, which is kept; the rates
+        // are measured afresh from the two poses.
+        let (c, t, evals) = run(balanced, SLOPE_REFRESH_POSES);
+        assert_eq!(evals.len(), 1);
+        assert!((evals[0] - 0.25f64.to_radians()).abs() < 1e-12, "{evals:?}");
+        assert_eq!((c.cost, t.age), (0.1, 0));
+        let measured = t.slope.unwrap();
+        assert!((measured[0] - 1.0).abs() < 1e-9 && (measured[1] + 1.0).abs() < 1e-9);
+        // max(|0.2 + δ|, |δ|): least 0.1 at δ = −0.1, half the guess's 0.2: evaluated and taken.
+        let (c, t, evals) = run([0.2, 0.0, 0.0, 0.0, 0.0, 0.0], 3);
+        assert_eq!(evals.len(), 1);
+        assert!((evals[0] + 0.1).abs() < 1e-12, "{evals:?}");
+        assert!((c.cost - 0.1).abs() < 1e-12, "{}", c.cost);
+        assert_eq!(t.age, 0);
+        // 0.1 rad is beyond the 0.5° a trend may carry.
+        assert_eq!(t.drift_rad, 0.0);
+        // A gain under 0.5 %: max(|0.2 + δ|, |0.199 − δ|)'s least 0.1995 is 0.25 % under 0.2.
+        let (_, _, evals) = run([0.2, 0.199, 0.0, 0.0, 0.0, 0.0], 0);
+        assert!(evals.is_empty(), "{evals:?}");
+        // ... and one over it: max(|0.2 + δ|, |0.19 − δ|), least 0.195, 2.5 % under.
+        // A correction under 0.5° is a trend, spread over the poses since the last measurement.
+        let (c, t, evals) = run([0.2, 0.19, 0.0, 0.0, 0.0, 0.0], 0);
+        assert_eq!(evals.len(), 1);
+        assert!((evals[0] + 0.005).abs() < 1e-12 && (c.cost - 0.195).abs() < 1e-12);
+        assert!((t.drift_rad + 0.005).abs() < 1e-12, "{}", t.drift_rad);
+        let (_, t, _) = run([0.2, 0.19, 0.0, 0.0, 0.0, 0.0], 4);
+        assert!((t.drift_rad + 0.001).abs() < 1e-12, "{}", t.drift_rad);
+    }
+
     /// `max_j |a_j + b_j·δ|` at `d`, written out.
     fn max_abs(a: &Joints6, b: &Joints6, d: f64) -> f64 {
         (0..6).map(|j| (a[j] + b[j] * d).abs()).fold(0.0, f64::max)
