@@ -1048,6 +1048,41 @@ mod tests {
         assert!((t.drift_rad + 0.001).abs() < 1e-12, "{}", t.drift_rad);
     }
 
+    /// Where the turn the last pose took and a degree either side of it are refused (here: a
+    /// half turn of the tool, a 140° step of axis 6), the whole turn is scanned in 5° steps and
+    /// the least joint time taken: the pose itself, 40° round from the carried `x` axis.
+    #[test]
+    fn a_refused_guess_falls_back_to_the_scan_and_its_least() {
+        let arm = irb2600();
+        let q0 = deg([10.0, 20.0, -10.0, 30.0, 45.0, 20.0]);
+        let flange = arm.kind.forward(&q0);
+        let (x, y, d) = (
+            flange.rotation.column(0).into_owned(),
+            flange.rotation.column(1).into_owned(),
+            flange.rotation.column(2).into_owned(),
+        );
+        let target = EyeTarget {
+            eye_mm: Point3::from(flange.translation_mm),
+            tow: Unit::new_normalize(d),
+        };
+        let (s40, c40) = 40f64.to_radians().sin_cos();
+        let x_prev = x * c40 - y * s40;
+        let tool = inverted_tool(&arm.tool.frame());
+        let config = arm.kind.config_of(&q0);
+        let mut track = Tracker::new([1.0; 6]);
+        track.turn = Turn::of(PI);
+        let c = arm
+            .next_pose(&target, &tool, config, &q0, &x_prev, &mut track)
+            .unwrap();
+        assert!(c.cost < 1e-9, "{}", c.cost);
+        assert!(close(c.q, q0), "{:?}", c.q);
+        assert!((c.turn.s.atan2(c.turn.c) - 40f64.to_radians()).abs() < 1e-12);
+        assert!((c.x - x).norm() < 1e-12);
+        // The search starts afresh from there.
+        assert_eq!(track.turn, Turn::ZERO);
+        assert!(track.slope.is_none());
+    }
+
     /// `max_j |a_j + b_j·δ|` at `d`, written out.
     fn max_abs(a: &Joints6, b: &Joints6, d: f64) -> f64 {
         (0..6).map(|j| (a[j] + b[j] * d).abs()).fold(0.0, f64::max)
