@@ -883,25 +883,17 @@ mod tests {
             "{got:?}"
         );
         // From a reference two turns away the nearest shift is beyond the range (730° > 398°):
-        // the one in range is taken, and then the step from the reference is too large.
-        let far = [20.0, 30.0, -20.0, 725.0, 50.0, 60.0];
-        match at(q, Some(far)) {
-            Err(SixAxisFault::JointStep {
-                axis: 4,
-                change_deg,
-                ..
-            }) => assert!((change_deg - 355.0).abs() < 1e-6, "{change_deg}"),
-            other => panic!("{other:?}"),
-        }
-        // The same below the range (−710° < −398°: the shift up by a turn, −350°, is taken).
-        let far_below = [20.0, 30.0, -20.0, -725.0, 50.0, 60.0];
-        match at(q, Some(far_below)) {
-            Err(SixAxisFault::JointStep {
-                axis: 4,
-                change_deg,
-                ..
-            }) => assert!((change_deg - 375.0).abs() < 1e-6, "{change_deg}"),
-            other => panic!("{other:?}"),
+        // the one in range is taken, and then the step from the reference is too large. The
+        // same below the range (−710° < −398°: the shift up by a turn, −350°, is taken).
+        for (axis_4_deg, step_deg) in [(725.0, 355.0), (-725.0, 375.0)] {
+            match at(q, Some([20.0, 30.0, -20.0, axis_4_deg, 50.0, 60.0])) {
+                Err(SixAxisFault::JointStep {
+                    axis: 4,
+                    change_deg,
+                    ..
+                }) => assert!((change_deg - step_deg).abs() < 1e-6, "{change_deg}"),
+                other => panic!("{other:?}"),
+            }
         }
     }
 

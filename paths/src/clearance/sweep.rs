@@ -1426,26 +1426,7 @@ mod tests {
     /// kinematics at each sample), and the link searches stop early far from the mandrel.
     #[test]
     fn six_axis_links_least_clearance_agrees_with_dense_sampling() {
-        use crate::arm::{MandrelDrive, Tool};
-        use crate::plan::SixAxisCell;
-        let mut arm = SixAxisArm::opw_preset(
-            "irb2600-12/1.65",
-            Tool {
-                tcp_mm: [0.0, 0.0, 200.0],
-                rpy_deg: [0.0, 0.0, 0.0],
-            },
-        )
-        .unwrap();
-        // A slim wrist and tool, clear of the mandrel.
-        arm.link_radii_mm[5] = 10.0;
-        arm.link_radii_mm[6] = 5.0;
-        let mut setup = setup();
-        setup.six_axis = Some(SixAxisCell {
-            arm,
-            axis: MandrelAxis::new([1000.0, -90.0, 700.0], [0.0, 1.0, 0.0], MandrelDrive::Robot)
-                .unwrap(),
-        });
-        let (tube, p) = cylinder_plan(&setup);
+        let (arm, setup, tube, p) = irb2600_on_a_positioner();
         let solid = TubeSolid::new(&tube);
         let config = match p.arm {
             PathArm::SixAxis(report) => report.config,
@@ -1760,8 +1741,8 @@ mod tests {
         }
     }
 
-    /// The six-axis arm of `six_axis_links_least_clearance_agrees_with_dense_sampling` (the
-    /// IRB 2600 on a horizontal positioner, a slim wrist and tool) and its cylinder plan.
+    /// The IRB 2600 on a horizontal positioner with a slim wrist and tool (clear of the mandrel),
+    /// and its cylinder plan.
     fn irb2600_on_a_positioner() -> (SixAxisArm, Setup, Tube, PathPlan) {
         use crate::arm::{MandrelDrive, Tool};
         use crate::plan::SixAxisCell;

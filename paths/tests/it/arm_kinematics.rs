@@ -418,15 +418,28 @@ fn check_path(arm: &SixAxisArm, targets: &[EyeTarget], fk: &dyn Fn(&Joints6) -> 
     assert!(solved.report.largest_step_deg <= 10.0);
 }
 
-#[test]
-fn a_winding_path_keeps_one_configuration_on_an_irb2600() {
-    // The eye 150 mm out of the flange, its axis across the flange's (along the flange's x), so
-    // that the flange can face the mandrel while the eye looks along the fibre.
+/// The IRB 2600 with the eye 150 mm out of the flange, its axis across the flange's (along the
+/// flange's x), so that the flange can face the mandrel while the eye looks along the fibre.
+fn irb2600_eye_across() -> SixAxisArm {
     let tool = Tool {
         tcp_mm: [0.0, 0.0, 150.0],
         rpy_deg: [0.0, 90.0, 0.0],
     };
-    let arm = SixAxisArm::opw_preset("irb2600-12/1.65", tool).unwrap();
+    SixAxisArm::opw_preset("irb2600-12/1.65", tool).unwrap()
+}
+
+/// The UR10e with the eye off the flange's axis and tilted.
+fn ur10e_eye_offset() -> SixAxisArm {
+    let tool = Tool {
+        tcp_mm: [0.0, 50.0, 120.0],
+        rpy_deg: [20.0, 0.0, 0.0],
+    };
+    SixAxisArm::ur_preset("ur10e", tool).unwrap()
+}
+
+#[test]
+fn a_winding_path_keeps_one_configuration_on_an_irb2600() {
+    let arm = irb2600_eye_across();
     let o = match arm.kind {
         SixAxisKind::Opw(o) => o,
         SixAxisKind::Ur(_) => unreachable!(),
@@ -443,11 +456,7 @@ fn a_winding_path_keeps_one_configuration_on_an_irb2600() {
 
 #[test]
 fn a_winding_path_keeps_one_configuration_on_a_ur10e() {
-    let tool = Tool {
-        tcp_mm: [0.0, 50.0, 120.0],
-        rpy_deg: [20.0, 0.0, 0.0],
-    };
-    let arm = SixAxisArm::ur_preset("ur10e", tool).unwrap();
+    let arm = ur10e_eye_offset();
     let table = UR_TABLE_M[1].1;
     let targets = winding(Point3::new(700.0, 200.0, 100.0), 1.5, 300.0, 151);
     check_path(&arm, &targets, &|q| ur_fk(&table, q));
@@ -528,36 +537,15 @@ fn least_joint_time_by_scan(
 fn the_chosen_turn_needs_no_more_joint_time_than_a_fine_scan() {
     let cases = [
         (
-            SixAxisArm::opw_preset(
-                "irb2600-12/1.65",
-                Tool {
-                    tcp_mm: [0.0, 0.0, 150.0],
-                    rpy_deg: [0.0, 90.0, 0.0],
-                },
-            )
-            .unwrap(),
+            irb2600_eye_across(),
             winding(Point3::new(1000.0, 0.0, 500.0), 2.0, 400.0, 201),
         ),
         (
-            SixAxisArm::opw_preset(
-                "irb2600-12/1.65",
-                Tool {
-                    tcp_mm: [0.0, 0.0, 150.0],
-                    rpy_deg: [0.0, 90.0, 0.0],
-                },
-            )
-            .unwrap(),
+            irb2600_eye_across(),
             winding(Point3::new(1000.0, 0.0, 500.0), 2.0, 400.0, 1000),
         ),
         (
-            SixAxisArm::ur_preset(
-                "ur10e",
-                Tool {
-                    tcp_mm: [0.0, 50.0, 120.0],
-                    rpy_deg: [20.0, 0.0, 0.0],
-                },
-            )
-            .unwrap(),
+            ur10e_eye_offset(),
             winding(Point3::new(700.0, 200.0, 100.0), 2.0, 300.0, 1000),
         ),
     ];
