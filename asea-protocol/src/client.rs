@@ -794,6 +794,17 @@ impl<L: Link, C: Clock> Client<L, C> {
         program: u8,
         instructions: &[Instruction],
     ) -> Result<VerifyReport> {
+        self.upload_verified_reporting(program, instructions, &mut || {})
+    }
+
+    /// [`Client::upload_verified`], calling `progress` after each instruction is stored and
+    /// after each is verified (twice per instruction in all).
+    pub fn upload_verified_reporting(
+        &mut self,
+        program: u8,
+        instructions: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> Result<VerifyReport> {
         self.error_baseline()?;
         let mut report = VerifyReport::default();
         for (n, i) in (1u16..).zip(instructions) {
@@ -804,10 +815,12 @@ impl<L: Link, C: Clock> Client<L, C> {
                 // The store's fate is unknown: settle it by reading back, never by a blind store.
                 Err(_) => self.settle(program, n, i)?,
             };
+            progress();
         }
         for (n, i) in (1u16..).zip(instructions) {
             report.checked += 1;
             report.restored += self.settle(program, n, i)?;
+            progress();
         }
         // Every instruction is confirmed, so a new latched error now can only come from a
         // corrupted twin the robot refused: acknowledge it and count it in the report (a twin

@@ -10,6 +10,7 @@ pub mod lathe;
 pub mod plan;
 pub mod post;
 pub mod predict;
+pub mod progress;
 pub mod pty;
 pub mod run;
 pub mod sim_cell;

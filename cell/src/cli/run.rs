@@ -24,6 +24,7 @@ use paths::wrist::from_components;
 use serde_json::json;
 
 use super::Failure;
+use super::progress::Display;
 
 /// Exit code when the run was interrupted (Ctrl-C, the console's `s`, the e-stop input).
 pub const EXIT_INTERRUPTED: u8 = 130;
@@ -642,140 +643,6 @@ pub fn devices(
     }
 }
 
-/// How the display prints: `--json` events, a progress bar on a terminal (indicatif: batch item
-/// i of n, path, segment, elapsed and remaining time), or plain lines.
-struct Display {
-    json: bool,
-    bar: Option<indicatif::ProgressBar>,
-    /// Items in the batch.
-    items: usize,
-    /// Segments of each item.
-    segments: Vec<usize>,
-}
-
-impl Display {
-    fn new(json: bool, terminal: bool, batch: &Batch, from: &ResumePoint) -> Self {
-        let segments: Vec<usize> = batch
-            .items
-            .iter()
-            .map(|i| i.rob.instructions.len())
-            .collect();
-        let bar = (terminal && !json).then(|| {
-            let total: usize = segments.iter().sum();
-            let done: usize =
-                segments.iter().take(from.items_done).sum::<usize>() + from.segments_done;
-            let bar = indicatif::ProgressBar::with_draw_target(
-                Some(total as u64),
-                indicatif::ProgressDrawTarget::stdout(),
-            );
-            bar.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{prefix} [{bar:24}] {msg}  {elapsed} elapsed, {eta} left",
-                )
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-                .progress_chars("=> "),
-            );
-            bar.set_position(done as u64);
-            bar
-        });
-        Display {
-            json,
-            bar,
-            items: batch.items.len(),
-            segments,
-        }
-    }
-
-    fn line(&self, text: &str) {
-        match &self.bar {
-            Some(bar) if !bar.is_finished() => bar.println(text),
-            _ => {
-                let _ = super::print(&format!("{text}\n"));
-            }
-        }
-    }
-
-    /// Ends the progress bar (before the summary).
-    fn finish(&self) {
-        if let Some(bar) = &self.bar {
-            bar.finish_and_clear();
-        }
-    }
-
-    fn progress(&self, item: usize, path: &str, what: String, done_in_item: usize) {
-        if let Some(bar) = &self.bar {
-            let before: usize = self.segments.iter().take(item - 1).sum();
-            bar.set_prefix(format!("path {item}/{} {path}", self.items));
-            bar.set_message(what);
-            bar.set_position((before + done_in_item) as u64);
-        }
-    }
-
-    fn event(&self, e: &Event) {
-        match e {
-            Event::Started { .. } | Event::Uploaded { .. } | Event::PathDone { .. } => {}
-            Event::Segment {
-                item,
-                program,
-                path,
-                segment,
-                segments,
-                time_s,
-            } => {
-                if self.json {
-                    self.line(
-                        &json!({"event": "segment", "item": item, "program": program,
-                            "path": path, "segment": segment, "time_s": time_s})
-                        .to_string(),
-                    );
-                } else if self.bar.is_some() {
-                    self.progress(
-                        *item,
-                        path,
-                        format!("segment {segment}/{segments}, t = {time_s:.1} s"),
-                        *segment,
-                    );
-                } else if segment == segments || segment % 10 == 0 {
-                    self.line(&format!(
-                        "  path {item}/{} {path}: segment {segment}/{segments}, t = {time_s:.1} s",
-                        self.items
-                    ));
-                }
-            }
-            Event::Program {
-                item,
-                program,
-                path,
-                done,
-                time_s,
-            } => {
-                if self.json {
-                    self.line(
-                        &json!({"event": "program", "item": item, "program": program,
-                            "path": path, "done": done, "time_s": time_s})
-                        .to_string(),
-                    );
-                } else {
-                    let n = self.segments.get(item - 1).copied().unwrap_or(0);
-                    self.progress(
-                        *item,
-                        path,
-                        format!(
-                            "program {program} {}, t = {time_s:.1} s",
-                            if *done { "done" } else { "running" }
-                        ),
-                        if *done { n } else { 0 },
-                    );
-                    self.line(&format!(
-                        "  path {item} {path}: program {program} {} at t = {time_s:.1} s",
-                        if *done { "done" } else { "started" }
-                    ));
-                }
-            }
-        }
-    }
-}
-
 /// Runs `windcell run`.
 pub fn run(args: RunArgs) -> Result<(), Failure> {
     // SIGXFSZ caught, not left to its default action: a file-size limit comes back as EFBIG
@@ -995,10 +862,22 @@ fn announce(
             journal_path.display()
         ));
         if !fresh {
-            display.line(&format!(
-                "resuming after path {} ({} segments of the next confirmed)",
-                from.items_done, from.segments_done
-            ));
+            let item = from.items_done + 1;
+            let name = batch
+                .items
+                .get(from.items_done)
+                .map_or("", |i| i.name.as_str());
+            let segments = display.segments_of(item);
+            display.line(&if from.program_started {
+                format!(
+                    "resuming path {item} ({name}) in its program, from where the devices stand"
+                )
+            } else {
+                format!(
+                    "resuming path {item} ({name}) after segment {} of {segments}",
+                    display.position().segment
+                )
+            });
         }
     }
 }
@@ -1142,15 +1021,33 @@ fn report(
     match result {
         Ok(()) => {
             if display.json {
+                let first = batch.items.len() - paths.len();
                 let list: Vec<_> = paths
                     .iter()
-                    .map(|(n, p, t)| json!({"name": n, "program": p, "mode": batch.mode.keyword(), "time_s": t}))
+                    .enumerate()
+                    .map(|(k, (n, p, t))| {
+                        let mut path = json!({"name": n, "program": p, "mode": batch.mode.keyword(), "time_s": t});
+                        if let Some((approach, winding)) = display.split_s(first + k + 1, *t) {
+                            path["approach_s"] = json!(approach);
+                            path["winding_s"] = json!(winding);
+                        }
+                        path
+                    })
                     .collect();
                 display.line(&json!({"event": "done", "paths": list}).to_string());
             } else {
-                for (n, p, t) in &paths {
+                let first = batch.items.len() - paths.len();
+                for (k, (n, p, t)) in paths.iter().enumerate() {
+                    // The path's time from its approach to its end, and what it holds (`plan`
+                    // and `predict` time the winding alone).
+                    let split = display.split_s(first + k + 1, *t).map_or(
+                        String::new(),
+                        |(approach, winding)| {
+                            format!(": approach {approach:.1} s, winding {winding:.1} s")
+                        },
+                    );
                     display.line(&format!(
-                        "done: {n} (program {p}, {}) in {t:.1} s",
+                        "done: {n} (program {p}, {}) in {t:.1} s{split}",
                         batch.mode.keyword()
                     ));
                 }
@@ -1182,20 +1079,28 @@ fn report(
             }
             let stop_errors: Vec<String> =
                 stopped.stop_errors.iter().map(|e| e.to_string()).collect();
+            // The segment as the events named it (in program mode the indexer's count).
+            let at = display.position();
+            let wound_segment = if at.item == stopped.item {
+                at.segment
+            } else {
+                0
+            };
+
             if display.json {
                 display.line(
                     &json!({"event": event, "item": stopped.item, "path": stopped.path,
-                        "segments_done": stopped.segments_done, "reason": why,
+                        "segment": wound_segment, "segments_done": stopped.segments_done, "reason": why,
                         "stop_errors": stop_errors, "resume": resume})
                     .to_string(),
                 );
             }
             Err(Failure {
                 message: format!(
-                    "stopped at path {} ({}) after {} segments ({why}); {}; resume with: {resume}",
+                    "stopped at path {} ({}) after segment {wound_segment} of {} ({why}); {}; resume with: {resume}",
                     stopped.item,
                     stopped.path,
-                    stopped.segments_done,
+                    display.segments_of(stopped.item),
                     if stopped.stop_errors.is_empty() {
                         "both axes told to stop".to_string()
                     } else {

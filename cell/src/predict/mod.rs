@@ -189,6 +189,12 @@ pub const VALIDATION_LINE: &str = "validated against App. B's 108 held-out windi
      within max(1 mm, 40 % of the measured) on 58 of them (54 %), the discrete time within \
      ±20 % on 24 of 36; read the figures below as estimates (docs/validation.md)";
 
+/// What a predicted time includes, printed under the validation line: the winding alone, which
+/// `windcell run` reports apart from each path's approach (its summary's `winding` figure).
+pub const TIMES_LINE: &str = "times: each path's winding, from the eye leaving its first point \
+     to both devices at rest; not the homing, the upload or each path's approach, which \
+     `windcell run` reports apart";
+
 /// SplitMix64: a small seeded generator for the Monte Carlo (Steele, Lea and Flood 2014); the
 /// same seed gives the same report on every machine.
 #[derive(Debug, Clone)]
@@ -869,7 +875,7 @@ impl Prediction {
             )
         } else {
             format!(
-                "prediction for {} ({} setup samples, seed {})\n{VALIDATION_LINE}\n",
+                "prediction for {} ({} setup samples, seed {})\n{VALIDATION_LINE}\n{TIMES_LINE}\n",
                 self.job, self.samples, self.seed
             )
         };

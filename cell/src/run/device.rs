@@ -143,10 +143,22 @@ pub trait RobotDevice: Send {
     fn move_immediate(&mut self, p: Positioning) -> DeviceResult<()>;
     /// Deletes `program` if stored (no error when it is not).
     fn delete_program(&mut self, program: u8) -> DeviceResult<()>;
-    /// Stores `instructions` as program `program` with verified stores (read back).
-    fn upload(&mut self, program: u8, instructions: &[Instruction]) -> DeviceResult<()>;
-    /// Reads the whole program back and compares it with `instructions`.
-    fn read_back(&mut self, program: u8, instructions: &[Instruction]) -> DeviceResult<()>;
+    /// Stores `instructions` as program `program` with verified stores (read back), calling
+    /// `progress` after each instruction stored and after each verified.
+    fn upload(
+        &mut self,
+        program: u8,
+        instructions: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> DeviceResult<()>;
+    /// Reads the whole program back and compares it with `instructions`, calling `progress`
+    /// after each instruction.
+    fn read_back(
+        &mut self,
+        program: u8,
+        instructions: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> DeviceResult<()>;
     /// Runs a stored program.
     fn run_program(&mut self, program: u8) -> DeviceResult<()>;
     /// Stops motion at once (STOP).
@@ -308,12 +320,23 @@ impl<L: Link, C: Clock> RobotDevice for ProtocolRobot<L, C> {
         }
     }
 
-    fn upload(&mut self, program: u8, instructions: &[Instruction]) -> DeviceResult<()> {
-        self.client.upload_verified(program, instructions)?;
+    fn upload(
+        &mut self,
+        program: u8,
+        instructions: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> DeviceResult<()> {
+        self.client
+            .upload_verified_reporting(program, instructions, progress)?;
         Ok(())
     }
 
-    fn read_back(&mut self, program: u8, instructions: &[Instruction]) -> DeviceResult<()> {
+    fn read_back(
+        &mut self,
+        program: u8,
+        instructions: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> DeviceResult<()> {
         for (n, want) in (1u16..).zip(instructions) {
             if !self.client.confirm_stored(program, n, want)? {
                 return Err(DeviceError::RobotState {
@@ -322,6 +345,7 @@ impl<L: Link, C: Clock> RobotDevice for ProtocolRobot<L, C> {
                     ),
                 });
             }
+            progress();
         }
         Ok(())
     }

@@ -196,7 +196,8 @@ fn one_start_edge_starts_the_program_and_the_armed_move_within_the_opto_delay() 
     }
 }
 
-/// Runs `batch` on `cell` from `from` with a journal at `path`; `stop_after` segment or program
+/// Runs `batch` on `cell` from `from` with a journal at `path`; `stop_after` segment (the plan's
+/// segments, numbered after the approach, which is instruction 1) or program
 /// events sets the stop request.
 fn wind(
     cell: &SimCell,
@@ -290,7 +291,8 @@ fn discrete_batch_winds_every_segment_once_and_resumes_after_a_stop() {
         Journal::create(&jp).unwrap(),
         &ResumePoint::default(),
         true,
-        Some(30),
+        // 29 segment events: the approach and 29 segments, 30 instructions confirmed.
+        Some(29),
     )
     .unwrap_err();
     assert!(matches!(stopped.halt, Halt::Interrupted { .. }));
@@ -378,7 +380,8 @@ fn a_power_cycled_indexer_is_refused_with_the_rereference_line() {
     let jp = dir.path().join("J.journal");
     let cell = SimCell::new(&SimCellConfig::default());
     let journal = Journal::create(&jp).unwrap();
-    wind(&cell, &b, journal, &ResumePoint::default(), true, Some(30)).unwrap_err();
+    // The approach and 29 segments: 30 instructions confirmed.
+    wind(&cell, &b, journal, &ResumePoint::default(), true, Some(29)).unwrap_err();
     cell.timebase_sleep(Duration::from_secs(2));
     // The power loss: the card's counter and state as at power-up.
     cell.with(|p| p.card.machine.reset(0.0)).unwrap();
@@ -741,13 +744,23 @@ impl cell::run::device::RobotDevice for Mortal<Box<dyn cell::run::device::RobotD
         self.life.alive()?;
         self.inner.delete_program(p)
     }
-    fn upload(&mut self, p: u8, i: &[Instruction]) -> cell::run::device::DeviceResult<()> {
+    fn upload(
+        &mut self,
+        p: u8,
+        i: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> cell::run::device::DeviceResult<()> {
         self.life.alive()?;
-        self.inner.upload(p, i)
+        self.inner.upload(p, i, progress)
     }
-    fn read_back(&mut self, p: u8, i: &[Instruction]) -> cell::run::device::DeviceResult<()> {
+    fn read_back(
+        &mut self,
+        p: u8,
+        i: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> cell::run::device::DeviceResult<()> {
         self.life.alive()?;
-        self.inner.read_back(p, i)
+        self.inner.read_back(p, i, progress)
     }
     fn run_program(&mut self, p: u8) -> cell::run::device::DeviceResult<()> {
         self.life.alive()?;
@@ -903,7 +916,8 @@ fn a_robot_that_stops_answering_stops_the_indexer_and_resume_completes() {
     let mut sink = |e: Event| {
         if matches!(e, Event::Segment { .. }) {
             n += 1;
-            if n == 12 {
+            // The 11th segment after the approach: 12 instructions confirmed.
+            if n == 11 {
                 c2.with(|p| p.robot_silent = true).unwrap();
             }
         }
@@ -1089,7 +1103,8 @@ fn a_stop_request_stops_both_devices_with_its_reason_and_resume_completes() {
     let mut sink = |e: Event| {
         if matches!(e, Event::Segment { .. }) {
             n += 1;
-            if n == 17 {
+            // The 16th segment after the approach: 17 instructions confirmed.
+            if n == 16 {
                 // What the Ctrl-C handler does: the next exchange on either link is abandoned.
                 r2.request("Ctrl-C");
             }
@@ -1333,7 +1348,8 @@ fn a_relative_jog_adds_its_offset_on_every_axis_and_the_reach_bounds_are_inclusi
 /// A cell without sync lines (`NoSync`: robot and indexer on their serial links only, as over
 /// two pseudo-terminals) winds a discrete batch: each immediate move is awaited by polling the
 /// robot's state until it leaves RUNNING, then confirmed idle at its target. Every target is
-/// reached once, in order, with one segment event each, numbered from 1 within its path.
+/// reached once, in order, with one segment event each after the approach (instruction 1),
+/// numbered from 1 within its path as the plan numbers them.
 #[test]
 fn discrete_batch_on_a_cell_without_sync_lines_winds_every_segment_once() {
     let b = checked(&sbend(Some(RunMode::Discrete)));
@@ -1362,17 +1378,160 @@ fn discrete_batch_on_a_cell_without_sync_lines_winds_every_segment_once() {
         .unwrap();
     drop(c);
     check_each_once(&cell, &b);
-    // One event per segment, numbered from 1 within each path, paths numbered from 1.
-    let want: Vec<(usize, usize, usize)> = b
-        .items
-        .iter()
-        .enumerate()
-        .flat_map(|(i, item)| {
-            let n = item.rob.instructions.len();
-            (1..=n).map(move |s| (i + 1, s, n))
-        })
+    // One event per plan segment (the S-bend's paths have 50, `plan` says so), numbered from 1
+    // within each path, paths numbered from 1.
+    let want: Vec<(usize, usize, usize)> = (1..=2)
+        .flat_map(|i| (1..=50).map(move |s| (i, s, 50)))
         .collect();
     assert_eq!(events, want);
+}
+
+/// Program mode tells the truth about its progress: the phases in order (homing, the upload,
+/// each path's approach and its winding); upload events that rise to
+/// three exchanges per stored instruction (store, verify, read back) of the two handshake
+/// programs (App. D: two control instructions before the positions, two after); and segment
+/// events 1..50 per path, in order, each only once the simulated card's counter has passed
+/// that segment's end (the plan's steps from the path's start), within the program's run.
+#[test]
+fn program_mode_reports_phases_upload_and_every_segment_from_the_indexer() {
+    use cell::run::coordinator::{Phase, Witness};
+    let b = checked(&sbend(Some(RunMode::Fine)));
+    let cell = SimCell::new(&SimCellConfig::default());
+    // Each event with the card's counter at the moment it was reported.
+    let mut seen: Vec<(Event, i64)> = Vec::new();
+    let mut sink = |e: Event| {
+        let counter = cell.with(|p| p.card.machine().counter_steps()).unwrap();
+        seen.push((e, counter));
+    };
+    let mut c = Coordinator::new(
+        cell.devices(Drive::default()),
+        Arc::new(AtomicBool::new(false)),
+        Journal::none(),
+        &mut sink,
+    );
+    c.run(&b, &ResumePoint::default(), true, false, false)
+        .unwrap();
+    drop(c);
+    check_each_once(&cell, &b);
+    let phases: Vec<Phase> = seen
+        .iter()
+        .filter_map(|(e, _)| match e {
+            Event::Phase { phase, .. } => Some(*phase),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        phases,
+        [
+            Phase::Homing,
+            Phase::Upload,
+            Phase::Approach { item: 1 },
+            Phase::Winding { item: 1 },
+            Phase::Approach { item: 2 },
+            Phase::Winding { item: 2 },
+        ]
+    );
+    // The upload: between its phase and the first approach, rising to its total.
+    let total: usize = b
+        .items
+        .iter()
+        .map(|i| 3 * (i.rob.instructions.len() + 4))
+        .sum();
+    let upload_at = seen
+        .iter()
+        .position(|(e, _)| {
+            matches!(
+                e,
+                Event::Phase {
+                    phase: Phase::Upload,
+                    ..
+                }
+            )
+        })
+        .unwrap();
+    let approach_at = seen
+        .iter()
+        .position(|(e, _)| {
+            matches!(
+                e,
+                Event::Phase {
+                    phase: Phase::Approach { .. },
+                    ..
+                }
+            )
+        })
+        .unwrap();
+    let uploads: Vec<(usize, usize, usize)> = seen
+        .iter()
+        .enumerate()
+        .filter_map(|(at, (e, _))| match e {
+            Event::Upload { done, total, .. } => Some((at, *done, *total)),
+            _ => None,
+        })
+        .collect();
+    assert!(uploads.len() >= 50, "{} upload events", uploads.len());
+    assert!(
+        uploads
+            .iter()
+            .all(|&(at, _, t)| at > upload_at && at < approach_at && t == total)
+    );
+    assert!(uploads.windows(2).all(|w| w[1].1 > w[0].1));
+    assert_eq!(uploads.last().unwrap().1, total);
+    // Segments: per path 1..50 in order, between the program's start and its end, never before
+    // the card has passed the segment's end.
+    for (k, item) in b.items.iter().enumerate() {
+        let start = seen
+            .iter()
+            .position(
+                |(e, _)| matches!(e, Event::Program { item, done: false, .. } if *item == k + 1),
+            )
+            .unwrap();
+        let end = seen
+            .iter()
+            .position(
+                |(e, _)| matches!(e, Event::Program { item, done: true, .. } if *item == k + 1),
+            )
+            .unwrap();
+        let sync = seen[start].1;
+        let path_steps = plan_steps(&b, k, item.rob.instructions.len());
+        let direction = path_steps.signum();
+        assert_ne!(direction, 0);
+        let mut numbers = Vec::new();
+        let mut by_indexer = 0;
+        for (at, (e, counter)) in seen.iter().enumerate() {
+            if let Event::Segment {
+                item: i,
+                segment,
+                segments,
+                witness,
+                ..
+            } = e
+                && *i == k + 1
+            {
+                assert!(
+                    at > start && at < end,
+                    "segment {segment} outside its program"
+                );
+                assert_eq!(*segments, 50);
+                // Segment s is instruction s + 1: its end is the steps of instructions 1..=s+1.
+                let end_steps = sync + plan_steps(&b, k, segment + 1);
+                assert!(
+                    direction * (counter - end_steps) >= 0,
+                    "path {} segment {segment} reported at counter {counter}, its end is {end_steps}",
+                    k + 1
+                );
+                by_indexer += usize::from(*witness == Witness::Indexer);
+                numbers.push(*segment);
+            }
+        }
+        assert_eq!(numbers, (1..=50).collect::<Vec<_>>(), "path {}", k + 1);
+        // Most are seen while the program runs, not all at its end.
+        assert!(
+            by_indexer >= 40,
+            "path {}: {by_indexer} by the indexer",
+            k + 1
+        );
+    }
 }
 
 /// After each immediate move the coordinator reads the robot's position back: a robot that
@@ -1949,11 +2108,21 @@ impl cell::run::device::RobotDevice for Watched {
     fn delete_program(&mut self, p: u8) -> cell::run::device::DeviceResult<()> {
         self.inner.delete_program(p)
     }
-    fn upload(&mut self, p: u8, i: &[Instruction]) -> cell::run::device::DeviceResult<()> {
-        self.inner.upload(p, i)
+    fn upload(
+        &mut self,
+        p: u8,
+        i: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> cell::run::device::DeviceResult<()> {
+        self.inner.upload(p, i, progress)
     }
-    fn read_back(&mut self, p: u8, i: &[Instruction]) -> cell::run::device::DeviceResult<()> {
-        self.inner.read_back(p, i)
+    fn read_back(
+        &mut self,
+        p: u8,
+        i: &[Instruction],
+        progress: &mut dyn FnMut(),
+    ) -> cell::run::device::DeviceResult<()> {
+        self.inner.read_back(p, i, progress)
     }
     fn run_program(&mut self, p: u8) -> cell::run::device::DeviceResult<()> {
         self.inner.run_program(p)
@@ -2171,7 +2340,8 @@ fn stop_resume_stop_resume_syncs_each_path_once() {
         from.sync_counter.is_some() && from.segments_done == 0,
         "{from:?}"
     );
-    let stopped = wind(&cell, &b, journal, &from, false, Some(5)).unwrap_err();
+    // The approach and 4 segments: 5 instructions confirmed.
+    let stopped = wind(&cell, &b, journal, &from, false, Some(4)).unwrap_err();
     assert_eq!((stopped.item, stopped.segments_done), (1, 5));
     cell.timebase_sleep(Duration::from_secs(2));
     let (journal, records) = Journal::resume(&jp).unwrap();

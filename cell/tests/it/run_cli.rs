@@ -46,16 +46,42 @@ fn json_events_of_a_fine_run_from_a_sequence() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
-    let kinds: Vec<&str> = events
+    let mut kinds: Vec<&str> = events
         .iter()
         .map(|e| e["event"].as_str().unwrap())
         .collect();
+    kinds.dedup();
+    // Homing, the upload's phase and its exchanges; per path its approach, its winding, the
+    // program's start, its segments, its end.
     assert_eq!(
         kinds,
         [
-            "started", "program", "program", "program", "program", "done"
+            "started", "phase", "upload", "phase", "program", "segment", "program", "phase",
+            "program", "segment", "program", "done"
         ]
     );
+    let phases: Vec<&str> = events
+        .iter()
+        .filter(|e| e["event"] == "phase")
+        .map(|e| e["phase"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        phases,
+        [
+            "homing", "upload", "approach", "winding", "approach", "winding"
+        ]
+    );
+    let upload = events.iter().rfind(|e| e["event"] == "upload").unwrap();
+    assert_eq!(upload["done"], upload["total"]);
+    // Segments 1..50 of each path, as `plan` numbers them.
+    for item in 1..=2 {
+        let numbers: Vec<u64> = events
+            .iter()
+            .filter(|e| e["event"] == "segment" && e["item"] == item)
+            .map(|e| e["segment"].as_u64().unwrap())
+            .collect();
+        assert_eq!(numbers, (1..=50).collect::<Vec<u64>>());
+    }
     assert_eq!(events[0]["mode"], "fine");
     assert!(
         events[0]["journal"]
@@ -63,7 +89,7 @@ fn json_events_of_a_fine_run_from_a_sequence() {
             .unwrap()
             .ends_with("SBEND.journal")
     );
-    let paths = events[5]["paths"].as_array().unwrap();
+    let paths = events.last().unwrap()["paths"].as_array().unwrap();
     assert_eq!(paths.len(), 2);
     assert_eq!(paths[1]["name"], "SBEND_2");
     // The simulators' log: 51 + 51 robot instructions of the two programs, completed.
@@ -115,7 +141,7 @@ fn the_console_stop_then_resume_finishes_the_batch() {
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("batch done: 2 paths"));
-    assert!(out.contains("resuming after path"), "{out}");
+    assert!(out.contains("resuming path "), "{out}");
     // Without a terminal the progress is a line every tenth segment and at the last.
     let mut shown: Vec<(usize, usize)> = Vec::new();
     for l in out.lines().filter(|l| l.contains("path 2/2")) {

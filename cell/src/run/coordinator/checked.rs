@@ -78,6 +78,60 @@ pub struct Batch {
     pub(super) prepared: Vec<Prepared>,
 }
 
+impl Batch {
+    /// The planned time of each instruction of item `k` (index 0 the approach, 0 s: its sync
+    /// move depends on where the mandrel stands), s: the mandrel's move as the indexer runs it
+    /// (`paths::timing`), which sets the robot's speed for the segment (seed 001 §5.6.2). In
+    /// discrete mode each segment is its own move; in program mode the path is one move, shared
+    /// among its segments by their steps. Not included: the exchanges that confirm each
+    /// discrete segment, homing, the upload.
+    pub fn planned_times_s(&self, k: usize) -> Vec<f64> {
+        let (Some(item), Some(prep)) = (self.items.get(k), self.prepared.get(k)) else {
+            return Vec::new();
+        };
+        let per_rev = self.drive.steps_per_mandrel_rev();
+        let profile = |m: &MandrelMove| MandrelProfile {
+            accel_rps2: m.accel_rps2,
+            start_stop_rps: m.start_stop_rps,
+            max_rps: m.max_rps,
+        };
+        let mut times: Vec<f64> = match self.mode {
+            RunMode::Discrete => prep
+                .mandrel
+                .iter()
+                .map(|m| profile(m).duration_s(m.steps.unsigned_abs(), per_rev))
+                .collect(),
+            _ => {
+                let path_move = item
+                    .ind
+                    .as_ref()
+                    .map_or(prep.mandrel.first().copied(), |f| Some(f.path_move));
+                let steps: Vec<u64> = prep
+                    .mandrel
+                    .iter()
+                    .map(|m| m.steps.unsigned_abs())
+                    .collect();
+                let total: u64 = steps.iter().sum();
+                let path_s = path_move.map_or(0.0, |m| profile(&m).duration_s(total, per_rev));
+                steps
+                    .iter()
+                    .map(|&s| {
+                        if total == 0 {
+                            0.0
+                        } else {
+                            path_s * s as f64 / total as f64
+                        }
+                    })
+                    .collect()
+            }
+        };
+        if let Some(first) = times.first_mut() {
+            *first = 0.0;
+        }
+        times
+    }
+}
+
 /// The App. D handshake around a stored program's positions: lower "in position", wait for the
 /// PC's start, the positions, raise "in position", End. Control instructions already in
 /// `instructions` are replaced, so a program that has its own handshake is not wrapped twice.

@@ -14,8 +14,11 @@ impl Coordinator<'_> {
     ) -> Result<(), Step> {
         let prep = &batch.prepared[k];
         let item = &batch.items[k];
-        let base = self.sync_item(batch, k, resume)?;
         let from = resume.map_or(0, |r| r.segments_done);
+        if from == 0 {
+            self.phase(Phase::Approach { item: k + 1 });
+        }
+        let base = self.sync_item(batch, k, resume)?;
         self.segments_done = from;
         let n = prep.targets_mm.len();
         // Where the robot is: read before the first segment, then what each segment confirmed.
@@ -36,6 +39,9 @@ impl Coordinator<'_> {
                 .into());
             }
             here = Some(at);
+        }
+        if from > 0 {
+            self.phase(Phase::Winding { item: k + 1 });
         }
         for s in from..n {
             self.check()?;
@@ -79,14 +85,21 @@ impl Coordinator<'_> {
                 "robot_mm": prep.targets_mm[s], "counter": target,
                 "t_s": self.dev.time.now_s(),
             }))?;
-            (self.events)(Event::Segment {
-                item: k + 1,
-                program: item.rob.header.program,
-                path: item.name.clone(),
-                segment: s + 1,
-                segments: n,
-                time_s: self.dev.time.now_s(),
-            });
+            // Instruction 1 is the approach to the path's first point; the plan's segments
+            // are the instructions after it.
+            if s == 0 {
+                self.phase(Phase::Winding { item: k + 1 });
+            } else {
+                (self.events)(Event::Segment {
+                    item: k + 1,
+                    program: item.rob.header.program,
+                    path: item.name.clone(),
+                    segment: s,
+                    segments: n - 1,
+                    witness: Witness::Both,
+                    time_s: self.dev.time.now_s(),
+                });
+            }
         }
         Ok(())
     }

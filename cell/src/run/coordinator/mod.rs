@@ -140,12 +140,32 @@ pub enum Event {
         /// True when resuming.
         resumed: bool,
     },
+    /// A phase of the run began that is not winding a segment.
+    Phase {
+        /// Which.
+        phase: Phase,
+        /// Cell time, s.
+        time_s: f64,
+    },
+    /// Program upload progress (program mode): telegram exchanges done of those the upload
+    /// takes (each instruction stored, verified and read back: three per instruction).
+    Upload {
+        /// Exchanges done.
+        done: usize,
+        /// Exchanges in all.
+        total: usize,
+        /// Cell time, s.
+        time_s: f64,
+    },
     /// Programs uploaded and read back (program mode).
     Uploaded {
         /// Programs.
         programs: Vec<u8>,
     },
-    /// A discrete segment confirmed.
+    /// A segment of the plan wound, numbered as the plan numbers them (1..N; the approach to the
+    /// path's first point is not a segment). In discrete mode the robot and the indexer both
+    /// confirmed it; in program mode the indexer's steps through the path's single move passed
+    /// the segment's end (the robot is not asked while its program runs, seed 001 §4.1.2).
     Segment {
         /// Batch item, from 1.
         item: usize,
@@ -157,6 +177,8 @@ pub enum Event {
         segment: usize,
         /// Segments in the path.
         segments: usize,
+        /// Who confirmed it.
+        witness: Witness,
         /// Cell time, s.
         time_s: f64,
     },
@@ -184,6 +206,57 @@ pub enum Event {
         /// Winding time of the path, s.
         time_s: f64,
     },
+}
+
+/// The phases of a run that wind no segment, as the operator sees them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// The robot's home synchronisation (seed 001 §5.3.1).
+    Homing,
+    /// The batch's programs stored in the robot computer and read back (program mode).
+    Upload,
+    /// Item `item` (from 1): the mandrel to the path's start angle and the arm to its first
+    /// point, before segment 1.
+    Approach {
+        /// Batch item, from 1.
+        item: usize,
+    },
+    /// Item `item` (from 1): the approach done, its segments (discrete) or its program begin.
+    Winding {
+        /// Batch item, from 1.
+        item: usize,
+    },
+}
+
+impl Phase {
+    /// The word `--json` prints.
+    pub fn keyword(self) -> &'static str {
+        match self {
+            Phase::Homing => "homing",
+            Phase::Upload => "upload",
+            Phase::Approach { .. } => "approach",
+            Phase::Winding { .. } => "winding",
+        }
+    }
+}
+
+/// Who confirmed a segment (see [`Event::Segment`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Witness {
+    /// Both devices, each its own move (discrete mode).
+    Both,
+    /// The indexer's step count through the path's move (program mode).
+    Indexer,
+}
+
+impl Witness {
+    /// The word `--json` prints.
+    pub fn keyword(self) -> &'static str {
+        match self {
+            Witness::Both => "robot and indexer",
+            Witness::Indexer => "indexer",
+        }
+    }
 }
 
 /// The devices of a cell and its time.
@@ -336,10 +409,21 @@ impl<'a> Coordinator<'a> {
         timeout_s: f64,
         mut done: impl FnMut(&mut Devices) -> Result<bool, DeviceError>,
     ) -> Result<(), Step> {
+        self.wait_reporting(what, timeout_s, |d, _| done(d))
+    }
+
+    /// [`Self::wait`], with `done` also handed the event sink (to report progress while it
+    /// waits).
+    fn wait_reporting(
+        &mut self,
+        what: &'static str,
+        timeout_s: f64,
+        mut done: impl FnMut(&mut Devices, &mut dyn FnMut(Event)) -> Result<bool, DeviceError>,
+    ) -> Result<(), Step> {
         let t0 = self.dev.time.now_s();
         loop {
             self.check()?;
-            if done(&mut self.dev)? {
+            if done(&mut self.dev, &mut *self.events)? {
                 return Ok(());
             }
             if self.dev.time.now_s() - t0 > timeout_s {
@@ -347,6 +431,11 @@ impl<'a> Coordinator<'a> {
             }
             self.dev.time.tick(CONTROL_TICK);
         }
+    }
+
+    fn phase(&mut self, phase: Phase) {
+        let time_s = self.dev.time.now_s();
+        (self.events)(Event::Phase { phase, time_s });
     }
 
     /// Winds `batch` from `from` (the start, or a journal's resume point).

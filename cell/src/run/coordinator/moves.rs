@@ -27,6 +27,7 @@ impl Coordinator<'_> {
             })?;
         }
         if self.dev.robot.state()?.state == State::Homing {
+            self.phase(Phase::Homing);
             // A home synchronisation a killed run started: any command now would be refused
             // (robot error 7, busy); it is waited out.
             self.wait("the robot's home synchronisation", HOME_TIMEOUT_S, |d| {
@@ -38,6 +39,7 @@ impl Coordinator<'_> {
             self.dev.robot.set_operate(true)?;
         }
         if !s.homed {
+            self.phase(Phase::Homing);
             self.dev.robot.start_home()?;
             self.journal.append(json!({"rec": "home"}))?;
             self.wait("home synchronisation", HOME_TIMEOUT_S, |d| {

@@ -18,14 +18,25 @@ impl Coordinator<'_> {
                 programs.push((p, list));
             }
         }
+        self.phase(Phase::Upload);
+        // Each instruction is stored, verified and read back: three exchanges.
+        let total = 3 * programs.iter().map(|(_, l)| l.len()).sum::<usize>();
+        let mut done = 0;
+        let time = self.dev.time.clone();
         for (p, list) in &programs {
             self.check()?;
             self.dev.robot.delete_program(*p)?;
-            self.dev.robot.upload(*p, list)?;
+            let events = &mut *self.events;
+            self.dev.robot.upload(*p, list, &mut || {
+                upload_progress(events, &mut done, total, time.now_s());
+            })?;
         }
         for (p, list) in &programs {
             self.check()?;
-            self.dev.robot.read_back(*p, list)?;
+            let events = &mut *self.events;
+            self.dev.robot.read_back(*p, list, &mut || {
+                upload_progress(events, &mut done, total, time.now_s());
+            })?;
         }
         if standby {
             self.dev.robot.set_operate(false)?;
@@ -85,8 +96,16 @@ impl Coordinator<'_> {
                     .collect();
                 let list = handshake_program(&rest);
                 self.dev.robot.delete_program(RESUME_PROGRAM)?;
-                self.dev.robot.upload(RESUME_PROGRAM, &list)?;
-                self.dev.robot.read_back(RESUME_PROGRAM, &list)?;
+                self.phase(Phase::Upload);
+                let (total, mut done, time) = (3 * list.len(), 0, self.dev.time.clone());
+                let events = &mut *self.events;
+                let mut progress = || upload_progress(events, &mut done, total, time.now_s());
+                self.dev
+                    .robot
+                    .upload(RESUME_PROGRAM, &list, &mut progress)?;
+                self.dev
+                    .robot
+                    .read_back(RESUME_PROGRAM, &list, &mut progress)?;
                 self.journal.append(json!({
                     "rec": "resume_program", "item": k, "program": RESUME_PROGRAM,
                     "from_instruction": reached,
@@ -98,6 +117,7 @@ impl Coordinator<'_> {
         let (sync, counter) = match base {
             Some(b) => b,
             None => {
+                self.phase(Phase::Approach { item: k + 1 });
                 let sync = self.sync_item(batch, k, resume)?;
                 // The approach: robot at the first point before the start edge.
                 self.robot_to(prep.immediate[0], prep.targets_mm[0])?;
@@ -107,6 +127,7 @@ impl Coordinator<'_> {
         let end = sync + prep.cumulative_steps[n];
         self.journal
             .append(json!({"rec": "program", "item": k, "program": program}))?;
+        self.phase(Phase::Winding { item: k + 1 });
         (self.events)(Event::Program {
             item: k + 1,
             program,
@@ -141,7 +162,43 @@ impl Coordinator<'_> {
         let quiet_until_s =
             self.dev.time.now_s() + PROGRAM_QUIET_FACTOR * mandrel_s + PROGRAM_QUIET_MARGIN_S;
         let mut polls = 0u32;
-        self.wait("the robot's program", MOVE_TIMEOUT_S, |d| {
+        // Progress from the indexer, which can be asked while the program runs: its steps
+        // through the path's one move, once the card shows the move under way (before that,
+        // `W3` still counts the move before).
+        let mut passed = Passed {
+            sync,
+            start: counter,
+            cumulative: &prep.cumulative_steps,
+            reported: 0,
+        };
+        // A resumed program: what the run before wound is not reported again.
+        if base.is_some() {
+            passed.reported = passed.count(counter);
+        }
+        let mut next_poll_s = self.dev.time.now_s() + PROGRESS_POLL_S;
+        let mut under_way = false;
+        let path = item.name.clone();
+        let header_program = item.rob.header.program;
+        self.wait_reporting("the robot's program", MOVE_TIMEOUT_S, |d, events| {
+            if armed && d.time.now_s() >= next_poll_s {
+                next_poll_s += PROGRESS_POLL_S;
+                let (busy, _) = d.mandrel.busy()?;
+                under_way |= busy;
+                if under_way {
+                    let at = counter + d.mandrel.move_steps()?;
+                    for segment in passed.take(at) {
+                        events(Event::Segment {
+                            item: k + 1,
+                            program: header_program,
+                            path: path.clone(),
+                            segment,
+                            segments: n - 1,
+                            witness: Witness::Indexer,
+                            time_s: d.time.now_s(),
+                        });
+                    }
+                }
+            }
             if d.time.now_s() < quiet_until_s {
                 return d.sync.in_position();
             }
@@ -180,6 +237,20 @@ impl Coordinator<'_> {
             .into());
         }
         self.segments_done = n;
+        // The rest, confirmed now by both: the arm at the path's last point, the counter at its
+        // end.
+        let time_s = self.dev.time.now_s();
+        for segment in passed.take_all() {
+            (self.events)(Event::Segment {
+                item: k + 1,
+                program: header_program,
+                path: path.clone(),
+                segment,
+                segments: n - 1,
+                witness: Witness::Both,
+                time_s,
+            });
+        }
         (self.events)(Event::Program {
             item: k + 1,
             program,
@@ -188,5 +259,66 @@ impl Coordinator<'_> {
             time_s: self.dev.time.now_s(),
         });
         Ok(())
+    }
+}
+
+/// One exchange of the upload done: an [`Event::Upload`] at each whole percent and at the end (a
+/// 9600-baud upload takes minutes; an event per exchange would be hundreds).
+fn upload_progress(events: &mut dyn FnMut(Event), done: &mut usize, total: usize, time_s: f64) {
+    *done += 1;
+    if *done * 100 / total != (*done - 1) * 100 / total || *done == total {
+        events(Event::Upload {
+            done: *done,
+            total,
+            time_s,
+        });
+    }
+}
+
+/// How often the indexer is asked for its progress while a program runs, s (two exchanges of
+/// a few milliseconds each on the indexer's own link).
+const PROGRESS_POLL_S: f64 = 0.5;
+
+/// The segments of a program-mode path that the mandrel's steps have passed.
+struct Passed<'p> {
+    /// The counter the path's sync aimed at (its cumulative steps count from there).
+    sync: i64,
+    /// The counter where the path's move started.
+    start: i64,
+    /// Steps at the end of each instruction, from the sync (instruction 1, the approach, first).
+    cumulative: &'p [i64],
+    /// Segments reported so far.
+    reported: usize,
+}
+
+impl Passed<'_> {
+    /// Segments (1..N, the approach not one) whose end the counter `at` has reached, moving from
+    /// `start` towards the path's end.
+    fn count(&self, at: i64) -> usize {
+        let end = self.sync + self.cumulative.last().copied().unwrap_or(0);
+        let direction = (end - self.start).signum();
+        if direction == 0 {
+            return 0;
+        }
+        // Segment k ends at `cumulative[k + 1]`.
+        (1..self.cumulative.len().saturating_sub(1))
+            .take_while(|&k| direction * (at - (self.sync + self.cumulative[k + 1])) >= 0)
+            .count()
+    }
+
+    /// The segments newly passed at `at`, in order (never one twice, never back).
+    fn take(&mut self, at: i64) -> std::ops::RangeInclusive<usize> {
+        let now = self.count(at).max(self.reported);
+        let new = self.reported + 1..=now;
+        self.reported = now;
+        new
+    }
+
+    /// Every segment not reported yet.
+    fn take_all(&mut self) -> std::ops::RangeInclusive<usize> {
+        let all = self.cumulative.len().saturating_sub(2);
+        let new = self.reported + 1..=all;
+        self.reported = all;
+        new
     }
 }
