@@ -336,6 +336,15 @@ pub enum Error {
         /// The robot's memory, units.
         capacity_units: u32,
     },
+    /// `windcell sweep` of a job with no traced path to repeat.
+    #[error(
+        "{}: the job has no traced [[path]] (direction, wind_angle_deg, start_angle_deg) to sweep",
+        job.display()
+    )]
+    NoSweepPattern {
+        /// The job file.
+        job: PathBuf,
+    },
     /// A journal that is not this batch's (`--resume`).
     #[error("{0}")]
     JournalMismatch(JournalMismatch),
@@ -408,6 +417,7 @@ impl Error {
                 | Error::MissingFile { .. }
                 | Error::MandrelSteps { .. }
                 | Error::BatchMemory { .. }
+                | Error::NoSweepPattern { .. }
                 | Error::JournalMismatch(_)
         )
     }

@@ -324,6 +324,17 @@ fn sequence_gate(args: &RunArgs, loaded: &Loaded) -> Result<Option<Clearance>, F
         return Ok(None);
     };
     let (job, text) = sequences::Job::load(job_path).map_err(Failure::input)?;
+    // A sequence of more paths than the job has is its sweep (`windcell sweep`, one path per
+    // program): the job expanded as the sweep did is the plan to hold the files to.
+    let job = match u8::try_from(loaded.items.len())
+        .ok()
+        .and_then(std::num::NonZeroU8::new)
+    {
+        Some(n) if usize::from(n.get()) != job.paths.len() => {
+            cell::plan::sweep::expand(&job, job_path, n).unwrap_or(job)
+        }
+        _ => job,
+    };
     let plan = cell::plan::tool::plan(&job, &text, job_path).map_err(Failure::from_cell)?;
     let planned = batch::files_of_job(
         &cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?,

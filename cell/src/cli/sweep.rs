@@ -8,7 +8,6 @@ use cell::plan::report::PlanReport;
 use cell::plan::{output, tool};
 use clap::Args;
 use sequences::Job;
-use toml::Spanned;
 
 use super::Failure;
 
@@ -35,40 +34,28 @@ pub struct SweepArgs {
 
 /// Runs `windcell sweep`.
 pub fn run(args: SweepArgs) -> Result<(), Failure> {
-    let (mut job, text) = Job::load(&args.job).map_err(Failure::input)?;
+    let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
     output::check_dir(&args.out).map_err(Failure::from_cell)?;
-    let Some(pattern) = job.paths.iter().find(|p| p.dxf.is_none()).cloned() else {
-        return Err(Failure::input(format!(
-            "{}: the job has no traced [[path]] (direction, wind_angle_deg, start_angle_deg) to sweep",
-            args.job.display()
-        )));
-    };
-    let start = pattern
-        .start_angle_deg
-        .as_ref()
-        .map_or(0.0, |s| *s.get_ref());
-    let span = pattern
-        .start_angle_deg
-        .as_ref()
-        .map_or(pattern.program.span(), |s| s.span());
-    job.paths = (0..args.paths)
-        .map(|k| {
-            let mut p = pattern.clone();
-            p.program = Spanned::new(pattern.program.span(), k + 1);
-            p.start_angle_deg = Some(Spanned::new(
-                span.clone(),
-                start + 360.0 * f64::from(k) / f64::from(args.paths),
-            ));
-            p
-        })
-        .collect();
+    let paths = std::num::NonZeroU8::new(args.paths)
+        .ok_or_else(|| Failure::input("sweep: --paths must lie in 1..=255"))?;
+    let job = cell::plan::sweep::expand(&job, &args.job, paths).map_err(Failure::from_cell)?;
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let files = cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?;
+    // The collision and snag check, as `plan` prints it (`windcell run --job` refuses the set
+    // while it finds anything).
+    let checked = cell::plan::check::check(&job, &text, &args.job, plan.clone())
+        .map_err(Failure::from_cell)?;
+    let check_line = cell::plan::check::summary(&checked);
     output::write_all(&args.out, &files, job.name.get_ref(), args.stale)
         .map_err(Failure::from_cell)?;
     let out = if args.json {
-        let mut s = serde_json::to_string_pretty(&PlanReport::new(&job, &plan))
-            .map_err(Failure::runtime)?;
+        let mut value =
+            serde_json::to_value(PlanReport::new(&job, &plan)).map_err(Failure::runtime)?;
+        if let Some(obj) = value.as_object_mut() {
+            obj.insert("check".into(), check_line.clone().into());
+            obj.insert("check_clear".into(), checked.report.is_clear().into());
+        }
+        let mut s = serde_json::to_string_pretty(&value).map_err(Failure::runtime)?;
         s.push('\n');
         s
     } else {
@@ -79,9 +66,10 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
             .fold(0.0f64, f64::max);
         format!(
             "{} paths of {} segments planned, smoothed paths ≤ {worst:.4} mm from the traced ones\n\
+             {check_line}\n\
              wrote {} file{} ({}) to {}\n",
             plan.paths.len(),
-            pattern.segments.get_ref(),
+            plan.paths.first().map_or(0, |p| p.plan.segments.len()),
             files.len(),
             if files.len() == 1 { "" } else { "s" },
             super::plan::file_kinds(&files),

@@ -7,7 +7,8 @@
 //! - [`check`] and [`figure`]: the collision and snag check and its picture (Figure 5.9);
 //! - [`program`]: a stored robot program's layout in the robot's memory;
 //! - [`post`]: a six-axis plan as programs for the arm's controller (`windcell post`);
-//! - [`report`]: `plan --json`; [`output`]: writing a set of files all or nothing.
+//! - [`report`]: `plan --json`; [`output`]: writing a set of files all or nothing;
+//! - [`sweep`]: a coverage set, one job's path repeated around the mandrel.
 //!
 //! Nothing here talks to a device: `run` takes the plan from here.
 
@@ -20,4 +21,5 @@ pub mod output;
 pub mod post;
 pub mod program;
 pub mod report;
+pub mod sweep;
 pub mod tool;

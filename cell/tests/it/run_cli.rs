@@ -534,3 +534,91 @@ fn program_mode_without_sync_lines_is_refused_before_anything() {
     assert!(!err.contains("windcell-no-robot"), "{err}");
     assert!(!journal.exists());
 }
+
+/// A sweep is planned, checked and wound as planned: `sweep` prints its collision check, and
+/// `run --job` holds the sweep's files to the job's sweep of as many paths (four copies of the
+/// cylinder's path at 0°, 90°, 180°, 270°), then winds every one; a sweep's file changed by
+/// hand, or the sweep's sequence given another job, is refused before anything is sent.
+#[test]
+fn a_sweep_is_checked_and_wound_as_planned() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cover");
+    let job = example("cylinder.toml");
+    let o = windcell(&[
+        "sweep",
+        job.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--paths",
+        "4",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("check: clear over 4 paths, 200 segments"),
+        "{text}"
+    );
+    // The four programs start a quarter turn apart (the .ROB header's sync angle).
+    let sync_deg: Vec<f64> = (1..=4)
+        .map(|k| {
+            let rob = std::fs::read_to_string(out.join(format!("CYL_{k}.ROB"))).unwrap();
+            rob.lines()
+                .find_map(|l| l.strip_prefix("sync_mandrel_deg "))
+                .unwrap()
+                .parse()
+                .unwrap()
+        })
+        .collect();
+    // (The mandrel turns the path's start to the robot: its angle steps by minus a quarter.)
+    for k in 1..4 {
+        let step = (sync_deg[k] - sync_deg[k - 1]).rem_euclid(360.0);
+        assert!((step - 270.0).abs() < 1e-3, "{sync_deg:?}");
+    }
+    let seq = out.join("CYL.SEQ");
+    let journal = dir.path().join("cover.journal");
+    let o = run(&[
+        seq.to_str().unwrap(),
+        "--job",
+        job.to_str().unwrap(),
+        "--json",
+        "--journal",
+        journal.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let done = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .rfind(|e| e["event"] == "done")
+        .unwrap();
+    assert_eq!(done["paths"].as_array().unwrap().len(), 4);
+    // Another job's sweep: refused at the first file that is not its plan, nothing sent.
+    let o = run(&[
+        seq.to_str().unwrap(),
+        "--job",
+        example("sbend.toml").to_str().unwrap(),
+        "--journal",
+        dir.path().join("other.journal").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!dir.path().join("other.journal").exists());
+    // A sweep file edited by hand: refused at its line.
+    let rob = out.join("CYL_3.ROB");
+    let edited = std::fs::read_to_string(&rob)
+        .unwrap()
+        .replacen("speed_pct=", "speed_pct=1", 1);
+    std::fs::write(&rob, edited).unwrap();
+    let o = run(&[
+        seq.to_str().unwrap(),
+        "--job",
+        job.to_str().unwrap(),
+        "--journal",
+        dir.path().join("edited.journal").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("CYL_3.ROB:"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("differs from the plan"),
+        "{}",
+        stderr(&o)
+    );
+}
