@@ -2,7 +2,9 @@
 //! a side view (`x` across, `z` up) and a top view (`x` across, `y` up) of the mandrel's circular
 //! sections at every tangent point (§5.7: "Each circular cross-section is located at a point on
 //! the desired fibre path"), the spine, the tangent points, the eye path and the tow lines of
-//! every path, the eye mechanism and the arm's links at the worst pose, and every finding in red.
+//! every path, the eye mechanism and the arm's links at the worst pose, the cell's obstacles
+//! (boxes in the cell frame, seen from the mandrel at the worst pose's angle), and every finding
+//! in red.
 //!
 //! Written as text: the figure is lines, circles and polylines, and an SVG crate would add a
 //! dependency for what `format!` does (docs/ARCHITECTURE.md, "External crates and why").
@@ -81,8 +83,10 @@ pub fn svg(checked: &Checked) -> String {
             r#"<clipPath id="{clip}"><rect x="{:.1}" y="{MARGIN_PX:.1}" width="{VIEW_PX:.0}" height="{VIEW_PX:.0}"/></clipPath><g clip-path="url(#{clip})">"#,
             view.left_px + MARGIN_PX
         );
-        // The arm first, so that the mandrel and the paths are drawn over it.
+        // The arm and the obstacles first, so that the mandrel and the paths are drawn over
+        // them.
         arm(&mut s, &view, &worst_links);
+        obstacles(&mut s, checked, &view);
         sections(&mut s, checked, &view);
         spine_and_axis(&mut s, checked, &view);
         fibre_paths(&mut s, checked, &view);
@@ -244,7 +248,48 @@ fn legend(s: &mut String, checked: &Checked, y: f64) {
         r##"stroke="#7f7f7f" stroke-opacity="0.45" stroke-width="6""##,
         "arm, worst pose",
     );
+    if !checked.obstacles.is_empty() {
+        entry(
+            s,
+            r##"stroke="#8c6d31" stroke-width="1.2""##,
+            "obstacle, at the worst pose's mandrel angle",
+        );
+    }
     entry(s, r##"stroke="#d62728" stroke-width="2.5""##, "finding");
+}
+
+/// Each obstacle's box (cell frame, fixed) seen from the mandrel at the worst pose's angle, the
+/// angle the arm is drawn at: its twelve edges.
+fn obstacles(s: &mut String, checked: &Checked, view: &View) {
+    let phi = checked.report.worst.map_or(0.0, |w| w.mandrel_rad);
+    for o in &checked.obstacles {
+        let corner = |bits: usize| {
+            let pick = |k: usize| {
+                if bits >> k & 1 == 0 {
+                    o.min_mm[k]
+                } else {
+                    o.max_mm[k]
+                }
+            };
+            to_mandrel(checked, &Point3::new(pick(0), pick(1), pick(2)), phi)
+        };
+        let _ = writeln!(s, "<g><title>{}</title>", escape(&o.name));
+        for a in 0..8usize {
+            for k in 0..3 {
+                let b = a | 1 << k;
+                if b != a {
+                    line(
+                        s,
+                        view,
+                        &corner(a),
+                        &corner(b),
+                        r##"stroke="#8c6d31" stroke-width="1.2" fill="none""##,
+                    );
+                }
+            }
+        }
+        let _ = writeln!(s, "</g>");
+    }
 }
 
 /// The mandrel's circular sections at every tangent point (§5.7).

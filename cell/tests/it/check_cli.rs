@@ -213,6 +213,29 @@ print(len(clips), len(red), len(axis), "0" in texts,
         fields[5], "eye path, CYLFRAME_1|eye path, CYLFRAME_2",
         "{seen}"
     );
+    // The drive frame (a box 40 × 600 × 334.7 mm in the cell frame, `examples/arm-hits-frame.toml`)
+    // in both views: twelve edges each. The mandrel turns about the cell's vertical, so from
+    // above the box keeps its shape: its four vertical edges are points and the rest are its
+    // 40 mm and 600 mm sides, in the ratio 15 whatever the angle.
+    let obstacle_reader = r##"
+import sys, math, xml.etree.ElementTree as ET
+S = "{http://www.w3.org/2000/svg}"
+root = ET.parse(sys.argv[1]).getroot()
+groups = [g for g in root.iter(S + "g") if (g.findtext(S + "title") or "") == "drive frame"]
+print(len(groups), [len(g.findall(S + "line")) for g in groups])
+top = groups[1].findall(S + "line")
+lengths = sorted(math.hypot(float(l.get("x2")) - float(l.get("x1")), float(l.get("y2")) - float(l.get("y1"))) for l in top)
+print(lengths[3] < 0.05, lengths[4] > 1, round(lengths[-1] / lengths[4], 2))
+"##;
+    let o = std::process::Command::new("python3")
+        .args(["-c", obstacle_reader, hit.to_str().unwrap()])
+        .output()
+        .expect("python3 runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let seen = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<&str> = seen.lines().collect();
+    assert_eq!(lines[0], "2 [12, 12]", "{seen}");
+    assert_eq!(lines[1], "True True 15.0", "{seen}");
     let clean = dir.path().join("clean.svg");
     let o = windcell(&[
         "check",
