@@ -1,6 +1,7 @@
 //! The whole TOOL step for each example job, through the library path `windcell plan` takes
 //! (`sequences::Job::load`, `cell::plan::tool::plan`, `cell::plan::files::control_files`,
-//! `cell::plan::check::check`, `cell::plan::output::write_all`): `plan/NAME` parses, traces, segments, plans
+//! `cell::run::batch::admit` for the IRB 6/2, `cell::plan::check::check`,
+//! `cell::plan::output::write_all`): `plan/NAME` parses, traces, segments, plans
 //! (the arm's inverse kinematics, limits and speeds included), checks the job for collisions and
 //! snags, and writes the control files, as `windcell plan` does; `plan_only/NAME` stops after
 //! planning (target: under 50 ms each; a six-axis job, `irb2600-positioner` (the S-bend mesh on
@@ -45,6 +46,10 @@ fn plan_examples(c: &mut Criterion) {
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
                 let plan = cell::plan::tool::plan(&job, &text, &job_path).unwrap();
                 let files = cell::plan::files::control_files(&job, &plan).unwrap();
+                // What `run` would refuse (an IRB 6/2 job's pre-run check), as `plan` does.
+                if job.robot_kind() == sequences::job::RobotKind::Irb6 {
+                    cell::run::batch::admit(&job, &job_path, &files, None).unwrap();
+                }
                 let checked = cell::plan::check::check(&job, &text, &job_path, plan).unwrap();
                 assert!(checked.report.is_clear());
                 cell::plan::output::write_all(

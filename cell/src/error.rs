@@ -336,6 +336,18 @@ pub enum Error {
         /// The robot's memory, units.
         capacity_units: u32,
     },
+    /// A plan that `windcell run` would refuse (its pre-run check on the job's own cell): the
+    /// job, then what the check found.
+    #[error(
+        "{}: the plan cannot be wound as it stands, the pre-run check refuses it: {source}",
+        job.display()
+    )]
+    NotRunnable {
+        /// The job file.
+        job: PathBuf,
+        /// What the pre-run check found.
+        source: Box<Error>,
+    },
     /// `windcell sweep` of a job with no traced path to repeat.
     #[error(
         "{}: the job has no traced [[path]] (direction, wind_angle_deg, start_angle_deg) to sweep",
@@ -373,7 +385,9 @@ impl Error {
     pub fn is_input(&self) -> bool {
         use std::io::ErrorKind;
         match self {
-            Error::Named { source, .. } => return source.is_input(),
+            Error::Named { source, .. } | Error::NotRunnable { source, .. } => {
+                return source.is_input();
+            }
             Error::Output { source, .. } => {
                 return matches!(
                     source.kind(),

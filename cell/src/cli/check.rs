@@ -36,6 +36,7 @@ pub fn run(args: CheckArgs) -> Result<(), Failure> {
         cell::plan::output::check_output_file(out, &inputs).map_err(Failure::from_cell)?;
     }
     let checked = check::run(&job, &text, &args.job).map_err(Failure::from_cell)?;
+    super::admit(&job, &args.job, &checked.plan)?;
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     if let Some(svg) = &args.svg {
         files.push((svg.clone(), cell::plan::figure::svg(&checked).into_bytes()));

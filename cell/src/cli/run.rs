@@ -299,21 +299,6 @@ fn clearance_gate(
     Ok(())
 }
 
-/// The arm's envelope: the eye is at most the two links and the eye mechanism from the shoulder
-/// (the full five-axis check is the plan's).
-fn envelope(job: &sequences::Job) -> Reach {
-    let arm = cell::plan::tool::arm(job);
-    let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
-    Reach {
-        max_radius_mm: stretch,
-        min_radius_mm: 0.0,
-        z_range_mm: (
-            arm.shoulder_height_mm - stretch,
-            arm.shoulder_height_mm + stretch,
-        ),
-    }
-}
-
 /// The pre-run gate of a sequence (seed 001 §5.6.3): with `--job`, every control file the
 /// sequence loads must be that job's plan line for line (so the plan's checks of limits, reach,
 /// entry angle and speeds hold for it: exit code 2 otherwise, no override), then the job's
@@ -501,14 +486,10 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
             job.cell.movement = toml::Spanned::new(span, m.movement());
         }
         let plan = cell::plan::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
-        let files = batch::files_of_job(
-            &cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?,
-        );
-        let dir = args.input.parent().unwrap_or(Path::new("."));
-        let mut loaded =
-            batch::from_files(&files, mode, dir, &dir.join("RUN")).map_err(Failure::from_cell)?;
-        loaded.sequence_path = args.input.clone();
-        let reach = envelope(&job);
+        let files = cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?;
+        let (loaded, _) =
+            batch::admit(&job, &args.input, &files, mode).map_err(Failure::from_cell)?;
+        let reach = batch::envelope(&job);
         let name = job.name.get_ref().clone();
         let c = Cell::of_job(&job, &args.input).map_err(Failure::from_cell)?;
         // The collision and snag check gates the run (exit 3) once every exit-2 check passed;
@@ -532,7 +513,7 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
         let clearance = sequence_gate(args, &loaded)?;
         let reach = clearance
             .as_ref()
-            .map_or_else(Reach::default, |c| envelope(&c.job));
+            .map_or_else(Reach::default, |c| batch::envelope(&c.job));
         (loaded, None, reach, name, clearance)
     };
     // The drive the job's steps were planned with: the job's own cell, or the job a sequence
@@ -1170,7 +1151,7 @@ mod tests {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/cylinder.toml");
         let (job, _) = sequences::Job::load(&path).unwrap();
         let arm = cell::plan::tool::arm(&job);
-        let reach = envelope(&job);
+        let reach = batch::envelope(&job);
         let eye = |shoulder_rad: f64, elbow_rad: f64, pitch_rad: f64| {
             arm.forward(&Joints {
                 base_yaw_rad: 0.3,

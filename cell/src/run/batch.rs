@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use sequences::{MandrelFile, RobotFile, RunFile, SequenceFile};
 
 use crate::Error;
-use crate::run::coordinator::{Item, RunMode};
+use crate::run::cellfile::Cell;
+use crate::run::coordinator::{Batch, Item, Reach, RunMode};
 use crate::run::journal::{FNV_BASIS, fnv1a};
 
 /// Control files in memory: name (without extension) and extension → text.
@@ -160,4 +161,51 @@ pub fn files_of_job(files: &[(PathBuf, String)]) -> FileSet {
         set.insert(key, text.clone());
     }
     set
+}
+
+/// The arm's envelope for the pre-run check: the eye at most the two links and the eye mechanism
+/// from the shoulder (the full five-axis check is the plan's).
+pub fn envelope(job: &sequences::Job) -> Reach {
+    let arm = crate::plan::tool::arm(job);
+    let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
+    Reach {
+        max_radius_mm: stretch,
+        min_radius_mm: 0.0,
+        z_range_mm: (
+            arm.shoulder_height_mm - stretch,
+            arm.shoulder_height_mm + stretch,
+        ),
+    }
+}
+
+/// What `windcell run` makes of a planned job on the job's own cell: its control files (`files`,
+/// as [`crate::plan::files::control_files`] makes them) read back and put through the pre-run
+/// check ([`Batch::new`]: each instruction in the devices' units and ranges, within the arm's
+/// envelope, each mandrel move within the drive's pulse rates and counts, the programs within
+/// the robot's memory). The one function `plan`, `sweep`, `check` and `predict` refuse with what
+/// `run` would refuse, so a plan that exits 0 is one `run` accepts. Errors name the job file.
+pub fn admit(
+    job: &sequences::Job,
+    job_path: &Path,
+    files: &[(PathBuf, String)],
+    mode: Option<RunMode>,
+) -> Result<(Loaded, Batch), Error> {
+    let refused = |source: Error| Error::NotRunnable {
+        job: job_path.to_path_buf(),
+        source: Box::new(source),
+    };
+    let dir = job_path.parent().unwrap_or(Path::new("."));
+    let set = files_of_job(files);
+    let mut loaded = from_files(&set, mode, dir, &dir.join("RUN")).map_err(refused)?;
+    loaded.sequence_path = job_path.to_path_buf();
+    let cell = Cell::of_job(job, job_path)?;
+    let batch = Batch::new(
+        loaded.items.clone(),
+        loaded.mode,
+        loaded.job_id.clone(),
+        cell.drive,
+        envelope(job),
+    )
+    .map_err(refused)?;
+    Ok((loaded, batch))
 }

@@ -397,3 +397,69 @@ fn the_continuous_speed_advice_plans() {
         assert!(o.status.success(), "{rps} → {advice}: {}", stderr(&o));
     }
 }
+
+/// `plan`, `sweep` and `check` refuse what `run` would refuse on the job's own cell (its pre-run
+/// check, `cell::run::batch::admit`), before anything is written: a drive whose pulse rate the
+/// translator cannot make (51 200 steps per motor rev at 0.1 mandrel rev/s through 60:13 is
+/// 0.1 × 60/13 × 51 200 ≈ 23 631 pulses/s, over its 10 000), an acceleration beyond the
+/// indexer's 999 motor rev/s² (500 mandrel rev/s² × 60/13 ≈ 2308), a robot speed beyond the
+/// header's 7.99988 m/s; and a sweep whose eight programs with room to resume the longest need
+/// more of the robot's 9400 memory units than it has (seed 001 §4.1.2: 470 positionings fill it,
+/// or 300 positionings and 200 controls: 20 units a positioning, 17 a control; a 50-segment
+/// program is 51 positions and 4 handshake controls, 1088 units). The same job as planned is
+/// accepted.
+#[test]
+fn a_plan_that_run_would_refuse_is_refused_when_planned() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, edit, expected) in [
+        (
+            "pulses.toml",
+            ("steps_per_rev = 400", "steps_per_rev = 51200"),
+            "23631 pulses/s exceeds the translator limit of 10000 pulses/s",
+        ),
+        (
+            "accel.toml",
+            ("accel_rps2 = 1.0", "accel_rps2 = 500.0"),
+            "accel (motor rev/s²) = 2307.69231 out of range",
+        ),
+        (
+            "speed.toml",
+            ("max_speed_mm_s = 2000.0", "max_speed_mm_s = 9000.0"),
+            "max_speed = 9 out of range",
+        ),
+    ] {
+        let job = example_variant(dir.path(), "cylinder.toml", name, &[edit]);
+        let place = format!("{}: the plan cannot be wound as it stands", job.display());
+        refused(&job, &place, expected);
+        let o = windcell(&["check", job.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(expected), "{}", stderr(&o));
+    }
+    let out = dir.path().join("eight");
+    let o = windcell(&[
+        "sweep",
+        example("cylinder.toml").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--paths",
+        "8",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("the batch needs 9792 memory units of the robot's 9400"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists());
+    // Four fit (4 × 1088 + 1088 = 5440 units).
+    let o = windcell(&[
+        "sweep",
+        example("cylinder.toml").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--paths",
+        "4",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
