@@ -52,6 +52,116 @@ impl Coordinator<'_> {
         Ok(())
     }
 
+    /// A resumed item whose program was started: what the devices finished. The path done
+    /// (the arm at its last point, the counter at its end), to start again (stopped before the
+    /// first position, or the mandrel never left the sync), or to go on from where the arm
+    /// stopped with the rest of its positions stored as [`RESUME_PROGRAM`].
+    fn resume_started(&mut self, batch: &Batch, k: usize, sync: i64) -> Result<Started, Step> {
+        let prep = &batch.prepared[k];
+        let n = prep.targets_mm.len();
+        let last = prep.targets_mm[n - 1];
+        let end = sync + prep.cumulative_steps[n];
+        let s = self.dev.robot.state()?;
+        let here = self.dev.robot.position_mm()?;
+        // A move still turning (the devices ran on after `kill -9`) finishes (an armed move
+        // that never saw its start edge was cancelled before the attach).
+        self.wait("mandrel move", MOVE_TIMEOUT_S, |d| Ok(!d.mandrel.busy()?.0))?;
+        let counter = self.counter()?;
+        if distance_mm(here, last) <= POSITION_TOLERANCE_MM && counter == end {
+            return Ok(Started::Finished);
+        }
+        // The robot's instruction when it stopped; before the first position: start again.
+        let reached = usize::from(s.instruction.saturating_sub(HANDSHAKE_LEAD));
+        if reached < 1 || counter == sync {
+            return Ok(Started::Again);
+        }
+        let rest: Vec<Instruction> = prep
+            .program
+            .iter()
+            .flatten()
+            .filter(|i| matches!(i, Instruction::Position(_)))
+            .skip(reached - 1)
+            .copied()
+            .collect();
+        let list = handshake_program(&rest);
+        self.dev.robot.delete_program(RESUME_PROGRAM)?;
+        self.phase(Phase::Upload);
+        let (total, mut done, time) = (3 * list.len(), 0, self.dev.time.clone());
+        let events = &mut *self.events;
+        let mut progress = || upload_progress(events, &mut done, total, time.now_s());
+        self.dev
+            .robot
+            .upload(RESUME_PROGRAM, &list, &mut progress)?;
+        self.dev
+            .robot
+            .read_back(RESUME_PROGRAM, &list, &mut progress)?;
+        self.journal.append(json!({
+            "rec": "resume_program", "item": k, "program": RESUME_PROGRAM,
+            "from_instruction": reached,
+        }))?;
+        Ok(Started::From { counter })
+    }
+
+    /// The stored program flies: the start line raised, the robot left alone until it raises
+    /// "in position", the indexer asked for its progress every [`PROGRESS_POLL_S`] (segments
+    /// reported through `passed`), the robot read for errors only once the program overruns
+    /// its mandrel move (`mandrel_s`) by half again plus a second.
+    fn fly(
+        &mut self,
+        batch: &Batch,
+        k: usize,
+        mandrel_s: f64,
+        counter: i64,
+        armed: bool,
+        passed: &mut Passed<'_>,
+    ) -> Result<(), Step> {
+        self.dev.sync.set_start(true)?;
+        let quiet_until_s =
+            self.dev.time.now_s() + PROGRAM_QUIET_FACTOR * mandrel_s + PROGRAM_QUIET_MARGIN_S;
+        let mut polls = 0u32;
+        let mut next_poll_s = self.dev.time.now_s() + PROGRESS_POLL_S;
+        let mut under_way = false;
+        let item = &batch.items[k];
+        let n = batch.prepared[k].targets_mm.len();
+        let path = item.name.clone();
+        let header_program = item.rob.header.program;
+        self.wait_reporting("the robot's program", MOVE_TIMEOUT_S, |d, events| {
+            if armed && d.time.now_s() >= next_poll_s {
+                next_poll_s += PROGRESS_POLL_S;
+                let (busy, _) = d.mandrel.busy()?;
+                under_way |= busy;
+                if under_way {
+                    let at = counter + d.mandrel.move_steps()?;
+                    for segment in passed.take(at) {
+                        events(Event::Segment {
+                            item: k + 1,
+                            program: header_program,
+                            path: path.clone(),
+                            segment,
+                            segments: n - 1,
+                            witness: Witness::Indexer,
+                            time_s: d.time.now_s(),
+                        });
+                    }
+                }
+            }
+            if d.time.now_s() < quiet_until_s {
+                return d.sync.in_position();
+            }
+            polls += 1;
+            if polls.is_multiple_of(PROGRAM_POLL_TICKS) {
+                let s = d.robot.state()?;
+                if s.state == State::Error || s.last_error != 0 {
+                    return Err(DeviceError::RobotState {
+                        what: format!("error {} at instruction {}", s.last_error, s.instruction),
+                    });
+                }
+            }
+            d.sync.in_position()
+        })?;
+        Ok(())
+    }
+
     pub(super) fn program_item(
         &mut self,
         batch: &Batch,
@@ -72,46 +182,13 @@ impl Coordinator<'_> {
         if let Some(r) = resume.filter(|r| r.program_started)
             && let Some(sync) = r.sync_counter
         {
-            // The program was started: ask the devices what they finished.
-            let end = sync + prep.cumulative_steps[n];
-            let s = self.dev.robot.state()?;
-            let here = self.dev.robot.position_mm()?;
-            // A move still turning (the devices ran on after `kill -9`) finishes (an armed
-            // move that never saw its start edge was cancelled before the attach).
-            self.wait("mandrel move", MOVE_TIMEOUT_S, |d| Ok(!d.mandrel.busy()?.0))?;
-            let counter = self.counter()?;
-            if distance_mm(here, last) <= POSITION_TOLERANCE_MM && counter == end {
-                return Ok(());
-            }
-            // The robot's instruction when it stopped; before the first position: start again.
-            let reached = usize::from(s.instruction.saturating_sub(HANDSHAKE_LEAD));
-            if reached >= 1 && counter != sync {
-                let rest: Vec<Instruction> = prep
-                    .program
-                    .iter()
-                    .flatten()
-                    .filter(|i| matches!(i, Instruction::Position(_)))
-                    .skip(reached - 1)
-                    .copied()
-                    .collect();
-                let list = handshake_program(&rest);
-                self.dev.robot.delete_program(RESUME_PROGRAM)?;
-                self.phase(Phase::Upload);
-                let (total, mut done, time) = (3 * list.len(), 0, self.dev.time.clone());
-                let events = &mut *self.events;
-                let mut progress = || upload_progress(events, &mut done, total, time.now_s());
-                self.dev
-                    .robot
-                    .upload(RESUME_PROGRAM, &list, &mut progress)?;
-                self.dev
-                    .robot
-                    .read_back(RESUME_PROGRAM, &list, &mut progress)?;
-                self.journal.append(json!({
-                    "rec": "resume_program", "item": k, "program": RESUME_PROGRAM,
-                    "from_instruction": reached,
-                }))?;
-                program = RESUME_PROGRAM;
-                base = Some((sync, counter));
+            match self.resume_started(batch, k, sync)? {
+                Started::Finished => return Ok(()),
+                Started::Again => {}
+                Started::From { counter } => {
+                    program = RESUME_PROGRAM;
+                    base = Some((sync, counter));
+                }
             }
         }
         let (sync, counter) = match base {
@@ -158,10 +235,6 @@ impl Coordinator<'_> {
             (end - counter).unsigned_abs(),
             batch.drive.steps_per_mandrel_rev(),
         );
-        self.dev.sync.set_start(true)?;
-        let quiet_until_s =
-            self.dev.time.now_s() + PROGRAM_QUIET_FACTOR * mandrel_s + PROGRAM_QUIET_MARGIN_S;
-        let mut polls = 0u32;
         // Progress from the indexer, which can be asked while the program runs: its steps
         // through the path's one move, once the card shows the move under way (before that,
         // `W3` still counts the move before).
@@ -175,44 +248,7 @@ impl Coordinator<'_> {
         if base.is_some() {
             passed.reported = passed.count(counter);
         }
-        let mut next_poll_s = self.dev.time.now_s() + PROGRESS_POLL_S;
-        let mut under_way = false;
-        let path = item.name.clone();
-        let header_program = item.rob.header.program;
-        self.wait_reporting("the robot's program", MOVE_TIMEOUT_S, |d, events| {
-            if armed && d.time.now_s() >= next_poll_s {
-                next_poll_s += PROGRESS_POLL_S;
-                let (busy, _) = d.mandrel.busy()?;
-                under_way |= busy;
-                if under_way {
-                    let at = counter + d.mandrel.move_steps()?;
-                    for segment in passed.take(at) {
-                        events(Event::Segment {
-                            item: k + 1,
-                            program: header_program,
-                            path: path.clone(),
-                            segment,
-                            segments: n - 1,
-                            witness: Witness::Indexer,
-                            time_s: d.time.now_s(),
-                        });
-                    }
-                }
-            }
-            if d.time.now_s() < quiet_until_s {
-                return d.sync.in_position();
-            }
-            polls += 1;
-            if polls.is_multiple_of(PROGRAM_POLL_TICKS) {
-                let s = d.robot.state()?;
-                if s.state == State::Error || s.last_error != 0 {
-                    return Err(DeviceError::RobotState {
-                        what: format!("error {} at instruction {}", s.last_error, s.instruction),
-                    });
-                }
-            }
-            d.sync.in_position()
-        })?;
+        self.fly(batch, k, mandrel_s, counter, armed, &mut passed)?;
         // The program's end: one status read (the arm is at rest now) for an error shown
         // while it ran.
         let s = self.dev.robot.state()?;
@@ -243,8 +279,8 @@ impl Coordinator<'_> {
         for segment in passed.take_all() {
             (self.events)(Event::Segment {
                 item: k + 1,
-                program: header_program,
-                path: path.clone(),
+                program: item.rob.header.program,
+                path: item.name.clone(),
                 segment,
                 segments: n - 1,
                 witness: Witness::Both,
@@ -321,4 +357,17 @@ impl Passed<'_> {
         self.reported = all;
         new
     }
+}
+
+/// What a resumed item's started program left ([`Coordinator::resume_started`]).
+enum Started {
+    /// The path is wound.
+    Finished,
+    /// Nothing of it was wound: the item starts again from its sync.
+    Again,
+    /// Part of it: the rest is stored as the resume program, the mandrel at `counter`.
+    From {
+        /// The indexer's counter where the mandrel stands.
+        counter: i64,
+    },
 }
