@@ -999,38 +999,7 @@ fn check_move(
     // Free fibre, sampled.
     let tow_mm = match (from.tangent, to.tangent) {
         (Some(t0), Some(t1)) => {
-            let count = tow_sample_count(ctx, from, to);
-            let skip = 0.5 * cell.snag_tolerance_mm;
-            let mut least = f64::INFINITY;
-            let mut first: Option<(f64, f64)> = None;
-            // The start pose's tow line runs along the first chord (the plan's start convention,
-            // eqs 3.8–3.14 need a previous point), under the surface by that chord's sagitta:
-            // the first segment's fibre is checked at its end only.
-            let from_sample = if first_segment { count } else { 0 };
-            for i in from_sample..=count {
-                let tau = i as f64 / count as f64;
-                let (eye, _, phi) = at(tau);
-                let e = ctx.to_mandrel(&eye, phi);
-                let t = if i == 0 {
-                    t0
-                } else if i == count {
-                    t1
-                } else {
-                    ctx.solid.surface_point(&(t0 + (t1 - t0) * tau))
-                };
-                let Some(dir) = (e - t).try_normalize(1e-9) else {
-                    continue;
-                };
-                // Within half the tolerance of the tangent point the fibre cannot be deeper than
-                // the tolerance (signed distance is 1-Lipschitz), so the check starts there.
-                let (d, below) =
-                    ctx.solid
-                        .inside_beyond(&(t + dir * skip), &e, cell.snag_tolerance_mm);
-                least = least.min(d);
-                if let (None, Some((_, depth))) = (first, below) {
-                    first = Some((tau, depth));
-                }
-            }
+            let (least, first) = free_fibre_min(ctx, from, to, (t0, t1), first_segment, &at);
             if let Some((tau, d)) = first {
                 record(report, tau, d, Part::FreeFibre, "mandrel".to_string());
             }
@@ -1091,6 +1060,54 @@ fn check_move(
         tow_mm,
         arm_mm,
     })
+}
+
+/// The free fibre of a move, sampled (`tow_sample_count`): the least of
+/// [`Solid::inside_beyond`] over the samples, and the first sample where the fibre lies deeper
+/// in the mandrel than the snag tolerance (`tau`, depth). `(t0, t1)` are the tangent points at
+/// the move's ends; `at(tau)` is the eye, its axis and the mandrel angle.
+fn free_fibre_min(
+    ctx: &Context<'_>,
+    from: &End,
+    to: &End,
+    (t0, t1): (Point3<f64>, Point3<f64>),
+    first_segment: bool,
+    at: &dyn Fn(f64) -> (Point3<f64>, Vector3<f64>, f64),
+) -> (f64, Option<(f64, f64)>) {
+    let cell = ctx.cell;
+    let count = tow_sample_count(ctx, from, to);
+    let skip = 0.5 * cell.snag_tolerance_mm;
+    let mut least = f64::INFINITY;
+    let mut first: Option<(f64, f64)> = None;
+    // The start pose's tow line runs along the first chord (the plan's start convention, eqs
+    // 3.8–3.14 need a previous point), under the surface by that chord's sagitta: the first
+    // segment's fibre is checked at its end only.
+    let from_sample = if first_segment { count } else { 0 };
+    for i in from_sample..=count {
+        let tau = i as f64 / count as f64;
+        let (eye, _, phi) = at(tau);
+        let e = ctx.to_mandrel(&eye, phi);
+        let t = if i == 0 {
+            t0
+        } else if i == count {
+            t1
+        } else {
+            ctx.solid.surface_point(&(t0 + (t1 - t0) * tau))
+        };
+        let Some(dir) = (e - t).try_normalize(1e-9) else {
+            continue;
+        };
+        // Within half the tolerance of the tangent point the fibre cannot be deeper than the
+        // tolerance (signed distance is 1-Lipschitz), so the check starts there.
+        let (d, below) = ctx
+            .solid
+            .inside_beyond(&(t + dir * skip), &e, cell.snag_tolerance_mm);
+        least = least.min(d);
+        if let (None, Some((_, depth))) = (first, below) {
+            first = Some((tau, depth));
+        }
+    }
+    (least, first)
 }
 
 fn note_worst(
