@@ -12,6 +12,7 @@ pub mod post;
 pub mod predict;
 pub mod pty;
 pub mod run;
+pub mod run_clock;
 pub mod sim_cell;
 pub mod sim_grbl;
 pub mod sim_indexer;
