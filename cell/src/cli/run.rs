@@ -212,6 +212,7 @@ fn live_address(a: &str) -> Result<(String, u16), Failure> {
 fn recorder(
     args: &RunArgs,
     sim: Option<&SimCell>,
+    drive: &mandrel_drive::Drive,
 ) -> Result<Option<Arc<cell::record::Recorder>>, Failure> {
     if args.record.is_none() && args.live.is_none() {
         return Ok(None);
@@ -235,6 +236,7 @@ fn recorder(
                 .origin
         },
     );
+    rec.set_mandrel_axis(origin, drive.steps_per_deg());
     if let Some(sim) = sim {
         let r = rec.clone();
         let mut next = 0.0;
@@ -630,8 +632,10 @@ pub fn paced_devices(
             let time: Arc<dyn cell::run::device::Timebase> =
                 Arc::new(cell::run::device::WallClock::new());
             let client_cfg = asea_protocol::ClientConfig::default();
+            // On serial ports the devices' own reports are the only source of `/tf`.
             let robot_port =
-                LinkTap::robot(robot_port, client_cfg.frame, slot.clone(), time.clone());
+                LinkTap::robot(robot_port, client_cfg.frame, slot.clone(), time.clone())
+                    .reporting_positions();
             let client = asea_protocol::Client::new(robot_port, client_cfg);
             let indexer_cfg = mandrel_drive::IndexerConfig {
                 drive: cell.drive,
@@ -641,7 +645,8 @@ pub fn paced_devices(
                 reply_timeout: INDEXER_REPLY_TIMEOUT,
                 ..mandrel_drive::IndexerConfig::default()
             };
-            let indexer_link = LinkTap::indexer(indexer_port, slot.clone(), time.clone());
+            let indexer_link =
+                LinkTap::indexer(indexer_port, slot.clone(), time.clone()).reporting_positions();
             let setup = cell::run::transfer::IndexerSetup {
                 drive: cell.drive,
                 start_velocity_command: true,
@@ -827,7 +832,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         scene,
     } = checked;
     let (journal, from, fresh) = open_journal(&journal_path, keep_as, resumed)?;
-    let rec = recorder(&args, sim.as_ref())?;
+    let rec = recorder(&args, sim.as_ref(), &cell.drive)?;
     if let Some(r) = &rec {
         slot.set(r.clone());
         if let Some(sc) = &scene {

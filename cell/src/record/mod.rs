@@ -224,6 +224,9 @@ pub struct Recorder {
     front: Option<live::Front>,
     /// The newest state, for viewers that join late (kept only when serving live).
     latest: Option<Arc<Mutex<live::Latest>>>,
+    /// The mandrel's rotation axis foot (cell frame, mm) and the drive's steps per degree, for
+    /// the positions a serial indexer reports ([`Recorder::set_mandrel_axis`]).
+    axis: Mutex<Option<(Vector3<f64>, f64)>>,
     epoch_ns: u64,
     last_flush: Mutex<Instant>,
 }
@@ -294,6 +297,7 @@ impl Recorder {
             live,
             front,
             latest,
+            axis: Mutex::new(None),
             epoch_ns,
             last_flush: Mutex::new(Instant::now()),
         })
@@ -373,6 +377,34 @@ impl Recorder {
             },
         );
         self.maybe_flush();
+    }
+
+    /// Where the mandrel's rotation axis stands (its foot in the cell frame) and the drive's steps
+    /// per degree: what turns an indexer's reported position into `world → mandrel`.
+    pub fn set_mandrel_axis(&self, axis_origin_mm: Vector3<f64>, steps_per_deg: f64) {
+        *self.axis.lock().unwrap_or_else(|p| p.into_inner()) =
+            Some((axis_origin_mm, steps_per_deg));
+    }
+
+    /// The mandrel angle an indexer reported (degrees), as `world → mandrel` (nothing before
+    /// [`Recorder::set_mandrel_axis`]).
+    pub fn mandrel_reported_deg(&self, t_s: f64, mandrel_deg: f64) {
+        let axis = *self.axis.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((origin, _)) = axis
+            && mandrel_deg.is_finite()
+        {
+            self.mandrel_frame(t_s, &origin, mandrel_deg.to_radians());
+        }
+    }
+
+    /// The step counter an indexer reported, as `world → mandrel`.
+    pub fn mandrel_reported_steps(&self, t_s: f64, steps: i64) {
+        let axis = *self.axis.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((_, steps_per_deg)) = axis
+            && steps_per_deg > 0.0
+        {
+            self.mandrel_reported_deg(t_s, steps as f64 / steps_per_deg);
+        }
     }
 
     /// The eye at run time `t_s` (cell frame), commanded or as simulated; also published as the

@@ -424,6 +424,34 @@ mod tests {
         assert!(e.is_input());
     }
 
+    /// `[indexer] dialect`: X by default, `grbl` with ports (its value's place kept for the run's
+    /// refusals), refused without ports (the built-in cell speaks the X-language) and for any
+    /// other word, each at the value's line and column.
+    #[test]
+    fn the_indexer_dialect_is_read_and_refused_at_its_value() {
+        let p = Path::new("C.toml");
+        let ports = "[ports]\nrobot = \"/dev/ttyS0\"\nindexer = \"/dev/ttyS1\"\n";
+        let c = Cell::parse(ports, p).unwrap();
+        assert_eq!((c.dialect, c.dialect_place), (IndexerDialect::X, None));
+        let c = Cell::parse(&format!("{ports}\n[indexer]\ndialect = \"grbl\"\n"), p).unwrap();
+        assert_eq!(c.dialect, IndexerDialect::Grbl);
+        assert_eq!(c.dialect_place, Some((6, 11)));
+        let c = Cell::parse(&format!("{ports}[indexer]\ndialect = \"x\"\n"), p).unwrap();
+        assert_eq!(c.dialect, IndexerDialect::X);
+        let e = Cell::parse("[indexer]\ndialect =  \"grbl\"\n", p).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("C.toml:2:12: [indexer] dialect = \"grbl\""),
+            "{e}"
+        );
+        assert!(e.is_input());
+        let e = Cell::parse(&format!("{ports}[indexer]\ndialect = \"gcode\"\n"), p).unwrap_err();
+        assert!(e.to_string().starts_with("C.toml:5:11:"), "{e}");
+        assert!(e.is_input());
+        let e = Cell::parse(&format!("{ports}[indexer]\nlanguage = \"x\"\n"), p).unwrap_err();
+        assert!(e.to_string().starts_with("C.toml:5:1:"), "{e}");
+    }
+
     #[test]
     fn the_example_cell_files_parse() {
         let sim = Cell::parse(

@@ -11,6 +11,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use common::{serve_on_pty, stderr, stop_cleanly, windcell};
+use foxglove::Decode;
+use foxglove::schemas::FrameTransform;
 
 use super::run_pty::{completed_targets, short_cylinder};
 
@@ -119,6 +121,8 @@ fn a_discrete_batch_drives_a_grbl_indexer_over_ptys() {
         cell.to_str().unwrap(),
         "--force",
         "--json",
+        "--record",
+        d.join("grbl.mcap").to_str().unwrap(),
     ]);
     let a_deg = grbl_a_deg(&indexer_pty);
     stop_cleanly(robot);
@@ -146,5 +150,37 @@ fn a_discrete_batch_drives_a_grbl_indexer_over_ptys() {
     assert!(
         (turned - end_steps as f64).abs() < 0.5,
         "GRBL at {a_deg} deg = {turned} steps, the plan ends at {end_steps}"
+    );
+    // On serial ports `/tf` comes from what the devices report: the robot's position replies as
+    // `world → eye` (metres), the GRBL status reports' A position as `world → mandrel` (a
+    // rotation about the axis, z). The last of each is where the batch ended.
+    let bytes = std::fs::read(d.join("grbl.mcap")).unwrap();
+    let mut eye = Vec::new();
+    let mut mandrel = Vec::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic == "/tf" {
+            let f = FrameTransform::decode(&m.data[..]).unwrap();
+            match f.child_frame_id.as_str() {
+                "eye" => eye.push(f),
+                "mandrel" => mandrel.push(f),
+                other => panic!("frame {other}"),
+            }
+        }
+    }
+    assert!(eye.len() >= 6, "{} eye reports", eye.len());
+    let last = eye.last().unwrap().translation.unwrap();
+    let want = targets.last().unwrap();
+    for (got_m, want_mm) in [last.x, last.y, last.z].iter().zip(want) {
+        assert!(
+            (got_m * 1000.0 - want_mm).abs() <= 0.05,
+            "{last:?} against {want:?}"
+        );
+    }
+    let q = mandrel.last().expect("no mandrel report").rotation.unwrap();
+    let angle_deg = 2.0 * q.z.atan2(q.w).to_degrees();
+    assert!(
+        (angle_deg - end_steps as f64 / steps_per_deg).abs() < 0.01,
+        "mandrel frame at {angle_deg} deg, the plan ends at {end_steps} steps"
     );
 }
