@@ -213,6 +213,7 @@ fn recorder(
     args: &RunArgs,
     sim: Option<&SimCell>,
     drive: &mandrel_drive::Drive,
+    contacts: Vec<(Point3<f64>, Point3<f64>)>,
 ) -> Result<Option<Arc<cell::record::Recorder>>, Failure> {
     if args.record.is_none() && args.live.is_none() {
         return Ok(None);
@@ -263,6 +264,21 @@ fn recorder(
                 );
                 r.mandrel_frame(o.t_s, &origin, o.drive_rad);
                 r.mandrel_angle(o.t_s, o.commanded_drive_rad, o.drive_rad);
+                // The free fibre: from the eye to the tangent point of the planned pose nearest
+                // the eye, carried into the cell frame by the mandrel's angle as `/tf` carries the
+                // fibre's scene.
+                let eye = Point3::from(o.eye.xyz_mm);
+                if let Some((_, tangent)) = contacts.iter().min_by(|a, b| {
+                    (a.0 - eye)
+                        .norm_squared()
+                        .total_cmp(&(b.0 - eye).norm_squared())
+                }) {
+                    let turn = nalgebra::UnitQuaternion::from_axis_angle(
+                        &nalgebra::Vector3::z_axis(),
+                        o.drive_rad,
+                    );
+                    r.free_fibre(o.t_s, &eye, &(Point3::from(origin) + turn * tangent.coords));
+                }
             })));
         })
         .map_err(Failure::runtime)?;
@@ -832,7 +848,18 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         scene,
     } = checked;
     let (journal, from, fresh) = open_journal(&journal_path, keep_as, resumed)?;
-    let rec = recorder(&args, sim.as_ref(), &cell.drive)?;
+    // Each planned pose's eye (cell frame) and tangent point (mandrel frame), for the free fibre.
+    let contacts = scene.as_ref().map_or_else(Vec::new, |sc| {
+        sc.paths
+            .iter()
+            .flat_map(|p| {
+                std::iter::once(&p.plan.start)
+                    .chain(p.plan.segments.iter().map(|s| &s.pose))
+                    .map(|pose| (pose.eye_mm, pose.tangent_point_mm))
+            })
+            .collect()
+    });
+    let rec = recorder(&args, sim.as_ref(), &cell.drive, contacts)?;
     if let Some(r) = &rec {
         slot.set(r.clone());
         if let Some(sc) = &scene {

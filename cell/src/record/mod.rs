@@ -536,6 +536,40 @@ impl Recorder {
         self.maybe_flush();
     }
 
+    /// The free fibre: the tow from the eye to where it meets the mandrel, both in the cell frame
+    /// (mm), as a white line in `world` (entity `free` on `/scene/fibre`, replaced each time).
+    pub fn free_fibre(&self, t_s: f64, eye_mm: &Point3<f64>, contact_mm: &Point3<f64>) {
+        let update = SceneUpdate {
+            entities: vec![SceneEntity {
+                timestamp: Some(self.stamp(t_s)),
+                frame_id: "world".into(),
+                id: "free".into(),
+                lines: vec![LinePrimitive {
+                    r#type: foxglove::schemas::line_primitive::Type::LineStrip as i32,
+                    pose: Some(identity()),
+                    thickness: 2.0,
+                    scale_invariant: true,
+                    points: vec![point(eye_mm), point(contact_mm)],
+                    color: Some(Color {
+                        r: 1.0,
+                        g: 1.0,
+                        b: 1.0,
+                        a: 1.0,
+                    }),
+                    ..Default::default()
+                }],
+                ..Default::default()
+            }],
+            ..Default::default()
+        };
+        self.channels
+            .scene_fibre
+            .log_with_meta(&update, self.meta(t_s));
+        let ns = self.time_ns(t_s);
+        self.keep(|l| live::Latest::keep_entities(&mut l.scene_fibre, &update, ns));
+        self.maybe_flush();
+    }
+
     /// An edge of a sync line (`start`, `in_position`, `e_stop`).
     pub fn sync_edge(&self, t_s: f64, line: &str, high: bool) {
         self.json(&self.channels.sync, t_s, &SyncEdge { line, high });

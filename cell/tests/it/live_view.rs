@@ -280,3 +280,99 @@ fn a_real_clock_run_lasts_its_cell_time_over_the_speed_factor() {
         assert!(err.contains(expect), "{args:?}: {err}");
     }
 }
+
+/// The free fibre (`free` on `/scene/fibre`, frame `world`) runs from the eye to the mandrel:
+/// while the S-bend's programs wind (between each `program started` and `done` on `/log`), its
+/// length is the job's tow distance, 100 mm (`offset_mm`, seed 001 §6.4), within the few
+/// millimetres the eye travels between two planned poses (the line ends at the nearest pose's
+/// tangent point). Its first point is the eye: the `world → eye` transform of the same time.
+#[test]
+fn the_free_fibre_spans_the_tow_distance_while_winding() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap_path = dir.path().join("free.mcap");
+    let o = Command::new(env!("CARGO_BIN_EXE_windcell"))
+        .current_dir(dir.path())
+        .arg("run")
+        .arg(example("sbend.toml"))
+        .arg("--record")
+        .arg(&mcap_path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let bytes = std::fs::read(&mcap_path).unwrap();
+    let mut windows: Vec<(u64, Option<u64>)> = Vec::new();
+    let mut free: Vec<(u64, f64, [f64; 3])> = Vec::new();
+    let mut eye: std::collections::BTreeMap<u64, [f64; 3]> = Default::default();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        match m.channel.topic.as_str() {
+            "/log" => {
+                let l = foxglove::schemas::Log::decode(&m.data[..]).unwrap();
+                if l.message.contains("started at") {
+                    windows.push((m.log_time, None));
+                } else if l.message.contains("done at")
+                    && let Some(w) = windows.last_mut()
+                {
+                    w.1 = Some(m.log_time);
+                }
+            }
+            "/scene/fibre" => {
+                for e in SceneUpdate::decode(&m.data[..]).unwrap().entities {
+                    if e.id == "free" {
+                        assert_eq!(e.frame_id, "world");
+                        let p = &e.lines[0].points;
+                        assert_eq!(p.len(), 2);
+                        let d = ((p[0].x - p[1].x).powi(2)
+                            + (p[0].y - p[1].y).powi(2)
+                            + (p[0].z - p[1].z).powi(2))
+                        .sqrt();
+                        free.push((m.log_time, d * 1000.0, [p[0].x, p[0].y, p[0].z]));
+                    }
+                }
+            }
+            "/tf" => {
+                let f = FrameTransform::decode(&m.data[..]).unwrap();
+                if f.child_frame_id == "eye" {
+                    let t = f.translation.unwrap();
+                    eye.insert(m.log_time, [t.x, t.y, t.z]);
+                }
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(windows.len(), 2, "{windows:?}");
+    let mut lengths: Vec<f64> = free
+        .iter()
+        .filter(|(t, ..)| {
+            windows
+                .iter()
+                .any(|(a, b)| *t >= *a && b.is_some_and(|b| *t <= b))
+        })
+        .map(|(_, d, _)| *d)
+        .collect();
+    assert!(
+        lengths.len() > 100,
+        "{} free fibres while winding",
+        lengths.len()
+    );
+    lengths.sort_by(f64::total_cmp);
+    let median = lengths[lengths.len() / 2];
+    assert!(
+        (median - 100.0).abs() < 5.0,
+        "median free fibre {median:.2} mm"
+    );
+    let (lo, hi) = (
+        lengths[lengths.len() / 20],
+        lengths[lengths.len() * 19 / 20],
+    );
+    assert!(
+        lo > 85.0 && hi < 115.0,
+        "5–95 % of the free fibre {lo:.1}–{hi:.1} mm"
+    );
+    for (t, _, start) in &free {
+        let e = eye
+            .get(t)
+            .expect("an eye transform at each free fibre's time");
+        assert!(start.iter().zip(e).all(|(a, b)| (a - b).abs() < 1e-12));
+    }
+}
