@@ -57,10 +57,8 @@ pub struct Latest {
     pub mandrel: Option<Stamped<Vec<u8>>>,
     /// The mandrel surface's entities by id.
     pub scene_mandrel: BTreeMap<String, Stamped<SceneEntity>>,
-    /// The fibre entities (desired and laid, per path) by id.
+    /// The fibre entities (desired and laid, per path; the free fibre) by id.
     pub scene_fibre: BTreeMap<String, Stamped<SceneEntity>>,
-    /// The arm's entities by id.
-    pub scene_arm: BTreeMap<String, Stamped<SceneEntity>>,
 }
 
 impl Latest {
@@ -130,11 +128,11 @@ impl ServerListener for LateJoin {
                     c.mandrel.log_with_meta_to_sink(&m, meta(t), sink);
                 }
             }
-            topic @ ("/scene/mandrel" | "/scene/fibre" | "/scene/arm") => {
-                let (map, ch) = match topic {
-                    "/scene/mandrel" => (&latest.scene_mandrel, &c.scene_mandrel),
-                    "/scene/fibre" => (&latest.scene_fibre, &c.scene_fibre),
-                    _ => (&latest.scene_arm, &c.scene_arm),
+            topic @ ("/scene/mandrel" | "/scene/fibre") => {
+                let (map, ch) = if topic == "/scene/mandrel" {
+                    (&latest.scene_mandrel, &c.scene_mandrel)
+                } else {
+                    (&latest.scene_fibre, &c.scene_fibre)
                 };
                 if let Some((m, t)) = scene_of(map) {
                     drop(latest);
