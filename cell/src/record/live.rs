@@ -4,7 +4,7 @@
 //! **Late join.** The scene (`/scene/mandrel`, `/scene/fibre`) is published when it changes, which
 //! may be once at the run's start, and a viewer joining later would never see it. [`Latest`] keeps
 //! the newest message of every topic that describes the cell's state (each transform by child
-//! frame, each scene entity by id, the eye poses, the mandrel angle); the server's listener
+//! frame, each scene entity by id (`/scene/free_fibre` too), the eye poses, the mandrel angle); the server's listener
 //! ([`LateJoin`]) sends them to a client the moment it subscribes to their channel, to that
 //! client only (the SDK's per-sink log), before the next live message.
 //!
@@ -57,8 +57,10 @@ pub struct Latest {
     pub mandrel: Option<Stamped<Vec<u8>>>,
     /// The mandrel surface's entities by id.
     pub scene_mandrel: BTreeMap<String, Stamped<SceneEntity>>,
-    /// The fibre entities (desired and laid, per path; the free fibre) by id.
+    /// The fibre entities (desired and laid, per path) by id.
     pub scene_fibre: BTreeMap<String, Stamped<SceneEntity>>,
+    /// The free fibre's entity.
+    pub scene_free_fibre: BTreeMap<String, Stamped<SceneEntity>>,
 }
 
 impl Latest {
@@ -128,11 +130,11 @@ impl ServerListener for LateJoin {
                     c.mandrel.log_with_meta_to_sink(&m, meta(t), sink);
                 }
             }
-            topic @ ("/scene/mandrel" | "/scene/fibre") => {
-                let (map, ch) = if topic == "/scene/mandrel" {
-                    (&latest.scene_mandrel, &c.scene_mandrel)
-                } else {
-                    (&latest.scene_fibre, &c.scene_fibre)
+            topic @ ("/scene/mandrel" | "/scene/fibre" | "/scene/free_fibre") => {
+                let (map, ch) = match topic {
+                    "/scene/mandrel" => (&latest.scene_mandrel, &c.scene_mandrel),
+                    "/scene/fibre" => (&latest.scene_fibre, &c.scene_fibre),
+                    _ => (&latest.scene_free_fibre, &c.scene_free_fibre),
                 };
                 if let Some((m, t)) = scene_of(map) {
                     drop(latest);

@@ -15,6 +15,7 @@
 //! | `/mandrel` | `windcell.MandrelAngle` (JSON) | commanded and true mandrel angle, degrees |
 //! | `/scene/mandrel` | `foxglove.SceneUpdate` | the mandrel surface as triangles, frame `mandrel` |
 //! | `/scene/fibre` | `foxglove.SceneUpdate` | desired and laid fibre as lines, frame `mandrel` |
+//! | `/scene/free_fibre` | `foxglove.SceneUpdate` | the free fibre from the eye to the mandrel, frame `world` |
 //! | `/sync` | `windcell.SyncEdge` (JSON) | every edge of the opto-isolated lines, as the PC drives and reads them |
 //! | `/link/robot`, `/link/indexer` | `windcell.Telegram` (JSON) | raw bytes (hex) and the decoded text |
 //! | `/lathe/axes` | `windcell.LatheAxes` (JSON) | the lathe winder's A, X, Y: commanded, actual and following error every interrupt |
@@ -169,6 +170,7 @@ struct Channels {
     mandrel: Arc<RawChannel>,
     scene_mandrel: Channel<SceneUpdate>,
     scene_fibre: Channel<SceneUpdate>,
+    scene_free_fibre: Channel<SceneUpdate>,
     sync: Arc<RawChannel>,
     link_robot: Arc<RawChannel>,
     link_indexer: Arc<RawChannel>,
@@ -193,6 +195,7 @@ impl Channels {
             mandrel: json("/mandrel", "windcell.MandrelAngle", MANDREL_SCHEMA)?,
             scene_mandrel: typed("/scene/mandrel").build(),
             scene_fibre: typed("/scene/fibre").build(),
+            scene_free_fibre: typed("/scene/free_fibre").build(),
             sync: json("/sync", "windcell.SyncEdge", SYNC_SCHEMA)?,
             link_robot: json("/link/robot", "windcell.Telegram", TELEGRAM_SCHEMA)?,
             link_indexer: json("/link/indexer", "windcell.Telegram", TELEGRAM_SCHEMA)?,
@@ -535,7 +538,8 @@ impl Recorder {
     }
 
     /// The free fibre: the tow from the eye to where it meets the mandrel, both in the cell frame
-    /// (mm), as a white line in `world` (entity `free` on `/scene/fibre`, replaced each time).
+    /// (mm), as a white line in `world` (entity `free` on `/scene/free_fibre`, replaced each
+    /// time).
     pub fn free_fibre(&self, t_s: f64, eye_mm: &Point3<f64>, contact_mm: &Point3<f64>) {
         let update = SceneUpdate {
             entities: vec![SceneEntity {
@@ -561,10 +565,10 @@ impl Recorder {
             ..Default::default()
         };
         self.channels
-            .scene_fibre
+            .scene_free_fibre
             .log_with_meta(&update, self.meta(t_s));
         let ns = self.time_ns(t_s);
-        self.keep(|l| live::Latest::keep_entities(&mut l.scene_fibre, &update, ns));
+        self.keep(|l| live::Latest::keep_entities(&mut l.scene_free_fibre, &update, ns));
         self.maybe_flush();
     }
 

@@ -281,7 +281,7 @@ fn a_real_clock_run_lasts_its_cell_time_over_the_speed_factor() {
     }
 }
 
-/// The free fibre (`free` on `/scene/fibre`, frame `world`) runs from the eye to the mandrel:
+/// The free fibre (`free` on `/scene/free_fibre`, frame `world`) runs from the eye to the mandrel:
 /// while the S-bend's programs wind (between each `program started` and `done` on `/log`), its
 /// length is the job's tow distance, 100 mm (`offset_mm`, seed 001 §6.4), within the few
 /// millimetres the eye travels between two planned poses (the line ends at the nearest pose's
@@ -316,7 +316,7 @@ fn the_free_fibre_spans_the_tow_distance_while_winding() {
                     w.1 = Some(m.log_time);
                 }
             }
-            "/scene/fibre" => {
+            "/scene/free_fibre" => {
                 for e in SceneUpdate::decode(&m.data[..]).unwrap().entities {
                     if e.id == "free" {
                         assert_eq!(e.frame_id, "world");
