@@ -503,6 +503,29 @@ pub enum CellProblem {
         /// The signal number given.
         signal: u16,
     },
+    /// An indexer dialect the built-in simulated cell does not speak (its card is the
+    /// X-language's; `windcell sim-indexer --dialect grbl` serves a GRBL one on a port).
+    #[error(
+        "[indexer] dialect = \"{dialect}\": the built-in simulated cell's indexer speaks the \
+         X-language; name the ports of a {dialect} indexer (windcell sim-indexer --dialect \
+         {dialect} --pty serves one)"
+    )]
+    SimulatedDialect {
+        /// The dialect named.
+        dialect: &'static str,
+    },
+    /// A movement the indexer's dialect cannot drive: program mode arms each mandrel move on
+    /// the start line (seed 001 App. D), and a GRBL controller has no trigger input.
+    #[error(
+        "[indexer] dialect = \"{dialect}\": {mode} mode arms each mandrel move on the start line, \
+         and a {dialect} indexer has no trigger input; wind in discrete mode"
+    )]
+    DialectMode {
+        /// The dialect.
+        dialect: &'static str,
+        /// The movement asked for.
+        mode: &'static str,
+    },
 }
 
 /// A lathe winder setting or start refused before anything moves (seed 000 Ch. 7, seed 003

@@ -885,6 +885,19 @@ impl<L: Link, C: Clock> GrblClient<L, C> {
         self
     }
 
+    /// The token that cancels this client's exchanges (clone it into another thread); a stop
+    /// ([`Indexer::stop`]) still goes through a cancelled client.
+    pub fn cancel_token(&self) -> Cancel {
+        self.reader.cancel.clone()
+    }
+
+    /// Puts the feed hold on the wire at once, without waiting for an answer: the first thing a
+    /// coordinator sends when both devices must stop. [`Indexer::stop`] must follow.
+    pub fn stop_on_wire(&mut self) -> Result<()> {
+        self.link.write_all(&[grbl::FEED_HOLD])?;
+        Ok(())
+    }
+
     fn line(&mut self, command: &str, timeout: Duration) -> Result<grbl::Line> {
         let mut raw = Vec::new();
         while raw.is_empty() {
@@ -951,6 +964,39 @@ impl<L: Link, C: Clock> GrblClient<L, C> {
                 _ => continue,
             }
         }
+    }
+
+    /// [`Indexer::stop`]'s work: a feed hold (or jog cancel) waited out, then a soft reset.
+    fn stop_now(&mut self, kind: StopKind) -> Result<()> {
+        if kind == StopKind::Decelerate {
+            let (state, _) = self.report()?;
+            if state == grbl::State::Jog {
+                self.link.write_all(&[grbl::JOG_CANCEL])?;
+                self.wait_idle(self.stop_wait)?;
+                return Ok(());
+            }
+            self.link.write_all(&[grbl::FEED_HOLD])?;
+            let deadline = self.clock.now() + self.stop_wait;
+            loop {
+                self.link.write_all(&[grbl::STATUS])?;
+                let raw = self.reader.next_line(
+                    &mut self.link,
+                    &self.clock,
+                    b'\n',
+                    b'\r',
+                    self.cfg.reply_timeout,
+                    "?",
+                )?;
+                if raw.starts_with(b"<Hold:0") && raw.windows(5).any(|w| w == b"|FS:0") {
+                    break;
+                }
+                if raw.starts_with(b"<Idle") || self.clock.now() > deadline {
+                    break;
+                }
+                self.pause(Duration::from_millis(5))?;
+            }
+        }
+        self.reset()
     }
 
     fn feed_for(&self, mandrel_rps: f64) -> f64 {
@@ -1039,35 +1085,11 @@ impl<L: Link, C: Clock> Indexer for GrblClient<L, C> {
     }
 
     fn stop(&mut self, kind: StopKind) -> Result<()> {
-        if kind == StopKind::Decelerate {
-            let (state, _) = self.report()?;
-            if state == grbl::State::Jog {
-                self.link.write_all(&[grbl::JOG_CANCEL])?;
-                self.wait_idle(self.stop_wait)?;
-                return Ok(());
-            }
-            self.link.write_all(&[grbl::FEED_HOLD])?;
-            let deadline = self.clock.now() + self.stop_wait;
-            loop {
-                self.link.write_all(&[grbl::STATUS])?;
-                let raw = self.reader.next_line(
-                    &mut self.link,
-                    &self.clock,
-                    b'\n',
-                    b'\r',
-                    self.cfg.reply_timeout,
-                    "?",
-                )?;
-                if raw.starts_with(b"<Hold:0") && raw.windows(5).any(|w| w == b"|FS:0") {
-                    break;
-                }
-                if raw.starts_with(b"<Idle") || self.clock.now() > deadline {
-                    break;
-                }
-                self.pause(Duration::from_millis(5))?;
-            }
-        }
-        self.reset()
+        // A stop goes through a cancelled client; what the cancelled exchange left is stale.
+        self.reader.ignore_cancel = true;
+        let r = self.stop_now(kind);
+        self.reader.ignore_cancel = false;
+        r
     }
 
     fn status(&mut self) -> Result<IndexerStatus> {

@@ -13,6 +13,7 @@ pub mod predict;
 pub mod progress;
 pub mod pty;
 pub mod run;
+pub mod run_clock;
 pub mod sim_cell;
 pub mod sim_grbl;
 pub mod sim_indexer;

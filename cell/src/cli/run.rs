@@ -95,6 +95,13 @@ pub struct RunArgs {
     /// Serve the run live over Foxglove's WebSocket protocol (default 127.0.0.1:8765).
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_LIVE)]
     pub live: Option<String>,
+    /// The simulated cell's clock: `real` at the real cell's speed (times `--speed`; the default
+    /// with `--live`), `fast` as fast as it runs (the default otherwise).
+    #[arg(long, value_enum)]
+    pub clock: Option<super::run_clock::ClockArg>,
+    /// Cell seconds per wall second of the real clock (0.1–1000, default 1).
+    #[arg(long, value_name = "FACTOR", value_parser = super::run_clock::speed_factor)]
+    pub speed: Option<f64>,
 }
 
 /// The command that resumes the batch `args` started, from `journal`.
@@ -206,6 +213,8 @@ fn live_address(a: &str) -> Result<(String, u16), Failure> {
 fn recorder(
     args: &RunArgs,
     sim: Option<&SimCell>,
+    drive: &mandrel_drive::Drive,
+    contacts: Vec<(Point3<f64>, Point3<f64>)>,
 ) -> Result<Option<Arc<cell::record::Recorder>>, Failure> {
     if args.record.is_none() && args.live.is_none() {
         return Ok(None);
@@ -229,6 +238,7 @@ fn recorder(
                 .origin
         },
     );
+    rec.set_mandrel_axis(origin, drive.steps_per_deg());
     if let Some(sim) = sim {
         let r = rec.clone();
         let mut next = 0.0;
@@ -255,6 +265,21 @@ fn recorder(
                 );
                 r.mandrel_frame(o.t_s, &origin, o.drive_rad);
                 r.mandrel_angle(o.t_s, o.commanded_drive_rad, o.drive_rad);
+                // The free fibre: from the eye to the tangent point of the planned pose nearest
+                // the eye, carried into the cell frame by the mandrel's angle as `/tf` carries the
+                // fibre's scene.
+                let eye = Point3::from(o.eye.xyz_mm);
+                if let Some((_, tangent)) = contacts.iter().min_by(|a, b| {
+                    (a.0 - eye)
+                        .norm_squared()
+                        .total_cmp(&(b.0 - eye).norm_squared())
+                }) {
+                    let turn = nalgebra::UnitQuaternion::from_axis_angle(
+                        &nalgebra::Vector3::z_axis(),
+                        o.drive_rad,
+                    );
+                    r.free_fibre(o.t_s, &eye, &(Point3::from(origin) + turn * tangent.coords));
+                }
             })));
         })
         .map_err(Failure::runtime)?;
@@ -560,12 +585,24 @@ pub fn devices(
     log: Option<&Path>,
     slot: &RecordSlot,
 ) -> Result<(Devices, Option<SimCell>), Failure> {
+    paced_devices(cell, log, slot, None)
+}
+
+/// [`devices`] with the simulated cell's clock paced at `speed` (`None`: the fast clock;
+/// `cli::run_clock`).
+pub fn paced_devices(
+    cell: &Cell,
+    log: Option<&Path>,
+    slot: &RecordSlot,
+    speed: Option<f64>,
+) -> Result<(Devices, Option<SimCell>), Failure> {
     match &cell.devices {
         cellfile::Devices::Simulated => {
             let sim = SimCell::new(&SimCellConfig {
                 drive: cell.drive,
                 opto_delay_s: cell.opto_delay_s,
                 arm: cell.arm,
+                speed,
                 ..SimCellConfig::default()
             });
             if let Some(p) = log {
@@ -604,28 +641,39 @@ pub fn devices(
             let time: Arc<dyn cell::run::device::Timebase> =
                 Arc::new(cell::run::device::WallClock::new());
             let client_cfg = asea_protocol::ClientConfig::default();
+            // On serial ports the devices' own reports are the only source of `/tf`.
             let robot_port =
-                LinkTap::robot(robot_port, client_cfg.frame, slot.clone(), time.clone());
+                LinkTap::robot(robot_port, client_cfg.frame, slot.clone(), time.clone())
+                    .reporting_positions();
             let client = asea_protocol::Client::new(robot_port, client_cfg);
-            let x = mandrel_drive::XClient::new(
-                LinkTap::indexer(indexer_port, slot.clone(), time.clone()),
-                mandrel_drive::IndexerConfig {
-                    drive: cell.drive,
-                    // A card answers within milliseconds; the margin is for the host (a loaded
-                    // PC, or simulators on pseudo-terminals sharing its cores), where 500 ms
-                    // stopped runs at their first status poll.
-                    reply_timeout: INDEXER_REPLY_TIMEOUT,
-                    ..mandrel_drive::IndexerConfig::default()
-                },
-            );
+            let indexer_cfg = mandrel_drive::IndexerConfig {
+                drive: cell.drive,
+                // A card answers within milliseconds; the margin is for the host (a loaded
+                // PC, or simulators on pseudo-terminals sharing its cores), where 500 ms
+                // stopped runs at their first status poll.
+                reply_timeout: INDEXER_REPLY_TIMEOUT,
+                ..mandrel_drive::IndexerConfig::default()
+            };
+            let indexer_link =
+                LinkTap::indexer(indexer_port, slot.clone(), time.clone()).reporting_positions();
             let setup = cell::run::transfer::IndexerSetup {
                 drive: cell.drive,
                 start_velocity_command: true,
             };
+            let mandrel: Box<dyn cell::run::device::MandrelDevice> = match cell.dialect {
+                cellfile::IndexerDialect::X => Box::new(cell::run::device::XIndexer::new(
+                    mandrel_drive::XClient::new(indexer_link, indexer_cfg),
+                    setup,
+                )),
+                cellfile::IndexerDialect::Grbl => Box::new(cell::run::device::GrblIndexer::new(
+                    mandrel_drive::GrblClient::new(indexer_link, indexer_cfg),
+                    setup,
+                )),
+            };
             Ok((
                 Devices {
                     robot: Box::new(cell::run::device::ProtocolRobot::new(client)),
-                    mandrel: Box::new(cell::run::device::XIndexer::new(x, setup)),
+                    mandrel,
                     sync: Box::new(SyncTap::new(sync, slot.clone(), time.clone())),
                     time,
                 },
@@ -659,7 +707,18 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         scene,
     } = checked;
     let (journal, from, fresh) = open_journal(&journal_path, keep_as, resumed)?;
-    let rec = recorder(&args, sim.as_ref())?;
+    // Each planned pose's eye (cell frame) and tangent point (mandrel frame), for the free fibre.
+    let contacts = scene.as_ref().map_or_else(Vec::new, |sc| {
+        sc.paths
+            .iter()
+            .flat_map(|p| {
+                std::iter::once(&p.plan.start)
+                    .chain(p.plan.segments.iter().map(|s| &s.pose))
+                    .map(|pose| (pose.eye_mm, pose.tangent_point_mm))
+            })
+            .collect()
+    });
+    let rec = recorder(&args, sim.as_ref(), &cell.drive, contacts)?;
     if let Some(r) = &rec {
         slot.set(r.clone());
         if let Some(sc) = &scene {
@@ -730,6 +789,17 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
         .clone()
         .or(args.journal.clone())
         .unwrap_or_else(|| default_journal(args, &loaded.sequence_path, &name));
+    // A GRBL indexer has no trigger input: program mode cannot arm its moves.
+    if batch.mode != RunMode::Discrete && cell.dialect == cellfile::IndexerDialect::Grbl {
+        return Err(Failure::from_cell(cell::Error::Cell {
+            file: PathBuf::from(&cell.source),
+            place: cell.dialect_place,
+            problem: cell::error::CellProblem::DialectMode {
+                dialect: cell.dialect.keyword(),
+                mode: batch.mode.keyword(),
+            },
+        }));
+    }
     // Everything `run` can know before it moves is refused here, before the journal is written
     // or a device touched: program mode needs the sync lines.
     if batch.mode != RunMode::Discrete
@@ -778,7 +848,13 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
         None => None,
     };
     let slot = RecordSlot::default();
-    let (devices, sim) = devices(&cell, args.log.as_deref(), &slot)?;
+    let speed = super::run_clock::pace(
+        args.clock,
+        args.speed,
+        args.live.is_some(),
+        matches!(cell.devices, cellfile::Devices::Simulated),
+    )?;
+    let (devices, sim) = paced_devices(&cell, args.log.as_deref(), &slot, speed)?;
     let scene = if args.record.is_some() || args.live.is_some() {
         clearance.as_ref().and_then(scene)
     } else {
@@ -968,7 +1044,7 @@ fn wind(
         while let Some((t, e)) = rx.recv().await {
             display.event(&e);
             if let Some(r) = &rec_events {
-                r.log(t, cell::record::Level::Info, &format!("{e:?}"));
+                r.log(t, cell::record::Level::Info, &e.to_string());
             }
             if let Event::PathDone {
                 path,

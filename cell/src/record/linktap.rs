@@ -130,14 +130,52 @@ pub fn indexer_line(direction: Direction, line: &[u8]) -> String {
         Direction::Sent => match mandrel_drive::xlang::parse_command(&text) {
             Some((Some(a), c)) => format!("unit {a}: {c:?}"),
             Some((None, c)) => format!("every unit: {c:?}"),
-            None => format!("not in the X-language subset: {text:?}"),
+            None => match mandrel_drive::grbl::parse_command(&text) {
+                Some(c) => format!("GRBL: {c:?}"),
+                None => format!("not in the X-language or GRBL subset: {text:?}"),
+            },
         },
         Direction::Received => match line.first() {
             None => "completion".into(),
             Some(b'*') => format!("status {text}"),
             Some(b'?') => format!("refused {text}"),
+            Some(b'<') => format!("GRBL status {text}"),
+            _ if text == "ok" => "GRBL ok".into(),
+            _ if text.starts_with("error:") || text.starts_with("ALARM:") => {
+                format!("GRBL refused {text}")
+            }
             Some(_) => format!("echo {text}"),
         },
+    }
+}
+
+/// The mandrel position an indexer line reports, recorded as `world → mandrel`: a GRBL status
+/// report's A position, or the X-language answer to `PR` (`asked` is set when `PR` goes out and
+/// cleared by its answer).
+fn reported_mandrel(rec: &Recorder, t_s: f64, direction: Direction, line: &[u8], asked: &mut bool) {
+    use mandrel_drive::xlang::{Command as X, Reply as XReply, parse_command, parse_reply};
+    let text = String::from_utf8_lossy(line);
+    match direction {
+        Direction::Sent => {
+            if let Some((_, X::Position)) = parse_command(&text) {
+                *asked = true;
+            }
+        }
+        Direction::Received => {
+            if line.first() == Some(&b'<') {
+                if let Ok(mandrel_drive::grbl::Line::Status { a_deg, .. }) =
+                    mandrel_drive::grbl::parse_line(line)
+                {
+                    rec.mandrel_reported_deg(t_s, a_deg);
+                }
+            } else if *asked
+                && line.first() == Some(&b'*')
+                && let Ok(XReply::Position(steps)) = parse_reply(&X::Position, line, None)
+            {
+                *asked = false;
+                rec.mandrel_reported_steps(t_s, steps);
+            }
+        }
     }
 }
 
@@ -150,9 +188,22 @@ pub struct LinkTap<L> {
     time: Arc<dyn Timebase>,
     sent: Cutter,
     received: Cutter,
+    /// Also records the positions the device reports (serial ports: the only source of `/tf`).
+    reports: bool,
+    /// The X-language position request (`PR`) was sent and its answer is awaited.
+    asked_position: bool,
 }
 
 impl<L> LinkTap<L> {
+    /// The same tap, also recording the positions the device reports on `/tf`: the robot's
+    /// position replies as `world → eye`, the indexer's step counter (X-language `PR`) or A
+    /// position (GRBL status report) as `world → mandrel` ([`Recorder::mandrel_reported_deg`]).
+    /// For a cell on serial ports, whose motion nothing else reports.
+    pub fn reporting_positions(mut self) -> Self {
+        self.reports = true;
+        self
+    }
+
     /// A tap on the robot link `inner`, whose telegrams are framed by `frame`.
     pub fn robot(inner: L, frame: FrameConfig, slot: RecordSlot, time: Arc<dyn Timebase>) -> Self {
         let cutter = || Cutter::Robot {
@@ -166,6 +217,8 @@ impl<L> LinkTap<L> {
             time,
             sent: cutter(),
             received: cutter(),
+            reports: false,
+            asked_position: false,
         }
     }
 
@@ -179,6 +232,8 @@ impl<L> LinkTap<L> {
             time,
             sent: cutter(),
             received: cutter(),
+            reports: false,
+            asked_position: false,
         }
     }
 
@@ -203,9 +258,22 @@ impl<L> LinkTap<L> {
                         let eye = Point3::from(p.pose.xyz_mm());
                         rec.eye(t, &eye, &from_components(p.pose.q.wxyz()), false);
                     }
+                    if self.reports
+                        && direction == Direction::Received
+                        && let Parsed::Frame { frame: f, .. } = frame::parse(frame, &u)
+                        && let Ok(Reply::Position(pose)) = Reply::from_frame(&f)
+                    {
+                        let eye = Point3::from(pose.xyz_mm());
+                        rec.eye(t, &eye, &from_components(pose.q.wxyz()), true);
+                    }
                     text
                 }
-                Cutter::Indexer { .. } => indexer_line(direction, &u),
+                Cutter::Indexer { .. } => {
+                    if self.reports {
+                        reported_mandrel(rec, t, direction, &u, &mut self.asked_position);
+                    }
+                    indexer_line(direction, &u)
+                }
             };
             rec.telegram(t, self.device, direction, &u, &decoded);
         }

@@ -15,6 +15,7 @@
 //! | `/mandrel` | `windcell.MandrelAngle` (JSON) | commanded and true mandrel angle, degrees |
 //! | `/scene/mandrel` | `foxglove.SceneUpdate` | the mandrel surface as triangles, frame `mandrel` |
 //! | `/scene/fibre` | `foxglove.SceneUpdate` | desired and laid fibre as lines, frame `mandrel` |
+//! | `/scene/free_fibre` | `foxglove.SceneUpdate` | the free fibre from the eye to the mandrel, frame `world` |
 //! | `/sync` | `windcell.SyncEdge` (JSON) | every edge of the opto-isolated lines, as the PC drives and reads them |
 //! | `/link/robot`, `/link/indexer` | `windcell.Telegram` (JSON) | raw bytes (hex) and the decoded text |
 //! | `/lathe/axes` | `windcell.LatheAxes` (JSON) | the lathe winder's A, X, Y: commanded, actual and following error every interrupt |
@@ -31,6 +32,7 @@
 //! or any reader that scans chunks without the summary reads them (`docs/operator.md`).
 
 pub mod linktap;
+pub mod live;
 pub mod scene;
 
 use std::fs::File;
@@ -160,6 +162,7 @@ const TELEGRAM_SCHEMA: &str = r#"{"type":"object","title":"windcell.Telegram","p
 
 /// The channels, created once per recorder in its own context (so two recorders in one process
 /// never see each other's messages).
+#[derive(Debug)]
 struct Channels {
     tf: Channel<FrameTransform>,
     eye_commanded: Channel<PoseInFrame>,
@@ -167,6 +170,7 @@ struct Channels {
     mandrel: Arc<RawChannel>,
     scene_mandrel: Channel<SceneUpdate>,
     scene_fibre: Channel<SceneUpdate>,
+    scene_free_fibre: Channel<SceneUpdate>,
     sync: Arc<RawChannel>,
     link_robot: Arc<RawChannel>,
     link_indexer: Arc<RawChannel>,
@@ -191,6 +195,7 @@ impl Channels {
             mandrel: json("/mandrel", "windcell.MandrelAngle", MANDREL_SCHEMA)?,
             scene_mandrel: typed("/scene/mandrel").build(),
             scene_fibre: typed("/scene/fibre").build(),
+            scene_free_fibre: typed("/scene/free_fibre").build(),
             sync: json("/sync", "windcell.SyncEdge", SYNC_SCHEMA)?,
             link_robot: json("/link/robot", "windcell.Telegram", TELEGRAM_SCHEMA)?,
             link_indexer: json("/link/indexer", "windcell.Telegram", TELEGRAM_SCHEMA)?,
@@ -213,9 +218,16 @@ pub struct Sinks {
 /// A recording of one run.
 pub struct Recorder {
     ctx: Arc<Context>,
-    channels: Channels,
+    channels: Arc<Channels>,
     mcap: Mutex<Option<(PathBuf, foxglove::McapWriterHandle<BufWriter<File>>)>>,
     live: Option<foxglove::WebSocketServerHandle>,
+    /// The operator's end of the live server (`live::Front`).
+    front: Option<live::Front>,
+    /// The newest state, for viewers that join late (kept only when serving live).
+    latest: Option<Arc<Mutex<live::Latest>>>,
+    /// The mandrel's rotation axis foot (cell frame, mm) and the drive's steps per degree, for
+    /// the positions a serial indexer reports ([`Recorder::set_mandrel_axis`]).
+    axis: Mutex<Option<(Vector3<f64>, f64)>>,
     epoch_ns: u64,
     last_flush: Mutex<Instant>,
 }
@@ -241,7 +253,8 @@ impl Recorder {
     /// every message's log time is `epoch_ns` plus its run time.
     pub fn open(sinks: &Sinks, epoch_ns: u64) -> Result<Self, Error> {
         let ctx = Context::new();
-        let channels = Channels::new(&ctx).map_err(|e| record_error(Path::new("(channels)"), e))?;
+        let channels =
+            Arc::new(Channels::new(&ctx).map_err(|e| record_error(Path::new("(channels)"), e))?);
         let mcap = match &sinks.mcap {
             Some(path) => {
                 let file = File::create(path).map_err(|e| record_error(path, e))?;
@@ -256,22 +269,36 @@ impl Recorder {
             }
             None => None,
         };
-        let live = match &sinks.live {
-            Some((host, port)) => Some(
-                foxglove::WebSocketServer::new()
+        let (live, front, latest) = match &sinks.live {
+            Some((host, port)) => {
+                let place = format!("{host}:{port}");
+                let latest = Arc::new(Mutex::new(live::Latest::default()));
+                // The SDK's server on a loopback port behind the front, which listens where the
+                // operator asked (live.rs).
+                let server = foxglove::WebSocketServer::new()
                     .name("windcell")
-                    .bind(host.clone(), *port)
+                    .bind("127.0.0.1", 0)
                     .context(&ctx)
+                    .listener(Arc::new(live::LateJoin {
+                        latest: latest.clone(),
+                        channels: channels.clone(),
+                    }))
                     .start_blocking()
-                    .map_err(|e| record_error(Path::new(&format!("{host}:{port}")), e))?,
-            ),
-            None => None,
+                    .map_err(|e| record_error(Path::new(&place), e))?;
+                let front = live::Front::start(host, *port, server.port())
+                    .map_err(|e| record_error(Path::new(&place), e))?;
+                (Some(server), Some(front), Some(latest))
+            }
+            None => (None, None, None),
         };
         Ok(Recorder {
             ctx,
             channels,
             mcap: Mutex::new(mcap),
             live,
+            front,
+            latest,
+            axis: Mutex::new(None),
             epoch_ns,
             last_flush: Mutex::new(Instant::now()),
         })
@@ -284,7 +311,7 @@ impl Recorder {
 
     /// The live server's port (useful when the operator asked for port 0), if serving.
     pub fn live_port(&self) -> Option<u16> {
-        self.live.as_ref().map(|h| h.port())
+        self.front.as_ref().map(live::Front::port)
     }
 
     /// The context the channels live in (for tests that attach their own sink).
@@ -307,6 +334,22 @@ impl Recorder {
         Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32)
     }
 
+    /// Keeps the newest state for viewers that join late (only when serving live).
+    fn keep(&self, f: impl FnOnce(&mut live::Latest)) {
+        if let Some(latest) = &self.latest {
+            f(&mut latest.lock().unwrap_or_else(|p| p.into_inner()));
+        }
+    }
+
+    /// Logs a transform on `/tf` and keeps it as its child frame's newest.
+    fn transform(&self, t_s: f64, tf: FrameTransform) {
+        self.channels.tf.log_with_meta(&tf, self.meta(t_s));
+        let ns = self.time_ns(t_s);
+        self.keep(|l| {
+            l.tf.insert(tf.child_frame_id.clone(), (tf, ns));
+        });
+    }
+
     /// Closes a chunk when the last one is older than [`FLUSH_INTERVAL`].
     fn maybe_flush(&self) {
         let mut last = self.last_flush.lock().unwrap_or_else(|p| p.into_inner());
@@ -324,17 +367,45 @@ impl Recorder {
     /// `axis_origin_mm` (cell frame) turned by `mandrel_rad` about `z` (see `paths::plan`).
     pub fn mandrel_frame(&self, t_s: f64, axis_origin_mm: &Vector3<f64>, mandrel_rad: f64) {
         let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), mandrel_rad);
-        self.channels.tf.log_with_meta(
-            &FrameTransform {
+        self.transform(
+            t_s,
+            FrameTransform {
                 timestamp: Some(self.stamp(t_s)),
                 parent_frame_id: "world".into(),
                 child_frame_id: "mandrel".into(),
                 translation: Some(vector(axis_origin_mm)),
                 rotation: Some(quaternion(&q)),
             },
-            self.meta(t_s),
         );
         self.maybe_flush();
+    }
+
+    /// Where the mandrel's rotation axis stands (its foot in the cell frame) and the drive's steps
+    /// per degree: what turns an indexer's reported position into `world → mandrel`.
+    pub fn set_mandrel_axis(&self, axis_origin_mm: Vector3<f64>, steps_per_deg: f64) {
+        *self.axis.lock().unwrap_or_else(|p| p.into_inner()) =
+            Some((axis_origin_mm, steps_per_deg));
+    }
+
+    /// The mandrel angle an indexer reported (degrees), as `world → mandrel` (nothing before
+    /// [`Recorder::set_mandrel_axis`]).
+    pub fn mandrel_reported_deg(&self, t_s: f64, mandrel_deg: f64) {
+        let axis = *self.axis.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((origin, _)) = axis
+            && mandrel_deg.is_finite()
+        {
+            self.mandrel_frame(t_s, &origin, mandrel_deg.to_radians());
+        }
+    }
+
+    /// The step counter an indexer reported, as `world → mandrel`.
+    pub fn mandrel_reported_steps(&self, t_s: f64, steps: i64) {
+        let axis = *self.axis.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((_, steps_per_deg)) = axis
+            && steps_per_deg > 0.0
+        {
+            self.mandrel_reported_deg(t_s, steps as f64 / steps_per_deg);
+        }
     }
 
     /// The eye at run time `t_s` (cell frame), commanded or as simulated; also published as the
@@ -349,34 +420,42 @@ impl Recorder {
             }),
         };
         let channel = if simulated {
-            self.channels.tf.log_with_meta(
-                &FrameTransform {
+            self.transform(
+                t_s,
+                FrameTransform {
                     timestamp: Some(self.stamp(t_s)),
                     parent_frame_id: "world".into(),
                     child_frame_id: "eye".into(),
                     translation: Some(vector(&eye_mm.coords)),
                     rotation: Some(quaternion(q)),
                 },
-                self.meta(t_s),
             );
             &self.channels.eye_simulated
         } else {
             &self.channels.eye_commanded
         };
         channel.log_with_meta(&pose, self.meta(t_s));
+        let ns = self.time_ns(t_s);
+        self.keep(|l| {
+            let slot = if simulated {
+                &mut l.eye_simulated
+            } else {
+                &mut l.eye_commanded
+            };
+            *slot = Some((pose, ns));
+        });
         self.maybe_flush();
     }
 
     /// The mandrel angle the steps command and the angle the motor really reached, radians.
     pub fn mandrel_angle(&self, t_s: f64, commanded_rad: f64, true_rad: f64) {
-        self.json(
-            &self.channels.mandrel,
-            t_s,
-            &MandrelAngle {
-                commanded_deg: commanded_rad.to_degrees(),
-                true_deg: true_rad.to_degrees(),
-            },
-        );
+        let record = MandrelAngle {
+            commanded_deg: commanded_rad.to_degrees(),
+            true_deg: true_rad.to_degrees(),
+        };
+        self.json(&self.channels.mandrel, t_s, &record);
+        let ns = self.time_ns(t_s);
+        self.keep(|l| l.mandrel = Some((serde_json::to_vec(&record).unwrap_or_default(), ns)));
     }
 
     /// The mandrel surface as a triangle list in the `mandrel` frame (published once, at `t_s`).
@@ -400,13 +479,15 @@ impl Recorder {
             }],
             ..Default::default()
         };
-        self.channels.scene_mandrel.log_with_meta(
-            &SceneUpdate {
-                entities: vec![entity],
-                ..Default::default()
-            },
-            self.meta(t_s),
-        );
+        let update = SceneUpdate {
+            entities: vec![entity],
+            ..Default::default()
+        };
+        self.channels
+            .scene_mandrel
+            .log_with_meta(&update, self.meta(t_s));
+        let ns = self.time_ns(t_s);
+        self.keep(|l| live::Latest::keep_entities(&mut l.scene_mandrel, &update, ns));
         self.maybe_flush();
     }
 
@@ -441,16 +522,53 @@ impl Recorder {
             b: 0.0,
             a: 1.0,
         };
-        self.channels.scene_fibre.log_with_meta(
-            &SceneUpdate {
-                entities: vec![
-                    entity(format!("{path}/desired"), line(desired, green)),
-                    entity(format!("{path}/laid"), line(laid, orange)),
-                ],
+        let update = SceneUpdate {
+            entities: vec![
+                entity(format!("{path}/desired"), line(desired, green)),
+                entity(format!("{path}/laid"), line(laid, orange)),
+            ],
+            ..Default::default()
+        };
+        self.channels
+            .scene_fibre
+            .log_with_meta(&update, self.meta(t_s));
+        let ns = self.time_ns(t_s);
+        self.keep(|l| live::Latest::keep_entities(&mut l.scene_fibre, &update, ns));
+        self.maybe_flush();
+    }
+
+    /// The free fibre: the tow from the eye to where it meets the mandrel, both in the cell frame
+    /// (mm), as a white line in `world` (entity `free` on `/scene/free_fibre`, replaced each
+    /// time).
+    pub fn free_fibre(&self, t_s: f64, eye_mm: &Point3<f64>, contact_mm: &Point3<f64>) {
+        let update = SceneUpdate {
+            entities: vec![SceneEntity {
+                timestamp: Some(self.stamp(t_s)),
+                frame_id: "world".into(),
+                id: "free".into(),
+                lines: vec![LinePrimitive {
+                    r#type: foxglove::schemas::line_primitive::Type::LineStrip as i32,
+                    pose: Some(identity()),
+                    thickness: 2.0,
+                    scale_invariant: true,
+                    points: vec![point(eye_mm), point(contact_mm)],
+                    color: Some(Color {
+                        r: 1.0,
+                        g: 1.0,
+                        b: 1.0,
+                        a: 1.0,
+                    }),
+                    ..Default::default()
+                }],
                 ..Default::default()
-            },
-            self.meta(t_s),
-        );
+            }],
+            ..Default::default()
+        };
+        self.channels
+            .scene_free_fibre
+            .log_with_meta(&update, self.meta(t_s));
+        let ns = self.time_ns(t_s);
+        self.keep(|l| live::Latest::keep_entities(&mut l.scene_free_fibre, &update, ns));
         self.maybe_flush();
     }
 
@@ -524,6 +642,8 @@ impl Recorder {
     }
 
     fn close(&mut self) -> Result<(), Error> {
+        // The front first: no new viewer is passed to a server that is stopping.
+        drop(self.front.take());
         if let Some(live) = self.live.take() {
             // The shutdown handle completes in the background; the run does not wait for it.
             drop(live.stop());

@@ -33,6 +33,39 @@ pub struct CellFile {
     /// A six-axis arm's controller I/O for the sync lines of a decoupled mandrel.
     #[serde(default)]
     pub robot_io: Option<RobotIoSection>,
+    /// The indexer's command language.
+    #[serde(default)]
+    pub indexer: Option<IndexerSection>,
+}
+
+/// `[indexer]`: the command language the indexer on the indexer port speaks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IndexerSection {
+    /// `"x"` (the default) or `"grbl"`.
+    pub dialect: IndexerDialect,
+}
+
+/// The indexer's command language (docs/mandrel-drive.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IndexerDialect {
+    /// Compumotor X-language (seed 001 §5.3.2): the thesis's indexer, triggered by the start line.
+    #[default]
+    X,
+    /// GRBL 1.1 / grblHAL turning the mandrel as its A axis (`mandrel_drive::GrblClient`): no
+    /// trigger input, so discrete mode only.
+    Grbl,
+}
+
+impl IndexerDialect {
+    /// The cell file's word for it.
+    pub fn keyword(self) -> &'static str {
+        match self {
+            IndexerDialect::X => "x",
+            IndexerDialect::Grbl => "grbl",
+        }
+    }
 }
 
 /// `[robot_io]`: the robot controller's digital signals that carry the sync lines when a
@@ -125,6 +158,11 @@ pub struct Cell {
     pub tolerances: Tolerances,
     /// A six-axis arm's sync signals (`[robot_io]`, default output 1 and input 1).
     pub robot_io: sequences::program::SyncSignals,
+    /// The indexer's command language (`[indexer] dialect`, X by default).
+    pub dialect: IndexerDialect,
+    /// Where the cell file names the dialect (1-based line and column), for refusals that
+    /// depend on the run (a program mode the dialect cannot drive).
+    pub dialect_place: Option<(usize, usize)>,
 }
 
 fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, CellProblem> {
@@ -179,6 +217,8 @@ impl Cell {
             arm: crate::plan::tool::arm(job),
             tolerances: Tolerances::default(),
             robot_io: DEFAULT_ROBOT_IO,
+            dialect: IndexerDialect::X,
+            dialect_place: None,
         })
     }
 
@@ -192,6 +232,8 @@ impl Cell {
             arm: paths::robot::Arm::default(),
             tolerances: Tolerances::default(),
             robot_io: DEFAULT_ROBOT_IO,
+            dialect: IndexerDialect::X,
+            dialect_place: None,
         }
     }
 
@@ -278,6 +320,16 @@ impl Cell {
             }
             None => DEFAULT_ROBOT_IO,
         };
+        let dialect = file.indexer.map_or(IndexerDialect::X, |i| i.dialect);
+        let dialect_at = dialect_offset(text);
+        if dialect == IndexerDialect::Grbl && devices == Devices::Simulated {
+            return Err(at(
+                dialect_at.unwrap_or(0),
+                CellProblem::SimulatedDialect {
+                    dialect: dialect.keyword(),
+                },
+            ));
+        }
         Ok(Cell {
             source: path.display().to_string(),
             devices,
@@ -286,8 +338,19 @@ impl Cell {
             arm: paths::robot::Arm::default(),
             tolerances,
             robot_io,
+            dialect,
+            dialect_place: dialect_at.map(|o| sequences::error::line_column(text, o)),
         })
     }
+}
+
+/// The byte offset of the `dialect` value of `[indexer]` in a cell file's text, if it names one.
+fn dialect_offset(text: &str) -> Option<usize> {
+    let section = text.find("[indexer]")?;
+    let key = text[section..].find("dialect")? + section;
+    let value = text[key..].find('=')? + key + 1;
+    let skip = text[value..].len() - text[value..].trim_start().len();
+    Some(value + skip)
 }
 
 /// Calibration tolerances of the cell: each figure is the half-width of a uniform distribution
@@ -359,6 +422,34 @@ mod tests {
         let e = Cell::parse("[drive]\nsteps = 400\n", p).unwrap_err();
         assert!(e.to_string().starts_with("C.toml:2:1:"), "{e}");
         assert!(e.is_input());
+    }
+
+    /// `[indexer] dialect`: X by default, `grbl` with ports (its value's place kept for the run's
+    /// refusals), refused without ports (the built-in cell speaks the X-language) and for any
+    /// other word, each at the value's line and column.
+    #[test]
+    fn the_indexer_dialect_is_read_and_refused_at_its_value() {
+        let p = Path::new("C.toml");
+        let ports = "[ports]\nrobot = \"/dev/ttyS0\"\nindexer = \"/dev/ttyS1\"\n";
+        let c = Cell::parse(ports, p).unwrap();
+        assert_eq!((c.dialect, c.dialect_place), (IndexerDialect::X, None));
+        let c = Cell::parse(&format!("{ports}\n[indexer]\ndialect = \"grbl\"\n"), p).unwrap();
+        assert_eq!(c.dialect, IndexerDialect::Grbl);
+        assert_eq!(c.dialect_place, Some((6, 11)));
+        let c = Cell::parse(&format!("{ports}[indexer]\ndialect = \"x\"\n"), p).unwrap();
+        assert_eq!(c.dialect, IndexerDialect::X);
+        let e = Cell::parse("[indexer]\ndialect =  \"grbl\"\n", p).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("C.toml:2:12: [indexer] dialect = \"grbl\""),
+            "{e}"
+        );
+        assert!(e.is_input());
+        let e = Cell::parse(&format!("{ports}[indexer]\ndialect = \"gcode\"\n"), p).unwrap_err();
+        assert!(e.to_string().starts_with("C.toml:5:11:"), "{e}");
+        assert!(e.is_input());
+        let e = Cell::parse(&format!("{ports}[indexer]\nlanguage = \"x\"\n"), p).unwrap_err();
+        assert!(e.to_string().starts_with("C.toml:5:1:"), "{e}");
     }
 
     #[test]

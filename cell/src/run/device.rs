@@ -459,6 +459,134 @@ impl<L: Link, C: Clock> MandrelDevice for XIndexer<L, C> {
     }
 }
 
+/// The indexer as a GRBL 1.1 / grblHAL controller's A axis ([`mandrel_drive::GrblClient`]):
+/// each `.IND` move becomes `$113`/`$123` (the profile, sent when it changes) and one incremental
+/// `G91 G1 A… F…` line. GRBL always starts a move from rest, so the move's start/stop velocity
+/// is dropped (a slower start than the X-language's, never a faster one: no pull-in risk). It has
+/// no trigger input, so a move cannot be armed on the start line: discrete mode only (the run
+/// refuses program mode before it starts).
+#[derive(Debug)]
+pub struct GrblIndexer<L: Link, C = WallClock> {
+    client: mandrel_drive::GrblClient<L, C>,
+    setup: IndexerSetup,
+    /// The profile last sent (`$113`, `$123`), so an unchanged one is not written again.
+    profile: Option<mandrel_drive::Profile>,
+    /// The counter where the current or last move started, steps.
+    move_start_steps: i64,
+}
+
+/// How long [`GrblIndexer::attach`] waits for a move under way to end.
+pub const GRBL_ATTACH_WAIT: Duration = Duration::from_secs(120);
+
+impl<L: Link, C: Clock> GrblIndexer<L, C> {
+    /// Drives the controller through `client` with the drive of `setup`.
+    pub fn new(client: mandrel_drive::GrblClient<L, C>, setup: IndexerSetup) -> Self {
+        GrblIndexer {
+            client,
+            setup,
+            profile: None,
+            move_start_steps: 0,
+        }
+    }
+
+    fn status(&mut self) -> DeviceResult<mandrel_drive::IndexerStatus> {
+        Ok(mandrel_drive::Indexer::status(&mut self.client)?)
+    }
+}
+
+impl<L: Link, C: Clock> MandrelDevice for GrblIndexer<L, C> {
+    fn attach(&mut self) -> DeviceResult<i64> {
+        use mandrel_drive::Indexer as _;
+        // A move under way is waited out (a soft reset during motion loses the position), then
+        // the soft reset resynchronises the line (GRBL keeps its position through it at rest),
+        // then the steps per degree and the A position as it stands; never `G92 A0`.
+        let deadline = self.client.now() + GRBL_ATTACH_WAIT;
+        while self.status()?.busy {
+            if self.client.now() > deadline {
+                return Err(DeviceError::Indexer(mandrel_drive::Error::Timeout {
+                    command: "?".into(),
+                    waited_ms: GRBL_ATTACH_WAIT.as_millis() as u64,
+                }));
+            }
+            self.client.pause(Duration::from_millis(20))?;
+        }
+        self.client.stop(mandrel_drive::StopKind::Kill)?;
+        self.profile = None;
+        let spd = self.setup.drive.steps_per_deg();
+        self.client
+            .send(&mandrel_drive::grbl::Command::StepsPerDeg(spd))?;
+        let steps = self.counter_steps()?;
+        self.move_start_steps = steps;
+        Ok(steps)
+    }
+
+    fn zero(&mut self) -> DeviceResult<()> {
+        self.client.send(&mandrel_drive::grbl::Command::ZeroA)?;
+        self.move_start_steps = 0;
+        Ok(())
+    }
+
+    fn start_move(&mut self, mv: &MandrelMove, armed: bool) -> DeviceResult<()> {
+        use mandrel_drive::Indexer as _;
+        if armed {
+            return Err(DeviceError::Indexer(mandrel_drive::Error::Unsupported {
+                dialect: "GRBL",
+                feature: "a move armed on the start line (no trigger input)",
+            }));
+        }
+        // The X-language's conversion checks the move's figures against the drive (the same
+        // pulse-rate limit); GRBL then takes the profile from rest.
+        transfer::indexer_move(mv, &self.setup, None)
+            .map_err(|e| DeviceError::Transfer(Box::new(e)))?;
+        let profile = mandrel_drive::Profile {
+            accel_rps2: mv.accel_rps2,
+            start_rps: 0.0,
+            max_rps: mv.max_rps,
+        };
+        if self.profile != Some(profile) {
+            self.client.set_profile(profile)?;
+            self.profile = Some(profile);
+        }
+        self.move_start_steps = self.counter_steps()?;
+        self.client
+            .move_to(mv.steps, mandrel_drive::PosMode::Incremental)?;
+        Ok(())
+    }
+
+    fn busy(&mut self) -> DeviceResult<(bool, bool)> {
+        let s = self.status()?;
+        Ok((s.busy, s.fault))
+    }
+
+    fn counter_steps(&mut self) -> DeviceResult<i64> {
+        self.status()?.position_steps.ok_or_else(|| {
+            DeviceError::Indexer(mandrel_drive::Error::BadReply {
+                command: "?".into(),
+                reply: String::new(),
+                reason: "no position",
+            })
+        })
+    }
+
+    fn move_steps(&mut self) -> DeviceResult<i64> {
+        Ok(self.counter_steps()? - self.move_start_steps)
+    }
+
+    fn stop(&mut self) -> DeviceResult<()> {
+        mandrel_drive::Indexer::stop(&mut self.client, mandrel_drive::StopKind::Decelerate)?;
+        self.profile = None;
+        Ok(())
+    }
+
+    fn stop_on_wire(&mut self) -> DeviceResult<()> {
+        Ok(self.client.stop_on_wire()?)
+    }
+
+    fn interrupter(&self) -> Option<Arc<dyn Interrupt>> {
+        Some(Arc::new(self.client.cancel_token()))
+    }
+}
+
 /// Sync lines made of simulated wires ([`mandrel_drive::sync::Wire`]) or real modem-control
 /// pins, plus an e-stop input.
 #[derive(Debug)]

@@ -14,7 +14,8 @@
 //! simulator's motion is in closed form, so nothing is lost by not looking (a test compares a
 //! long sleep with polling every [`TICK`]). While a [`Trace`] or an [`Observer`] samples the
 //! motion the cell is also polled every [`TICK`]. An hour of winding runs in a fraction of a
-//! millisecond.
+//! millisecond. With [`SimCellConfig::speed`] the clock is paced: each step waits for the wall
+//! clock, so the cell runs at the real cell's speed (or a chosen multiple) for a viewer.
 //!
 //! Both simulators can log every instruction they execute as JSON lines (docs/file-formats.md,
 //! "Simulator logs") with the cell's clock time.
@@ -59,7 +60,16 @@ pub struct SimCellConfig {
     /// The five-axis arm the simulated robot checks every pose against (error 9 for a pose it
     /// cannot take: a wrist yaw, a joint outside its range).
     pub arm: paths::robot::Arm,
+    /// `None`: the cell's clock runs as fast as the coordinator waits on it (a batch in
+    /// milliseconds); `Some(k)`: it keeps in step with the wall clock at `k` cell seconds per wall
+    /// second (1: the speed of the real cell; [`paths::link::VirtualClock::paced`]), so that a
+    /// live viewer can watch it.
+    pub speed: Option<f64>,
 }
+
+/// The speed factors a paced simulated cell accepts (`windcell run --speed`): from ten times
+/// slower to a thousand times faster than the real cell, so that no run is endless.
+pub const SPEED_RANGE: (f64, f64) = (0.1, 1000.0);
 
 impl Default for SimCellConfig {
     fn default() -> Self {
@@ -69,6 +79,7 @@ impl Default for SimCellConfig {
             drive: Drive::default(),
             robot: MotionParams::default(),
             arm: paths::robot::Arm::default(),
+            speed: None,
         }
     }
 }
@@ -552,7 +563,7 @@ pub struct SimCell {
 impl SimCell {
     /// A powered-up cell: robot in standby, not homed, at home; indexer at rest at 0.
     pub fn new(cfg: &SimCellConfig) -> Self {
-        let clock = VirtualClock::new();
+        let clock = cfg.speed.and_then(VirtualClock::paced).unwrap_or_default();
         let cell_clock: Arc<dyn paths::link::Clock> = Arc::new(clock.clone());
         let start = Wire::new(cell_clock.clone(), cfg.opto_delay_s);
         let in_position = Wire::new(cell_clock, cfg.opto_delay_s);

@@ -171,7 +171,7 @@ fn discrete_batch_over_ptys_to_separate_simulators() {
 }
 
 /// The cylinder plan in `d`, cut to `n` instructions per path, the .IND moves made to match.
-fn short_cylinder(d: &Path, n: usize) {
+pub(crate) fn short_cylinder(d: &Path, n: usize) {
     let o = windcell(&[
         "plan",
         example("cylinder.toml").to_str().unwrap(),

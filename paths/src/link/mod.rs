@@ -352,9 +352,30 @@ impl Clock for WallClock {
 
 /// A simulated clock shared by its clones, counted in nanoseconds; it moves only when told and
 /// never goes backwards.
+///
+/// A paced clock ([`VirtualClock::paced`]) also keeps in step with the wall clock: a step forward
+/// waits until the wall time since its first step, times the speed factor, has reached the new
+/// time, so that a simulation runs at `speed` times the speed of the machine it models (a viewer
+/// can watch it). A step that comes later than its wall time (the process was busy) does not
+/// wait, and once more than [`PACE_MAX_LAG`] late the pace starts again from that step, so the
+/// simulation never races to catch up.
 #[derive(Debug, Clone, Default)]
 pub struct VirtualClock {
     nanos: Arc<AtomicU64>,
+    pace: Option<Arc<Pace>>,
+}
+
+/// How far a paced [`VirtualClock`] may fall behind the wall clock before it stops trying to
+/// catch up and paces from where it stands.
+pub const PACE_MAX_LAG: Duration = Duration::from_millis(100);
+
+/// The wall-clock pacing of a [`VirtualClock`].
+#[derive(Debug)]
+struct Pace {
+    /// Virtual seconds per wall second.
+    speed: f64,
+    /// The wall instant and the virtual time paced from (set by the first step).
+    origin: Mutex<Option<(Instant, Duration)>>,
 }
 
 impl VirtualClock {
@@ -362,9 +383,46 @@ impl VirtualClock {
     pub fn new() -> Self {
         Self::default()
     }
+    /// A clock at zero that runs at `speed` virtual seconds per wall second (1: real time);
+    /// `None` unless `speed` is finite and positive.
+    pub fn paced(speed: f64) -> Option<Self> {
+        (speed.is_finite() && speed > 0.0).then(|| VirtualClock {
+            nanos: Arc::default(),
+            pace: Some(Arc::new(Pace {
+                speed,
+                origin: Mutex::new(None),
+            })),
+        })
+    }
+    /// The speed factor of a paced clock; `None` for one that runs as fast as it is told.
+    pub fn speed(&self) -> Option<f64> {
+        self.pace.as_ref().map(|p| p.speed)
+    }
+    /// On a paced clock, waits until the wall clock has caught up with virtual time `t`.
+    fn pace_to(&self, t: Duration) {
+        let Some(pace) = &self.pace else { return };
+        let now_v = Duration::from_nanos(self.nanos.load(Ordering::Relaxed));
+        if t <= now_v {
+            return;
+        }
+        let mut origin = pace.origin.lock().unwrap_or_else(|p| p.into_inner());
+        let (wall0, virt0) = *origin.get_or_insert((Instant::now(), now_v));
+        let due = wall0 + t.saturating_sub(virt0).div_f64(pace.speed);
+        let now = Instant::now();
+        if due > now {
+            drop(origin);
+            std::thread::sleep(due - now);
+        } else if now - due > PACE_MAX_LAG {
+            *origin = Some((now, t));
+        }
+    }
     /// Moves the clock forward by `dt`.
     pub fn advance(&self, dt: Duration) {
         let dt = u64::try_from(dt.as_nanos()).unwrap_or(u64::MAX);
+        if self.pace.is_some() {
+            let now = self.nanos.load(Ordering::Relaxed);
+            self.pace_to(Duration::from_nanos(now.saturating_add(dt)));
+        }
         self.nanos.fetch_add(dt, Ordering::Relaxed);
     }
     /// Moves the clock forward by `dt_s` seconds (a negative or not finite value is ignored).
@@ -375,6 +433,7 @@ impl VirtualClock {
     }
     /// Moves the clock to `t` if that is later than now.
     pub fn advance_to(&self, t: Duration) {
+        self.pace_to(t);
         let t = u64::try_from(t.as_nanos()).unwrap_or(u64::MAX);
         self.nanos.fetch_max(t, Ordering::Relaxed);
     }
@@ -521,6 +580,39 @@ mod tests {
         let t0 = w.now();
         std::thread::sleep(Duration::from_millis(2));
         assert!(w.now() >= t0 + Duration::from_millis(2));
+    }
+
+    /// A paced clock's steps take their virtual time divided by the speed in wall time (here
+    /// 0.4 s of virtual time in 20 steps at speed 4: 0.1 s), a plain one's none; a speed that is
+    /// not finite and positive makes no clock.
+    #[test]
+    fn a_paced_clock_keeps_in_step_with_the_wall_clock() {
+        let c = VirtualClock::paced(4.0).unwrap();
+        assert_eq!(c.speed(), Some(4.0));
+        let t0 = Instant::now();
+        for k in 1..=20u64 {
+            if k % 2 == 0 {
+                c.advance(Duration::from_millis(20));
+            } else {
+                c.advance_to(Duration::from_millis(20 * k));
+            }
+        }
+        let wall = t0.elapsed();
+        assert_eq!(c.now(), Duration::from_millis(400));
+        assert!(wall >= Duration::from_millis(95), "{wall:?}");
+        assert!(wall < Duration::from_millis(400), "{wall:?}");
+        // A step back or to the same time does not wait.
+        let t1 = Instant::now();
+        c.advance_to(Duration::from_millis(100));
+        assert!(t1.elapsed() < Duration::from_millis(20));
+        let fast = VirtualClock::new();
+        let t2 = Instant::now();
+        fast.advance(Duration::from_secs(3600));
+        assert!(t2.elapsed() < Duration::from_millis(50));
+        assert_eq!(fast.speed(), None);
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(VirtualClock::paced(bad).is_none(), "{bad}");
+        }
     }
 
     /// A line that talks for a while is drained until it has been quiet for the span asked,

@@ -259,6 +259,81 @@ impl Witness {
     }
 }
 
+/// The event in words, as the recording's `/log` shows it (`path 1 SBEND_1: segment 3/50 wound
+/// at t = 61.2 s (indexer)`).
+impl std::fmt::Display for Event {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Event::Started {
+                mode,
+                items,
+                resumed,
+            } => write!(
+                f,
+                "{} {items} path{} in {} mode",
+                if *resumed { "resumed" } else { "started" },
+                if *items == 1 { "" } else { "s" },
+                mode.keyword()
+            ),
+            Event::Uploaded { programs } => {
+                let list: Vec<String> = programs.iter().map(u8::to_string).collect();
+                write!(
+                    f,
+                    "program{} {} uploaded and read back",
+                    if programs.len() == 1 { "" } else { "s" },
+                    list.join(", ")
+                )
+            }
+            Event::Segment {
+                item,
+                path,
+                segment,
+                segments,
+                witness,
+                time_s,
+                ..
+            } => write!(
+                f,
+                "path {item} {path}: segment {segment}/{segments} wound at t = {time_s:.1} s ({})",
+                witness.keyword()
+            ),
+            Event::Phase { phase, time_s } => match phase {
+                Phase::Homing => write!(f, "homing the robot at t = {time_s:.1} s"),
+                Phase::Upload => write!(f, "uploading the programs at t = {time_s:.1} s"),
+                Phase::Approach { item } => {
+                    write!(f, "path {item}: to its start at t = {time_s:.1} s")
+                }
+                Phase::Winding { item } => write!(f, "path {item}: winding at t = {time_s:.1} s"),
+            },
+            Event::Upload {
+                done,
+                total,
+                time_s,
+            } => write!(f, "upload: {done}/{total} exchanges at t = {time_s:.1} s"),
+            Event::Program {
+                item,
+                program,
+                path,
+                done,
+                time_s,
+            } => write!(
+                f,
+                "path {item} {path}: program {program} {} at t = {time_s:.1} s",
+                if *done { "done" } else { "started" }
+            ),
+            Event::PathDone {
+                item,
+                path,
+                program,
+                time_s,
+            } => write!(
+                f,
+                "path {item} {path} done (program {program}) in {time_s:.1} s"
+            ),
+        }
+    }
+}
+
 /// The devices of a cell and its time.
 #[derive(Debug)]
 pub struct Devices {
