@@ -158,6 +158,11 @@ fn lathe_cases_fail_cleanly() {
 }
 
 #[test]
+fn run_cases_fail_cleanly() {
+    group_fails_cleanly("run", 80);
+}
+
+#[test]
 fn every_case_fails_cleanly_within_budget() {
     let dir = corpus_dir();
     let corpus: Corpus =

@@ -205,6 +205,11 @@ impl Prepared {
             });
         }
         let program = if mode == RunMode::Discrete {
+            // A discrete run sends the .ROB's moves, but a .IND beside it is the operator's file
+            // too: one the indexer could not take is refused, not ignored.
+            if let Some(ind) = &item.ind {
+                transfer::indexer_program(ind, setup)?;
+            }
             None
         } else {
             let total = cumulative_steps.last().copied().unwrap_or(0);
