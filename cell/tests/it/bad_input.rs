@@ -163,6 +163,11 @@ fn run_cases_fail_cleanly() {
 }
 
 #[test]
+fn command_cases_fail_cleanly() {
+    group_fails_cleanly("commands", 100);
+}
+
+#[test]
 fn every_case_fails_cleanly_within_budget() {
     let dir = corpus_dir();
     let corpus: Corpus =
