@@ -360,6 +360,15 @@ pub enum Error {
     /// A journal that is not this batch's (`--resume`), at its record (the journal's line).
     #[error("journal record {line}: {0}", line = .0.line())]
     JournalMismatch(JournalMismatch),
+    /// A control file's value the devices cannot take, naming the file (`NAME.ROB`, or
+    /// `NAME.IND` for its move) before the program and instruction ([`Error::in_item`]).
+    #[error("{file}: {source}")]
+    ControlFile {
+        /// The control file's name.
+        file: String,
+        /// What the conversion refused.
+        source: Box<Error>,
+    },
     /// The same, naming the journal ([`Error::in_journal`]): `FILE:LINE:1: …`.
     #[error("{}:{}:1: {mismatch}", file.display(), mismatch.line())]
     Journal {
@@ -440,6 +449,7 @@ impl Error {
                 | Error::BatchMemory { .. }
                 | Error::JournalMismatch(_)
                 | Error::Journal { .. }
+                | Error::ControlFile { .. }
         )
     }
 }
@@ -498,6 +508,26 @@ impl JournalMismatch {
 }
 
 impl Error {
+    /// A conversion error of the batch item `name`'s control files, naming the file; any other
+    /// error as it is.
+    pub fn in_item(self, name: &str) -> Error {
+        let file = match &self {
+            Error::RobotTransfer { .. } | Error::DiscreteProgram { .. } => format!("{name}.ROB"),
+            Error::IndexerTransfer {
+                instruction: Some(_),
+                ..
+            } => format!("{name}.ROB"),
+            Error::IndexerTransfer {
+                instruction: None, ..
+            } => format!("{name}.IND"),
+            _ => return self,
+        };
+        Error::ControlFile {
+            file,
+            source: Box::new(self),
+        }
+    }
+
     /// A journal mismatch, naming the journal file; any other error as it is.
     pub fn in_journal(self, file: &std::path::Path) -> Error {
         match self {

@@ -133,7 +133,7 @@ impl Batch {
         };
         let prepared = items
             .iter()
-            .map(|item| Prepared::of(item, mode, &setup, &reach))
+            .map(|item| Prepared::of(item, mode, &setup, &reach).map_err(|e| e.in_item(&item.name)))
             .collect::<Result<Vec<_>, Error>>()?;
         if mode != RunMode::Discrete {
             check_memory(&items, &prepared)?;
