@@ -187,6 +187,27 @@ pub enum Error {
         /// The program number.
         program: u8,
     },
+    /// Two control files of one batch carry the same program number: uploading the second
+    /// would overwrite the first in the robot's memory (seed 001 §5.6.3), so a run file's
+    /// number could not say which path it means.
+    #[error(
+        "{}:{line}:{column}: program {program} is also the program of {}: each control file \
+         of a batch needs its own number",
+        file.display(),
+        other.display()
+    )]
+    DuplicateProgram {
+        /// The later control file (`.ROB`).
+        file: PathBuf,
+        /// 1-based line of its `program` record.
+        line: usize,
+        /// 1-based column of the number.
+        column: usize,
+        /// The program number.
+        program: u8,
+        /// The earlier control file with the same number.
+        other: PathBuf,
+    },
     /// A lathe winder setting or start out of range, refused before anything moves.
     #[error(transparent)]
     LatheSetting(LatheSetting),
@@ -357,9 +378,26 @@ pub enum Error {
         /// The job file.
         job: PathBuf,
     },
-    /// A journal that is not this batch's (`--resume`).
-    #[error("{0}")]
+    /// A journal that is not this batch's (`--resume`), at its record (the journal's line).
+    #[error("journal record {line}: {0}", line = .0.line())]
     JournalMismatch(JournalMismatch),
+    /// A control file's value the devices cannot take, naming the file (`NAME.ROB`, or
+    /// `NAME.IND` for its move) before the program and instruction ([`Error::in_item`]).
+    #[error("{file}: {source}")]
+    ControlFile {
+        /// The control file's name.
+        file: String,
+        /// What the conversion refused.
+        source: Box<Error>,
+    },
+    /// The same, naming the journal ([`Error::in_journal`]): `FILE:LINE:1: …`.
+    #[error("{}:{}:1: {mismatch}", file.display(), mismatch.line())]
+    Journal {
+        /// The journal given to `--resume`.
+        file: PathBuf,
+        /// How it fails to be the batch's.
+        mismatch: JournalMismatch,
+    },
     /// A recording (MCAP file or live server) could not be opened or finished.
     #[error("{}: recording failed: {message}", path.display())]
     Record {
@@ -420,6 +458,7 @@ impl Error {
                 | Error::Run { input: true, .. }
                 | Error::Cell { .. }
                 | Error::ProgramNotLoaded { .. }
+                | Error::DuplicateProgram { .. }
                 | Error::LatheSetting(_)
                 | Error::NotPlannedForContinuous { .. }
                 | Error::RelativePosition { .. }
@@ -433,6 +472,8 @@ impl Error {
                 | Error::BatchMemory { .. }
                 | Error::NoSweepPattern { .. }
                 | Error::JournalMismatch(_)
+                | Error::Journal { .. }
+                | Error::ControlFile { .. }
         )
     }
 }
@@ -446,11 +487,17 @@ pub enum JournalMismatch {
     /// It names another job's files.
     #[error("the journal belongs to another job (its control files differ)")]
     OtherJob,
+    /// Its `begin` record names other paths than the batch winds.
+    #[error("the journal's paths ({journal}) are not this batch's ({batch})")]
+    OtherItems {
+        /// The journal's `items`, as written (shortened).
+        journal: String,
+        /// The batch's control-file names.
+        batch: String,
+    },
     /// A record's number does not fit the batch (a path or segment it does not have, a
     /// counter beyond the batch's travel, a record out of order).
-    #[error(
-        "record {record} (line {record}): {field} = {value} does not fit this batch ({min} … {max})"
-    )]
+    #[error("{field} = {value} does not fit this batch ({min} … {max})")]
     OutOfRange {
         /// 1-based record, which is the journal's line.
         record: usize,
@@ -471,6 +518,50 @@ pub enum JournalMismatch {
         /// This run's mode keyword.
         run: &'static str,
     },
+}
+
+impl JournalMismatch {
+    /// The journal's line the mismatch is at (its `begin` record, line 1, unless a later
+    /// record's number is at fault).
+    pub fn line(&self) -> usize {
+        match self {
+            JournalMismatch::OutOfRange { record, .. } => *record,
+            _ => 1,
+        }
+    }
+}
+
+impl Error {
+    /// A conversion error of the batch item `name`'s control files, naming the file; any other
+    /// error as it is.
+    pub fn in_item(self, name: &str) -> Error {
+        let file = match &self {
+            Error::RobotTransfer { .. } | Error::DiscreteProgram { .. } => format!("{name}.ROB"),
+            Error::IndexerTransfer {
+                instruction: Some(_),
+                ..
+            } => format!("{name}.ROB"),
+            Error::IndexerTransfer {
+                instruction: None, ..
+            } => format!("{name}.IND"),
+            _ => return self,
+        };
+        Error::ControlFile {
+            file,
+            source: Box::new(self),
+        }
+    }
+
+    /// A journal mismatch, naming the journal file; any other error as it is.
+    pub fn in_journal(self, file: &std::path::Path) -> Error {
+        match self {
+            Error::JournalMismatch(mismatch) => Error::Journal {
+                file: file.to_path_buf(),
+                mismatch,
+            },
+            other => other,
+        }
+    }
 }
 
 /// What is wrong with a cell description (docs/file-formats.md, "Cell file").
@@ -570,31 +661,35 @@ pub enum LatheSetting {
         pulses: i64,
     },
     /// A gear ratio that is not finite.
-    #[error("ratio {ratio_mm_per_deg} mm/° is not finite")]
+    #[error("--ratio {} mm/° is not finite", paths::limits::shown(*ratio_mm_per_deg))]
     GearRatio {
         /// Carriage millimetres per mandrel degree.
         ratio_mm_per_deg: f64,
     },
     /// A geared mandrel speed outside (0, 3600] °/s.
-    #[error("mandrel speed {speed_deg_s} °/s is outside (0, 3600]")]
+    #[error("--speed: mandrel speed {} °/s is outside (0, 3600]", paths::limits::shown(*speed_deg_s))]
     GearSpeed {
         /// The mandrel's speed, °/s.
         speed_deg_s: f64,
     },
     /// Geared turns outside (0, 1000].
-    #[error("turns {turns} is outside (0, 1000]")]
+    #[error("--turns {} is outside (0, 1000]", paths::limits::shown(*turns))]
     GearTurns {
         /// Mandrel turns.
         turns: f64,
     },
     /// A ramp outside [0, 60] s.
-    #[error("ramp {ramp_s} s is outside [0, 60]")]
+    #[error("--ramp {} s is outside [0, 60]", paths::limits::shown(*ramp_s))]
     GearRamp {
         /// The ramp, s.
         ramp_s: f64,
     },
     /// A geared run longer than an hour.
-    #[error("{angle_deg}° at {speed_deg_s} °/s takes more than an hour")]
+    #[error(
+        "{}° at {} °/s takes more than an hour",
+        paths::limits::shown(*angle_deg),
+        paths::limits::shown(*speed_deg_s)
+    )]
     GearTooLong {
         /// The mandrel's whole turn, degrees.
         angle_deg: f64,

@@ -25,14 +25,17 @@ fn main() -> ExitCode {
                 let _ = cli::print(&error.render().to_string());
                 return ExitCode::SUCCESS;
             }
-            eprintln!("windcell: {}", cli::argument_error::render(&error, &argv));
+            eprintln!(
+                "windcell: {}",
+                cli::one_line(&cli::argument_error::render(&error, &argv))
+            );
             return ExitCode::from(cli::EXIT_INPUT);
         }
     };
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(failure) => {
-            eprintln!("windcell: {}", failure.message);
+            eprintln!("windcell: {}", cli::one_line(&failure.message));
             ExitCode::from(failure.exit_code)
         }
     }

@@ -17,6 +17,12 @@ impl RunFile {
         let mut programs = Vec::new();
         for rec in records(text) {
             rec.expect_len(1, "")?;
+            if programs.len() == crate::sequence::MAX_ITEMS {
+                return Err(rec.head().error(format!(
+                    "more than {} programs in one batch (docs/ARCHITECTURE.md, \"Limits\")",
+                    crate::sequence::MAX_ITEMS
+                )));
+            }
             programs.push(rec.head().int_in(1..=255)? as u8);
         }
         if programs.is_empty() {

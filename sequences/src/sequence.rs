@@ -12,6 +12,10 @@ pub struct SequenceFile {
     pub names: Vec<String>,
 }
 
+/// The most paths a sequence or run file may list: each is checked before a batch starts (about
+/// a millisecond a path), and seed 001's batches have a handful.
+pub const MAX_ITEMS: usize = 1000;
+
 /// True for a name of letters, digits, `_` and `-` (a portable file-name stem).
 pub fn is_valid_name(name: &str) -> bool {
     !name.is_empty()
@@ -27,10 +31,22 @@ impl SequenceFile {
         for rec in records(text) {
             rec.expect_len(1, "")?;
             let name = rec.head();
-            if !is_valid_name(name.text) {
+            if !is_valid_name(name.text) || name.text.chars().count() > crate::job::MAX_NAME_CHARS {
+                let shown: String = name.text.chars().take(crate::job::MAX_NAME_CHARS).collect();
+                let more = if shown.len() < name.text.len() {
+                    "…"
+                } else {
+                    ""
+                };
                 return Err(name.error(format!(
-                    "`{}` is not a control-file name (letters, digits, `_`, `-`)",
-                    name.text
+                    "`{shown}{more}` is not a control-file name (letters, digits, `_`, `-`, at \
+                     most {} characters)",
+                    crate::job::MAX_NAME_CHARS
+                )));
+            }
+            if names.len() == MAX_ITEMS {
+                return Err(name.error(format!(
+                    "more than {MAX_ITEMS} paths in one batch (docs/ARCHITECTURE.md, \"Limits\")"
                 )));
             }
             names.push(name.text.to_string());

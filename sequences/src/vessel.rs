@@ -130,6 +130,10 @@ pub struct LayerSpec {
     pub slip_limit: Option<Spanned<f64>>,
 }
 
+/// The most cycles per pattern a helical layer may ask for (bounded time: the planner steps
+/// through every cycle; seed 002's patterns have a few dozen).
+pub const MAX_CYCLES_PER_PATTERN: u32 = 10_000;
+
 /// The most layers a file may expand to (bounded time and memory).
 pub const MAX_LAYERS: u32 = 10_000;
 
@@ -152,14 +156,36 @@ fn need<'a, T>(
     })
 }
 
+/// A value's first check: finite, and within the job file's magnitudes (a length, `…_mm`, within
+/// ±[`crate::job::MAX_LENGTH_MM`]; anything else within ±[`crate::job::MAX_MAGNITUDE`]):
+/// docs/ARCHITECTURE.md, "Limits". A winder 1e300 mm long sizes no plan.
 fn finite(text: &str, v: &Spanned<f64>, name: &str) -> Result<f64, Error> {
     let x = *v.get_ref();
-    if x.is_finite() {
-        Ok(x)
-    } else {
-        Err(at(text, v.span(), format!("{name} must be finite")))
+    if !x.is_finite() {
+        return Err(at(text, v.span(), format!("{name} must be finite")));
     }
+    let (limit, unit) = if name.ends_with("_mm") {
+        (crate::job::MAX_LENGTH_MM, " mm")
+    } else {
+        (crate::job::MAX_MAGNITUDE, "")
+    };
+    if x.abs() > limit {
+        return Err(at(
+            text,
+            v.span(),
+            format!(
+                "{name} = {} exceeds the limit of ±{}{unit} (docs/ARCHITECTURE.md, \"Limits\")",
+                crate::error::shown(x),
+                crate::error::shown(limit)
+            ),
+        ));
+    }
+    Ok(x)
 }
+
+/// The least axis velocity and acceleration a vessel file may give, units/s and units/s²: a
+/// slower axis makes a plan of more than 30 years (docs/ARCHITECTURE.md, "Limits").
+pub const MIN_AXIS_RATE: f64 = 1e-3;
 
 /// A parsed job: the planner's job, and where each expanded layer came from.
 #[derive(Debug, Clone)]
@@ -211,6 +237,28 @@ impl VesselFile {
     /// The job the file describes: the mandrel, the tow, the machine, the layers, each checked
     /// at its place in the text.
     fn convert(&self, text: &str) -> Result<Loaded, Error> {
+        // The name names the program file (`NAME.EXT` in the output folder): the job file's
+        // rule, so that no name reaches outside that folder or hides its file.
+        let name = self.name.get_ref();
+        if name.chars().count() > crate::job::MAX_NAME_CHARS {
+            return Err(at(
+                text,
+                self.name.span(),
+                format!(
+                    "name has {} characters, more than the limit of {} (it names the program \
+                     file)",
+                    name.chars().count(),
+                    crate::job::MAX_NAME_CHARS
+                ),
+            ));
+        }
+        if !crate::sequence::is_valid_name(name) {
+            return Err(at(
+                text,
+                self.name.span(),
+                "name must be letters, digits, `_` or `-` (it names the program file)",
+            ));
+        }
         let mandrel = self.mandrel_of(text)?;
         let tow = self.tow_of(text)?;
         let machine = self.machine_of(text)?;
@@ -323,10 +371,25 @@ impl VesselFile {
             4 => AxisSet::Four,
             n => return Err(at(text, mc.axes.span(), format!("axes = {n}: 2, 3 or 4"))),
         };
+        let rate = |v: &Spanned<f64>, name: String| -> Result<f64, Error> {
+            let x = positive(text, v, &name)?;
+            if x < MIN_AXIS_RATE {
+                return Err(at(
+                    text,
+                    v.span(),
+                    format!(
+                        "{name} = {} is below the least of {MIN_AXIS_RATE} (docs/ARCHITECTURE.md, \
+                         \"Limits\")",
+                        crate::error::shown(x)
+                    ),
+                ));
+            }
+            Ok(x)
+        };
         let limit = |a: &AxisSpec, name: &str| -> Result<AxisLimit, Error> {
             Ok(AxisLimit {
-                velocity: positive(text, &a.velocity, &format!("{name}.velocity"))?,
-                acceleration: positive(text, &a.acceleration, &format!("{name}.acceleration"))?,
+                velocity: rate(&a.velocity, format!("{name}.velocity"))?,
+                acceleration: rate(&a.acceleration, format!("{name}.acceleration"))?,
             })
         };
         let dome_steps = match &mc.dome_steps {
@@ -392,7 +455,11 @@ fn positive(text: &str, v: &Spanned<f64>, name: &str) -> Result<f64, Error> {
     if x > 0.0 {
         Ok(x)
     } else {
-        Err(at(text, v.span(), format!("{name} = {x} must be > 0")))
+        Err(at(
+            text,
+            v.span(),
+            format!("{name} = {} must be > 0", crate::error::shown(x)),
+        ))
     }
 }
 
@@ -453,7 +520,16 @@ fn layer(text: &str, l: &LayerSpec) -> Result<Layer, Error> {
             },
         },
         "helical" => Layer::Helical(PatternRequest {
-            cycles_per_pattern: l.cycles_per_pattern.as_ref().map(|c| *c.get_ref()),
+            cycles_per_pattern: match &l.cycles_per_pattern {
+                Some(c) if !(1..=MAX_CYCLES_PER_PATTERN).contains(c.get_ref()) => {
+                    return Err(at(
+                        text,
+                        c.span(),
+                        format!("cycles_per_pattern must be 1..={MAX_CYCLES_PER_PATTERN}"),
+                    ));
+                }
+                c => c.as_ref().map(|c| *c.get_ref()),
+            },
             dwell_deg: l
                 .dwell_deg
                 .as_ref()

@@ -189,8 +189,36 @@ fn check_mandrel(def: &Definition, text: &str) -> Result<(), Error> {
         ("defaultFeedRate", def.default_feed_rate),
     ] {
         if !(v > 0.0 && v.is_finite()) {
-            return Err(at_key(text, key, format!("{key} = {v} must be > 0")));
+            return Err(at_key(
+                text,
+                key,
+                format!("{key} = {} must be > 0", crate::error::shown(v)),
+            ));
         }
+        magnitude(text, key, v)?;
+    }
+    if def.default_feed_rate < crate::vessel::MIN_AXIS_RATE {
+        return Err(at_key(
+            text,
+            "defaultFeedRate",
+            format!(
+                "defaultFeedRate = {} is below the least of {} mm/min (docs/ARCHITECTURE.md, \
+                 \"Limits\")",
+                crate::error::shown(def.default_feed_rate),
+                crate::vessel::MIN_AXIS_RATE
+            ),
+        ));
+    }
+    if def.layers.len() > crate::vessel::MAX_LAYERS as usize {
+        return Err(at_key(
+            text,
+            "layers",
+            format!(
+                "{} layers, more than the limit of {}",
+                def.layers.len(),
+                crate::vessel::MAX_LAYERS
+            ),
+        ));
     }
     if m.profile.is_some() && m.end_diameter.is_some() {
         return Err(at_key(
@@ -206,7 +234,7 @@ fn check_mandrel(def: &Definition, text: &str) -> Result<(), Error> {
             return Err(at_key(
                 text,
                 "endDiameter",
-                format!("endDiameter = {end} must be > 0"),
+                format!("endDiameter = {} must be > 0", crate::error::shown(end)),
             ));
         }
         if end > m.diameter {
@@ -226,6 +254,34 @@ fn check_mandrel(def: &Definition, text: &str) -> Result<(), Error> {
             text,
             "layers",
             "a .wind file needs at least one layer".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// A value within the job files' magnitudes (docs/ARCHITECTURE.md, "Limits"): a length (mm) within
+/// ±[`crate::job::MAX_LENGTH_MM`], anything else (degrees, mm/min) within
+/// ±[`crate::job::MAX_MAGNITUDE`]. A mandrel 1e308 mm long or a lock of 1e300° sizes no plan.
+fn magnitude(text: &str, key: &str, v: f64) -> Result<(), Error> {
+    let length = matches!(
+        key,
+        "diameter" | "windLength" | "endDiameter" | "width" | "thickness" | "leadInMM"
+    );
+    let limit = if length {
+        crate::job::MAX_LENGTH_MM
+    } else {
+        crate::job::MAX_MAGNITUDE
+    };
+    if v.abs() > limit {
+        return Err(at_key(
+            text,
+            key,
+            format!(
+                "{key} = {} exceeds the limit of ±{}{} (docs/ARCHITECTURE.md, \"Limits\")",
+                crate::error::shown(v),
+                crate::error::shown(limit),
+                if length { " mm" } else { "" }
+            ),
         ));
     }
     Ok(())
@@ -265,7 +321,22 @@ fn layer_of(l: &WindLayer, i: usize, last: bool, text: &str) -> Result<Layer, Er
                 ("leadOutDegrees", lead_out_degrees),
             ] {
                 if !(v > 0.0 && v.is_finite()) {
-                    return Err(here(format!("{k} = {v} must be > 0")));
+                    return Err(here(format!(
+                        "{k} = {} must be > 0",
+                        crate::error::shown(v)
+                    )));
+                }
+                let limit = if k == "leadInMM" {
+                    crate::job::MAX_LENGTH_MM
+                } else {
+                    crate::job::MAX_MAGNITUDE
+                };
+                if v > limit {
+                    return Err(here(format!(
+                        "{k} = {} exceeds the limit of {} (docs/ARCHITECTURE.md, \"Limits\")",
+                        crate::error::shown(v),
+                        crate::error::shown(limit)
+                    )));
                 }
             }
             if pattern_number == 0 || skip_index == 0 {
@@ -285,6 +356,14 @@ fn layer_of(l: &WindLayer, i: usize, last: bool, text: &str) -> Result<Layer, Er
         WindLayer::Skip { mandrel_rotation } => {
             if !mandrel_rotation.is_finite() {
                 return Err(here("mandrelRotation must be finite".into()));
+            }
+            if mandrel_rotation.abs() > crate::job::MAX_MAGNITUDE {
+                return Err(here(format!(
+                    "mandrelRotation = {} exceeds the limit of ±{} (docs/ARCHITECTURE.md, \
+                     \"Limits\")",
+                    crate::error::shown(mandrel_rotation),
+                    crate::error::shown(crate::job::MAX_MAGNITUDE)
+                )));
             }
             Layer::Skip {
                 mandrel_deg: mandrel_rotation,
@@ -396,6 +475,19 @@ impl WindFile {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "wind".into());
+        // The stem names the program written from it (`NAME.EXT` in the output folder).
+        if name.starts_with('.')
+            || name.chars().count() > crate::job::MAX_NAME_CHARS
+            || name.chars().any(char::is_control)
+        {
+            return Err(Error::content(format!(
+                "the file's name `{}` names the program written from it: it may not start with \
+                 `.`, hold control characters or run past {} characters",
+                name.escape_default().take(80).collect::<String>(),
+                crate::job::MAX_NAME_CHARS
+            ))
+            .in_file(path));
+        }
         let job = WindFile::parse(&text, &name).map_err(|e| e.in_file(path))?;
         Ok((job, name))
     }

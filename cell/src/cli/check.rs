@@ -32,9 +32,13 @@ pub struct CheckArgs {
 pub fn run(args: CheckArgs) -> Result<(), Failure> {
     let (job, text) = Job::load(&args.job).map_err(Failure::input)?;
     let inputs = cell::plan::output::inputs_of_job(&job, &args.job);
-    for out in args.svg.iter().chain(&args.record) {
-        cell::plan::output::check_output_file(out, &inputs).map_err(Failure::from_cell)?;
-    }
+    let outputs: Vec<&std::path::Path> = args
+        .svg
+        .iter()
+        .chain(&args.record)
+        .map(|p| p.as_path())
+        .collect();
+    cell::plan::output::check_output_files(&outputs, &inputs).map_err(Failure::from_cell)?;
     let checked = check::run(&job, &text, &args.job).map_err(Failure::from_cell)?;
     super::admit(&job, &args.job, &checked.plan)?;
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();

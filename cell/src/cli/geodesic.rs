@@ -146,6 +146,14 @@ pub fn run(args: GeodesicArgs) -> Result<(), Failure> {
     options
         .validate()
         .map_err(|e| Failure::input(format!("geodesic: {e}")))?;
+    // A heading is an angle: beyond a turn either way it is a wrong value (1e300° has no
+    // meaning a sine can give back).
+    if !(args.heading.is_finite() && args.heading.abs() <= 360.0) {
+        return Err(Failure::input(format!(
+            "geodesic: --heading {} must lie in -360 … 360 degrees",
+            paths::limits::shown(args.heading)
+        )));
+    }
     if let Some(n) = args.segments
         && !(1..=paths::limits::MAX_SEGMENTS).contains(&n)
     {

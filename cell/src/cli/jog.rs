@@ -73,6 +73,19 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
     };
     let [x, y, z] = <[f64; 3]>::try_from(args.pos.as_slice())
         .map_err(|_| Failure::input("jog: --pos needs X,Y,Z"))?;
+    // The wrist angles are angles: beyond a turn either way they are wrong values, refused here
+    // rather than by the robot computer after the telegram went out.
+    for (flag, deg) in [
+        ("--pitch-deg", args.pitch_deg),
+        ("--roll-deg", args.roll_deg),
+    ] {
+        if !(deg.is_finite() && deg.abs() <= 360.0) {
+            return Err(Failure::input(format!(
+                "jog: {flag} {} must lie in -360 … 360 degrees",
+                paths::limits::shown(deg)
+            )));
+        }
+    }
     let q = paths::wrist::components(&paths::wrist::from_pitch_roll(
         args.pitch_deg.to_radians(),
         args.roll_deg.to_radians(),
@@ -84,12 +97,16 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
         Speed::from_value(name, v / per_unit)
             .map_err(|_| {
                 Failure::input(format!(
-                    "jog: {name} {v}: out of range (0 to {limit:.2} {unit}, the telegram's)"
+                    "jog: {name} {}: out of range (0 to {limit:.2} {unit}, the telegram's)",
+                    paths::limits::shown(v)
                 ))
             })
             .and_then(|s| {
                 if s.0 == 0 {
-                    Err(Failure::input(format!("jog: {name} {v} rounds to zero")))
+                    Err(Failure::input(format!(
+                        "jog: {name} {} rounds to zero",
+                        paths::limits::shown(v)
+                    )))
                 } else {
                     Ok(s)
                 }
@@ -139,6 +156,20 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
         steps: args.steps,
     });
     if let Some(m) = &mandrel {
+        // The move must end within the coordinator's wait for it: a longer one would be sent,
+        // turn the mandrel, and then be called a device failure.
+        let least_s =
+            (m.steps.unsigned_abs() as f64) / (m.max_rps * cell.drive.steps_per_mandrel_rev());
+        if least_s.is_nan() || least_s > cell::run::coordinator::MOVE_TIMEOUT_S {
+            return Err(Failure::input(format!(
+                "jog: --steps {} takes at least {} s at --max-rps {}, longer than the {} s a move \
+                 may take",
+                m.steps,
+                paths::limits::shown(least_s),
+                paths::limits::shown(m.max_rps),
+                cell::run::coordinator::MOVE_TIMEOUT_S
+            )));
+        }
         cell::run::transfer::indexer_move(
             m,
             &cell::run::transfer::IndexerSetup {

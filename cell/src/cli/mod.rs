@@ -28,6 +28,11 @@ pub const EXIT_INPUT: u8 = 2;
 /// Exit code for a failure at run time: a device, a link, the file system.
 pub const EXIT_RUNTIME: u8 = 1;
 
+/// The longest simulated duration an argument may ask for (`--home-s`), s: an hour.
+pub const MAX_SIM_SECONDS: f64 = 3600.0;
+/// The fastest a simulator's motion may run against the wall clock (`--time-scale`).
+pub const MAX_TIME_SCALE: f64 = 1e6;
+
 /// A failed command: one line for the operator and the process exit code.
 #[derive(Debug)]
 pub struct Failure {
@@ -134,6 +139,49 @@ pub fn same_drive(
     )))
 }
 
+/// The one line a failure prints, as the operator must see it (docs/testing.md, "Bad input"):
+/// every control character (a line break, an escape sequence, a bell from a file or an
+/// argument) written as an escape, and every number longer than 20 characters in short form
+/// (`1e300`, not 301 digits). The last step of every message, whichever reader or check made
+/// it.
+pub fn one_line(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut number = String::new();
+    let flush = |number: &mut String, out: &mut String| {
+        if number.len() > 20
+            && let Ok(v) = number.parse::<f64>()
+        {
+            out.push_str(&sequences::error::shown(v));
+        } else {
+            out.push_str(number);
+        }
+        number.clear();
+    };
+    let mut chars = message.chars().peekable();
+    while let Some(c) = chars.next() {
+        let continues = c.is_ascii_digit()
+            || (c == '.' && !number.is_empty() && chars.peek().is_some_and(char::is_ascii_digit))
+            || (matches!(c, 'e' | 'E')
+                && !number.is_empty()
+                && chars
+                    .peek()
+                    .is_some_and(|d| d.is_ascii_digit() || *d == '-' || *d == '+'))
+            || (matches!(c, '-' | '+') && number.ends_with(['e', 'E']));
+        if continues {
+            number.push(c);
+            continue;
+        }
+        flush(&mut number, &mut out);
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    flush(&mut number, &mut out);
+    out
+}
+
 /// Writes `text` to standard output; a closed pipe (`windcell … | head`) is not an error.
 pub fn print(text: &str) -> Result<(), Failure> {
     use std::io::Write;
@@ -183,4 +231,27 @@ pub fn admit(
     let files = cell::plan::files::control_files(job, plan).map_err(Failure::from_cell)?;
     cell::run::batch::admit(job, job_path, &files, None).map_err(Failure::from_cell)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_line;
+
+    #[test]
+    fn long_numbers_are_shortened_and_control_characters_escaped() {
+        let big = format!("1{}", "0".repeat(300));
+        assert_eq!(
+            one_line(&format!("wind angle {big}° is outside 1°..=89°")),
+            "wind angle 1e300° is outside 1°..=89°"
+        );
+        let tiny = format!("0.{}1", "0".repeat(299));
+        assert_eq!(one_line(&format!("length {tiny} mm")), "length 1e-300 mm");
+        // Short numbers, places and words are kept as they are.
+        let kept = "job.toml:12:7: segments = 1e9 exceeds 10000 (CYL_1, 0.25 mm, 1e-3)";
+        assert_eq!(one_line(kept), kept);
+        assert_eq!(
+            one_line("unexpected character '\u{7}' in \u{1b}[2J\nnext"),
+            "unexpected character '\\u{7}' in \\u{1b}[2J\\nnext"
+        );
+    }
 }

@@ -62,9 +62,9 @@ pub const MAX_SAMPLES: usize = 100_000;
 
 /// Runs `windcell predict`.
 pub fn run(args: PredictArgs) -> Result<(), Failure> {
-    if args.samples > MAX_SAMPLES {
+    if !(1..=MAX_SAMPLES).contains(&args.samples) {
         return Err(Failure::input(format!(
-            "--samples {}: at most {MAX_SAMPLES}",
+            "--samples {}: must lie in 1..={MAX_SAMPLES}",
             args.samples
         )));
     }
@@ -101,10 +101,15 @@ pub fn run(args: PredictArgs) -> Result<(), Failure> {
         tolerances: cell.tolerances,
         ..Options::default()
     };
-    let inputs = cell::plan::output::inputs_of_job(&job, &args.job);
-    for out in args.svg.iter().chain(&args.record) {
-        cell::plan::output::check_output_file(out, &inputs).map_err(Failure::from_cell)?;
-    }
+    let mut inputs = cell::plan::output::inputs_of_job(&job, &args.job);
+    inputs.extend(args.cell.iter().cloned());
+    let outputs: Vec<&std::path::Path> = args
+        .svg
+        .iter()
+        .chain(&args.record)
+        .map(|p| p.as_path())
+        .collect();
+    cell::plan::output::check_output_files(&outputs, &inputs).map_err(Failure::from_cell)?;
     let prediction =
         predict::predict(&job, &text, &args.job, &cell, &opt).map_err(Failure::from_cell)?;
     no_mode_winds(&prediction)?;

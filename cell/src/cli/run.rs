@@ -770,6 +770,42 @@ struct Checked {
     scene: Option<Scene>,
 }
 
+/// The one rule for outputs (`cell::plan::output::check_outputs`): the journal, the log and the
+/// recording, against every file the run reads and against each other.
+fn check_outputs(args: &RunArgs, batch: &Batch, journal: &Path) -> Result<(), Failure> {
+    // The live server's address is an output too: refused here, before the journal is made.
+    if let Some(a) = &args.live {
+        live_address(a)?;
+    }
+    let dir = args.input.parent().unwrap_or(Path::new(""));
+    let mut inputs = vec![args.input.clone()];
+    if args.input.extension().is_some_and(|e| e == "SEQ") {
+        inputs.push(args.input.with_extension("RUN"));
+    }
+    inputs.extend(
+        args.run_file
+            .iter()
+            .chain(&args.job)
+            .chain(&args.cell)
+            .cloned(),
+    );
+    for item in &batch.items {
+        inputs.push(dir.join(format!("{}.ROB", item.name)));
+        inputs.push(dir.join(format!("{}.IND", item.name)));
+    }
+    for file in std::iter::once(journal)
+        .chain(args.log.as_deref())
+        .chain(args.record.as_deref())
+    {
+        cell::plan::output::check_file(file).map_err(Failure::from_cell)?;
+    }
+    let outputs: Vec<&Path> = std::iter::once(journal)
+        .chain(args.log.as_deref())
+        .chain(args.record.as_deref())
+        .collect();
+    cell::plan::output::check_outputs(&outputs, &inputs).map_err(Failure::from_cell)
+}
+
 /// Every refusal `run` can make before it moves (exit 2: the files, the pre-run check of every
 /// instruction, the sync lines for the mode, the journal; exit 3: the collision gate), then the
 /// devices made (nothing sent yet).
@@ -800,6 +836,7 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
             },
         }));
     }
+    check_outputs(args, &batch, &journal_path)?;
     // Everything `run` can know before it moves is refused here, before the journal is written
     // or a device touched: program mode needs the sync lines.
     if batch.mode != RunMode::Discrete
@@ -827,7 +864,7 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
             }
             let (j, records) = Journal::resume(p).map_err(Failure::input)?;
             let from = cell::run::coordinator::resume_point(&batch, &records)
-                .map_err(Failure::from_cell)?;
+                .map_err(|e| Failure::from_cell(e.in_journal(p)))?;
             if journal::batch_done(&records) {
                 return Err(Failure::input(format!(
                     "{}: the batch is already done",

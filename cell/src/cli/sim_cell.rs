@@ -73,10 +73,11 @@ pub fn run(args: SimCellArgs) -> Result<(), Failure> {
             "sim-cell: --pty is required (the cell serves on pseudo-terminals)",
         ));
     }
-    if !(args.home_s.is_finite() && args.home_s >= 0.0) {
+    if !(args.home_s.is_finite() && (0.0..=crate::cli::MAX_SIM_SECONDS).contains(&args.home_s)) {
         return Err(Failure::input(format!(
-            "sim-cell: --home-s {}: expected a time ≥ 0 s",
-            args.home_s
+            "sim-cell: --home-s {}: expected a time of 0 … {} s",
+            sequences::error::shown(args.home_s),
+            crate::cli::MAX_SIM_SECONDS
         )));
     }
     let stop = Signals::register("sim-cell", false)?.stop;

@@ -61,12 +61,7 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
             args.pull_in_sps
         )));
     }
-    let signals = Signals::register("sim-indexer", true)?;
-    let ptys = Ptys::open("sim-indexer", 1)?;
-    print(&format!("{}\n", ptys.paths()?.join("\n")))?;
-    let machine = Machine::new(Drive::default(), args.pull_in_sps);
-    let clock = WallClock::new();
-    let (stop, weaken, restore) = (&signals.stop, &signals.usr1, &signals.usr2);
+    // The log is created before the pseudo-terminal is offered (nothing printed on a refusal).
     let log = match (&args.log, args.dialect) {
         (Some(p), Dialect::X) => Some(
             std::fs::File::create(p)
@@ -74,6 +69,12 @@ pub fn run(args: SimIndexerArgs) -> Result<(), Failure> {
         ),
         _ => None,
     };
+    let signals = Signals::register("sim-indexer", true)?;
+    let ptys = Ptys::open("sim-indexer", 1)?;
+    print(&format!("{}\n", ptys.paths()?.join("\n")))?;
+    let machine = Machine::new(Drive::default(), args.pull_in_sps);
+    let clock = WallClock::new();
+    let (stop, weaken, restore) = (&signals.stop, &signals.usr1, &signals.usr2);
     ptys.serve(|masters| {
         let Some(master) = masters.into_iter().next() else {
             return Ok(());

@@ -64,10 +64,14 @@ fn record(event: &Event, t_s: f64) -> serde_json::Value {
 
 /// Runs the simulator until SIGINT or SIGTERM.
 pub fn run(args: SimMarlinArgs) -> Result<(), Failure> {
-    if !(args.time_scale.is_finite() && args.time_scale > 0.0) {
+    if !(args.time_scale.is_finite()
+        && args.time_scale > 0.0
+        && args.time_scale <= crate::cli::MAX_TIME_SCALE)
+    {
         return Err(Failure::input(format!(
-            "sim-marlin: --time-scale {} must be a positive number",
-            sequences::error::shown(args.time_scale)
+            "sim-marlin: --time-scale {} must be a positive number, at most {}",
+            sequences::error::shown(args.time_scale),
+            crate::cli::MAX_TIME_SCALE
         )));
     }
     let mut log = match &args.log {

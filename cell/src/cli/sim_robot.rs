@@ -58,12 +58,22 @@ pub struct SimRobotArgs {
 
 /// Runs the simulator until SIGINT or SIGTERM.
 pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
-    if !(args.home_s.is_finite() && args.home_s >= 0.0) {
+    if !(args.home_s.is_finite() && (0.0..=crate::cli::MAX_SIM_SECONDS).contains(&args.home_s)) {
         return Err(Failure::input(format!(
-            "sim-robot: --home-s {} must be a number of seconds, 0 or more",
-            args.home_s
+            "sim-robot: --home-s {} must be a number of seconds, 0 … {}",
+            sequences::error::shown(args.home_s),
+            crate::cli::MAX_SIM_SECONDS
         )));
     }
+    // The log is created before the pseudo-terminal is offered: a log that cannot be written
+    // is refused with nothing printed.
+    let log = match &args.log {
+        Some(p) => Some(
+            std::fs::File::create(p)
+                .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
+        ),
+        None => None,
+    };
     let signals = Signals::register("sim-robot", true)?;
     let ptys = Ptys::open("sim-robot", 1)?;
     print(&format!("{}\n", ptys.paths()?.join("\n")))?;
@@ -90,13 +100,6 @@ pub fn run(args: SimRobotArgs) -> Result<(), Failure> {
         )
         .with_malformed(malformed),
     );
-    let log = match &args.log {
-        Some(p) => Some(
-            std::fs::File::create(p)
-                .map_err(|e| Failure::input(format!("{}: {e}", p.display())))?,
-        ),
-        None => None,
-    };
     let clock = WallClock::new();
     let stop = &signals.stop;
     ptys.serve(|masters| {

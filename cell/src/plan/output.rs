@@ -129,6 +129,50 @@ pub fn not_an_input(output: &Path, inputs: &[PathBuf]) -> Result<(), Error> {
     Ok(())
 }
 
+/// Where `path` is: its folder's canonical path joined with its file name (`None` when the folder
+/// cannot be looked at), so that two spellings of one output (`a/../b/x`, `b/x`) compare equal
+/// before either exists.
+fn identity(path: &Path) -> Option<PathBuf> {
+    let name = path.file_name()?;
+    fs::canonicalize(folder_of(path)).ok().map(|d| d.join(name))
+}
+
+/// The one rule for outputs: every path a command writes is checked against every path it reads
+/// and against each other before anything is written. An output that is an input (by device and
+/// inode, or by where it lies) would destroy what the command reads; two outputs at one place
+/// would leave one of them half-written over the other.
+pub fn check_outputs(outputs: &[&Path], inputs: &[PathBuf]) -> Result<(), Error> {
+    for (k, output) in outputs.iter().enumerate() {
+        not_an_input(output, inputs)?;
+        let here = identity(output);
+        if here.is_some() {
+            for input in inputs {
+                if identity(input) == here {
+                    return Err(refuse(
+                        output,
+                        format!(
+                            "is {}, an input of this command; name another output",
+                            input.display()
+                        ),
+                    ));
+                }
+            }
+        }
+        for earlier in &outputs[..k] {
+            if here.is_some() && identity(earlier) == here {
+                return Err(refuse(
+                    output,
+                    format!(
+                        "is also the output {}: two outputs cannot share one file",
+                        earlier.display()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The files a job reads: the job file, its mesh and its DXF drawings (relative to the job's
 /// folder).
 pub fn inputs_of_job(job: &sequences::Job, file: &Path) -> Vec<PathBuf> {
@@ -150,6 +194,14 @@ pub fn inputs_of_job(job: &sequences::Job, file: &Path) -> Vec<PathBuf> {
 pub fn check_output_file(path: &Path, inputs: &[PathBuf]) -> Result<(), Error> {
     check_file(path)?;
     not_an_input(path, inputs)
+}
+
+/// [`check_file`] on each of a command's single output files, then [`check_outputs`].
+pub fn check_output_files(outputs: &[&Path], inputs: &[PathBuf]) -> Result<(), Error> {
+    for output in outputs {
+        check_file(output)?;
+    }
+    check_outputs(outputs, inputs)
 }
 
 fn folder_of(path: &Path) -> PathBuf {

@@ -99,6 +99,33 @@ pub fn from_files(
             }
             None => None,
         };
+        if let Some((other, _)) = robs
+            .iter()
+            .find(|(_, (r, _))| r.header.program == rob.header.program)
+        {
+            // The place of the `program` record (the reader keeps values, not places).
+            let (line, column) = text
+                .lines()
+                .enumerate()
+                .find_map(|(i, l)| {
+                    let t = l.trim_start();
+                    t.strip_prefix("program")
+                        .filter(|rest| rest.starts_with([' ', '\t']))
+                        .map(|rest| {
+                            let indent = l.len() - t.len();
+                            let gap = rest.len() - rest.trim_start().len();
+                            (i + 1, indent + "program".len() + gap + 1)
+                        })
+                })
+                .unwrap_or((1, 1));
+            return Err(Error::DuplicateProgram {
+                file: rob_path,
+                line,
+                column,
+                program: rob.header.program,
+                other: dir.join(format!("{other}.ROB")),
+            });
+        }
         robs.insert(name, (rob, ind));
     }
     let first = robs

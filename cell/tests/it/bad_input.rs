@@ -26,6 +26,9 @@ struct Case {
     expect: String,
     #[serde(default)]
     setup: Vec<String>,
+    /// Text files written into `{tmp}` before the run (placeholders replaced in their text).
+    #[serde(default)]
+    files: BTreeMap<String, String>,
 }
 
 fn corpus_dir() -> PathBuf {
@@ -71,6 +74,97 @@ fn set_up(tmp: &Path, steps: &[String]) {
             other => panic!("unknown setup step {other}"),
         }
     }
+}
+
+/// `{corpus}`, `{out}` and `{tmp}` replaced.
+fn placed(text: &str, dir: &Path, tmp: &Path) -> String {
+    text.replace("{corpus}", dir.to_str().unwrap())
+        .replace("{out}", tmp.join("out").to_str().unwrap())
+        .replace("{tmp}", tmp.to_str().unwrap())
+}
+
+/// Runs every case of `file` (under the corpus folder) by the rules; returns the broken ones
+/// and the classes seen.
+fn run_cases(file: &str) -> (Vec<String>, std::collections::BTreeSet<String>, usize) {
+    let dir = corpus_dir();
+    let corpus: Corpus = toml::from_str(&std::fs::read_to_string(dir.join(file)).unwrap()).unwrap();
+    let mut failures = Vec::new();
+    let mut classes = std::collections::BTreeSet::new();
+    for case in &corpus.case {
+        classes.insert(case.class.clone());
+        let tmp = tempfile::tempdir().unwrap();
+        set_up(tmp.path(), &case.setup);
+        for (name, text) in &case.files {
+            std::fs::write(tmp.path().join(name), placed(text, &dir, tmp.path())).unwrap();
+        }
+        let args: Vec<String> = case
+            .args
+            .iter()
+            .map(|a| placed(a, &dir, tmp.path()))
+            .collect();
+        let before = snapshot(tmp.path());
+        // The inputs: the group's own files and the shipped examples.
+        let inputs = [
+            dir.join(file).parent().unwrap().to_path_buf(),
+            dir.join("../../examples"),
+        ];
+        let corpus_before: Vec<_> = inputs.iter().map(|d| snapshot(d)).collect();
+        let (output, elapsed, peak) = run_limited(&args, &dir);
+        let mut broken = broken_rule(
+            &output,
+            elapsed,
+            peak,
+            &placed(&case.expect, &dir, tmp.path()),
+        );
+        if broken.is_none() && snapshot(tmp.path()) != before {
+            broken = Some("the output folder changed".into());
+        }
+        if broken.is_none()
+            && inputs.iter().map(|d| snapshot(d)).collect::<Vec<_>>() != corpus_before
+        {
+            broken = Some("the corpus folder (the inputs) changed".into());
+        }
+        if let Some(rule) = broken {
+            failures.push(format!(
+                "[{}] windcell {}: {rule}\n    stderr: {}",
+                case.class,
+                case.args.join(" "),
+                String::from_utf8_lossy(&output.stderr).trim_end()
+            ));
+        }
+    }
+    (failures, classes, corpus.case.len())
+}
+
+/// The corpus over every command (`tests/bad-input/<group>/cases.toml`, docs/testing.md, "Bad
+/// input"): each group at least `least` cases, every case by the rules, and the group within
+/// its share of the corpus's 20 s.
+fn group_fails_cleanly(group: &str, least: usize) {
+    let started = std::time::Instant::now();
+    let (failures, classes, count) = run_cases(&format!("{group}/cases.toml"));
+    assert!(count >= least, "{group}: {count} cases");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert!(!classes.is_empty());
+    let took = started.elapsed();
+    assert!(
+        took < std::time::Duration::from_secs(20),
+        "{group}: {took:?}"
+    );
+}
+
+#[test]
+fn lathe_cases_fail_cleanly() {
+    group_fails_cleanly("lathe", 200);
+}
+
+#[test]
+fn run_cases_fail_cleanly() {
+    group_fails_cleanly("run", 80);
+}
+
+#[test]
+fn command_cases_fail_cleanly() {
+    group_fails_cleanly("commands", 100);
 }
 
 #[test]

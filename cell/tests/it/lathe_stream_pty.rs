@@ -234,7 +234,7 @@ fn pause_waits_at_the_layer_boundary_and_resume_completes() {
 }
 
 #[test]
-fn bad_input_and_a_missing_port_exit_2_and_1_with_one_line() {
+fn bad_input_and_a_missing_port_exit_2_with_one_line() {
     let d = tempfile::tempdir().unwrap();
     let long = d.path().join("long.nc");
     std::fs::write(&long, format!("G1 X1 F1\nG1 X{}\n", "1".repeat(130))).unwrap();
@@ -263,6 +263,8 @@ fn bad_input_and_a_missing_port_exit_2_and_1_with_one_line() {
         "--port",
         missing.to_str().unwrap(),
     ]);
-    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    // A port that does not exist is bad input, found before anything is sent
+    // (docs/file-formats.md, "Cell file").
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert_eq!(stderr(&out).lines().count(), 1);
 }

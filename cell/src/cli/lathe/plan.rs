@@ -124,6 +124,23 @@ pub fn run(args: LathePlanArgs) -> Result<(), Failure> {
         .out
         .join(format!("{name}.{}", args.dialect.extension()));
     out_file::check_target(&target, args.force)?;
+    let mut inputs = vec![args.job.clone()];
+    if let Some(m) = args
+        .machine
+        .as_deref()
+        .filter(|m| m.ends_with(".toml") || m.contains('/'))
+    {
+        inputs.push(PathBuf::from(m));
+    }
+    let outputs: Vec<&Path> = std::iter::once(target.as_path())
+        .chain(
+            [&args.svg, &args.record]
+                .into_iter()
+                .flatten()
+                .map(PathBuf::as_path),
+        )
+        .collect();
+    cell::plan::output::check_outputs(&outputs, &inputs).map_err(Failure::from_cell)?;
     for extra in [&args.svg, &args.record].into_iter().flatten() {
         cell::plan::output::check_file(extra).map_err(Failure::from_cell)?;
         if extra.exists() && !args.force {

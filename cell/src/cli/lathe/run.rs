@@ -137,6 +137,15 @@ fn parse_part_zero(text: &str) -> Result<Position, Failure> {
 pub fn run(args: LatheRunArgs) -> Result<(), Failure> {
     let program = PartProgram::load(&args.program).map_err(Failure::input)?;
     let setup = setup_of(&args, &program)?;
+    let inputs: Vec<PathBuf> = std::iter::once(args.program.clone())
+        .chain(args.params.iter().cloned())
+        .collect();
+    let outputs: Vec<&std::path::Path> = [&args.trace, &args.plot, &args.record]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    cell::plan::output::check_output_files(&outputs, &inputs).map_err(Failure::from_cell)?;
     // Everything that can be refused is refused here, before any motion.
     let plan = lathe::plan(&program, &args.program, &setup).map_err(Failure::from_cell)?;
     let mut controller = lathe::start_at_part_zero(&setup).map_err(Failure::from_cell)?;

@@ -70,9 +70,11 @@ const STATUS_PERIOD: Duration = Duration::from_millis(250);
 
 /// Reads and checks the whole program before anything is sent: every line must be one the
 /// controller can hold ([`cell::lathe::stream_watch::check_line`]) and fit the receive buffer.
-fn load(path: &PathBuf) -> Result<(Program, Outline), Failure> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+fn load(path: &std::path::Path) -> Result<(Program, Outline), Failure> {
+    // A device, FIFO or folder is refused before it is opened, and the size is capped: a
+    // program the controller can take is far below the robot-program cap.
+    let text = sequences::source::read_text(path, sequences::source::MAX_PROGRAM_BYTES)
+        .map_err(Failure::input)?;
     let outline = Outline::of(&text).map_err(|(line, r)| {
         Failure::input(format!(
             "{}:{line}:{}: {}",
@@ -136,17 +138,31 @@ pub fn run(args: LatheStreamArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The longest `--silence-s` and `--progress-every-s`, s: an hour (a longer silence is no
+/// watch at all, and a duration of 1e308 s cannot be made).
+const MAX_WAIT_S: f64 = 3600.0;
+
+/// Baud rates a serial port can be asked for (50 … 4 000 000, the range Linux's termios offers).
+const BAUD_RANGE: std::ops::RangeInclusive<u32> = 50..=4_000_000;
+
 fn check_args(args: &LatheStreamArgs) -> Result<(), Failure> {
-    if !(args.silence_s.is_finite() && args.silence_s > 0.0) {
-        return Err(Failure::input(format!(
-            "lathe stream: --silence-s {} must be a positive number",
-            args.silence_s
-        )));
+    for (flag, value) in [
+        ("--silence-s", args.silence_s),
+        ("--progress-every-s", args.progress_every_s),
+    ] {
+        if !(value.is_finite() && value > 0.0 && value <= MAX_WAIT_S) {
+            return Err(Failure::input(format!(
+                "lathe stream: {flag} {} must be a positive number of seconds, at most {MAX_WAIT_S}",
+                sequences::error::shown(value)
+            )));
+        }
     }
-    if !(args.progress_every_s.is_finite() && args.progress_every_s > 0.0) {
+    if !BAUD_RANGE.contains(&args.baud) {
         return Err(Failure::input(format!(
-            "lathe stream: --progress-every-s {} must be a positive number",
-            sequences::error::shown(args.progress_every_s)
+            "lathe stream: --baud {} is outside {} … {}",
+            args.baud,
+            BAUD_RANGE.start(),
+            BAUD_RANGE.end()
         )));
     }
     Ok(())
@@ -171,7 +187,9 @@ fn open_port(args: &LatheStreamArgs) -> Result<Port, Failure> {
         .timeout(Duration::from_millis(10))
         .open()
         .map(mandrel_drive::link::SerialLink)
-        .map_err(|e| Failure::runtime(format!("{}: {e}", args.port)))?;
+        // A port that does not exist, is not a terminal or is busy is bad input: nothing has
+        // been sent (docs/file-formats.md, "Cell file").
+        .map_err(|e| Failure::input(format!("--port {}: {e}", args.port)))?;
     port.discard_input()
         .map_err(|e| Failure::runtime(format!("{}: {e}", args.port)))?;
     Ok(port)

@@ -32,15 +32,29 @@ pub struct LatheTuneArgs {
     pub json: bool,
 }
 
+/// The fastest sampling `--rate` (1 MHz: a microsecond period) and the longest `--tau` (a day),
+/// beyond any servo axis.
+const MAX_RATE_HZ: f64 = 1e6;
+const MAX_TAU_S: f64 = 86_400.0;
+
 /// Runs `windcell lathe tune`.
 pub fn run(args: LatheTuneArgs) -> Result<(), Failure> {
     super::check_k_amp(args.k_amp)?;
     // Any rate: Eq. 8 is for any sampled axis (seed 003's worked value has T = π/2 s); the
     // lathe controller's own 1 … 1000 Hz applies to `lathe run` and `lathe gear`.
-    if !(args.rate > 0.0 && args.rate.is_finite()) {
+    if !(args.rate > 0.0 && args.rate <= MAX_RATE_HZ) {
         return Err(Failure::input(format!(
-            "--rate: {} must be > 0",
+            "--rate: {} must be > 0 and at most {MAX_RATE_HZ} Hz",
             paths::limits::shown(args.rate)
+        )));
+    }
+    // Below or at zero, Eq. 8's own check refuses it (`tau_s = … must be > 0`).
+    if let Some(tau) = args.tau
+        && tau > MAX_TAU_S
+    {
+        return Err(Failure::input(format!(
+            "--tau: {} s is more than {MAX_TAU_S} s",
+            paths::limits::shown(tau)
         )));
     }
     let (plant_gain, pole) = Amplifier::Voltage { k_amp: args.k_amp }.plant();

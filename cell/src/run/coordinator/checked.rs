@@ -187,7 +187,7 @@ impl Batch {
         };
         let prepared = items
             .iter()
-            .map(|item| Prepared::of(item, mode, &setup, &reach))
+            .map(|item| Prepared::of(item, mode, &setup, &reach).map_err(|e| e.in_item(&item.name)))
             .collect::<Result<Vec<_>, Error>>()?;
         if mode != RunMode::Discrete {
             check_memory(&items, &prepared)?;
@@ -259,6 +259,11 @@ impl Prepared {
             });
         }
         let program = if mode == RunMode::Discrete {
+            // A discrete run sends the .ROB's moves, but a .IND beside it is the operator's file
+            // too: one the indexer could not take is refused, not ignored.
+            if let Some(ind) = &item.ind {
+                transfer::indexer_program(ind, setup)?;
+            }
             None
         } else {
             let total = cumulative_steps.last().copied().unwrap_or(0);

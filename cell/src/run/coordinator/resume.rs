@@ -56,8 +56,36 @@ pub fn resume_point(
                 .get("mode")
                 .and_then(|v| v.as_str())
                 .unwrap_or("?")
-                .to_string(),
+                .chars()
+                .filter(|c| !c.is_control())
+                .take(20)
+                .collect(),
             run: batch.mode.keyword(),
+        }));
+    }
+    let names: Vec<&str> = batch.items.iter().map(|i| i.name.as_str()).collect();
+    let items = begin.get("items").and_then(|v| v.as_array());
+    // Every journal windcell writes names its paths; where it does, they must be the batch's.
+    if items.is_some_and(|v| {
+        v.iter()
+            .map(|n| n.as_str())
+            .ne(names.iter().map(|n| Some(*n)))
+    }) {
+        let journal = begin
+            .get("items")
+            .map(|v| v.to_string())
+            .unwrap_or_default();
+        let mut journal: String = journal
+            .chars()
+            .filter(|c| !c.is_control())
+            .take(80)
+            .collect();
+        if journal.is_empty() {
+            journal = "none".into();
+        }
+        return Err(Error::JournalMismatch(JournalMismatch::OtherItems {
+            journal,
+            batch: names.join(", "),
         }));
     }
     // Every number is held to the batch it claims to be: a journal is data, not trust.
@@ -83,7 +111,13 @@ pub fn resume_point(
                 _ => Err(Error::JournalMismatch(JournalMismatch::OutOfRange {
                     record: index + 1,
                     field: k,
-                    value: r.get(k).map(|v| v.to_string()).unwrap_or_default(),
+                    value: r
+                        .get(k)
+                        .map(|v| match v.as_f64() {
+                            Some(x) if !v.is_i64() => sequences::error::shown(x),
+                            _ => v.to_string().chars().take(40).collect(),
+                        })
+                        .unwrap_or_default(),
                     min,
                     max,
                 })),
@@ -102,11 +136,13 @@ pub fn resume_point(
                 p.stalled = false;
             }
             Some("item") => {
+                field("item", p.items_done as i64, p.items_done as i64)?;
                 p.sync_counter = None;
                 p.segments_done = 0;
                 p.program_started = false;
             }
             Some("sync") => {
+                field("item", p.items_done as i64, p.items_done as i64)?;
                 let t = field("counter", -counter_max, counter_max)?;
                 p.sync_counter = Some(t);
                 p.counter_next = Some(t);
@@ -122,7 +158,11 @@ pub fn resume_point(
                     .zip(cumulative.get(p.segments_done + 1))
                     .map(|(sync, steps)| sync + steps);
             }
+            Some("resume") => {
+                field("items_done", p.items_done as i64, p.items_done as i64)?;
+            }
             Some("program") => {
+                field("item", p.items_done as i64, p.items_done as i64)?;
                 p.program_started = true;
                 if let (Some(sync), Some(steps)) = (p.sync_counter, cumulative.last()) {
                     p.counter_confirmed = Some(sync);
