@@ -3,5 +3,6 @@
 //! the robot programs.
 
 mod dxf;
+mod reader_mutations;
 mod robot_programs;
 mod round_trip;
