@@ -697,7 +697,8 @@ const ATAN_SIXTEENTHS: [f64; 17] = [
 /// `atan t = atan c + atan u` with the Taylor series of `atan u` to `u⁹` (remainder below
 /// `32⁻¹¹/11 ≈ 3·10⁻¹⁸`, under a unit in the last place of any result), evaluated in two
 /// independent halves (Estrin's scheme) to shorten the chain of dependent operations the
-/// inverse kinematics waits on. Zeros, infinities and NaN go to the library.
+/// inverse kinematics waits on. Zeros, infinities and NaN go to the library; a `y` of `−0`
+/// against a finite `x` gives the library's `−0` or `−π`.
 #[inline]
 pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
@@ -720,7 +721,8 @@ pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     if x < 0.0 {
         a = PI - a;
     }
-    if y < 0.0 { -a } else { a }
+    // The sign of `y`'s zero counts as the library's does: `atan2(−0, −1) = −π`, not `π`.
+    if y.is_sign_negative() { -a } else { a }
 }
 
 /// Wraps an angle into (−π, π] (one add for angles within two turns, which is what sums of
@@ -811,6 +813,72 @@ mod tests {
         assert!(worst < 2e-15, "{worst}");
         assert!(atan2(f64::NAN, 1.0).is_nan());
         assert_eq!(atan2(0.0, 0.0), 0.0);
+    }
+
+    /// The fast arctangent in units in the last place of the library's, at every scale: both
+    /// magnitudes from 2⁻¹⁰⁰⁰ to 2¹⁰⁰⁰ (so ratios down to the subnormals), every octant and
+    /// both signs, at most 2 units apart; the sixteenths' boundaries (`t = (k ± ½)/16`, where
+    /// the reduction's `|u|` is largest) at most 2 as well. The inputs the library is left with
+    /// give its own result bit for bit: both zeros of either sign, infinities (`∞/∞` is `±π/4`
+    /// or `±3π/4`, not `0/0`), NaN in either place, and a signed zero against a finite `x`
+    /// (`atan2(−0, −1) = −π`, `atan2(−0, 1) = −0`).
+    #[test]
+    fn atan2_is_the_librarys_to_two_units_in_the_last_place() {
+        // A monotone map of the finite doubles onto the integers: adjacent doubles differ by 1.
+        fn key(v: f64) -> i64 {
+            let i = v.to_bits() as i64;
+            if i < 0 { i64::MIN - i } else { i }
+        }
+        let ulps = |y: f64, x: f64| (key(atan2(y, x)) - key(y.atan2(x))).unsigned_abs();
+        let mut seed = 0x0ddc_0ffe_e15e_a5edu64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut worst = 0;
+        for _ in 0..200_000 {
+            let (a, b) = (next(), next());
+            let mantissa = |r: u64| 1.0 + (r >> 12) as f64 / (1u64 << 52) as f64;
+            let sign = |r: u64| if r & 1 == 0 { 1.0 } else { -1.0 };
+            let scale = |r: u64| 2f64.powi((r % 2001) as i32 - 1000);
+            // Half the draws at like scales (ratios near 1, every sixteenth), half anywhere.
+            let (ey, ex) = if a & 2 == 0 {
+                (scale(b), scale(b) * 2f64.powi((a >> 2) as i32 % 4))
+            } else {
+                (scale(b), scale(b >> 11))
+            };
+            let (y, x) = (sign(a) * mantissa(a) * ey, sign(a >> 1) * mantissa(b) * ex);
+            worst = worst.max(ulps(y, x));
+        }
+        assert!(worst <= 2, "{worst} units in the last place");
+        // Either side of every sixteenth's boundary, in each octant.
+        for k in 0..16 {
+            for d in [-1e-9, 0.0, 1e-9] {
+                let t = (k as f64 + 0.5) / 16.0 + d;
+                for (y, x) in [(t, 1.0), (1.0, t), (-t, 1.0), (t, -1.0), (-1.0, -t)] {
+                    let u = ulps(y, x);
+                    assert!(u <= 2, "atan2({y}, {x}): {u} units in the last place");
+                }
+            }
+        }
+        let same = |y: f64, x: f64| {
+            let (ours, lib) = (atan2(y, x), y.atan2(x));
+            assert!(
+                ours.to_bits() == lib.to_bits() || (ours.is_nan() && lib.is_nan()),
+                "atan2({y}, {x}) = {ours}, the library's {lib}"
+            );
+        };
+        let inf = f64::INFINITY;
+        for y in [0.0, -0.0, 1.0, -1.0, inf, -inf, f64::NAN] {
+            for x in [0.0, -0.0, 1.0, -1.0, inf, -inf, f64::NAN] {
+                same(y, x);
+            }
+        }
+        assert_eq!(atan2(inf, inf), std::f64::consts::FRAC_PI_4);
+        assert_eq!(atan2(-inf, -inf), -3.0 * std::f64::consts::FRAC_PI_4);
+        assert_eq!(atan2(-0.0, -1.0), -PI);
     }
 
     #[test]
