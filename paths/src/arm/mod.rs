@@ -893,6 +893,52 @@ mod tests {
         assert!((singular_distance(-PI + 0.3) - 0.3).abs() < 1e-12);
     }
 
+    /// Whole multiples of π, which are exact in binary (π's double has trailing zero bits, so
+    /// `k·π` is exact for odd `k` up to 9 and `fmod` is exact): an odd multiple wraps to π, never
+    /// −π, and an even one to 0, at the ends of the one-add branches (±π, ±3π) and beyond them
+    /// (±5π, ±7π, ±9π, ±4π, ±8π); a hair inside −3π and 3π keeps its one add.
+    #[test]
+    fn wrap_takes_odd_multiples_of_pi_to_pi_and_even_ones_to_zero() {
+        for k in [1.0, 3.0, 5.0, 7.0, 9.0] {
+            assert_eq!(wrap(k * PI), PI, "{k}π");
+            assert_eq!(wrap(-k * PI), PI, "−{k}π");
+        }
+        for k in [0.0, 2.0, 4.0, 8.0] {
+            assert_eq!(wrap(k * PI), 0.0, "{k}π");
+            assert_eq!(wrap(-k * PI), 0.0, "−{k}π");
+        }
+        // Just inside the one-add branches: 3π less a thousandth, −3π plus one.
+        assert_eq!(wrap(3.0 * PI - 1e-3), 3.0 * PI - 1e-3 - TAU);
+        assert_eq!(wrap(-3.0 * PI + 1e-3), -3.0 * PI + 1e-3 + TAU);
+        // Far out: a million radians is 159 154.94 turns, so 159 155 turns less 0.358 rad.
+        let w = wrap(1e6);
+        assert!((w - (1e6 - 159_155.0 * TAU)).abs() < 1e-9, "{w}");
+        assert!((wrap(-1e6) + w).abs() < 1e-9);
+    }
+
+    /// The wrist bend's distance from its singular angles is taken on the model angle of axis 5
+    /// for an OPW arm (`sign·q − offset`) and on the joint itself for a UR: by hand, 0.3 rad
+    /// from 0, π − 2.9 rad from π, and with axis 5 reversed and offset by 0.5 rad a joint angle
+    /// of 0.2 rad is a bend of −0.7 rad, 0.7 rad from 0.
+    #[test]
+    fn the_wrist_distance_is_the_bend_from_zero_or_half_a_turn() {
+        let irb = SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap();
+        let ur = SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap();
+        let bent = |b: f64| [0.1, 0.2, 0.3, 0.4, b, 0.6];
+        for kind in [irb.kind, ur.kind] {
+            assert!((kind.wrist_distance_rad(&bent(0.3)) - 0.3).abs() < 1e-15);
+            assert!((kind.wrist_distance_rad(&bent(2.9)) - (PI - 2.9)).abs() < 1e-15);
+            assert!((kind.wrist_distance_rad(&bent(-2.9)) - (PI - 2.9)).abs() < 1e-15);
+        }
+        let SixAxisKind::Opw(mut o) = irb.kind else {
+            unreachable!()
+        };
+        o.signs[4] = -1;
+        o.offsets_rad[4] = 0.5;
+        let reversed = SixAxisKind::Opw(o);
+        assert!((reversed.wrist_distance_rad(&bent(0.2)) - 0.7).abs() < 1e-15);
+    }
+
     #[test]
     fn tool_frame_is_roll_pitch_yaw_about_fixed_axes() {
         let t = Tool {
