@@ -939,6 +939,31 @@ mod tests {
         assert!((reversed.wrist_distance_rad(&bent(0.2)) - 0.7).abs() < 1e-15);
     }
 
+    /// The default link radii are the table of `docs/arms.md` ("Default radii"), read from
+    /// the document, for both kinds, and a new arm takes them.
+    #[test]
+    fn default_link_radii_are_the_documented_table() {
+        let doc = include_str!("../../../docs/arms.md");
+        let row = |kind: &str| -> Vec<f64> {
+            let start = format!("| `{kind}` | ");
+            let line = doc
+                .lines()
+                .find(|l| l.starts_with(&start) && l.split('|').count() == LINKS + 3)
+                .unwrap_or_else(|| panic!("no radii row for {kind} in docs/arms.md"));
+            line.split('|')
+                .skip(2)
+                .take(LINKS)
+                .map(|c| c.trim().parse().unwrap())
+                .collect()
+        };
+        let irb = SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap();
+        let ur = SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap();
+        assert_eq!(default_link_radii_mm(&irb.kind).to_vec(), row("opw"));
+        assert_eq!(default_link_radii_mm(&ur.kind).to_vec(), row("ur"));
+        assert_eq!(irb.link_radii_mm.to_vec(), row("opw"));
+        assert_eq!(ur.link_radii_mm.to_vec(), row("ur"));
+    }
+
     #[test]
     fn tool_frame_is_roll_pitch_yaw_about_fixed_axes() {
         let t = Tool {
