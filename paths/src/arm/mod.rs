@@ -907,6 +907,15 @@ mod tests {
             assert_eq!(wrap(k * PI), 0.0, "{k}π");
             assert_eq!(wrap(-k * PI), 0.0, "−{k}π");
         }
+        // An angle inside (−π, π] is returned as it is, however small (a remainder of −10⁻²⁰
+        // by 2π would round to 2π and give 0); one within a turn beyond either end is one add
+        // of 2π away (exact there: both are within a factor 2 of 2π).
+        assert_eq!(wrap(-1e-20), -1e-20);
+        assert_eq!(wrap(1e-20), 1e-20);
+        let a = -TAU - 0.1;
+        assert_eq!(wrap(a), a + TAU);
+        let a = TAU + 0.1;
+        assert_eq!(wrap(a), a - TAU);
         // Just inside the one-add branches: 3π less a thousandth, −3π plus one.
         assert_eq!(wrap(3.0 * PI - 1e-3), 3.0 * PI - 1e-3 - TAU);
         assert_eq!(wrap(-3.0 * PI + 1e-3), -3.0 * PI + 1e-3 + TAU);
