@@ -697,7 +697,8 @@ const ATAN_SIXTEENTHS: [f64; 17] = [
 /// `atan t = atan c + atan u` with the Taylor series of `atan u` to `u⁹` (remainder below
 /// `32⁻¹¹/11 ≈ 3·10⁻¹⁸`, under a unit in the last place of any result), evaluated in two
 /// independent halves (Estrin's scheme) to shorten the chain of dependent operations the
-/// inverse kinematics waits on. Zeros, infinities and NaN go to the library.
+/// inverse kinematics waits on. Zeros, infinities and NaN go to the library; a `y` of `−0`
+/// against a finite `x` gives the library's `−0` or `−π`.
 #[inline]
 pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
@@ -720,7 +721,8 @@ pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     if x < 0.0 {
         a = PI - a;
     }
-    if y < 0.0 { -a } else { a }
+    // The sign of `y`'s zero counts as the library's does: `atan2(−0, −1) = −π`, not `π`.
+    if y.is_sign_negative() { -a } else { a }
 }
 
 /// Wraps an angle into (−π, π] (one add for angles within two turns, which is what sums of
@@ -813,6 +815,72 @@ mod tests {
         assert_eq!(atan2(0.0, 0.0), 0.0);
     }
 
+    /// The fast arctangent in units in the last place of the library's, at every scale: both
+    /// magnitudes from 2⁻¹⁰⁰⁰ to 2¹⁰⁰⁰ (so ratios down to the subnormals), every octant and
+    /// both signs, at most 2 units apart; the sixteenths' boundaries (`t = (k ± ½)/16`, where
+    /// the reduction's `|u|` is largest) at most 2 as well. The inputs the library is left with
+    /// give its own result bit for bit: both zeros of either sign, infinities (`∞/∞` is `±π/4`
+    /// or `±3π/4`, not `0/0`), NaN in either place, and a signed zero against a finite `x`
+    /// (`atan2(−0, −1) = −π`, `atan2(−0, 1) = −0`).
+    #[test]
+    fn atan2_is_the_librarys_to_two_units_in_the_last_place() {
+        // A monotone map of the finite doubles onto the integers: adjacent doubles differ by 1.
+        fn key(v: f64) -> i64 {
+            let i = v.to_bits() as i64;
+            if i < 0 { i64::MIN - i } else { i }
+        }
+        let ulps = |y: f64, x: f64| (key(atan2(y, x)) - key(y.atan2(x))).unsigned_abs();
+        let mut seed = 0x0ddc_0ffe_e15e_a5edu64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut worst = 0;
+        for _ in 0..200_000 {
+            let (a, b) = (next(), next());
+            let mantissa = |r: u64| 1.0 + (r >> 12) as f64 / (1u64 << 52) as f64;
+            let sign = |r: u64| if r & 1 == 0 { 1.0 } else { -1.0 };
+            let scale = |r: u64| 2f64.powi((r % 2001) as i32 - 1000);
+            // Half the draws at like scales (ratios near 1, every sixteenth), half anywhere.
+            let (ey, ex) = if a & 2 == 0 {
+                (scale(b), scale(b) * 2f64.powi((a >> 2) as i32 % 4))
+            } else {
+                (scale(b), scale(b >> 11))
+            };
+            let (y, x) = (sign(a) * mantissa(a) * ey, sign(a >> 1) * mantissa(b) * ex);
+            worst = worst.max(ulps(y, x));
+        }
+        assert!(worst <= 2, "{worst} units in the last place");
+        // Either side of every sixteenth's boundary, in each octant.
+        for k in 0..16 {
+            for d in [-1e-9, 0.0, 1e-9] {
+                let t = (k as f64 + 0.5) / 16.0 + d;
+                for (y, x) in [(t, 1.0), (1.0, t), (-t, 1.0), (t, -1.0), (-1.0, -t)] {
+                    let u = ulps(y, x);
+                    assert!(u <= 2, "atan2({y}, {x}): {u} units in the last place");
+                }
+            }
+        }
+        let same = |y: f64, x: f64| {
+            let (ours, lib) = (atan2(y, x), y.atan2(x));
+            assert!(
+                ours.to_bits() == lib.to_bits() || (ours.is_nan() && lib.is_nan()),
+                "atan2({y}, {x}) = {ours}, the library's {lib}"
+            );
+        };
+        let inf = f64::INFINITY;
+        for y in [0.0, -0.0, 1.0, -1.0, inf, -inf, f64::NAN] {
+            for x in [0.0, -0.0, 1.0, -1.0, inf, -inf, f64::NAN] {
+                same(y, x);
+            }
+        }
+        assert_eq!(atan2(inf, inf), std::f64::consts::FRAC_PI_4);
+        assert_eq!(atan2(-inf, -inf), -3.0 * std::f64::consts::FRAC_PI_4);
+        assert_eq!(atan2(-0.0, -1.0), -PI);
+    }
+
     #[test]
     fn wrap_is_into_minus_pi_pi() {
         for a in [-7.0, -PI, -1.0, 0.0, PI, 4.0, 13.0] {
@@ -823,6 +891,86 @@ mod tests {
         assert!((singular_distance(0.1) - 0.1).abs() < 1e-15);
         assert!((singular_distance(PI - 0.2) - 0.2).abs() < 1e-12);
         assert!((singular_distance(-PI + 0.3) - 0.3).abs() < 1e-12);
+    }
+
+    /// Whole multiples of π, which are exact in binary (π's double has trailing zero bits, so
+    /// `k·π` is exact for odd `k` up to 9 and `fmod` is exact): an odd multiple wraps to π, never
+    /// −π, and an even one to 0, at the ends of the one-add branches (±π, ±3π) and beyond them
+    /// (±5π, ±7π, ±9π, ±4π, ±8π); a hair inside −3π and 3π keeps its one add.
+    #[test]
+    fn wrap_takes_odd_multiples_of_pi_to_pi_and_even_ones_to_zero() {
+        for k in [1.0, 3.0, 5.0, 7.0, 9.0] {
+            assert_eq!(wrap(k * PI), PI, "{k}π");
+            assert_eq!(wrap(-k * PI), PI, "−{k}π");
+        }
+        for k in [0.0, 2.0, 4.0, 8.0] {
+            assert_eq!(wrap(k * PI), 0.0, "{k}π");
+            assert_eq!(wrap(-k * PI), 0.0, "−{k}π");
+        }
+        // An angle inside (−π, π] is returned as it is, however small (a remainder of −10⁻²⁰
+        // by 2π would round to 2π and give 0); one within a turn beyond either end is one add
+        // of 2π away (exact there: both are within a factor 2 of 2π).
+        assert_eq!(wrap(-1e-20), -1e-20);
+        assert_eq!(wrap(1e-20), 1e-20);
+        let a = -TAU - 0.1;
+        assert_eq!(wrap(a), a + TAU);
+        let a = TAU + 0.1;
+        assert_eq!(wrap(a), a - TAU);
+        // Just inside the one-add branches: 3π less a thousandth, −3π plus one.
+        assert_eq!(wrap(3.0 * PI - 1e-3), 3.0 * PI - 1e-3 - TAU);
+        assert_eq!(wrap(-3.0 * PI + 1e-3), -3.0 * PI + 1e-3 + TAU);
+        // Far out: a million radians is 159 154.94 turns, so 159 155 turns less 0.358 rad.
+        let w = wrap(1e6);
+        assert!((w - (1e6 - 159_155.0 * TAU)).abs() < 1e-9, "{w}");
+        assert!((wrap(-1e6) + w).abs() < 1e-9);
+    }
+
+    /// The wrist bend's distance from its singular angles is taken on the model angle of axis 5
+    /// for an OPW arm (`sign·q − offset`) and on the joint itself for a UR: by hand, 0.3 rad
+    /// from 0, π − 2.9 rad from π, and with axis 5 reversed and offset by 0.5 rad a joint angle
+    /// of 0.2 rad is a bend of −0.7 rad, 0.7 rad from 0.
+    #[test]
+    fn the_wrist_distance_is_the_bend_from_zero_or_half_a_turn() {
+        let irb = SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap();
+        let ur = SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap();
+        let bent = |b: f64| [0.1, 0.2, 0.3, 0.4, b, 0.6];
+        for kind in [irb.kind, ur.kind] {
+            assert!((kind.wrist_distance_rad(&bent(0.3)) - 0.3).abs() < 1e-15);
+            assert!((kind.wrist_distance_rad(&bent(2.9)) - (PI - 2.9)).abs() < 1e-15);
+            assert!((kind.wrist_distance_rad(&bent(-2.9)) - (PI - 2.9)).abs() < 1e-15);
+        }
+        let SixAxisKind::Opw(mut o) = irb.kind else {
+            unreachable!()
+        };
+        o.signs[4] = -1;
+        o.offsets_rad[4] = 0.5;
+        let reversed = SixAxisKind::Opw(o);
+        assert!((reversed.wrist_distance_rad(&bent(0.2)) - 0.7).abs() < 1e-15);
+    }
+
+    /// The default link radii are the table of `docs/arms.md` ("Default radii"), read from
+    /// the document, for both kinds, and a new arm takes them.
+    #[test]
+    fn default_link_radii_are_the_documented_table() {
+        let doc = include_str!("../../../docs/arms.md");
+        let row = |kind: &str| -> Vec<f64> {
+            let start = format!("| `{kind}` | ");
+            let line = doc
+                .lines()
+                .find(|l| l.starts_with(&start) && l.split('|').count() == LINKS + 3)
+                .unwrap_or_else(|| panic!("no radii row for {kind} in docs/arms.md"));
+            line.split('|')
+                .skip(2)
+                .take(LINKS)
+                .map(|c| c.trim().parse().unwrap())
+                .collect()
+        };
+        let irb = SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap();
+        let ur = SixAxisArm::ur_preset("ur10e", Tool::default()).unwrap();
+        assert_eq!(default_link_radii_mm(&irb.kind).to_vec(), row("opw"));
+        assert_eq!(default_link_radii_mm(&ur.kind).to_vec(), row("ur"));
+        assert_eq!(irb.link_radii_mm.to_vec(), row("opw"));
+        assert_eq!(ur.link_radii_mm.to_vec(), row("ur"));
     }
 
     #[test]

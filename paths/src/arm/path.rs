@@ -897,6 +897,22 @@ mod tests {
         }
     }
 
+    /// The whole-turn shift is measured from the target to the raw angle: by hand, axis 6 at
+    /// −170° after a pose at 180° is taken as 190° (10° on, not 350° back), and without a
+    /// reference −170° stays −170°, nearer the middle of axis 6's ±400° (0°) than 190°.
+    #[test]
+    fn a_wrist_axis_past_half_a_turn_is_shifted_toward_its_target() {
+        let q = [20.0, 30.0, -20.0, 40.0, 50.0, -170.0];
+        let after = [20.0, 30.0, -20.0, 40.0, 50.0, 180.0];
+        let got = at(q, Some(after)).unwrap();
+        assert!(
+            close(got, [20.0, 30.0, -20.0, 40.0, 50.0, 190.0]),
+            "{got:?}"
+        );
+        let got = at(q, None).unwrap();
+        assert!(close(got, q), "{got:?}");
+    }
+
     #[test]
     fn a_joint_within_the_margin_of_its_end_is_refused_with_its_figures() {
         match at([179.0, 30.0, -20.0, 40.0, 50.0, 60.0], None) {
