@@ -830,6 +830,51 @@ mod tests {
         SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap()
     }
 
+    /// Turns compose as angles add: `of(a).then(of(b))` is `of(a + b)` (the angle-sum formulas),
+    /// for angles of every quadrant and of either sign.
+    #[test]
+    fn turns_compose_as_their_angles_add() {
+        for a in [-2.9, -1.1, -0.3, 0.0, 0.7, 1.9, 3.0] {
+            for b in [-2.5, -0.8, 0.2, 1.3, 2.8] {
+                let t = Turn::of(a).then(Turn::of(b));
+                let want = Turn::of(a + b);
+                assert!(
+                    (t.c - want.c).abs() < 1e-12 && (t.s - want.s).abs() < 1e-12,
+                    "{a} then {b}: {t:?}, want {want:?}"
+                );
+            }
+        }
+    }
+
+    /// The perpendicular of a unit direction is a unit vector at a right angle to it, for
+    /// directions along and near each axis (where the helper axis must change) and oblique
+    /// ones; a vector along the direction is carried to such a perpendicular, any other to its
+    /// own part across the direction.
+    #[test]
+    fn perpendiculars_are_unit_and_at_right_angles() {
+        let directions = [
+            Vector3::x(),
+            -Vector3::x(),
+            Vector3::y(),
+            Vector3::z(),
+            Vector3::new(0.95, 0.3, 0.1).normalize(),
+            Vector3::new(0.85, -0.5, 0.2).normalize(),
+            Vector3::new(-0.3, 0.4, -0.866).normalize(),
+        ];
+        for d in directions {
+            let p = perpendicular(&d);
+            assert!((p.norm() - 1.0).abs() < 1e-12, "{d:?}: {p:?}");
+            assert!(p.dot(&d).abs() < 1e-12, "{d:?}: {p:?}");
+            let along = transported(&(d * 3.0), &d);
+            assert!((along.norm() - 1.0).abs() < 1e-12 && along.dot(&d).abs() < 1e-12);
+            // (1, 2, 3) less its part along d, by hand, then normalised.
+            let x = Vector3::new(1.0, 2.0, 3.0);
+            let across = x - d * d.dot(&x);
+            let t = transported(&x, &d);
+            assert!((t - across / across.norm()).norm() < 1e-12, "{d:?}: {t:?}");
+        }
+    }
+
     fn deg(q: [f64; 6]) -> Joints6 {
         q.map(f64::to_radians)
     }
