@@ -830,6 +830,28 @@ mod tests {
         SixAxisArm::opw_preset("irb2600-12/1.65", Tool::default()).unwrap()
     }
 
+    /// The least distance to a range end, by hand from the IRB 2600's ranges (docs/arms.md:
+    /// ±180, −95..155, −180..75, ±400, ±120, ±400): at zero, axis 3's 75° (index 2); with axis 1
+    /// at 170°, its 10° (index 0); with axis 2 at −90°, its 5°; with axis 5 at 118°, its 2°.
+    #[test]
+    fn the_limit_margin_is_the_nearest_range_end_and_its_axis() {
+        let arm = irb2600();
+        for (q_deg, least_deg, axis) in [
+            ([0.0; 6], 75.0, 2),
+            ([170.0, 0.0, 0.0, 0.0, 0.0, 0.0], 10.0, 0),
+            ([0.0, -90.0, 0.0, 0.0, 0.0, 0.0], 5.0, 1),
+            ([0.0, 0.0, 0.0, 0.0, 118.0, 0.0], 2.0, 4),
+        ] {
+            let (m, i) = arm.limit_margin(&deg(q_deg));
+            assert!(
+                (m.to_degrees() - least_deg).abs() < 1e-9,
+                "{q_deg:?}: {}",
+                m.to_degrees()
+            );
+            assert_eq!(i, axis, "{q_deg:?}");
+        }
+    }
+
     /// Turns compose as angles add: `of(a).then(of(b))` is `of(a + b)` (the angle-sum formulas),
     /// for angles of every quadrant and of either sign.
     #[test]
