@@ -217,10 +217,25 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
     }
 }
 
-/// Refuses a plan of the IRB 6/2 cell that `windcell run` would refuse on the job's own cell
-/// (`cell::run::batch::admit`, the pre-run check `run` makes): `plan`, `sweep` and `check` exit 2
-/// with its line before anything is written. A six-axis arm's plan is its controller's to run.
+/// Refuses a plan of the IRB 6/2 cell, made into `files`, that `windcell run` would refuse on
+/// the job's own cell (`cell::run::batch::admit`, the pre-run check `run` makes): `plan` and
+/// `sweep` exit 2 with its line before anything is written. A six-axis arm's plan is its
+/// controller's to run.
 pub fn admit(
+    job: &sequences::Job,
+    job_path: &std::path::Path,
+    files: &[(std::path::PathBuf, String)],
+) -> Result<(), Failure> {
+    if job.robot_kind() != sequences::job::RobotKind::Irb6 {
+        return Ok(());
+    }
+    cell::run::batch::admit(job, job_path, files, None).map_err(Failure::from_cell)?;
+    Ok(())
+}
+
+/// [`admit`] for a command that has the plan but not its files (`check`): they are made only
+/// for the IRB 6/2.
+pub fn admit_plan(
     job: &sequences::Job,
     job_path: &std::path::Path,
     plan: &cell::plan::tool::JobPlan,
@@ -229,8 +244,7 @@ pub fn admit(
         return Ok(());
     }
     let files = cell::plan::files::control_files(job, plan).map_err(Failure::from_cell)?;
-    cell::run::batch::admit(job, job_path, &files, None).map_err(Failure::from_cell)?;
-    Ok(())
+    admit(job, job_path, &files)
 }
 
 #[cfg(test)]

@@ -275,10 +275,7 @@ impl Display {
                             duration(self.left_s(*item, segment))
                         ),
                     );
-                    self.line(&format!(
-                        "  path {item} {path}: program {program} {} at t = {time_s:.1} s",
-                        if *done { "done" } else { "started" }
-                    ));
+                    self.line(&format!("  {e}"));
                 }
             }
         }

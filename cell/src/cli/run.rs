@@ -512,8 +512,8 @@ fn load(args: &RunArgs) -> Result<Load, Failure> {
         }
         let plan = cell::plan::tool::plan(&job, &text, &args.input).map_err(Failure::from_cell)?;
         let files = cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?;
-        let (loaded, _) =
-            batch::admit(&job, &args.input, &files, mode).map_err(Failure::from_cell)?;
+        // Read back as from disk; the pre-run check (`check`) is then the one every input gets.
+        let loaded = batch::of_job(&args.input, &files, mode).map_err(Failure::from_cell)?;
         let reach = batch::envelope(&job);
         let name = job.name.get_ref().clone();
         let c = Cell::of_job(&job, &args.input).map_err(Failure::from_cell)?;

@@ -189,13 +189,6 @@ pub fn inputs_of_job(job: &sequences::Job, file: &Path) -> Vec<PathBuf> {
     inputs
 }
 
-/// Checks that `path` can take a single output file of a command reading `inputs`
-/// ([`check_file`], [`not_an_input`]).
-pub fn check_output_file(path: &Path, inputs: &[PathBuf]) -> Result<(), Error> {
-    check_file(path)?;
-    not_an_input(path, inputs)
-}
-
 /// [`check_file`] on each of a command's single output files, then [`check_outputs`].
 pub fn check_output_files(outputs: &[&Path], inputs: &[PathBuf]) -> Result<(), Error> {
     for output in outputs {

@@ -205,12 +205,26 @@ pub fn envelope(job: &sequences::Job) -> Reach {
     }
 }
 
+/// A job's control files planned in memory (`files`, as [`crate::plan::files::control_files`]
+/// makes them) read back as [`load`] reads them from disk, for `mode` (else their movement).
+pub fn of_job(
+    job_path: &Path,
+    files: &[(PathBuf, String)],
+    mode: Option<RunMode>,
+) -> Result<Loaded, Error> {
+    let dir = job_path.parent().unwrap_or(Path::new("."));
+    let mut loaded = from_files(&files_of_job(files), mode, dir, &dir.join("RUN"))?;
+    loaded.sequence_path = job_path.to_path_buf();
+    Ok(loaded)
+}
+
 /// What `windcell run` makes of a planned job on the job's own cell: its control files (`files`,
 /// as [`crate::plan::files::control_files`] makes them) read back and put through the pre-run
 /// check ([`Batch::new`]: each instruction in the devices' units and ranges, within the arm's
 /// envelope, each mandrel move within the drive's pulse rates and counts, the programs within
-/// the robot's memory). The one function `plan`, `sweep`, `check` and `predict` refuse with what
-/// `run` would refuse, so a plan that exits 0 is one `run` accepts. Errors name the job file.
+/// the robot's memory): [`of_job`], then the [`Batch::new`] `run` makes before it moves. `plan`,
+/// `sweep` and `check` refuse with it what `run` would refuse, so a plan that exits 0 is one
+/// `run` accepts. Errors name the job file.
 pub fn admit(
     job: &sequences::Job,
     job_path: &Path,
@@ -221,10 +235,7 @@ pub fn admit(
         job: job_path.to_path_buf(),
         source: Box::new(source),
     };
-    let dir = job_path.parent().unwrap_or(Path::new("."));
-    let set = files_of_job(files);
-    let mut loaded = from_files(&set, mode, dir, &dir.join("RUN")).map_err(refused)?;
-    loaded.sequence_path = job_path.to_path_buf();
+    let loaded = of_job(job_path, files, mode).map_err(refused)?;
     let cell = Cell::of_job(job, job_path)?;
     let batch = Batch::new(
         loaded.items.clone(),
