@@ -360,12 +360,15 @@ pub enum Error {
     /// A plan that `windcell run` would refuse (its pre-run check on the job's own cell): the
     /// job, then what the check found.
     #[error(
-        "{}: the plan cannot be wound as it stands, the pre-run check refuses it: {source}",
-        job.display()
+        "{}{}: the plan cannot be wound as it stands, the pre-run check refuses it: {source}",
+        job.display(),
+        place.map_or(String::new(), |(line, column)| format!(":{line}:{column}"))
     )]
     NotRunnable {
         /// The job file.
         job: PathBuf,
+        /// 1-based line and column of the job value behind the refusal, where one value is.
+        place: Option<(usize, usize)>,
         /// What the pre-run check found.
         source: Box<Error>,
     },

@@ -684,18 +684,6 @@ fn refused(command: &str, reason: &[u8]) -> Error {
     }
 }
 
-fn range(name: &'static str, value: f64, lo: f64, hi: f64, expected: &'static str) -> Result<f64> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(value)
-    } else {
-        Err(Error::OutOfRange {
-            name,
-            value,
-            expected,
-        })
-    }
-}
-
 impl<L: Link, C: Clock> Indexer for XClient<L, C> {
     fn now(&self) -> Duration {
         self.clock.now()
@@ -740,21 +728,7 @@ impl<L: Link, C: Clock> Indexer for XClient<L, C> {
 
     fn set_profile(&mut self, p: Profile) -> Result<()> {
         let drive = self.cfg.drive;
-        p.validate(&drive)?;
-        let a = range(
-            "accel (motor rev/s²)",
-            drive.motor_rps(p.accel_rps2),
-            0.01,
-            999.0,
-            "0.01–999.00",
-        )?;
-        let v = range(
-            "velocity (motor rev/s)",
-            drive.motor_rps(p.max_rps),
-            0.01,
-            50.0,
-            "0.01–50.00",
-        )?;
+        let (a, v) = xlang::accel_and_velocity(&p, &drive)?;
         if p.start_rps > 0.0 && !self.cfg.start_velocity_command {
             return Err(Error::Unsupported {
                 dialect: "the X-language",
@@ -786,11 +760,10 @@ impl<L: Link, C: Clock> Indexer for XClient<L, C> {
     fn run_constant(&mut self, mandrel_rps: f64, dir: Direction) -> Result<()> {
         let drive = self.cfg.drive;
         drive.check_pulse_rate(mandrel_rps)?;
-        let v = range(
+        let v = xlang::in_range(
             "velocity (motor rev/s)",
             drive.motor_rps(mandrel_rps),
-            0.0,
-            50.0,
+            (0.0, xlang::VELOCITY_RANGE_MOTOR_RPS.1),
             "0–50.00",
         )?;
         self.send(&Command::Continuous)?;
@@ -1181,10 +1154,13 @@ mod tests {
     /// not finite.
     #[test]
     fn range_passes_only_finite_values_inside_the_bounds() {
-        assert_eq!(range("v", 2.5, 0.01, 50.0, "").unwrap(), 2.5);
-        assert_eq!(range("v", 0.01, 0.01, 50.0, "").unwrap(), 0.01);
+        assert_eq!(xlang::in_range("v", 2.5, (0.01, 50.0), "").unwrap(), 2.5);
+        assert_eq!(xlang::in_range("v", 0.01, (0.01, 50.0), "").unwrap(), 0.01);
         for bad in [0.005, 50.5, f64::NAN, f64::INFINITY] {
-            assert!(range("v", bad, 0.01, 50.0, "").is_err(), "{bad}");
+            assert!(
+                xlang::in_range("v", bad, (0.01, 50.0), "").is_err(),
+                "{bad}"
+            );
         }
     }
 

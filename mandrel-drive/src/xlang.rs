@@ -7,6 +7,54 @@
 
 use std::fmt;
 
+use crate::error::Error;
+use crate::profile::Profile;
+use crate::units::Drive;
+
+/// `A`'s range, motor rev/s² (OEM guide: 0.01–999.00).
+pub const ACCEL_RANGE_MOTOR_RPS2: (f64, f64) = (0.01, 999.0);
+/// `V`'s range for a preset move, motor rev/s (OEM guide: 0.01–50.00).
+pub const VELOCITY_RANGE_MOTOR_RPS: (f64, f64) = (0.01, 50.0);
+
+/// The `A` and `V` a mandrel profile is sent as on `drive` (motor rev/s², motor rev/s): the
+/// profile's own checks ([`Profile::validate`]: signs, order, the translator's pulse limit), then
+/// the guide's ranges. Every place that sends or admits a profile asks this one function, so what
+/// the pre-run check passes is what the indexer takes.
+pub fn accel_and_velocity(p: &Profile, drive: &Drive) -> crate::error::Result<(f64, f64)> {
+    p.validate(drive)?;
+    let accel = in_range(
+        "accel (motor rev/s²)",
+        drive.motor_rps(p.accel_rps2),
+        ACCEL_RANGE_MOTOR_RPS2,
+        "0.01–999.00",
+    )?;
+    let velocity = in_range(
+        "velocity (motor rev/s)",
+        drive.motor_rps(p.max_rps),
+        VELOCITY_RANGE_MOTOR_RPS,
+        "0.01–50.00",
+    )?;
+    Ok((accel, velocity))
+}
+
+/// `value` if finite and within `lo..=hi`, else [`Error::OutOfRange`] naming it.
+pub fn in_range(
+    name: &'static str,
+    value: f64,
+    (lo, hi): (f64, f64),
+    expected: &'static str,
+) -> crate::error::Result<f64> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(Error::OutOfRange {
+            name,
+            value,
+            expected,
+        })
+    }
+}
+
 /// One X-language command.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]

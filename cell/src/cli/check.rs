@@ -40,7 +40,7 @@ pub fn run(args: CheckArgs) -> Result<(), Failure> {
         .collect();
     cell::plan::output::check_output_files(&outputs, &inputs).map_err(Failure::from_cell)?;
     let checked = check::run(&job, &text, &args.job).map_err(Failure::from_cell)?;
-    super::admit_plan(&job, &args.job, &checked.plan)?;
+    super::admit_plan(&job, &text, &args.job, &checked.plan)?;
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     if let Some(svg) = &args.svg {
         files.push((svg.clone(), cell::plan::figure::svg(&checked).into_bytes()));

@@ -223,13 +223,14 @@ pub fn run(cli: Cli) -> Result<(), Failure> {
 /// controller's to run.
 pub fn admit(
     job: &sequences::Job,
+    text: &str,
     job_path: &std::path::Path,
     files: &[(std::path::PathBuf, String)],
 ) -> Result<(), Failure> {
     if job.robot_kind() != sequences::job::RobotKind::Irb6 {
         return Ok(());
     }
-    cell::run::batch::admit(job, job_path, files, None).map_err(Failure::from_cell)?;
+    cell::run::batch::admit(job, text, job_path, files, None).map_err(Failure::from_cell)?;
     Ok(())
 }
 
@@ -237,6 +238,7 @@ pub fn admit(
 /// for the IRB 6/2.
 pub fn admit_plan(
     job: &sequences::Job,
+    text: &str,
     job_path: &std::path::Path,
     plan: &cell::plan::tool::JobPlan,
 ) -> Result<(), Failure> {
@@ -244,7 +246,7 @@ pub fn admit_plan(
         return Ok(());
     }
     let files = cell::plan::files::control_files(job, plan).map_err(Failure::from_cell)?;
-    admit(job, job_path, &files)
+    admit(job, text, job_path, &files)
 }
 
 #[cfg(test)]

@@ -33,7 +33,7 @@ pub fn run(args: PlanArgs) -> Result<(), Failure> {
     output::check_dir(&args.out).map_err(Failure::from_cell)?;
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let files = cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?;
-    super::admit(&job, &args.job, &files)?;
+    super::admit(&job, &text, &args.job, &files)?;
     // The collision and snag check's one line (`windcell check` shows every segment; the plan
     // is written either way, and `windcell run` refuses it while the check finds anything).
     let checked = cell::plan::check::check(&job, &text, &args.job, plan.clone())

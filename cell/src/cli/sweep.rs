@@ -41,7 +41,7 @@ pub fn run(args: SweepArgs) -> Result<(), Failure> {
     let job = cell::plan::sweep::expand(&job, &args.job, paths).map_err(Failure::from_cell)?;
     let plan = tool::plan(&job, &text, &args.job).map_err(Failure::from_cell)?;
     let files = cell::plan::files::control_files(&job, &plan).map_err(Failure::from_cell)?;
-    super::admit(&job, &args.job, &files)?;
+    super::admit(&job, &text, &args.job, &files)?;
     // The collision and snag check, as `plan` prints it (`windcell run --job` refuses the set
     // while it finds anything).
     let checked = cell::plan::check::check(&job, &text, &args.job, plan.clone())

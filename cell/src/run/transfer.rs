@@ -50,11 +50,6 @@ use crate::Error;
 /// Millimetres per metre: the telegram's base and maximum speeds are in m/s.
 const MM_PER_M: f64 = 1000.0;
 
-/// Lowest and highest X-language acceleration, motor rev/s² (`A`, OEM guide: 0.01–999.00).
-pub const X_ACCEL_RANGE_RPS2: (f64, f64) = (0.01, 999.0);
-/// Lowest and highest X-language velocity, motor rev/s (`V`, OEM guide: 0.01–50.00).
-pub const X_VELOCITY_RANGE_RPS: (f64, f64) = (0.01, 50.0);
-
 /// The zone of a stored program's positions, `None` for discrete movement (seed 001 §5.4.2).
 pub fn zone(movement: Movement) -> Option<Zone> {
     match movement {
@@ -225,21 +220,8 @@ pub fn indexer_move(
         start_rps: mv.start_stop_rps,
         max_rps: mv.max_rps,
     };
-    profile.validate(&drive).map_err(fail)?;
-    let accel = in_range(
-        "accel (motor rev/s²)",
-        drive.motor_rps(profile.accel_rps2),
-        X_ACCEL_RANGE_RPS2,
-        "0.01–999.00",
-    )
-    .map_err(fail)?;
-    let velocity = in_range(
-        "velocity (motor rev/s)",
-        drive.motor_rps(profile.max_rps),
-        X_VELOCITY_RANGE_RPS,
-        "0.01–50.00",
-    )
-    .map_err(fail)?;
+    let (accel, velocity) =
+        mandrel_drive::xlang::accel_and_velocity(&profile, &drive).map_err(fail)?;
     let mut out = vec![XCommand::Accel(accel), XCommand::Velocity(velocity)];
     if setup.start_velocity_command {
         out.push(XCommand::StartVelocity(drive.motor_rps(profile.start_rps)));
@@ -257,23 +239,6 @@ pub fn indexer_move(
         XCommand::Notify,
     ]);
     Ok(out)
-}
-
-fn in_range(
-    name: &'static str,
-    value: f64,
-    (lo, hi): (f64, f64),
-    expected: &'static str,
-) -> Result<f64, mandrel_drive::Error> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(value)
-    } else {
-        Err(mandrel_drive::Error::OutOfRange {
-            name,
-            value,
-            expected,
-        })
-    }
 }
 
 /// A `.IND` file as X-language commands, record by record (seed 001 §5.6.2).

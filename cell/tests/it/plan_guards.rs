@@ -411,25 +411,39 @@ fn the_continuous_speed_advice_plans() {
 #[test]
 fn a_plan_that_run_would_refuse_is_refused_when_planned() {
     let dir = tempfile::tempdir().unwrap();
-    for (name, edit, expected) in [
+    // Each refusal is placed at the one job value behind it: the pulse rate at the mandrel
+    // speed (the figure the rate is of), the acceleration and the header speed at their own.
+    for (name, edit, key, expected) in [
         (
             "pulses.toml",
             ("steps_per_rev = 400", "steps_per_rev = 51200"),
+            "mandrel_speed_rps = ",
             "23631 pulses/s exceeds the translator limit of 10000 pulses/s",
         ),
         (
             "accel.toml",
             ("accel_rps2 = 1.0", "accel_rps2 = 500.0"),
+            "accel_rps2 = ",
             "accel (motor rev/s²) = 2307.69231 out of range",
         ),
         (
             "speed.toml",
             ("max_speed_mm_s = 2000.0", "max_speed_mm_s = 9000.0"),
+            "max_speed_mm_s = ",
             "max_speed = 9 out of range",
         ),
     ] {
         let job = example_variant(dir.path(), "cylinder.toml", name, &[edit]);
-        let place = format!("{}: the plan cannot be wound as it stands", job.display());
+        let text = std::fs::read_to_string(&job).unwrap();
+        let (line, column) = text
+            .lines()
+            .enumerate()
+            .find_map(|(k, l)| l.starts_with(key).then_some((k + 1, key.len() + 1)))
+            .unwrap();
+        let place = format!(
+            "{}:{line}:{column}: the plan cannot be wound as it stands",
+            job.display()
+        );
         refused(&job, &place, expected);
         let o = windcell(&["check", job.to_str().unwrap()]);
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
