@@ -144,6 +144,47 @@ fn check(job: &str, pick: usize, m: Mutation, in_drawing: bool) -> Result<(), Te
     Ok(())
 }
 
+/// The cell file `name` with its `pick`-th number mutated by `m`: read, or refused in one line
+/// naming the file; never a panic; within a second.
+fn check_cell_file(name: &str, pick: usize, m: Mutation) -> Result<(), TestCaseError> {
+    let text = mutate(
+        &std::fs::read_to_string(common::example(name)).unwrap(),
+        pick,
+        m,
+    );
+    let path = Path::new(name);
+    let started = std::time::Instant::now();
+    let read = std::panic::catch_unwind(|| cell::run::cellfile::Cell::parse(&text, path));
+    prop_assert!(started.elapsed() < std::time::Duration::from_secs(1));
+    match read {
+        Ok(Ok(_)) => {}
+        Ok(Err(e)) => {
+            let line = e.to_string();
+            prop_assert!(line.contains(name), "{line}");
+            prop_assert_eq!(line.lines().count(), 1, "{}", line);
+        }
+        Err(_) => prop_assert!(false, "{name} panicked on {text:?}"),
+    }
+    Ok(())
+}
+
+/// Every mutation the property tests draw from.
+const MUTATIONS: [Mutation; 6] = [
+    Mutation::Scale(1e6),
+    Mutation::Scale(1e-6),
+    Mutation::Zero,
+    Mutation::Negate,
+    Mutation::NaN,
+    Mutation::Drop,
+];
+
+/// The numbers outside comments in `text`.
+fn count_numbers(text: &str) -> usize {
+    text.lines()
+        .map(|l| numbers(l.split('#').next().unwrap_or_default()).len())
+        .sum()
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 24, failure_persistence: None, ..ProptestConfig::default() })]
 
@@ -170,21 +211,7 @@ proptest! {
         pick in 0usize..10_000,
         m in mutation(),
     ) {
-        let name = ["cell-serial.toml", "cell-sim.toml"][file];
-        let text = mutate(&std::fs::read_to_string(common::example(name)).unwrap(), pick, m);
-        let path = Path::new(name);
-        let started = std::time::Instant::now();
-        let read = std::panic::catch_unwind(|| cell::run::cellfile::Cell::parse(&text, path));
-        prop_assert!(started.elapsed() < std::time::Duration::from_secs(1));
-        match read {
-            Ok(Ok(_)) => {}
-            Ok(Err(e)) => {
-                let line = e.to_string();
-                prop_assert!(line.contains(name), "{line}");
-                prop_assert_eq!(line.lines().count(), 1, "{}", line);
-            }
-            Err(_) => prop_assert!(false, "{name} panicked on {text:?}"),
-        }
+        check_cell_file(["cell-serial.toml", "cell-sim.toml"][file], pick, m)?;
     }
 }
 
@@ -216,25 +243,34 @@ fn mutations_change_what_they_say() {
 #[test]
 fn every_number_of_the_six_axis_job_mutated_every_way_plans_or_fails_cleanly() {
     let text = std::fs::read_to_string(common::example("ur10e-cylinder.toml")).unwrap();
-    let count: usize = text
-        .lines()
-        .map(|l| numbers(l.split('#').next().unwrap_or_default()).len())
-        .sum();
+    let count = count_numbers(&text);
     assert!(count >= 30, "{count} numbers");
     let mut cases = 0;
     for pick in 0..count {
-        for m in [
-            Mutation::Scale(1e6),
-            Mutation::Scale(1e-6),
-            Mutation::Zero,
-            Mutation::Negate,
-            Mutation::NaN,
-            Mutation::Drop,
-        ] {
+        for m in MUTATIONS {
             check("ur10e-cylinder.toml", pick, m, false)
                 .unwrap_or_else(|e| panic!("number {pick}, {m:?}: {e}"));
             cases += 1;
         }
     }
     assert!(cases >= 180, "{cases} cases");
+}
+
+/// The cell files' whole mutation space, not a sample: each number of both shipped cell files
+/// mutated each way (the reader is in-process and fast, so every case runs every time).
+#[test]
+fn every_number_of_the_shipped_cell_files_mutated_every_way_reads_or_is_refused_cleanly() {
+    let mut cases = 0;
+    for name in ["cell-serial.toml", "cell-sim.toml"] {
+        let count = count_numbers(&std::fs::read_to_string(common::example(name)).unwrap());
+        assert!(count >= 4, "{name}: {count} numbers");
+        for pick in 0..count {
+            for m in MUTATIONS {
+                check_cell_file(name, pick, m)
+                    .unwrap_or_else(|e| panic!("{name} number {pick}, {m:?}: {e}"));
+                cases += 1;
+            }
+        }
+    }
+    assert!(cases >= 48, "{cases} cases");
 }
