@@ -277,36 +277,30 @@ pub enum Error {
     /// A control file planned for another movement, wound in continuous mode (its timing is a
     /// property of the plan: docs/continuous.md).
     #[error(
-        "{path}: planned for {movement} movement; continuous mode needs files planned for it \
+        "planned for {movement} movement; continuous mode needs files planned for it \
          (movement = \"continuous\" in the job)"
     )]
     NotPlannedForContinuous {
-        /// The control file's name.
-        path: String,
         /// The movement it was planned for.
         movement: &'static str,
     },
     /// A relative position in a robot control file: the coordinator resumes to absolute ones.
     #[error(
-        "{path}: instruction {instruction}: relative positions cannot be resumed; the \
-         coordinator needs absolute ones"
+        "instruction {instruction}: relative positions cannot be resumed; the coordinator needs \
+         absolute ones"
     )]
     RelativePosition {
-        /// The control file's name.
-        path: String,
         /// The file's instruction number.
         instruction: u16,
     },
     /// An instruction's eye target outside the arm's working range (checked before anything is
     /// sent).
     #[error(
-        "{path}: instruction {instruction}: the eye at ({:.1}, {:.1}, {:.1}) mm is out of the \
+        "instruction {instruction}: the eye at ({:.1}, {:.1}, {:.1}) mm is out of the \
          arm's reach ({:.0}–{:.0} mm from the axis, height {:.0}–{:.0} mm)",
         eye_mm[0], eye_mm[1], eye_mm[2], radius_mm.0, radius_mm.1, height_mm.0, height_mm.1
     )]
     OutOfReach {
-        /// The control file's name.
-        path: String,
         /// The file's instruction number.
         instruction: u16,
         /// The target, cell frame, mm.
@@ -317,11 +311,8 @@ pub enum Error {
         height_mm: (f64, f64),
     },
     /// A robot control file with no instruction.
-    #[error("{path}: the robot control file has no instruction")]
-    EmptyProgram {
-        /// The control file's name.
-        path: String,
-    },
+    #[error("the robot control file has no instruction")]
+    EmptyProgram,
     /// A file the batch needs is not there.
     #[error("{}: missing ({why})", file.display())]
     MissingFile {
@@ -331,10 +322,8 @@ pub enum Error {
         why: &'static str,
     },
     /// A mandrel file whose move does not turn what its robot file's instructions turn.
-    #[error("{path}.IND: the move turns {ind_steps} steps, the .ROB's instructions {rob_steps}")]
+    #[error("the move turns {ind_steps} steps, the .ROB's instructions {rob_steps}")]
     MandrelSteps {
-        /// The control files' name.
-        path: String,
         /// Steps of the `.IND` move.
         ind_steps: i64,
         /// Steps of the `.ROB` instructions together.
@@ -386,10 +375,15 @@ pub enum Error {
     JournalMismatch(JournalMismatch),
     /// A control file's value the devices cannot take, naming the file (`NAME.ROB`, or
     /// `NAME.IND` for its move) before the program and instruction ([`Error::in_item`]).
-    #[error("{file}: {source}")]
+    #[error(
+        "{file}{}: {source}",
+        place.map_or(String::new(), |(line, column)| format!(":{line}:{column}"))
+    )]
     ControlFile {
-        /// The control file's name.
+        /// The control file's name, or its path when it was read from one.
         file: String,
+        /// 1-based line and column of the refused value, when the file was read from disk.
+        place: Option<(usize, usize)>,
         /// What the conversion refused.
         source: Box<Error>,
     },
@@ -469,7 +463,7 @@ impl Error {
                 | Error::SixAxisNotDriven { .. }
                 | Error::PostNeedsSixAxis { .. }
                 | Error::PostDecoupledFlying { .. }
-                | Error::EmptyProgram { .. }
+                | Error::EmptyProgram
                 | Error::MissingFile { .. }
                 | Error::MandrelSteps { .. }
                 | Error::BatchMemory { .. }
@@ -539,7 +533,13 @@ impl Error {
     /// error as it is.
     pub fn in_item(self, name: &str) -> Error {
         let file = match &self {
-            Error::RobotTransfer { .. } | Error::DiscreteProgram { .. } => format!("{name}.ROB"),
+            Error::RobotTransfer { .. }
+            | Error::DiscreteProgram { .. }
+            | Error::NotPlannedForContinuous { .. }
+            | Error::RelativePosition { .. }
+            | Error::OutOfReach { .. }
+            | Error::EmptyProgram => format!("{name}.ROB"),
+            Error::MandrelSteps { .. } => format!("{name}.IND"),
             Error::IndexerTransfer {
                 instruction: Some(_),
                 ..
@@ -551,8 +551,83 @@ impl Error {
         };
         Error::ControlFile {
             file,
+            place: None,
             source: Box::new(self),
         }
+    }
+
+    /// The control-file value a pre-run refusal is about: the file (`.ROB` or `.IND`), the
+    /// instruction (`None` for a file-level value: a `.ROB` header's, the `.IND` move's) and the
+    /// field as [`sequences::RobotFile::parse_placed`] names it, with the part of a list value
+    /// (`pos_mm`'s x, y, z as 0, 1, 2). `None` for a refusal of no one value.
+    pub fn control_value(&self) -> Option<ControlValue> {
+        use ControlFileKind::{Ind, Rob};
+        let value = |kind, instruction, field| ControlValue {
+            kind,
+            instruction,
+            field,
+            part: 0,
+        };
+        Some(match self {
+            Error::ControlFile { source, .. } => return source.control_value(),
+            Error::RobotTransfer {
+                instruction: None,
+                source: asea_protocol::EncodeError::OutOfRange { name, .. },
+                ..
+            } => value(
+                Rob,
+                None,
+                if *name == "max_speed" {
+                    "max_speed_mm_s"
+                } else {
+                    "base_speed_mm_s"
+                },
+            ),
+            Error::RobotTransfer {
+                instruction: Some(n),
+                source,
+                ..
+            } => match source {
+                asea_protocol::EncodeError::OutOfRange { name: "speed", .. } => {
+                    value(Rob, Some(*n), "speed_pct")
+                }
+                asea_protocol::EncodeError::OutOfRange { name, .. }
+                    if ["x", "y", "z"].contains(name) =>
+                {
+                    ControlValue {
+                        part: usize::from(*name == "y") + 2 * usize::from(*name == "z"),
+                        ..value(Rob, Some(*n), "pos_mm")
+                    }
+                }
+                _ => value(Rob, Some(*n), "q"),
+            },
+            Error::IndexerTransfer {
+                instruction,
+                source,
+            } => value(
+                if instruction.is_some() { Rob } else { Ind },
+                *instruction,
+                match source {
+                    mandrel_drive::Error::OutOfRange { name, .. } if name.starts_with("accel") => {
+                        "accel_rps2"
+                    }
+                    mandrel_drive::Error::OutOfRange { name, .. } if name.starts_with("start") => {
+                        "start_rps"
+                    }
+                    mandrel_drive::Error::Unsupported { .. } => "start_rps",
+                    mandrel_drive::Error::OutOfRange { .. }
+                    | mandrel_drive::Error::PulseRate { .. } => "max_rps",
+                    _ => "steps",
+                },
+            ),
+            Error::DiscreteProgram { .. } | Error::NotPlannedForContinuous { .. } => {
+                value(Rob, None, "movement")
+            }
+            Error::RelativePosition { instruction, .. } => value(Rob, Some(*instruction), "ref"),
+            Error::OutOfReach { instruction, .. } => value(Rob, Some(*instruction), "pos_mm"),
+            Error::MandrelSteps { .. } => value(Ind, None, "steps"),
+            _ => return None,
+        })
     }
 
     /// A journal mismatch, naming the journal file; any other error as it is.
@@ -565,6 +640,28 @@ impl Error {
             other => other,
         }
     }
+}
+
+/// The control-file value a pre-run refusal is about ([`Error::control_value`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ControlValue {
+    /// The `.ROB` or the `.IND`.
+    pub kind: ControlFileKind,
+    /// The instruction; `None` for a file-level value.
+    pub instruction: Option<u16>,
+    /// The field, as the reader names it.
+    pub field: &'static str,
+    /// The part of a list value, 0-based (0 for a single value).
+    pub part: usize,
+}
+
+/// A batch item's two control files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ControlFileKind {
+    /// The robot control file, `NAME.ROB`.
+    Rob,
+    /// The mandrel control file, `NAME.IND`.
+    Ind,
 }
 
 /// What is wrong with a cell description (docs/file-formats.md, "Cell file").

@@ -9,7 +9,7 @@
 //! ```
 
 use crate::Error;
-use crate::syntax::{Token, number, records};
+use crate::syntax::{Places, Token, number, records};
 
 /// The format version written on the first line.
 pub const VERSION: i64 = 1;
@@ -80,6 +80,12 @@ pub struct MandrelFile {
 impl MandrelFile {
     /// Parses the text of a .IND file.
     pub fn parse(text: &str) -> Result<Self, Error> {
+        Self::parse_placed(text).map(|(file, _)| file)
+    }
+
+    /// [`MandrelFile::parse`], keeping where the move's values were read (`accel_rps2`,
+    /// `start_rps`, `max_rps`, `steps`, as file-level fields).
+    pub fn parse_placed(text: &str) -> Result<(Self, Places), Error> {
         let recs = records(text);
         let expected = ["ind", "init", "move", "reset"];
         for (i, keyword) in expected.iter().enumerate() {
@@ -106,11 +112,17 @@ impl MandrelFile {
         }
         recs[1].expect_len(1, "")?;
         recs[3].expect_len(1, "")?;
-        let [accel, start, max, steps] =
-            recs[2].fields(0, ["accel_rps2", "start_rps", "max_rps", "steps"])?;
-        Ok(MandrelFile {
+        let names = ["accel_rps2", "start_rps", "max_rps", "steps"];
+        let tokens = recs[2].fields(0, names)?;
+        let mut places = Places::default();
+        for (name, token) in names.into_iter().zip(&tokens) {
+            places.add_field(name, token);
+        }
+        let [accel, start, max, steps] = tokens;
+        let file = MandrelFile {
             path_move: MandrelMove::from_tokens(accel, start, max, steps)?,
-        })
+        };
+        Ok((file, places))
     }
 
     /// Writes the canonical text. Refuses ([`Error::Unwritable`]) a move that
@@ -173,5 +185,19 @@ mod tests {
             let err = MandrelFile::parse(&bad).unwrap_err().to_string();
             assert!(err.contains(expected), "{err} should contain {expected}");
         }
+    }
+
+    /// The move's values at their own columns, counted by hand ("move accel_rps2=" is 16
+    /// characters).
+    #[test]
+    fn parse_placed_keeps_the_moves_places() {
+        let text = "ind 1\ninit\nmove accel_rps2=1 start_rps=0.05 max_rps=0.1 steps=-74\nreset\n";
+        let (file, places) = MandrelFile::parse_placed(text).unwrap();
+        assert_eq!(file, MandrelFile::parse(text).unwrap());
+        assert_eq!(places.field("accel_rps2"), Some((3, 17)));
+        assert_eq!(places.field("start_rps"), Some((3, 29)));
+        assert_eq!(places.field("max_rps"), Some((3, 42)));
+        assert_eq!(places.field("steps"), Some((3, 52)));
+        assert_eq!(places.field("program"), None);
     }
 }

@@ -17,7 +17,7 @@
 
 use std::fmt::Write as _;
 
-use crate::syntax::{Record, Token, number, records};
+use crate::syntax::{Places, Record, Token, number, records};
 use crate::{Error, MandrelMove};
 
 /// The format version written on the first line.
@@ -128,6 +128,20 @@ pub struct RobotFile {
 impl RobotFile {
     /// Parses the text of a .ROB file.
     pub fn parse(text: &str) -> Result<Self, Error> {
+        Self::read(text, None)
+    }
+
+    /// [`RobotFile::parse`], keeping where each value was read: the header's by keyword
+    /// (`program`, `base_speed_mm_s`, `max_speed_mm_s`, `movement`, `sync_mandrel_deg`) and each
+    /// instruction's by field (`speed_pct`, `pos_mm`, `q`, `move`, `ref`, `accel_rps2`,
+    /// `start_rps`, `max_rps`, `steps`).
+    pub fn parse_placed(text: &str) -> Result<(Self, Places), Error> {
+        let mut places = Places::default();
+        let file = Self::read(text, Some(&mut places))?;
+        Ok((file, places))
+    }
+
+    fn read(text: &str, mut places: Option<&mut Places>) -> Result<Self, Error> {
         let recs = records(text);
         let mut it = recs.iter().peekable();
         let first = it
@@ -139,7 +153,8 @@ impl RobotFile {
         if version != VERSION {
             return Err(first.tokens[1].error(format!("unsupported .ROB version {version}")));
         }
-        let program = header_value(it.next(), first, "program")?.int_in(1..=255)? as u8;
+        let program_token = header_value(it.next(), first, "program")?;
+        let program = program_token.int_in(1..=255)? as u8;
         let base = header_value(it.next(), first, "base_speed_mm_s")?;
         let base_speed_mm_s = positive(&base)?;
         let max = header_value(it.next(), first, "max_speed_mm_s")?;
@@ -154,7 +169,19 @@ impl RobotFile {
                 movement_token.text
             ))
         })?;
-        let sync_mandrel_deg = header_value(it.next(), first, "sync_mandrel_deg")?.f64()?;
+        let sync = header_value(it.next(), first, "sync_mandrel_deg")?;
+        let sync_mandrel_deg = sync.f64()?;
+        if let Some(p) = places.as_deref_mut() {
+            for (name, token) in [
+                ("program", &program_token),
+                ("base_speed_mm_s", &base),
+                ("max_speed_mm_s", &max),
+                ("movement", &movement_token),
+                ("sync_mandrel_deg", &sync),
+            ] {
+                p.add_field(name, token);
+            }
+        }
         let header = Header {
             program,
             base_speed_mm_s,
@@ -169,7 +196,11 @@ impl RobotFile {
             last_line = rec;
             match rec.head().text {
                 "instr" => {
-                    let instruction = parse_instruction(rec, max_speed_mm_s / base_speed_mm_s)?;
+                    let instruction = parse_instruction(
+                        rec,
+                        max_speed_mm_s / base_speed_mm_s,
+                        places.as_deref_mut(),
+                    )?;
                     let expected = instructions.len() + 1;
                     if instruction.number as usize != expected {
                         return Err(rec.tokens[1].error(format!(
@@ -282,25 +313,33 @@ fn positive(token: &Token<'_>) -> Result<f64, Error> {
     }
 }
 
-fn parse_instruction(rec: &Record<'_>, max_ratio: f64) -> Result<Instruction, Error> {
+/// The fields of an `instr` record, in the order they are written.
+const INSTRUCTION_FIELDS: [&str; 9] = [
+    "speed_pct",
+    "pos_mm",
+    "q",
+    "move",
+    "ref",
+    "accel_rps2",
+    "start_rps",
+    "max_rps",
+    "steps",
+];
+
+fn parse_instruction(
+    rec: &Record<'_>,
+    max_ratio: f64,
+    places: Option<&mut Places>,
+) -> Result<Instruction, Error> {
     if rec.tokens.len() < 2 {
         return Err(rec.missing("instruction number"));
     }
     let number = rec.tokens[1].int_in(1..=65535)? as u16;
-    let [speed, pos, q, mv, reference, accel, start, max, steps] = rec.fields(
-        1,
-        [
-            "speed_pct",
-            "pos_mm",
-            "q",
-            "move",
-            "ref",
-            "accel_rps2",
-            "start_rps",
-            "max_rps",
-            "steps",
-        ],
-    )?;
+    let tokens = rec.fields(1, INSTRUCTION_FIELDS)?;
+    if let Some(p) = places {
+        p.add_instruction(&INSTRUCTION_FIELDS, &tokens);
+    }
+    let [speed, pos, q, mv, reference, accel, start, max, steps] = tokens;
     let speed_pct = positive(&speed)?;
     if speed_pct > 100.0 * max_ratio * (1.0 + 1e-12) {
         return Err(speed.error(format!("speed {speed_pct}% exceeds the maximum speed")));
@@ -402,5 +441,38 @@ mod tests {
             let err = RobotFile::parse(&bad).unwrap_err().to_string();
             assert!(err.contains(expected), "{err} should contain {expected}");
         }
+    }
+
+    /// Every value's place as a reader counts it by hand: lines from 1, columns in characters
+    /// from 1 (the `é` of the comment is one character, not two bytes), each part of a list
+    /// after its comma; the values are those `parse` reads.
+    #[test]
+    fn parse_placed_keeps_every_values_line_and_column() {
+        let text = "# é\nrob 1\nprogram 7\nbase_speed_mm_s 1000\nmax_speed_mm_s  2000\n\
+movement fine\nsync_mandrel_deg 1.5\n\
+instr 1 speed_pct=10 pos_mm=1,22,333 q=1,0,0,0 move=rect ref=abs accel_rps2=1 start_rps=0 max_rps=0.1 steps=0\n\
+\x20\x20instr 2 steps=5 speed_pct=20 pos_mm=-4.5,6,7 q=1,0,0,0 move=joint ref=abs accel_rps2=2 start_rps=0 max_rps=0.1\n\
+end\n";
+        let (file, places) = RobotFile::parse_placed(text).unwrap();
+        assert_eq!(file, RobotFile::parse(text).unwrap());
+        assert_eq!(places.field("program"), Some((3, 9)));
+        assert_eq!(places.field("base_speed_mm_s"), Some((4, 17)));
+        assert_eq!(places.field("max_speed_mm_s"), Some((5, 17)));
+        assert_eq!(places.field("movement"), Some((6, 10)));
+        assert_eq!(places.field("sync_mandrel_deg"), Some((7, 18)));
+        // "instr 1 speed_pct=" is 18 characters; "pos_mm=" starts at 22, its value at 29.
+        assert_eq!(places.instruction(1, "speed_pct", 0), Some((8, 19)));
+        assert_eq!(places.instruction(1, "pos_mm", 0), Some((8, 29)));
+        assert_eq!(places.instruction(1, "pos_mm", 1), Some((8, 31)));
+        assert_eq!(places.instruction(1, "pos_mm", 2), Some((8, 34)));
+        assert_eq!(places.instruction(1, "pos_mm", 3), None);
+        // Fields in another order, the line indented by two.
+        assert_eq!(places.instruction(2, "steps", 0), Some((9, 17)));
+        assert_eq!(places.instruction(2, "speed_pct", 0), Some((9, 29)));
+        assert_eq!(places.instruction(2, "pos_mm", 2), Some((9, 46)));
+        assert_eq!(places.instruction(2, "move", 0), Some((9, 63)));
+        assert_eq!(places.instruction(3, "steps", 0), None);
+        assert_eq!(places.instruction(0, "steps", 0), None);
+        assert_eq!(places.field("steps"), None);
     }
 }

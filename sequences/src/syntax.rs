@@ -251,3 +251,90 @@ mod tests {
         }
     }
 }
+
+/// A 1-based line and character column in a file's text.
+pub type Place = (usize, usize);
+
+/// Where a control file's values were read ([`crate::RobotFile::parse_placed`],
+/// [`crate::MandrelFile::parse_placed`]): the place of each value's own token, so that a value the
+/// devices refuse after reading (out of the telegram's range, beyond the indexer's) is reported
+/// at its line and column. File-level values (a `.ROB` header's, a `.IND` move's) by field name,
+/// and each instruction's by its number and field name; a list value (`pos_mm=x,y,z`) keeps the
+/// place of each of its parts.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Places {
+    fields: Vec<Value>,
+    instructions: Vec<Vec<Value>>,
+}
+
+/// One value's name, its place, and the column of each comma-separated part after the first.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Value {
+    name: &'static str,
+    place: Place,
+    part_columns: Vec<usize>,
+}
+
+impl Value {
+    fn of(name: &'static str, token: &Token<'_>) -> Value {
+        let mut part_columns = Vec::new();
+        let mut column = token.column;
+        for c in token.text.chars() {
+            column += 1;
+            if c == ',' {
+                part_columns.push(column);
+            }
+        }
+        Value {
+            name,
+            place: (token.line, token.column),
+            part_columns,
+        }
+    }
+
+    /// The place of part `part` (0 = the value's start).
+    fn part(&self, part: usize) -> Option<Place> {
+        match part {
+            0 => Some(self.place),
+            k => self
+                .part_columns
+                .get(k - 1)
+                .map(|&column| (self.place.0, column)),
+        }
+    }
+}
+
+impl Places {
+    /// The place of the file-level value `field` (`base_speed_mm_s`, `steps`, …).
+    pub fn field(&self, field: &str) -> Option<Place> {
+        self.fields
+            .iter()
+            .find(|v| v.name == field)
+            .map(|v| v.place)
+    }
+
+    /// The place of `field` (`speed_pct`, `pos_mm`, `accel_rps2`, …) of instruction `number`
+    /// (1-based); of its part `part` (0-based, comma-separated) for a list value.
+    pub fn instruction(&self, number: u16, field: &str, part: usize) -> Option<Place> {
+        let index = usize::from(number).checked_sub(1)?;
+        self.instructions
+            .get(index)?
+            .iter()
+            .find(|v| v.name == field)?
+            .part(part)
+    }
+
+    pub(crate) fn add_field(&mut self, name: &'static str, token: &Token<'_>) {
+        self.fields.push(Value::of(name, token));
+    }
+
+    pub(crate) fn add_instruction(&mut self, names: &[&'static str], tokens: &[Token<'_>]) {
+        self.instructions.push(
+            names
+                .iter()
+                .zip(tokens)
+                .map(|(&name, t)| Value::of(name, t))
+                .collect(),
+        );
+    }
+}

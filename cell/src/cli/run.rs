@@ -819,6 +819,12 @@ fn check(args: &RunArgs) -> Result<Checked, Failure> {
         cell.drive,
         reach,
     )
+    .map_err(|e| match &clearance {
+        // A job's files are planned here: the refusal is placed at the job's value, as `plan`
+        // places it.
+        Some(c) => batch::not_runnable(&c.job, &c.text, &c.path, e),
+        None => e,
+    })
     .map_err(Failure::from_cell)?;
     let journal_path = args
         .resume

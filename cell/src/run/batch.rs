@@ -8,7 +8,7 @@ use sequences::{MandrelFile, RobotFile, RunFile, SequenceFile};
 
 use crate::Error;
 use crate::run::cellfile::Cell;
-use crate::run::coordinator::{Batch, Item, Reach, RunMode};
+use crate::run::coordinator::{Batch, Item, ItemPlaces, Reach, RunMode};
 use crate::run::journal::{FNV_BASIS, fnv1a};
 
 /// Control files in memory: name (without extension) and extension → text.
@@ -79,7 +79,7 @@ pub fn from_files(
 ) -> Result<Loaded, Error> {
     let seq_text = files.get("SEQ").map(String::as_str).unwrap_or("");
     let sequence = SequenceFile::parse(seq_text).map_err(Error::File)?;
-    let mut robs: BTreeMap<&str, (RobotFile, Option<MandrelFile>)> = BTreeMap::new();
+    let mut robs: BTreeMap<&str, (RobotFile, Option<MandrelFile>, ItemPlaces)> = BTreeMap::new();
     let mut hash = fnv1a(FNV_BASIS, seq_text.as_bytes());
     for name in sequence.distinct() {
         let rob_path = dir.join(format!("{name}.ROB"));
@@ -90,34 +90,23 @@ pub fn from_files(
                 why: "named in the sequence",
             })?;
         hash = fnv1a(hash, text.as_bytes());
-        let rob = RobotFile::parse(text).map_err(|e| Error::File(e.in_file(&rob_path)))?;
-        let ind = match files.get(&format!("{name}.IND")) {
+        let (rob, rob_places) =
+            RobotFile::parse_placed(text).map_err(|e| Error::File(e.in_file(&rob_path)))?;
+        let (ind, ind_places) = match files.get(&format!("{name}.IND")) {
             Some(t) => {
                 hash = fnv1a(hash, t.as_bytes());
                 let p = dir.join(format!("{name}.IND"));
-                Some(MandrelFile::parse(t).map_err(|e| Error::File(e.in_file(&p)))?)
+                let (ind, places) =
+                    MandrelFile::parse_placed(t).map_err(|e| Error::File(e.in_file(&p)))?;
+                (Some(ind), Some((p, places)))
             }
-            None => None,
+            None => (None, None),
         };
         if let Some((other, _)) = robs
             .iter()
-            .find(|(_, (r, _))| r.header.program == rob.header.program)
+            .find(|(_, (r, _, _))| r.header.program == rob.header.program)
         {
-            // The place of the `program` record (the reader keeps values, not places).
-            let (line, column) = text
-                .lines()
-                .enumerate()
-                .find_map(|(i, l)| {
-                    let t = l.trim_start();
-                    t.strip_prefix("program")
-                        .filter(|rest| rest.starts_with([' ', '\t']))
-                        .map(|rest| {
-                            let indent = l.len() - t.len();
-                            let gap = rest.len() - rest.trim_start().len();
-                            (i + 1, indent + "program".len() + gap + 1)
-                        })
-                })
-                .unwrap_or((1, 1));
+            let (line, column) = rob_places.field("program").unwrap_or((1, 1));
             return Err(Error::DuplicateProgram {
                 file: rob_path,
                 line,
@@ -126,20 +115,25 @@ pub fn from_files(
                 other: dir.join(format!("{other}.ROB")),
             });
         }
-        robs.insert(name, (rob, ind));
+        let places = ItemPlaces {
+            rob: (rob_path, rob_places),
+            ind: ind_places,
+        };
+        robs.insert(name, (rob, ind, places));
     }
     let first = robs
         .get(sequence.names[0].as_str())
-        .map(|(r, _)| r.header.movement);
+        .map(|(r, _, _)| r.header.movement);
     let mode = mode
         .or(first.map(RunMode::from_movement))
         .unwrap_or(RunMode::Discrete);
     let item = |name: &str| -> Item {
-        let (rob, ind) = robs[name].clone();
+        let (rob, ind, places) = robs[name].clone();
         Item {
             name: name.to_string(),
             rob,
             ind,
+            places: Some(places),
         }
     };
     let items = if mode == RunMode::Discrete {
@@ -152,7 +146,7 @@ pub fn from_files(
         for (line, p) in run.programs.iter().enumerate() {
             let name = robs
                 .iter()
-                .find(|(_, (r, _))| r.header.program == *p)
+                .find(|(_, (r, _, _))| r.header.program == *p)
                 .map(|(n, _)| *n)
                 .ok_or_else(|| Error::ProgramNotLoaded {
                     file: run_path.to_path_buf(),
@@ -215,6 +209,11 @@ pub fn of_job(
     let dir = job_path.parent().unwrap_or(Path::new("."));
     let mut loaded = from_files(&files_of_job(files), mode, dir, &dir.join("RUN"))?;
     loaded.sequence_path = job_path.to_path_buf();
+    // The files are in memory, not yet written where `dir` would name them: a refusal names
+    // the control file and the instruction, and the job value behind it ([`admit`]).
+    for item in &mut loaded.items {
+        item.places = None;
+    }
     Ok(loaded)
 }
 
@@ -232,11 +231,7 @@ pub fn admit(
     files: &[(PathBuf, String)],
     mode: Option<RunMode>,
 ) -> Result<(Loaded, Batch), Error> {
-    let refused = |source: Error| Error::NotRunnable {
-        job: job_path.to_path_buf(),
-        place: job_field(job, &source).map(|span| sequences::error::line_column(text, span.start)),
-        source: Box::new(source),
-    };
+    let refused = |source| not_runnable(job, text, job_path, source);
     let loaded = of_job(job_path, files, mode).map_err(refused)?;
     let cell = Cell::of_job(job, job_path)?;
     let batch = Batch::new(
@@ -248,6 +243,16 @@ pub fn admit(
     )
     .map_err(refused)?;
     Ok((loaded, batch))
+}
+
+/// A pre-run refusal of a job's planned files ([`Error::NotRunnable`]), placed at the job value
+/// behind it where one is (`text` is the job's).
+pub fn not_runnable(job: &sequences::Job, text: &str, job_path: &Path, source: Error) -> Error {
+    Error::NotRunnable {
+        job: job_path.to_path_buf(),
+        place: job_field(job, &source).map(|span| sequences::error::line_column(text, span.start)),
+        source: Box::new(source),
+    }
 }
 
 /// The job-file value behind a pre-run refusal, as its span in the job's text: every figure of a

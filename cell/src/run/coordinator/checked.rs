@@ -2,7 +2,12 @@
 //! units and ranges, held to the arm's reach and the robot's memory, before anything is sent;
 //! what it makes is the [`Batch`] the coordinator winds.
 
+use std::path::PathBuf;
+
+use sequences::syntax::Places;
+
 use super::*;
+use crate::error::ControlFileKind;
 
 /// One path of the batch: a robot control file and, for program mode, its mandrel file.
 #[derive(Debug, Clone)]
@@ -13,6 +18,48 @@ pub struct Item {
     pub rob: RobotFile,
     /// The mandrel control file (program mode).
     pub ind: Option<MandrelFile>,
+    /// Where the files were read and where each value stands in them, so that a refusal names
+    /// the file, line and column; `None` for files made in memory (a plan not yet written).
+    pub places: Option<ItemPlaces>,
+}
+
+/// The paths an item's control files were read from and the places of their values.
+#[derive(Debug, Clone)]
+pub struct ItemPlaces {
+    /// `NAME.ROB` and its values' places.
+    pub rob: (PathBuf, Places),
+    /// `NAME.IND` and its move's places, when there is one.
+    pub ind: Option<(PathBuf, Places)>,
+}
+
+impl Item {
+    /// A pre-run refusal of this item, naming its control file: its path, line and column when
+    /// the item was read from files and one value is at fault ([`Error::control_value`]), else
+    /// the file's name ([`Error::in_item`]).
+    pub fn refusal(&self, error: Error) -> Error {
+        let (Some(places), Some(value)) = (&self.places, error.control_value()) else {
+            return error.in_item(&self.name);
+        };
+        let Some((path, values)) = (match value.kind {
+            ControlFileKind::Rob => Some(&places.rob),
+            ControlFileKind::Ind => places.ind.as_ref(),
+        }) else {
+            return error.in_item(&self.name);
+        };
+        let place = match value.instruction {
+            Some(n) => values.instruction(n, value.field, value.part),
+            None => values.field(value.field),
+        };
+        let source = match error {
+            Error::ControlFile { source, .. } => source,
+            other => Box::new(other),
+        };
+        Error::ControlFile {
+            file: path.display().to_string(),
+            place,
+            source,
+        }
+    }
 }
 
 /// What the pre-run check made of one item.
@@ -187,7 +234,7 @@ impl Batch {
         };
         let prepared = items
             .iter()
-            .map(|item| Prepared::of(item, mode, &setup, &reach).map_err(|e| e.in_item(&item.name)))
+            .map(|item| Prepared::of(item, mode, &setup, &reach).map_err(|e| item.refusal(e)))
             .collect::<Result<Vec<_>, Error>>()?;
         if mode != RunMode::Discrete {
             check_memory(&items, &prepared)?;
@@ -214,7 +261,6 @@ impl Prepared {
         // robot's time per instruction): files planned for another movement are refused.
         if mode == RunMode::Continuous && item.rob.header.movement != Movement::Continuous {
             return Err(Error::NotPlannedForContinuous {
-                path: item.name.clone(),
                 movement: item.rob.header.movement.keyword(),
             });
         }
@@ -233,14 +279,12 @@ impl Prepared {
         for (i, p) in rob.instructions.iter().zip(&immediate) {
             if i.reference != Reference::Absolute {
                 return Err(Error::RelativePosition {
-                    path: item.name.clone(),
                     instruction: i.number,
                 });
             }
             let t = p.pose.xyz_mm();
             if !reach.holds(t) {
                 return Err(Error::OutOfReach {
-                    path: item.name.clone(),
                     instruction: i.number,
                     eye_mm: t,
                     radius_mm: (reach.min_radius_mm, reach.max_radius_mm),
@@ -254,9 +298,7 @@ impl Prepared {
             cumulative_steps.push(last + i.mandrel.steps);
         }
         if targets_mm.is_empty() {
-            return Err(Error::EmptyProgram {
-                path: item.name.clone(),
-            });
+            return Err(Error::EmptyProgram);
         }
         let program = if mode == RunMode::Discrete {
             // A discrete run sends the .ROB's moves, but a .IND beside it is the operator's file
@@ -295,7 +337,6 @@ fn stored_program(
     transfer::indexer_program(ind, setup)?;
     if ind.path_move.steps != total {
         return Err(Error::MandrelSteps {
-            path: item.name.clone(),
             ind_steps: ind.path_move.steps,
             rob_steps: total,
         });

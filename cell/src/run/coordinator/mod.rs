@@ -39,7 +39,7 @@ mod program;
 mod resume;
 mod stop;
 
-pub use checked::{Batch, Item, Reach, handshake_program, program_units};
+pub use checked::{Batch, Item, ItemPlaces, Reach, handshake_program, program_units};
 pub use halt::{ArmWitness, Disagreement, Fault, Halt, Stopped};
 pub use resume::{ARM_WITNESS_MM, ResumePoint, distance_to_segment_mm, resume_point};
 pub use stop::StopRequest;
