@@ -7,6 +7,7 @@ use std::path::Path;
 use mandrel_drive::Drive;
 use paths::Gearing;
 use serde::Deserialize;
+use toml::Spanned;
 
 use crate::Error;
 use crate::error::CellProblem;
@@ -26,7 +27,7 @@ pub struct CellFile {
     pub drive: Option<DriveSection>,
     /// Opto-isolator delay of the simulated sync lines, s.
     #[serde(default)]
-    pub opto_delay_s: Option<f64>,
+    pub opto_delay_s: Option<Spanned<f64>>,
     /// Calibration tolerances (`windcell predict`'s setup Monte Carlo).
     #[serde(default)]
     pub tolerance: Option<ToleranceSection>,
@@ -39,11 +40,11 @@ pub struct CellFile {
 }
 
 /// `[indexer]`: the command language the indexer on the indexer port speaks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IndexerSection {
     /// `"x"` (the default) or `"grbl"`.
-    pub dialect: IndexerDialect,
+    pub dialect: Spanned<IndexerDialect>,
 }
 
 /// The indexer's command language (docs/mandrel-drive.md).
@@ -70,13 +71,13 @@ impl IndexerDialect {
 
 /// `[robot_io]`: the robot controller's digital signals that carry the sync lines when a
 /// six-axis arm's own program winds beside windcell's indexer (`docs/robot-programs.md`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotIoSection {
     /// The robot's digital output that starts the indexer's segment (1–4096).
-    pub start_output: u16,
+    pub start_output: Spanned<u16>,
     /// The robot's digital input the indexer raises when the mandrel is in position (1–4096).
-    pub in_position_input: u16,
+    pub in_position_input: Spanned<u16>,
 }
 
 /// `[tolerance]`: half-widths of how far the true cell may lie from its calibration; absent
@@ -85,13 +86,13 @@ pub struct RobotIoSection {
 #[serde(deny_unknown_fields)]
 pub struct ToleranceSection {
     /// Rotation axis position `[x, y]`, mm.
-    pub axis_offset_mm: Option<[f64; 2]>,
+    pub axis_offset_mm: Option<Spanned<[f64; 2]>>,
     /// Rotation axis lean toward `+x` and `+y`, degrees.
-    pub axis_tilt_deg: Option<[f64; 2]>,
+    pub axis_tilt_deg: Option<Spanned<[f64; 2]>>,
     /// The drive's zero angle, degrees.
-    pub zero_angle_deg: Option<f64>,
+    pub zero_angle_deg: Option<Spanned<f64>>,
     /// The mandrel's diameter, mm.
-    pub diameter_mm: Option<f64>,
+    pub diameter_mm: Option<Spanned<f64>>,
 }
 
 /// `[ports]`.
@@ -99,12 +100,12 @@ pub struct ToleranceSection {
 #[serde(deny_unknown_fields)]
 pub struct PortsSection {
     /// The robot computer's link.
-    pub robot: Option<String>,
+    pub robot: Option<Spanned<String>>,
     /// The indexer's link.
-    pub indexer: Option<String>,
+    pub indexer: Option<Spanned<String>>,
     /// The port whose modem-control pins carry the sync lines (RTS start out, CTS in position
     /// in, DSR e-stop in; docs/hardware.md).
-    pub sync: Option<String>,
+    pub sync: Option<Spanned<String>>,
 }
 
 /// `[drive]`.
@@ -112,9 +113,9 @@ pub struct PortsSection {
 #[serde(deny_unknown_fields)]
 pub struct DriveSection {
     /// Motor steps per motor revolution.
-    pub steps_per_rev: u32,
+    pub steps_per_rev: Spanned<u32>,
     /// `[motor pulley teeth, mandrel pulley teeth]`.
-    pub gear_ratio: [u32; 2],
+    pub gear_ratio: Spanned<[u32; 2]>,
 }
 
 /// Where the devices are.
@@ -177,13 +178,17 @@ fn drive_of(steps_per_rev: u32, [motor, mandrel]: [u32; 2]) -> Result<Drive, Cel
     .map_err(CellProblem::Drive)
 }
 
-fn devices_of(p: &PortsSection) -> Result<Devices, CellProblem> {
-    match (&p.robot, &p.indexer, &p.sync) {
+fn devices_of(
+    robot: Option<&String>,
+    indexer: Option<&String>,
+    sync: Option<&String>,
+) -> Result<Devices, CellProblem> {
+    match (robot, indexer, sync) {
         (None, None, None) => Ok(Devices::Simulated),
         (Some(r), Some(i), s) => Ok(Devices::Serial {
             robot: r.clone(),
             indexer: i.clone(),
-            sync: s.clone(),
+            sync: s.cloned(),
         }),
         _ => Err(CellProblem::Ports),
     }
@@ -203,11 +208,11 @@ impl Cell {
             *c.drive.gear_ratio.get_ref(),
         )
         .map_err(bad)?;
-        let devices = devices_of(&PortsSection {
-            robot: c.ports.robot.clone(),
-            indexer: c.ports.indexer.clone(),
-            sync: c.ports.sync.clone(),
-        })
+        let devices = devices_of(
+            c.ports.robot.as_ref(),
+            c.ports.indexer.as_ref(),
+            c.ports.sync.as_ref(),
+        )
         .map_err(bad)?;
         Ok(Cell {
             source: format!("{} [cell]", file.display()),
@@ -254,74 +259,71 @@ impl Cell {
             let (offset, message) = sequences::error::toml_refusal(&e);
             at(offset, CellProblem::Syntax(message))
         })?;
-        let locate = |key: &str| text.find(key).unwrap_or(0);
+        // Each refusal is placed at the value at fault (its own span in the text).
         let drive = match &file.drive {
             Some(d) => {
-                drive_of(d.steps_per_rev, d.gear_ratio).map_err(|m| at(locate("[drive]"), m))?
+                let span = if *d.steps_per_rev.get_ref() == 0 {
+                    d.steps_per_rev.span()
+                } else {
+                    d.gear_ratio.span()
+                };
+                drive_of(*d.steps_per_rev.get_ref(), *d.gear_ratio.get_ref())
+                    .map_err(|m| at(span.start, m))?
             }
             None => Drive::default(),
         };
-        let devices = devices_of(&file.ports).map_err(|m| at(locate("[ports]"), m))?;
-        let opto_delay_s = file
-            .opto_delay_s
-            .unwrap_or(mandrel_drive::sync::OPTO_DELAY_S);
-        if !(0.0..=1.0).contains(&opto_delay_s) {
-            return Err(at(
-                locate("opto_delay_s"),
-                CellProblem::OptoDelay {
-                    value_s: opto_delay_s,
-                },
-            ));
-        }
-        let mut tolerances = Tolerances::default();
-        if let Some(t) = &file.tolerance {
-            let figures = [
-                t.axis_offset_mm.map(|v| v[0]),
-                t.axis_offset_mm.map(|v| v[1]),
-                t.axis_tilt_deg.map(|v| v[0]),
-                t.axis_tilt_deg.map(|v| v[1]),
-                t.zero_angle_deg,
-                t.diameter_mm,
-            ];
-            if figures
-                .iter()
+        let ports = &file.ports;
+        let devices = devices_of(
+            ports.robot.as_ref().map(Spanned::get_ref),
+            ports.indexer.as_ref().map(Spanned::get_ref),
+            ports.sync.as_ref().map(Spanned::get_ref),
+        )
+        .map_err(|m| {
+            // Ports half named: the first one given, whose partner is missing.
+            let given = [&ports.robot, &ports.indexer, &ports.sync]
+                .into_iter()
                 .flatten()
-                .any(|v| !(v.is_finite() && (0.0..=100.0).contains(v)))
-            {
-                return Err(at(locate("[tolerance]"), CellProblem::Tolerance));
+                .next();
+            at(given.map_or(0, |p| p.span().start), m)
+        })?;
+        let opto_delay_s = match &file.opto_delay_s {
+            Some(v) if !(0.0..=1.0).contains(v.get_ref()) => {
+                return Err(at(
+                    v.span().start,
+                    CellProblem::OptoDelay {
+                        value_s: *v.get_ref(),
+                    },
+                ));
             }
-            if let Some(v) = t.axis_offset_mm {
-                tolerances.axis_offset_mm = v;
-            }
-            if let Some(v) = t.axis_tilt_deg {
-                tolerances.axis_tilt_rad = v.map(f64::to_radians);
-            }
-            if let Some(v) = t.zero_angle_deg {
-                tolerances.zero_angle_rad = v.to_radians();
-            }
-            if let Some(v) = t.diameter_mm {
-                tolerances.diameter_mm = v;
-            }
-        }
-        let robot_io = match file.robot_io {
+            Some(v) => *v.get_ref(),
+            None => mandrel_drive::sync::OPTO_DELAY_S,
+        };
+        let tolerances = match &file.tolerance {
+            Some(t) => tolerances_of(t).map_err(|offset| at(offset, CellProblem::Tolerance))?,
+            None => Tolerances::default(),
+        };
+        let robot_io = match &file.robot_io {
             Some(io) => {
-                for v in [io.start_output, io.in_position_input] {
-                    if !(1..=4096).contains(&v) {
+                for v in [&io.start_output, &io.in_position_input] {
+                    if !(1..=4096).contains(v.get_ref()) {
                         return Err(at(
-                            locate("[robot_io]"),
-                            CellProblem::RobotIoSignal { signal: v },
+                            v.span().start,
+                            CellProblem::RobotIoSignal {
+                                signal: *v.get_ref(),
+                            },
                         ));
                     }
                 }
                 sequences::program::SyncSignals {
-                    start_output: io.start_output,
-                    in_position_input: io.in_position_input,
+                    start_output: *io.start_output.get_ref(),
+                    in_position_input: *io.in_position_input.get_ref(),
                 }
             }
             None => DEFAULT_ROBOT_IO,
         };
-        let dialect = file.indexer.map_or(IndexerDialect::X, |i| i.dialect);
-        let dialect_at = dialect_offset(text);
+        let dialect_value = file.indexer.as_ref().map(|i| &i.dialect);
+        let dialect = dialect_value.map_or(IndexerDialect::X, |d| *d.get_ref());
+        let dialect_at = dialect_value.map(|d| d.span().start);
         if dialect == IndexerDialect::Grbl && devices == Devices::Simulated {
             return Err(at(
                 dialect_at.unwrap_or(0),
@@ -344,13 +346,41 @@ impl Cell {
     }
 }
 
-/// The byte offset of the `dialect` value of `[indexer]` in a cell file's text, if it names one.
-fn dialect_offset(text: &str) -> Option<usize> {
-    let section = text.find("[indexer]")?;
-    let key = text[section..].find("dialect")? + section;
-    let value = text[key..].find('=')? + key + 1;
-    let skip = text[value..].len() - text[value..].trim_start().len();
-    Some(value + skip)
+/// The `[tolerance]` table's figures over the defaults; a figure that is not finite or not within
+/// 0–100 is refused at its byte offset.
+fn tolerances_of(t: &ToleranceSection) -> Result<Tolerances, usize> {
+    let pair = |v: &Option<Spanned<[f64; 2]>>| v.as_ref().map(|v| (*v.get_ref(), v.span().start));
+    let one = |v: &Option<Spanned<f64>>| v.as_ref().map(|v| (*v.get_ref(), v.span().start));
+    let (offset, tilt, zero, diameter) = (
+        pair(&t.axis_offset_mm),
+        pair(&t.axis_tilt_deg),
+        one(&t.zero_angle_deg),
+        one(&t.diameter_mm),
+    );
+    let figures = offset
+        .iter()
+        .chain(&tilt)
+        .flat_map(|&([a, b], at)| [(a, at), (b, at)])
+        .chain(zero.iter().chain(&diameter).copied());
+    for (v, at) in figures {
+        if !(v.is_finite() && (0.0..=100.0).contains(&v)) {
+            return Err(at);
+        }
+    }
+    let mut tolerances = Tolerances::default();
+    if let Some((v, _)) = offset {
+        tolerances.axis_offset_mm = v;
+    }
+    if let Some((v, _)) = tilt {
+        tolerances.axis_tilt_rad = v.map(f64::to_radians);
+    }
+    if let Some((v, _)) = zero {
+        tolerances.zero_angle_rad = v.to_radians();
+    }
+    if let Some((v, _)) = diameter {
+        tolerances.diameter_mm = v;
+    }
+    Ok(tolerances)
 }
 
 /// Calibration tolerances of the cell: each figure is the half-width of a uniform distribution
@@ -416,7 +446,7 @@ mod tests {
         let e = Cell::parse("\n[ports]\nrobot = \"/dev/ttyS0\"\n", p).unwrap_err();
         assert!(
             e.to_string()
-                .starts_with("C.toml:2:1: name the robot and indexer ports"),
+                .starts_with("C.toml:3:9: name the robot and indexer ports"),
             "{e}"
         );
         let e = Cell::parse("[drive]\nsteps = 400\n", p).unwrap_err();
