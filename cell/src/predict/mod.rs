@@ -252,16 +252,19 @@ struct Wound {
 
 fn wind(job: &Job, text: &str, file: &Path, cell: &Cell, mode: RunMode) -> Result<Wound, Error> {
     let plan = tool::plan(job, text, file)?;
-    let files = batch::files_of_job(&crate::plan::files::control_files(job, &plan)?);
-    let dir = file.parent().unwrap_or(Path::new("."));
-    let loaded = batch::from_files(&files, Some(mode), dir, &dir.join("RUN"))?;
+    let files = crate::plan::files::control_files(job, &plan)?;
+    // The files are planned in memory: a refusal is placed at the job's value behind it, as
+    // `plan` places it.
+    let refused = |e| batch::not_runnable(job, text, file, e);
+    let loaded = batch::of_job(file, &files, Some(mode)).map_err(refused)?;
     let batch = Batch::new(
         loaded.items,
         loaded.mode,
         loaded.job_id,
         cell.drive,
         Reach::default(),
-    )?;
+    )
+    .map_err(refused)?;
     let sim = SimCell::new(&SimCellConfig {
         drive: cell.drive,
         opto_delay_s: cell.opto_delay_s,
