@@ -310,6 +310,20 @@ pub enum Error {
         /// Lowest and highest height, mm.
         height_mm: (f64, f64),
     },
+    /// An instruction's pose the arm cannot take: inside the envelope, but with no joint solution
+    /// inside the arm's ranges with the eye's roll axis in the arm's plane (the robot controller
+    /// would stop on it with error 9; seed 001 §4.1.1).
+    #[error(
+        "instruction {instruction}: the arm cannot take the eye at ({:.1}, {:.1}, {:.1}) mm with \
+         this wrist orientation (no joint solution inside its ranges)",
+        eye_mm[0], eye_mm[1], eye_mm[2]
+    )]
+    ArmCannotTake {
+        /// The file's instruction number.
+        instruction: u16,
+        /// The target, cell frame, mm.
+        eye_mm: [f64; 3],
+    },
     /// A robot control file with no instruction.
     #[error("the robot control file has no instruction")]
     EmptyProgram,
@@ -460,6 +474,7 @@ impl Error {
                 | Error::NotPlannedForContinuous { .. }
                 | Error::RelativePosition { .. }
                 | Error::OutOfReach { .. }
+                | Error::ArmCannotTake { .. }
                 | Error::SixAxisNotDriven { .. }
                 | Error::PostNeedsSixAxis { .. }
                 | Error::PostDecoupledFlying { .. }
@@ -538,6 +553,7 @@ impl Error {
             | Error::NotPlannedForContinuous { .. }
             | Error::RelativePosition { .. }
             | Error::OutOfReach { .. }
+            | Error::ArmCannotTake { .. }
             | Error::EmptyProgram => format!("{name}.ROB"),
             Error::MandrelSteps { .. } => format!("{name}.IND"),
             Error::IndexerTransfer {
@@ -624,7 +640,9 @@ impl Error {
                 value(Rob, None, "movement")
             }
             Error::RelativePosition { instruction, .. } => value(Rob, Some(*instruction), "ref"),
-            Error::OutOfReach { instruction, .. } => value(Rob, Some(*instruction), "pos_mm"),
+            Error::OutOfReach { instruction, .. } | Error::ArmCannotTake { instruction, .. } => {
+                value(Rob, Some(*instruction), "pos_mm")
+            }
             Error::MandrelSteps { .. } => value(Ind, None, "steps"),
             _ => return None,
         })

@@ -386,6 +386,30 @@ impl JointTrig {
     }
 }
 
+/// Largest angle between the eye's roll axis and the arm's vertical plane that the controller
+/// takes as in the plane, rad ([`Arm::takes_pose`]): the resolution of the pose on the wire, not a
+/// wrist yaw. A Q1.14 quaternion component (1/16384 = 6.1 × 10⁻⁵) turns the axis by up to about
+/// 2.5 × 10⁻⁴ rad, and a 0.0625 mm coordinate tilts the plane through an eye 300 mm from the base
+/// axis by up to 3 × 10⁻⁴ rad; 1 × 10⁻³ rad (0.057°) is above both, and far below any yaw a path
+/// asks for (ours).
+pub const WIRE_YAW_TOLERANCE_RAD: f64 = 1.0e-3;
+
+/// The roll axis turned into the vertical plane through the base axis and the eye (the plane the
+/// five axes can point it in: base yaw, then pitches), if it is out of that plane by no more than
+/// [`WIRE_YAW_TOLERANCE_RAD`]; `None` if it needs a wrist yaw.
+pub fn in_arm_plane(eye_mm: [f64; 3], axis: Unit<Vector3<f64>>) -> Option<Unit<Vector3<f64>>> {
+    let rho = eye_mm[0].hypot(eye_mm[1]);
+    if rho < 1e-9 {
+        return Some(axis);
+    }
+    let n = Vector3::new(-eye_mm[1] / rho, eye_mm[0] / rho, 0.0);
+    let off = n.dot(axis.as_ref());
+    if off.abs() > WIRE_YAW_TOLERANCE_RAD.sin() {
+        return None;
+    }
+    Unit::try_new(axis.into_inner() - n * off, 1e-12)
+}
+
 impl Arm {
     /// Checks every length, range and speed.
     pub fn validate(&self) -> Result<(), Error> {
@@ -549,6 +573,31 @@ impl Arm {
                 cos_pitch: u_r,
             },
         ))
+    }
+
+    /// True when the arm can take the eye pose `eye_mm` (cell frame) with the wrist quaternion
+    /// `q_wxyz` (scalar first), as the robot controller decides it (seed 001 §4.1.1, App. A):
+    /// the eye's roll axis is the quaternion's X axis; five axes can point it only in the
+    /// vertical plane through the base axis and the eye, so an axis out of that plane by more
+    /// than [`WIRE_YAW_TOLERANCE_RAD`] (a wrist yaw) is refused; the rest must have an inverse
+    /// solution, elbow up or down, inside every joint range. A quaternion that is not finite or
+    /// has no direction is refused.
+    pub fn takes_pose(&self, eye_mm: [f64; 3], q_wxyz: [f64; 4]) -> bool {
+        let q = nalgebra::Quaternion::new(q_wxyz[0], q_wxyz[1], q_wxyz[2], q_wxyz[3]);
+        if !(q.norm().is_finite() && q.norm() > 0.0) {
+            return false;
+        }
+        let roll_axis = UnitQuaternion::from_quaternion(q) * Vector3::x_axis();
+        let Some(axis) = in_arm_plane(eye_mm, roll_axis) else {
+            return false;
+        };
+        let eye = Point3::new(eye_mm[0], eye_mm[1], eye_mm[2]);
+        [ElbowBranch::Up, ElbowBranch::Down]
+            .into_iter()
+            .any(|branch| {
+                self.inverse(&eye, &axis, 0.0, branch)
+                    .is_ok_and(|j| self.check_joints(&j).is_ok())
+            })
     }
 
     /// The first joint outside its range, as an error.

@@ -13,8 +13,8 @@
 //! - [`Reach`]: the eye within a radius of the base axis and inside the wire's z range, any
 //!   wrist orientation (opt-in with `Machine::with_kinematics`).
 
-use nalgebra::{Point3, Quaternion, Unit, UnitQuaternion, Vector3};
-use paths::robot::{Arm, ElbowBranch};
+use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
+use paths::robot::Arm;
 
 use crate::command::RobotError;
 
@@ -70,44 +70,24 @@ impl ArmModel {
     }
 }
 
-/// Largest angle between the roll axis and the arm's vertical plane that the controller takes as
-/// in the plane, rad: the resolution of the pose on the wire, not a wrist yaw. A Q1.14 quaternion
-/// component (1/16384 = 6.1 × 10⁻⁵) turns the axis by up to about 2.5 × 10⁻⁴ rad, and a 0.0625 mm
-/// coordinate tilts the plane through an eye 300 mm from the base axis by up to 3 × 10⁻⁴ rad;
-/// 1 × 10⁻³ rad (0.057°) is above both, and far below any yaw a path asks for (ours).
-pub const WIRE_YAW_TOLERANCE_RAD: f64 = 1.0e-3;
+/// [`paths::robot::WIRE_YAW_TOLERANCE_RAD`], re-exported where the simulator's model is read.
+pub use paths::robot::WIRE_YAW_TOLERANCE_RAD;
 
 impl ArmModel {
-    /// The roll axis turned into the vertical plane through the base axis and the eye (the plane
-    /// the five axes can point it in: base yaw, then pitches), if it is out of that plane by no
-    /// more than [`WIRE_YAW_TOLERANCE_RAD`]; `None` if it needs a wrist yaw.
+    /// [`paths::robot::in_arm_plane`].
     pub fn in_arm_plane(eye_mm: [f64; 3], axis: Unit<Vector3<f64>>) -> Option<Unit<Vector3<f64>>> {
-        let rho = eye_mm[0].hypot(eye_mm[1]);
-        if rho < 1e-9 {
-            return Some(axis);
-        }
-        let n = Vector3::new(-eye_mm[1] / rho, eye_mm[0] / rho, 0.0);
-        let off = n.dot(axis.as_ref());
-        if off.abs() > WIRE_YAW_TOLERANCE_RAD.sin() {
-            return None;
-        }
-        Unit::try_new(axis.into_inner() - n * off, 1e-12)
+        paths::robot::in_arm_plane(eye_mm, axis)
     }
 }
 
 impl Kinematics for ArmModel {
+    /// [`Arm::takes_pose`]: the one decision the pre-run check makes too.
     fn check(&self, eye_mm: [f64; 3], q_wxyz: [f64; 4]) -> Result<(), RobotError> {
-        let eye = Point3::new(eye_mm[0], eye_mm[1], eye_mm[2]);
-        let axis =
-            Self::in_arm_plane(eye_mm, Self::roll_axis(q_wxyz)).ok_or(RobotError::Kinematics)?;
-        for branch in [ElbowBranch::Up, ElbowBranch::Down] {
-            if let Ok(j) = self.arm.inverse(&eye, &axis, 0.0, branch)
-                && self.arm.check_joints(&j).is_ok()
-            {
-                return Ok(());
-            }
+        if self.arm.takes_pose(eye_mm, q_wxyz) {
+            Ok(())
+        } else {
+            Err(RobotError::Kinematics)
         }
-        Err(RobotError::Kinematics)
     }
 }
 

@@ -185,7 +185,7 @@ pub fn files_of_job(files: &[(PathBuf, String)]) -> FileSet {
 }
 
 /// The arm's envelope for the pre-run check: the eye at most the two links and the eye mechanism
-/// from the shoulder (the full five-axis check is the plan's).
+/// from the shoulder, and every pose on the job's five-axis arm ([`Reach::arm`]).
 pub fn envelope(job: &sequences::Job) -> Reach {
     let arm = crate::plan::tool::arm(job);
     let stretch = arm.upper_arm_mm + arm.forearm_mm + arm.eye_mechanism_mm;
@@ -196,6 +196,7 @@ pub fn envelope(job: &sequences::Job) -> Reach {
             arm.shoulder_height_mm - stretch,
             arm.shoulder_height_mm + stretch,
         ),
+        arm: Some(arm),
     }
 }
 

@@ -1316,6 +1316,7 @@ fn a_relative_jog_adds_its_offset_on_every_axis_and_the_reach_bounds_are_inclusi
         max_radius_mm: home[0],
         min_radius_mm: home[0],
         z_range_mm: (home[2], home[2]),
+        arm: None,
     };
     let (pos, _) = c.jog(speeds, at(home), false, None, point).unwrap();
     assert!(

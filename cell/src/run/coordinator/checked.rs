@@ -4,6 +4,7 @@
 
 use std::path::PathBuf;
 
+use paths::robot::Arm;
 use sequences::syntax::Places;
 
 use super::*;
@@ -77,7 +78,8 @@ pub(super) struct Prepared {
     pub(super) program: Option<Vec<Instruction>>,
 }
 
-/// The robot's working range the pre-run check holds every instruction to.
+/// The robot's working range the pre-run check holds every instruction to: an envelope, and the
+/// arm model whose poses the controller takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reach {
     /// Greatest horizontal distance from the pedestal axis, mm.
@@ -86,6 +88,9 @@ pub struct Reach {
     pub min_radius_mm: f64,
     /// Lowest and highest height, mm.
     pub z_range_mm: (f64, f64),
+    /// The five-axis arm each pose must have a joint solution on ([`Arm::takes_pose`], the
+    /// decision the robot controller makes, code 9); `None` holds to the envelope alone.
+    pub arm: Option<Arm>,
 }
 
 impl Reach {
@@ -97,16 +102,23 @@ impl Reach {
             && t[2] >= self.z_range_mm.0
             && t[2] <= self.z_range_mm.1
     }
+
+    /// True when the arm can take the pose: eye `t` (mm) with wrist quaternion `q_wxyz`, as the
+    /// positioning telegram carries them; always for a range without an arm.
+    pub fn arm_takes(&self, t: [f64; 3], q_wxyz: [f64; 4]) -> bool {
+        self.arm.is_none_or(|arm| arm.takes_pose(t, q_wxyz))
+    }
 }
 
 impl Default for Reach {
     /// The robot computer's own range check (`asea_protocol::sim::MotionParams`: 1600 mm,
-    /// ±2047.9375 mm of height).
+    /// ±2047.9375 mm of height) and the IRB 6/2's arm.
     fn default() -> Self {
         Reach {
             max_radius_mm: 1600.0,
             min_radius_mm: 0.0,
             z_range_mm: (-2047.9375, 2047.9375),
+            arm: Some(Arm::default()),
         }
     }
 }
@@ -266,6 +278,9 @@ impl Prepared {
         }
         let mut rob = item.rob.clone();
         rob.header.movement = mode.movement();
+        // The header's speeds go to the robot in every mode (discrete too, before its first
+        // immediate move).
+        transfer::speeds(&rob.header)?;
         let immediate: Vec<Positioning> = transfer::immediate_moves(&rob)?
             .into_iter()
             .filter_map(|c| match c {
@@ -289,6 +304,12 @@ impl Prepared {
                     eye_mm: t,
                     radius_mm: (reach.min_radius_mm, reach.max_radius_mm),
                     height_mm: reach.z_range_mm,
+                });
+            }
+            if !reach.arm_takes(t, p.pose.q.wxyz()) {
+                return Err(Error::ArmCannotTake {
+                    instruction: i.number,
+                    eye_mm: t,
                 });
             }
             transfer::indexer_move(&i.mandrel, setup, Some(i.number))?;

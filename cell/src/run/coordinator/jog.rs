@@ -52,7 +52,7 @@ impl Coordinator<'_> {
                         source: Box::new(source),
                     }
                 })?;
-            if !reach.holds(target) {
+            if !reach.holds(target) || !reach.arm_takes(p.pose.xyz_mm(), p.pose.q.wxyz()) {
                 return Err(Fault::OutOfReach { eye_mm: target }.into());
             }
             self.dev.robot.set_speeds(speeds.0, speeds.1)?;
