@@ -522,7 +522,7 @@ impl<L: Link, C: Clock> Client<L, C> {
                         Err(expected) => Err(Error::Effect {
                             command: name,
                             expected,
-                            found: format!("{after:?}"),
+                            found: after.to_string(),
                         }),
                     };
                 }

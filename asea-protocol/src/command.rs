@@ -752,6 +752,29 @@ pub struct Status {
     pub last_digest: u16,
 }
 
+impl std::fmt::Display for Status {
+    /// The status in the protocol's words (docs/protocol.md, ENQUIRE): `mode OPERATE, state
+    /// ERROR, program 1, instruction 53, last error 9`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mode = match self.mode {
+            Mode::Standby => "STANDBY",
+            Mode::Operate => "OPERATE",
+        };
+        let state = match self.state {
+            State::Idle => "IDLE",
+            State::Running => "RUNNING",
+            State::Homing => "HOMING",
+            State::Error => "ERROR",
+            State::Stopped => "STOPPED",
+        };
+        write!(
+            f,
+            "mode {mode}, state {state}, program {}, instruction {}, last error {}",
+            self.program, self.instruction, self.last_error
+        )
+    }
+}
+
 /// DATA length of the ENQUIRE status reply.
 pub const STATUS_REPLY_LEN: usize = 13;
 
@@ -1025,6 +1048,29 @@ mod tests {
     use super::*;
     use crate::decoder::{Decoder, Token};
     use proptest::prelude::*;
+
+    /// A status in an operator's message reads in the protocol's words (docs/protocol.md: state
+    /// 3 error, mode 1 operate), not as a Rust structure.
+    #[test]
+    fn a_status_reads_in_the_protocols_words() {
+        let s = Status {
+            mode: Mode::Operate,
+            state: State::Error,
+            program: 1,
+            instruction: 53,
+            last_error: 9,
+            ..Status::default()
+        };
+        assert_eq!(
+            s.to_string(),
+            "mode OPERATE, state ERROR, program 1, instruction 53, last error 9"
+        );
+        let idle = Status::default().to_string();
+        assert_eq!(
+            idle,
+            "mode STANDBY, state IDLE, program 0, instruction 0, last error 0"
+        );
+    }
 
     /// The wire range is symmetric: ±2047.9375 mm lie in it, the raw −32768 (−2048.0 mm) does
     /// not (docs/protocol.md §4).
