@@ -65,7 +65,8 @@ pub struct JogArgs {
     pub cell: Option<PathBuf>,
 }
 
-/// Runs `windcell jog`.
+/// Runs `windcell jog`: the arguments checked (nothing is sent before every check passed), then
+/// the one move on the cell.
 pub fn run(args: JogArgs) -> Result<(), Failure> {
     let cell = match &args.cell {
         Some(p) => Cell::load(p).map_err(Failure::from_cell)?,
@@ -73,65 +74,8 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
     };
     let [x, y, z] = <[f64; 3]>::try_from(args.pos.as_slice())
         .map_err(|_| Failure::input("jog: --pos needs X,Y,Z"))?;
-    // The wrist angles are angles: beyond a turn either way they are wrong values, refused here
-    // rather than by the robot computer after the telegram went out.
-    for (flag, deg) in [
-        ("--pitch-deg", args.pitch_deg),
-        ("--roll-deg", args.roll_deg),
-    ] {
-        if !(deg.is_finite() && deg.abs() <= 360.0) {
-            return Err(Failure::input(format!(
-                "jog: {flag} {} must lie in -360 … 360 degrees",
-                paths::limits::shown(deg)
-            )));
-        }
-    }
-    let q = paths::wrist::components(&paths::wrist::from_pitch_roll(
-        args.pitch_deg.to_radians(),
-        args.roll_deg.to_radians(),
-    ));
-    // A speed flag in its own unit (`per_unit` of it make the telegram's 1.0): its range is
-    // the telegram's, told in that unit.
-    let speed = |name: &'static str, v: f64, per_unit: f64, unit: &str| {
-        let limit = f64::from(u16::MAX) / 8192.0 * per_unit;
-        Speed::from_value(name, v / per_unit)
-            .map_err(|_| {
-                Failure::input(format!(
-                    "jog: {name} {}: out of range (0 to {limit:.2} {unit}, the telegram's)",
-                    paths::limits::shown(v)
-                ))
-            })
-            .and_then(|s| {
-                if s.0 == 0 {
-                    Err(Failure::input(format!(
-                        "jog: {name} {} rounds to zero",
-                        paths::limits::shown(v)
-                    )))
-                } else {
-                    Ok(s)
-                }
-            })
-    };
-    // The mandrel's profile flags are checked whether or not this jog turns the mandrel, by the
-    // indexer profile's own validation, and named as the flags they came from.
-    mandrel_drive::Profile {
-        accel_rps2: args.accel_rps2,
-        start_rps: args.start_rps,
-        max_rps: args.max_rps,
-    }
-    .validate(&cell.drive)
-    .map_err(|e| match e {
-        mandrel_drive::Error::OutOfRange {
-            name,
-            value,
-            expected,
-        } => Failure::input(format!(
-            "jog: --{} {}: must be {expected}",
-            name.replace('_', "-"),
-            paths::limits::shown(value)
-        )),
-        other => Failure::input(format!("jog: {other}")),
-    })?;
+    let q = wrist(&args)?;
+    check_profile(&args, &cell)?;
     let p = Positioning {
         flags: Flags {
             interpolation: if args.joint {
@@ -143,43 +87,13 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
             zone: Zone::Fine,
         },
         pose: Pose::from_mm([x, y, z], q).map_err(|e| Failure::input(format!("jog: {e}")))?,
-        speed: speed("--speed-pct", args.speed_pct, 100.0, "%")?,
+        speed: telegram_speed("--speed-pct", args.speed_pct, 100.0, "%")?,
     };
     let speeds = (
-        speed("--base-speed-mm-s", args.base_speed_mm_s, 1000.0, "mm/s")?,
-        speed("--max-speed-mm-s", args.max_speed_mm_s, 1000.0, "mm/s")?,
+        telegram_speed("--base-speed-mm-s", args.base_speed_mm_s, 1000.0, "mm/s")?,
+        telegram_speed("--max-speed-mm-s", args.max_speed_mm_s, 1000.0, "mm/s")?,
     );
-    let mandrel = (args.steps != 0).then_some(MandrelMove {
-        accel_rps2: args.accel_rps2,
-        start_stop_rps: args.start_rps,
-        max_rps: args.max_rps,
-        steps: args.steps,
-    });
-    if let Some(m) = &mandrel {
-        // The move must end within the coordinator's wait for it: a longer one would be sent,
-        // turn the mandrel, and then be called a device failure.
-        let least_s =
-            (m.steps.unsigned_abs() as f64) / (m.max_rps * cell.drive.steps_per_mandrel_rev());
-        if least_s.is_nan() || least_s > cell::run::coordinator::MOVE_TIMEOUT_S {
-            return Err(Failure::input(format!(
-                "jog: --steps {} takes at least {} s at --max-rps {}, longer than the {} s a move \
-                 may take",
-                m.steps,
-                paths::limits::shown(least_s),
-                paths::limits::shown(m.max_rps),
-                cell::run::coordinator::MOVE_TIMEOUT_S
-            )));
-        }
-        cell::run::transfer::indexer_move(
-            m,
-            &cell::run::transfer::IndexerSetup {
-                drive: cell.drive,
-                start_velocity_command: true,
-            },
-            None,
-        )
-        .map_err(Failure::from_cell)?;
-    }
+    let mandrel = mandrel_move(&args, &cell)?;
     if !args.rel {
         let r = x.hypot(y);
         let reach = Reach::default();
@@ -217,4 +131,104 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
             Halt::Fault(f) => Failure::runtime(format!("jog: {f}")),
         }),
     }
+}
+
+/// The wrist quaternion of `--pitch-deg` and `--roll-deg`. They are angles: beyond a turn either
+/// way they are wrong values, refused here rather than by the robot computer after the telegram
+/// went out.
+fn wrist(args: &JogArgs) -> Result<[f64; 4], Failure> {
+    for (flag, deg) in [
+        ("--pitch-deg", args.pitch_deg),
+        ("--roll-deg", args.roll_deg),
+    ] {
+        if !(deg.is_finite() && deg.abs() <= 360.0) {
+            return Err(Failure::input(format!(
+                "jog: {flag} {} must lie in -360 … 360 degrees",
+                paths::limits::shown(deg)
+            )));
+        }
+    }
+    Ok(paths::wrist::components(&paths::wrist::from_pitch_roll(
+        args.pitch_deg.to_radians(),
+        args.roll_deg.to_radians(),
+    )))
+}
+
+/// A speed flag `name` of value `v` in its own unit (`per_unit` of it make the telegram's 1.0):
+/// its range is the telegram's, told in that unit; a speed that rounds to zero is refused.
+fn telegram_speed(name: &'static str, v: f64, per_unit: f64, unit: &str) -> Result<Speed, Failure> {
+    let limit = f64::from(u16::MAX) / 8192.0 * per_unit;
+    let s = Speed::from_value(name, v / per_unit).map_err(|_| {
+        Failure::input(format!(
+            "jog: {name} {}: out of range (0 to {limit:.2} {unit}, the telegram's)",
+            paths::limits::shown(v)
+        ))
+    })?;
+    if s.0 == 0 {
+        return Err(Failure::input(format!(
+            "jog: {name} {} rounds to zero",
+            paths::limits::shown(v)
+        )));
+    }
+    Ok(s)
+}
+
+/// The mandrel's profile flags, checked whether or not this jog turns the mandrel, by the
+/// indexer profile's own validation, and named as the flags they came from.
+fn check_profile(args: &JogArgs, cell: &Cell) -> Result<(), Failure> {
+    mandrel_drive::Profile {
+        accel_rps2: args.accel_rps2,
+        start_rps: args.start_rps,
+        max_rps: args.max_rps,
+    }
+    .validate(&cell.drive)
+    .map_err(|e| match e {
+        mandrel_drive::Error::OutOfRange {
+            name,
+            value,
+            expected,
+        } => Failure::input(format!(
+            "jog: --{} {}: must be {expected}",
+            name.replace('_', "-"),
+            paths::limits::shown(value)
+        )),
+        other => Failure::input(format!("jog: {other}")),
+    })
+}
+
+/// The jog's mandrel move (`None` for `--steps 0`), checked as the pre-run check checks one: in
+/// the indexer's ranges, and ending within the coordinator's wait for it (a longer one would be
+/// sent, turn the mandrel, and then be called a device failure).
+fn mandrel_move(args: &JogArgs, cell: &Cell) -> Result<Option<MandrelMove>, Failure> {
+    if args.steps == 0 {
+        return Ok(None);
+    }
+    let m = MandrelMove {
+        accel_rps2: args.accel_rps2,
+        start_stop_rps: args.start_rps,
+        max_rps: args.max_rps,
+        steps: args.steps,
+    };
+    let least_s =
+        (m.steps.unsigned_abs() as f64) / (m.max_rps * cell.drive.steps_per_mandrel_rev());
+    if least_s.is_nan() || least_s > cell::run::coordinator::MOVE_TIMEOUT_S {
+        return Err(Failure::input(format!(
+            "jog: --steps {} takes at least {} s at --max-rps {}, longer than the {} s a move may \
+             take",
+            m.steps,
+            paths::limits::shown(least_s),
+            paths::limits::shown(m.max_rps),
+            cell::run::coordinator::MOVE_TIMEOUT_S
+        )));
+    }
+    cell::run::transfer::indexer_move(
+        &m,
+        &cell::run::transfer::IndexerSetup {
+            drive: cell.drive,
+            start_velocity_command: true,
+        },
+        None,
+    )
+    .map_err(Failure::from_cell)?;
+    Ok(Some(m))
 }
