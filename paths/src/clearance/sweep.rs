@@ -901,7 +901,6 @@ struct Move<'m, 'a> {
 }
 
 impl<'m, 'a> Move<'m, 'a> {
-    #[allow(clippy::too_many_arguments)]
     fn new(
         ctx: &'m Context<'a>,
         from: &'m End,
