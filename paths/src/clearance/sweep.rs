@@ -885,37 +885,61 @@ struct Least {
     arm_mm: f64,
 }
 
-/// Checks one move, adds its findings, returns its row.
-#[allow(clippy::too_many_arguments)]
-fn check_move(
-    ctx: &Context<'_>,
-    from: &End,
-    to: &End,
+/// One move as its checks see it: its place in the job and its pose at each `τ` in `[0, 1]`.
+struct Move<'m, 'a> {
+    ctx: &'m Context<'a>,
+    from: &'m End,
+    to: &'m End,
     path: usize,
     segment: usize,
     start_s: f64,
     duration_s: f64,
-    report: &mut Report,
-    least: &mut Least,
-) -> Result<SegmentClearance, Error> {
-    let first_segment = segment == 1;
-    let cell = ctx.cell;
-    let eye_len = cell.eye.length_mm;
-    let joints = joint_move(ctx, from, to);
-    let six = match cell.arm {
-        Some(SweptArm::SixAxis(arm)) => Some(arm),
-        _ => None,
-    };
-    let to_wrist = tool_to_wrist();
-    let instant = |tau: f64| {
+    /// The joints at the two ends of a six-axis joint move ([`joint_move`]).
+    joints: Option<(Joints6, Joints6)>,
+    six: Option<&'a SixAxisArm>,
+    to_wrist: UnitQuaternion<f64>,
+}
+
+impl<'m, 'a> Move<'m, 'a> {
+    fn new(
+        ctx: &'m Context<'a>,
+        from: &'m End,
+        to: &'m End,
+        path: usize,
+        segment: usize,
+        start_s: f64,
+        duration_s: f64,
+    ) -> Self {
+        let six = match ctx.cell.arm {
+            Some(SweptArm::SixAxis(arm)) => Some(arm),
+            _ => None,
+        };
+        Move {
+            ctx,
+            from,
+            to,
+            path,
+            segment,
+            start_s,
+            duration_s,
+            joints: joint_move(ctx, from, to),
+            six,
+            to_wrist: tool_to_wrist(),
+        }
+    }
+
+    /// The pose at `τ`: a six-axis joint move's joints interpolated linearly, else the eye
+    /// along the straight line and the wrist by slerp; the mandrel angle linearly.
+    fn instant(&self, tau: f64) -> At {
+        let (from, to) = (self.from, self.to);
         let phi = from.phi + (to.phi - from.phi) * tau;
-        match (joints, six) {
+        match (self.joints, self.six) {
             (Some((a, b)), Some(arm)) => {
                 let q: Joints6 = std::array::from_fn(|j| a[j] + (b[j] - a[j]) * tau);
                 let frame = arm.tool_frame(&q);
                 At {
                     eye: frame.origin(),
-                    q: frame.quaternion() * to_wrist,
+                    q: frame.quaternion() * self.to_wrist,
                     phi,
                     joints: Some(q),
                     config: None,
@@ -929,32 +953,31 @@ fn check_move(
                 config: to.config,
             },
         }
-    };
-    let at = |tau: f64| {
-        let i = instant(tau);
+    }
+
+    /// The eye, its axis and the mandrel angle at `τ`.
+    fn at(&self, tau: f64) -> (Point3<f64>, Vector3<f64>, f64) {
+        let i = self.instant(tau);
         (i.eye, i.axis(), i.phi)
-    };
-    let worst_at = |tau: f64| {
-        let i = instant(tau);
-        let joints = match six {
-            Some(_) => ctx.links(&i).ok().flatten().and_then(|(q, _)| q),
+    }
+
+    /// [`Move::at`] with a six-axis arm's joints, as a finding reports them.
+    fn worst_at(&self, tau: f64) -> (Point3<f64>, Vector3<f64>, f64, Option<Joints6>) {
+        let i = self.instant(tau);
+        let joints = match self.six {
+            Some(_) => self.ctx.links(&i).ok().flatten().and_then(|(q, _)| q),
             None => None,
         };
         (i.eye, i.axis(), i.phi, joints)
-    };
-    // Lipschitz bound of the eye capsule's points in τ. Turning the mandrel moves a point of the
-    // capsule, seen from the mandrel, by at most `d_phi` times its distance from the axis, and
-    // the mandrel's own points by at most `d_phi` times the solid's radius: either bounds the
-    // change in distance.
-    let d_phi = (to.phi - from.phi).abs();
-    let l_eye = eye_lipschitz(ctx, from, to);
-    let time = |tau: f64| start_s + tau * duration_s;
-    let record = |report: &mut Report, tau: f64, clearance: f64, part: Part, against: String| {
-        let (eye_mm, axis, mandrel_rad, joints) = worst_at(tau);
+    }
+
+    /// Adds a finding at `τ`.
+    fn record(&self, report: &mut Report, tau: f64, clearance: f64, part: Part, against: String) {
+        let (eye_mm, axis, mandrel_rad, joints) = self.worst_at(tau);
         report.findings.push(Finding {
-            path,
-            segment,
-            time_s: time(tau),
+            path: self.path,
+            segment: self.segment,
+            time_s: self.start_s + tau * self.duration_s,
             clearance_mm: clearance,
             part,
             against,
@@ -963,53 +986,82 @@ fn check_move(
             mandrel_rad,
             joints,
         });
-    };
-
-    // Eye mechanism.
-    let mut eye_fn = |tau: f64, cap: f64| {
-        let (eye, axis, phi) = at(tau);
-        ctx.capsule(
-            &eye,
-            &(eye - axis * eye_len),
-            cell.eye.radius_mm,
-            phi,
-            true,
-            cap,
-        )
-        .0
-    };
-    let eye = certified_min_below(&mut eye_fn, l_eye, RESOLUTION_MM, 0.0, least.eye_mm);
-    least.eye_mm = least.eye_mm.min(eye.value);
-    if let Some((tau, d)) = eye.first_below {
-        // Name what the first contact was against.
-        let (e, axis, phi) = at(tau);
-        let (_, against) = ctx.capsule(
-            &e,
-            &(e - axis * eye_len),
-            cell.eye.radius_mm,
-            phi,
-            true,
-            f64::INFINITY,
-        );
-        let against = ctx.against(against);
-        record(report, tau, d, Part::EyeMechanism, against);
     }
-    note_worst(report, &eye, path, segment, &worst_at);
 
-    // Free fibre, sampled.
-    let tow_mm = match (from.tangent, to.tangent) {
-        (Some(t0), Some(t1)) => {
-            let (least, first) = free_fibre_min(ctx, from, to, (t0, t1), first_segment, &at);
-            if let Some((tau, d)) = first {
-                record(report, tau, d, Part::FreeFibre, "mandrel".to_string());
-            }
-            Some(least)
+    /// The eye mechanism's least clearance, certified below `least.eye_mm`; its first contact
+    /// and the worst instant noted.
+    fn check_eye(&self, report: &mut Report, least: &mut Least) -> Minimum {
+        let (ctx, cell) = (self.ctx, self.ctx.cell);
+        let eye_len = cell.eye.length_mm;
+        // Lipschitz bound of the eye capsule's points in τ. Turning the mandrel moves a point of
+        // the capsule, seen from the mandrel, by at most `d_phi` times its distance from the
+        // axis, and the mandrel's own points by at most `d_phi` times the solid's radius: either
+        // bounds the change in distance.
+        let l_eye = eye_lipschitz(ctx, self.from, self.to);
+        let mut eye_fn = |tau: f64, cap: f64| {
+            let (eye, axis, phi) = self.at(tau);
+            ctx.capsule(
+                &eye,
+                &(eye - axis * eye_len),
+                cell.eye.radius_mm,
+                phi,
+                true,
+                cap,
+            )
+            .0
+        };
+        let eye = certified_min_below(&mut eye_fn, l_eye, RESOLUTION_MM, 0.0, least.eye_mm);
+        least.eye_mm = least.eye_mm.min(eye.value);
+        if let Some((tau, d)) = eye.first_below {
+            // Name what the first contact was against.
+            let (e, axis, phi) = self.at(tau);
+            let (_, against) = ctx.capsule(
+                &e,
+                &(e - axis * eye_len),
+                cell.eye.radius_mm,
+                phi,
+                true,
+                f64::INFINITY,
+            );
+            let against = ctx.against(against);
+            self.record(report, tau, d, Part::EyeMechanism, against);
         }
-        _ => None,
-    };
+        note_worst(report, &eye, self.path, self.segment, &|tau| {
+            self.worst_at(tau)
+        });
+        eye
+    }
 
-    // Arm links.
-    let arm_mm = if let Some(swept) = cell.arm {
+    /// The free fibre's least clearance (sampled), where both ends have a tangent point; its
+    /// first snag recorded.
+    fn check_free_fibre(&self, report: &mut Report) -> Option<f64> {
+        let (Some(t0), Some(t1)) = (self.from.tangent, self.to.tangent) else {
+            return None;
+        };
+        let first_segment = self.segment == 1;
+        let (least, first) = free_fibre_min(
+            self.ctx,
+            self.from,
+            self.to,
+            (t0, t1),
+            first_segment,
+            &|tau| self.at(tau),
+        );
+        if let Some((tau, d)) = first {
+            self.record(report, tau, d, Part::FreeFibre, "mandrel".to_string());
+        }
+        Some(least)
+    }
+
+    /// The arm links' least clearance, certified below `least.arm_mm`, where the cell has an
+    /// arm; their first contact and the worst instant noted.
+    fn check_links(&self, report: &mut Report, least: &mut Least) -> Result<Option<f64>, Error> {
+        let ctx = self.ctx;
+        let Some(swept) = ctx.cell.arm else {
+            return Ok(None);
+        };
+        let instant = |tau: f64| self.instant(tau);
+        let d_phi = (self.to.phi - self.from.phi).abs();
         let m = match swept {
             SweptArm::Irb62(arm, _) => {
                 let l_arm = irb_link_lipschitz(ctx, arm, &instant, d_phi)?;
@@ -1032,9 +1084,9 @@ fn check_move(
                 ctx,
                 &instant,
                 SixAxisMove {
-                    from,
-                    to,
-                    joint_move: joints.is_some(),
+                    from: self.from,
+                    to: self.to,
+                    joint_move: self.joints.is_some(),
                     d_phi,
                 },
                 least.arm_mm,
@@ -1044,14 +1096,33 @@ fn check_move(
         if let Some((tau, d)) = m.first_below
             && let Some((_, link, against)) = ctx.arm(&instant(tau), f64::INFINITY)?
         {
-            record(report, tau, d, Part::Link(link), ctx.against(against));
+            self.record(report, tau, d, Part::Link(link), ctx.against(against));
         }
-        note_worst(report, &m, path, segment, &worst_at);
-        Some(m.value)
-    } else {
-        None
-    };
+        note_worst(report, &m, self.path, self.segment, &|tau| {
+            self.worst_at(tau)
+        });
+        Ok(Some(m.value))
+    }
+}
 
+/// Checks one move (the eye mechanism, the free fibre, the arm links, in that order), adds its
+/// findings, returns its row.
+#[allow(clippy::too_many_arguments)]
+fn check_move(
+    ctx: &Context<'_>,
+    from: &End,
+    to: &End,
+    path: usize,
+    segment: usize,
+    start_s: f64,
+    duration_s: f64,
+    report: &mut Report,
+    least: &mut Least,
+) -> Result<SegmentClearance, Error> {
+    let mv = Move::new(ctx, from, to, path, segment, start_s, duration_s);
+    let eye = mv.check_eye(report, least);
+    let tow_mm = mv.check_free_fibre(report);
+    let arm_mm = mv.check_links(report, least)?;
     Ok(SegmentClearance {
         segment,
         start_s,
