@@ -48,7 +48,7 @@ fn plan_examples(c: &mut Criterion) {
                 let files = cell::plan::files::control_files(&job, &plan).unwrap();
                 // What `run` would refuse (an IRB 6/2 job's pre-run check), as `plan` does.
                 if job.robot_kind() == sequences::job::RobotKind::Irb6 {
-                    cell::run::batch::admit(&job, &job_path, &files, None).unwrap();
+                    cell::run::batch::admit(&job, &text, &job_path, &files, None).unwrap();
                 }
                 let checked = cell::plan::check::check(&job, &text, &job_path, plan).unwrap();
                 assert!(checked.report.is_clear());
