@@ -231,6 +231,50 @@ pub fn load_prepared(
     Ok(prepared)
 }
 
+/// A mesh mandrel ready for planning and checking: the tracer the paths are traced on and the
+/// collision check's solid, both from the same prepared triangles.
+#[derive(Debug, Clone)]
+pub struct Ready {
+    /// The tracer ([`Tracer::new`] at [`paths::mesh::trace::DEFAULT_CREASE_DEG`]).
+    pub tracer: std::sync::Arc<Tracer>,
+    /// The solid ([`paths::clearance::MeshSolid::with_adjacency`]).
+    pub solid: std::sync::Arc<paths::clearance::MeshSolid>,
+}
+
+/// The mesh mandrel last made ready in this process, with what it was made from: the file, its
+/// size and checksum, the welding tolerance (a closed surface is always required). Planning a job
+/// again, or another job on the same mesh file, takes it instead of reading and preparing the file
+/// again (one mesh is kept: jobs on one mandrel are planned in turn).
+static LAST_READY: std::sync::Mutex<Option<(std::path::PathBuf, Key, Ready)>> =
+    std::sync::Mutex::new(None);
+
+/// What a mesh file's ready mandrel is made from (`None` when the file cannot be read; reading
+/// it to prepare it then says why).
+pub fn ready_key(file: &Path, weld_mm: f64) -> Option<Key> {
+    let (handle, len) = sequences::source::open(file, sequences::source::MAX_MESH_BYTES).ok()?;
+    Some(Key {
+        source_bytes: len,
+        source_checksum: checksum_of(handle).ok()?,
+        weld_mm,
+        closure: Closure::Closed,
+    })
+}
+
+/// The mesh mandrel made ready from `file` with `key`, if it is the one kept.
+pub fn ready_kept(file: &Path, key: &Key) -> Option<Ready> {
+    let kept = LAST_READY.lock().unwrap_or_else(|p| p.into_inner());
+    match &*kept {
+        Some((f, k, ready)) if f == file && k == key => Some(ready.clone()),
+        _ => None,
+    }
+}
+
+/// Keeps the mesh mandrel made ready from `file` with `key` (in place of the one kept).
+pub fn keep_ready(file: &Path, key: Key, ready: Ready) {
+    let mut kept = LAST_READY.lock().unwrap_or_else(|p| p.into_inner());
+    *kept = Some((file.to_path_buf(), key, ready));
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -284,6 +328,46 @@ mod tests {
             load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap(),
             changed
         );
+    }
+
+    /// A kept mesh is taken only for the file it was made from, unchanged (same size, another
+    /// radius is a miss), at the same tolerance.
+    #[test]
+    fn a_kept_mesh_is_taken_only_for_its_unchanged_file_and_tolerance() {
+        let tmp = tempfile::tempdir().unwrap();
+        let file = tmp.path().join("k.stl");
+        std::fs::write(&file, cylinder_stl(4, 30.0)).unwrap();
+        let (mesh, adjacency) = load_prepared(&file, DEFAULT_WELD_MM, Closure::Closed).unwrap();
+        let ready = Ready {
+            tracer: std::sync::Arc::new(
+                Tracer::new(
+                    mesh.clone(),
+                    &adjacency,
+                    paths::mesh::trace::DEFAULT_CREASE_DEG,
+                )
+                .unwrap(),
+            ),
+            solid: std::sync::Arc::new(
+                paths::clearance::MeshSolid::with_adjacency(&mesh, &adjacency).unwrap(),
+            ),
+        };
+        let key = ready_key(&file, DEFAULT_WELD_MM).unwrap();
+        // The kept mesh is the process's: a test planning a mesh job on another thread may replace
+        // it between keeping and taking, so keeping is tried again a few times.
+        let taken = (0..20).any(|_| {
+            keep_ready(&file, key, ready.clone());
+            ready_kept(&file, &ready_key(&file, DEFAULT_WELD_MM).unwrap()).is_some()
+        });
+        assert!(taken);
+        assert!(ready_kept(&file, &ready_key(&file, 2e-4).unwrap()).is_none());
+        let other = tmp.path().join("other.stl");
+        std::fs::write(&other, cylinder_stl(4, 30.0)).unwrap();
+        assert!(ready_kept(&other, &ready_key(&other, DEFAULT_WELD_MM).unwrap()).is_none());
+        let before = std::fs::metadata(&file).unwrap().len();
+        std::fs::write(&file, cylinder_stl(4, 31.0)).unwrap();
+        assert_eq!(std::fs::metadata(&file).unwrap().len(), before);
+        assert!(ready_kept(&file, &ready_key(&file, DEFAULT_WELD_MM).unwrap()).is_none());
+        assert!(ready_key(&tmp.path().join("missing.stl"), DEFAULT_WELD_MM).is_none());
     }
 
     #[test]

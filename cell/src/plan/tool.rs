@@ -411,7 +411,7 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
         .map_err(|e| located(e, spec.segments.span()))?;
     }
     let tube = mandrel_in(job, text, file)?;
-    let prepared = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
+    let mesh = match (&job.mandrel.kind.get_ref(), &job.mandrel.mesh) {
         (MandrelKind::Mesh, Some(mesh)) => {
             let dir = file.parent().unwrap_or(Path::new(""));
             let weld = job
@@ -419,20 +419,31 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
                 .weld_mm
                 .as_ref()
                 .map_or(paths::mesh::DEFAULT_WELD_MM, |w| *w.get_ref());
-            let mesh_file = dir.join(mesh.get_ref());
-            let (prepared, adjacency) =
-                crate::plan::mesh::load_prepared(&mesh_file, weld, paths::mesh::Closure::Closed)
-                    .map_err(|e| named(text, file, mesh.span(), e))?;
-            Some((prepared, adjacency, mesh_file, mesh.span()))
+            Some((dir.join(mesh.get_ref()), weld, mesh.span()))
         }
         _ => None,
     };
-    let Some((prepared, adjacency, mesh_file, span)) = prepared else {
+    let Some((mesh_file, weld, span)) = mesh else {
         return Ok(JobPlan {
             paths: plan_paths(job, text, file, &tube, None)?,
             mesh_solid: None,
         });
     };
+    // The mesh made ready for the last plan, when it is this very file (size and checksum) at
+    // this tolerance.
+    let key = crate::plan::mesh::ready_key(&mesh_file, weld);
+    if let Some(ready) = key
+        .as_ref()
+        .and_then(|k| crate::plan::mesh::ready_kept(&mesh_file, k))
+    {
+        return Ok(JobPlan {
+            paths: plan_paths(job, text, file, &tube, Some(&ready.tracer))?,
+            mesh_solid: Some(ready.solid),
+        });
+    }
+    let (prepared, adjacency) =
+        crate::plan::mesh::load_prepared(&mesh_file, weld, paths::mesh::Closure::Closed)
+            .map_err(|e| named(text, file, span.clone(), e))?;
     let mesh_error = |source| {
         named(
             text,
@@ -458,9 +469,17 @@ pub fn plan(job: &Job, text: &str, file: &Path) -> Result<JobPlan, Error> {
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
             .map_err(mesh_error)?;
+        let solid = std::sync::Arc::new(solid);
+        if let Some(key) = key {
+            let ready = crate::plan::mesh::Ready {
+                tracer: std::sync::Arc::new(tracer),
+                solid: solid.clone(),
+            };
+            crate::plan::mesh::keep_ready(&mesh_file, key, ready);
+        }
         Ok(JobPlan {
             paths: planned,
-            mesh_solid: Some(std::sync::Arc::new(solid)),
+            mesh_solid: Some(solid),
         })
     })
 }

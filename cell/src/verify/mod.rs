@@ -28,15 +28,17 @@
 //! own joint-limit and singularity handling, the I/O wiring and the positioner's calibration.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use nalgebra::{Point3, UnitQuaternion};
+use paths::Tube;
 use paths::arm::{Config, MandrelAxis, MandrelDrive, SixAxisArm};
 use sequences::Job;
 use sequences::program::{self, ConfigData, Format, ReadProgram, ReadTarget, Step};
 
 use crate::Error;
 use crate::plan::check::{self, Checked};
-use crate::plan::tool::{self, PlannedPath};
+use crate::plan::tool::{self, JobPlan, PlannedPath};
 use crate::predict::{self, PathPrediction};
 
 /// Largest distance of a target from the plan's, mm (URScript: [`URSCRIPT_TOLERANCE_MM`]).
@@ -149,6 +151,82 @@ fn program_files(dir: &Path) -> Result<(Format, Vec<(String, String)>), Error> {
     Ok((format, files))
 }
 
+/// What programs are verified against: a job's plan and what follows from it (its mandrel,
+/// setup and speeds, and `predict`'s prediction of each planned path once it is asked for). Made
+/// once per job, it serves every folder of programs posted from the job (one per format):
+/// [`verify`] makes one and verifies one folder; [`verify_with`] verifies a folder against one
+/// already made.
+#[derive(Debug)]
+pub struct Reference {
+    plan: JobPlan,
+    tube: Tube,
+    setup: paths::Setup,
+    speeds: paths::Speeds,
+    axis: MandrelAxis,
+    opt: predict::Options,
+    /// `predict`'s prediction of each planned path, made when first asked for.
+    planned: Vec<OnceLock<PathPrediction>>,
+}
+
+impl Reference {
+    /// Plans `job` (read from `file`, text `text`).
+    pub fn new(job: &Job, text: &str, file: &Path, opt: &predict::Options) -> Result<Self, Error> {
+        let plan = tool::plan(job, text, file)?;
+        Self::of_plan(job, text, file, plan, opt)
+    }
+
+    /// The reference of a plan of `job` already made ([`tool::plan`], as `post` makes it).
+    pub fn of_plan(
+        job: &Job,
+        text: &str,
+        file: &Path,
+        plan: JobPlan,
+        opt: &predict::Options,
+    ) -> Result<Self, Error> {
+        let (setup, speeds) = tool::setup(job);
+        let tube = tool::mandrel_in(job, text, file)?;
+        Ok(Reference {
+            planned: plan.paths.iter().map(|_| OnceLock::new()).collect(),
+            plan,
+            tube,
+            setup,
+            speeds,
+            axis: job.mandrel_axis(),
+            opt: opt.clone(),
+        })
+    }
+
+    /// The plan.
+    pub fn plan(&self) -> &JobPlan {
+        &self.plan
+    }
+
+    fn coupled(&self) -> bool {
+        self.axis.drive == MandrelDrive::Robot
+    }
+
+    /// `predict`'s prediction of a path of the plan, or of a simulated run of one.
+    fn predict(&self, path: &PlannedPath) -> Result<PathPrediction, Error> {
+        predict::six_axis::predict_path(
+            path,
+            &self.tube,
+            &self.setup,
+            &self.speeds,
+            self.coupled(),
+            &self.opt,
+        )
+    }
+
+    /// `predict`'s prediction of the plan's path `i`, made once.
+    fn planned(&self, i: usize) -> Result<PathPrediction, Error> {
+        if let Some(p) = self.planned[i].get() {
+            return Ok(p.clone());
+        }
+        let p = self.predict(&self.plan.paths[i])?;
+        Ok(self.planned[i].get_or_init(|| p).clone())
+    }
+}
+
 /// Verifies the programs in `dir` against `job` (read from `file`, text `text`).
 pub fn verify(
     job: &Job,
@@ -159,87 +237,189 @@ pub fn verify(
 ) -> Result<Verified, Error> {
     let (format, files) = program_files(dir)?;
     let arm = crate::plan::post::six_axis_arm(job, text, file, format)?;
-    let plan = tool::plan(job, text, file)?;
-    let axis = job.mandrel_axis();
-    let (setup, speeds) = tool::setup(job);
-    let tube = tool::mandrel_in(job, text, file)?;
+    let reference = Reference::new(job, text, file, opt)?;
+    verify_files(job, text, file, dir, &reference, &arm, format, &files)
+}
+
+/// Verifies the programs in `dir` against `reference`, made from `job` (read from `file`, text
+/// `text`): the same as [`verify`] without planning the job again.
+pub fn verify_with(
+    job: &Job,
+    text: &str,
+    file: &Path,
+    dir: &Path,
+    reference: &Reference,
+) -> Result<Verified, Error> {
+    let (format, files) = program_files(dir)?;
+    let arm = crate::plan::post::six_axis_arm(job, text, file, format)?;
+    verify_files(job, text, file, dir, reference, &arm, format, &files)
+}
+
+/// One path's program, read and checked: its report without the predictions, its findings and
+/// its simulated run (or the finding that stopped it).
+struct PathRead {
+    main_file: String,
+    targets: usize,
+    found: Vec<Finding>,
+    run: Result<PlannedPath, Finding>,
+}
+
+/// Reads path `path`'s programs of `files` (in `dir`), checks their targets and runs them.
+fn read_path(
+    path: &PlannedPath,
+    reference: &Reference,
+    arm: &SixAxisArm,
+    format: Format,
+    files: &[(String, String)],
+    (file, dir): (&Path, &Path),
+) -> Result<PathRead, Error> {
+    let main = program::main_file_name(format, &path.name);
+    if !files.iter().any(|(n, _)| *n == main) {
+        return Err(Error::OutputPath {
+            path: dir.to_path_buf(),
+            reason: format!(
+                "has no {main}, the program of path {} of {}: programs of another job?",
+                path.name,
+                file.display()
+            ),
+        });
+    }
+    // The path's own set: its main program and its parts (`NAME_Pnn`).
+    let id = program::identifier(format, &path.name);
+    let own: Vec<(String, String)> = files
+        .iter()
+        .filter(|(n, _)| {
+            let stem = n.rsplit_once('.').map_or(n.as_str(), |(s, _)| s);
+            stem == id || stem.strip_prefix(&id).is_some_and(|r| r.starts_with("_P"))
+        })
+        .cloned()
+        .collect();
+    let read = program::read(format, &own, Some(&main))
+        .map_err(|e| Error::File(e.in_file(dir.join(&main))))?;
+    let mut found = Vec::new();
+    let context = TargetCheck {
+        path,
+        arm,
+        axis: &reference.axis,
+        format,
+        speeds: &reference.speeds,
+    };
+    check_targets(&read, &context, &mut found);
+    let run = run_program(
+        &read,
+        path,
+        arm,
+        &reference.axis,
+        reference.setup.gearing.steps_per_mandrel_rev(),
+    );
+    Ok(PathRead {
+        main_file: main,
+        targets: read.targets().count(),
+        found,
+        run,
+    })
+}
+
+/// The work of [`verify`] on the program files read from `dir`. The paths' predictions and the
+/// check of the simulated run are made on threads of their own; what is reported (and the first
+/// error returned) is as if each path were verified in turn and the run checked after them.
+#[allow(clippy::too_many_arguments)]
+fn verify_files(
+    job: &Job,
+    text: &str,
+    file: &Path,
+    dir: &Path,
+    reference: &Reference,
+    arm: &SixAxisArm,
+    format: Format,
+    files: &[(String, String)],
+) -> Result<Verified, Error> {
+    let plan = &reference.plan;
+    let mut reads = Vec::with_capacity(plan.paths.len());
+    for path in &plan.paths {
+        let read = read_path(path, reference, arm, format, files, (file, dir));
+        let stop = read.is_err();
+        reads.push(read);
+        if stop {
+            break;
+        }
+    }
+    let runs: Vec<&PlannedPath> = reads
+        .iter()
+        .filter_map(|r| r.as_ref().ok().and_then(|r| r.run.as_ref().ok()))
+        .collect();
+    let all_ran = runs.len() == plan.paths.len();
+    type Predicted = (
+        Result<PathPrediction, Error>,
+        Option<Result<PathPrediction, Error>>,
+    );
+    let (predicted, ran): (Vec<Predicted>, Option<Result<Checked, Error>>) =
+        std::thread::scope(|scope| {
+            // The collision and snag check of the simulated run's motion.
+            let checked = all_ran.then(|| {
+                let runs = crate::plan::tool::JobPlan {
+                    paths: runs.iter().map(|r| (*r).clone()).collect(),
+                    mesh_solid: plan.mesh_solid.clone(),
+                };
+                scope.spawn(move || check::check(job, text, file, runs))
+            });
+            let handles: Vec<_> = reads
+                .iter()
+                .enumerate()
+                .filter_map(|(i, r)| r.as_ref().ok().map(|r| (i, r)))
+                .map(|(i, r)| {
+                    let run = r.run.as_ref().ok();
+                    scope.spawn(move || {
+                        let planned = reference.planned(i);
+                        let ran = run.map(|run| reference.predict(run));
+                        (planned, ran)
+                    })
+                })
+                .collect();
+            let predicted = handles.into_iter().map(joined).collect();
+            (predicted, checked.map(joined))
+        });
     let mut findings = Vec::new();
     let mut paths_out = Vec::new();
-    let mut runs: Vec<PlannedPath> = Vec::new();
-    for path in &plan.paths {
-        let main = program::main_file_name(format, &path.name);
-        if !files.iter().any(|(n, _)| *n == main) {
-            return Err(Error::OutputPath {
-                path: dir.to_path_buf(),
-                reason: format!(
-                    "has no {main}, the program of path {} of {}: programs of another job?",
-                    path.name,
-                    file.display()
-                ),
-            });
-        }
-        // The path's own set: its main program and its parts (`NAME_Pnn`).
-        let id = program::identifier(format, &path.name);
-        let own: Vec<(String, String)> = files
-            .iter()
-            .filter(|(n, _)| {
-                let stem = n.rsplit_once('.').map_or(n.as_str(), |(s, _)| s);
-                stem == id || stem.strip_prefix(&id).is_some_and(|r| r.starts_with("_P"))
-            })
-            .cloned()
-            .collect();
-        let read = program::read(format, &own, Some(&main))
-            .map_err(|e| Error::File(e.in_file(dir.join(&main))))?;
-        let mut found = Vec::new();
-        check_targets(&read, path, &arm, &axis, format, &speeds, &mut found);
-        let run = run_program(
-            &read,
-            path,
-            &arm,
-            &axis,
-            setup.gearing.steps_per_mandrel_rev(),
-        );
-        let coupled = axis.drive == MandrelDrive::Robot;
-        let planned = predict::six_axis::predict_path(path, &tube, &setup, &speeds, coupled, opt)?;
-        let prediction = match &run {
-            Ok(run) => Some(predict::six_axis::predict_path(
-                run, &tube, &setup, &speeds, coupled, opt,
-            )?),
-            Err(f) => {
-                found.push(f.clone());
+    let mut predicted = predicted.into_iter();
+    for (path, read) in plan.paths.iter().zip(reads) {
+        let read = read?;
+        let Some((planned, ran)) = predicted.next() else {
+            break;
+        };
+        let planned = planned?;
+        let mut found = read.found;
+        let prediction = match (ran, read.run) {
+            (Some(ran), _) => Some(ran?),
+            (None, Err(f)) => {
+                found.push(f);
                 None
             }
+            (None, Ok(_)) => None,
         };
-        if let Ok(run) = run {
-            runs.push(run);
-        }
         paths_out.push(PathVerified {
             name: path.name.clone(),
-            main_file: main,
-            targets: read.targets().count(),
+            main_file: read.main_file,
+            targets: read.targets,
             prediction,
             planned,
         });
         findings.extend(found);
     }
-    // The collision and snag check of the simulated run's motion.
-    let check_line = if runs.len() == plan.paths.len() {
-        let plan = crate::plan::tool::JobPlan {
-            paths: runs,
-            mesh_solid: plan.mesh_solid.clone(),
-        };
-        let ran: Checked = check::check(job, text, file, plan)?;
-        for f in &ran.report.findings {
-            let p = &paths_out[f.path - 1];
-            findings.push(Finding {
-                file: p.main_file.clone(),
-                line: 1,
-                message: format!("the simulated run: {}", check::finding_line(&ran, f)),
-            });
+    let check_line = match ran {
+        Some(ran) => {
+            let ran = ran?;
+            for f in &ran.report.findings {
+                let p = &paths_out[f.path - 1];
+                findings.push(Finding {
+                    file: p.main_file.clone(),
+                    line: 1,
+                    message: format!("the simulated run: {}", check::finding_line(&ran, f)),
+                });
+            }
+            check::summary(&ran)
         }
-        check::summary(&ran)
-    } else {
-        "check: not run (a program's targets could not be run)".to_string()
+        None => "check: not run (a program's targets could not be run)".to_string(),
     };
     Ok(Verified {
         format,
@@ -247,6 +427,13 @@ pub fn verify(
         findings,
         check_line,
     })
+}
+
+/// The result of a scoped thread; its panic goes on in the caller.
+fn joined<T>(handle: std::thread::ScopedJoinHandle<'_, T>) -> T {
+    handle
+        .join()
+        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 /// The tool frame of a read target in the robot base frame and the mandrel angle it implies
@@ -277,30 +464,42 @@ fn planned_tool(pose: &paths::Pose) -> Option<(Point3<f64>, UnitQuaternion<f64>)
     }
 }
 
-/// Compares each read target with the plan's pose, its configuration data with its joints.
-fn check_targets(
-    read: &ReadProgram,
-    path: &PlannedPath,
-    arm: &SixAxisArm,
-    axis: &MandrelAxis,
+/// What the targets of one path's program are checked against.
+struct TargetCheck<'a> {
+    path: &'a PlannedPath,
+    arm: &'a SixAxisArm,
+    axis: &'a MandrelAxis,
     format: Format,
-    speeds: &paths::Speeds,
-    out: &mut Vec<Finding>,
-) {
+    speeds: &'a paths::Speeds,
+}
+
+impl TargetCheck<'_> {
+    /// The largest distance of a target from the plan's, mm.
+    fn tolerance_mm(&self) -> f64 {
+        if self.format == Format::UrScript {
+            URSCRIPT_TOLERANCE_MM
+        } else {
+            TOLERANCE_MM
+        }
+    }
+}
+
+/// A finding at a read target.
+fn finding(t: &ReadTarget, message: String) -> Finding {
+    Finding {
+        file: t.file.clone(),
+        line: t.line,
+        message,
+    }
+}
+
+/// Compares each read target with the plan's pose, its configuration data with its joints.
+fn check_targets(read: &ReadProgram, c: &TargetCheck<'_>, out: &mut Vec<Finding>) {
+    let path = c.path;
     let poses: Vec<&paths::Pose> = std::iter::once(&path.plan.start)
         .chain(path.plan.segments.iter().map(|s| &s.pose))
         .collect();
     let targets: Vec<&ReadTarget> = read.targets().collect();
-    let tolerance_mm = if format == Format::UrScript {
-        URSCRIPT_TOLERANCE_MM
-    } else {
-        TOLERANCE_MM
-    };
-    let finding = |t: &ReadTarget, message: String| Finding {
-        file: t.file.clone(),
-        line: t.line,
-        message,
-    };
     let mut path_config: Option<Config> = None;
     let mut previous: Option<(paths::arm::Joints6, &ReadTarget)> = None;
     for (k, t) in targets.iter().enumerate() {
@@ -316,166 +515,21 @@ fn check_targets(
             ));
             break;
         };
-        let (eye, q, _) = base_pose(t, axis, pose.mandrel_rad);
-        let Some((plan_eye, plan_q)) = planned_tool(pose) else {
+        let (eye, q, _) = base_pose(t, c.axis, pose.mandrel_rad);
+        let Some(planned) = planned_tool(pose) else {
             return;
         };
-        let off_mm = (eye - plan_eye).norm();
-        let off_deg = q.angle_to(&plan_q).to_degrees();
-        if off_mm > tolerance_mm || off_deg > TOLERANCE_DEG {
-            // A missing move: this target is the plan's next pose.
-            let next = poses.get(k + 1).and_then(|p| planned_tool(p));
-            let message = match next {
-                Some((e, nq))
-                    if (eye - e).norm() <= tolerance_mm
-                        && q.angle_to(&nq).to_degrees() <= TOLERANCE_DEG =>
-                {
-                    format!(
-                        "target {} is the plan's pose {}: pose {} (segment {}) of {} is missing",
-                        k + 1,
-                        k + 2,
-                        k + 1,
-                        k,
-                        path.name
-                    )
-                }
-                _ => format!(
-                    "target {} lies {} mm and {}° from the plan's pose {} of {} (at most {} mm and \
-                     {}°)",
-                    k + 1,
-                    shown(off_mm),
-                    shown(off_deg),
-                    k + 1,
-                    path.name,
-                    tolerance_mm,
-                    TOLERANCE_DEG
-                ),
-            };
+        if let Some(message) = pose_mismatch(c, k, (eye, q), planned, poses.get(k + 1)) {
             out.push(finding(t, message));
             return;
         }
-        if axis.drive == MandrelDrive::Robot {
-            match t.external_deg {
-                None => out.push(finding(
-                    t,
-                    format!("target {} has no external axis (the mandrel)", k + 1),
-                )),
-                Some(e) => {
-                    let d = (e - pose.mandrel_rad.to_degrees()).abs();
-                    if d > TOLERANCE_DEG {
-                        out.push(finding(
-                            t,
-                            format!(
-                                "target {}: the external axis {}° is {}° from the plan's mandrel \
-                                 angle",
-                                k + 1,
-                                shown(e),
-                                shown(d)
-                            ),
-                        ));
-                    }
-                }
-            }
+        if c.axis.drive == MandrelDrive::Robot {
+            check_external_axis(k, t, pose, out);
         }
-        // The joints the controller takes: the configuration the data names, or (URScript,
-        // which states none) the path's.
-        let config = t.config.arm_config(arm).or(match pose.joints {
-            paths::ArmJoints::SixAxis { joints, .. } => Some(arm.kind.config_of(&joints)),
-            paths::ArmJoints::Irb62(_) => None,
-        });
-        let Some(config) = config else { continue };
-        if let Some(c) = path_config
-            && c != config
-        {
-            out.push(finding(
-                t,
-                format!(
-                    "target {} changes the configuration from {c} to {config} (one per path)",
-                    k + 1
-                ),
-            ));
-        }
-        path_config.get_or_insert(config);
-        let joints = match paths::arm::winding::joints_for_tool(arm, &eye, &q, config) {
-            Ok(j) => j,
-            Err(fault) => {
-                out.push(finding(
-                    t,
-                    format!("target {}: the arm cannot take it: {fault}", k + 1),
-                ));
-                continue;
-            }
+        let Some(joints) = check_joints(c, k, t, pose, (eye, q), &mut path_config, out) else {
+            continue;
         };
-        // The controller's joints: the plan's, where the solution is the same pose (the turn
-        // numbers pick among equal angles 360° apart).
-        let joints = match pose.joints {
-            paths::ArmJoints::SixAxis {
-                joints: planned, ..
-            } => std::array::from_fn(|i| unwrap_near(joints[i], planned[i])),
-            paths::ArmJoints::Irb62(_) => joints,
-        };
-        for (i, q) in joints.iter().enumerate() {
-            let (lo, hi) = (arm.limits.min_rad[i], arm.limits.max_rad[i]);
-            if !(lo..=hi).contains(q) {
-                out.push(finding(
-                    t,
-                    format!(
-                        "target {}: axis {} at {}° is outside its range {}..{}°",
-                        k + 1,
-                        i + 1,
-                        shown(q.to_degrees()),
-                        shown(lo.to_degrees()),
-                        shown(hi.to_degrees())
-                    ),
-                ));
-            }
-        }
-        let expected = ConfigData::of(format, arm, &joints.map(f64::to_degrees));
-        if !matches!(t.config, ConfigData::None) && t.config != expected {
-            out.push(finding(
-                t,
-                format!(
-                    "target {}: configuration data {:?} do not match the joints (expected {:?})",
-                    k + 1,
-                    t.config,
-                    expected
-                ),
-            ));
-        }
-        // Speeds.
-        if let Some(v) = t.speed_mm_s
-            && v > speeds.max_speed_mm_s * (1.0 + 1e-9)
-        {
-            out.push(finding(
-                t,
-                format!(
-                    "target {}: TCP speed {} mm/s above the controller's {} mm/s",
-                    k + 1,
-                    shown(v),
-                    shown(speeds.max_speed_mm_s)
-                ),
-            ));
-        }
-        if let (Some((prev, _)), Some(limit)) = (previous, arm.limits.speed_rad_s) {
-            let time = move_time_s(t, previous.map(|p| p.1));
-            if let Some(time) = time.filter(|t| *t > 0.0) {
-                for i in 0..6 {
-                    let rate = (joints[i] - prev[i]).abs() / time;
-                    if rate > limit[i] * (1.0 + 1e-9) {
-                        out.push(finding(
-                            t,
-                            format!(
-                                "target {}: axis {} turns at {}°/s, above its {}°/s",
-                                k + 1,
-                                i + 1,
-                                shown(rate.to_degrees()),
-                                shown(limit[i].to_degrees())
-                            ),
-                        ));
-                    }
-                }
-            }
-        }
+        check_speeds(c, k, t, &joints, previous, out);
         previous = Some((joints, t));
     }
     if targets.len() < poses.len() {
@@ -493,6 +547,200 @@ fn check_targets(
                 poses.len() - targets.len()
             ),
         });
+    }
+}
+
+/// The finding of target `k` (tool frame `at`, base frame) farther from the plan's pose
+/// (`planned`) than the tolerances: a missing move when it is the plan's next pose (`next`).
+fn pose_mismatch(
+    c: &TargetCheck<'_>,
+    k: usize,
+    (eye, q): (Point3<f64>, UnitQuaternion<f64>),
+    (plan_eye, plan_q): (Point3<f64>, UnitQuaternion<f64>),
+    next: Option<&&paths::Pose>,
+) -> Option<String> {
+    let tolerance_mm = c.tolerance_mm();
+    let off_mm = (eye - plan_eye).norm();
+    let off_deg = q.angle_to(&plan_q).to_degrees();
+    if off_mm <= tolerance_mm && off_deg <= TOLERANCE_DEG {
+        return None;
+    }
+    // A missing move: this target is the plan's next pose.
+    let next = next.and_then(|p| planned_tool(p));
+    Some(match next {
+        Some((e, nq))
+            if (eye - e).norm() <= tolerance_mm
+                && q.angle_to(&nq).to_degrees() <= TOLERANCE_DEG =>
+        {
+            format!(
+                "target {} is the plan's pose {}: pose {} (segment {}) of {} is missing",
+                k + 1,
+                k + 2,
+                k + 1,
+                k,
+                c.path.name
+            )
+        }
+        _ => format!(
+            "target {} lies {} mm and {}° from the plan's pose {} of {} (at most {} mm and {}°)",
+            k + 1,
+            shown(off_mm),
+            shown(off_deg),
+            k + 1,
+            c.path.name,
+            tolerance_mm,
+            TOLERANCE_DEG
+        ),
+    })
+}
+
+/// Target `k`'s external axis (a coupled mandrel) against the plan's mandrel angle.
+fn check_external_axis(k: usize, t: &ReadTarget, pose: &paths::Pose, out: &mut Vec<Finding>) {
+    match t.external_deg {
+        None => out.push(finding(
+            t,
+            format!("target {} has no external axis (the mandrel)", k + 1),
+        )),
+        Some(e) => {
+            let d = (e - pose.mandrel_rad.to_degrees()).abs();
+            if d > TOLERANCE_DEG {
+                out.push(finding(
+                    t,
+                    format!(
+                        "target {}: the external axis {}° is {}° from the plan's mandrel angle",
+                        k + 1,
+                        shown(e),
+                        shown(d)
+                    ),
+                ));
+            }
+        }
+    }
+}
+
+/// The joints the controller takes at target `k` (tool frame `at`, base frame): the
+/// configuration the data names, or (URScript, which states none) the path's, one per path
+/// (`path_config`); their ranges and the configuration data they give back. `None` where there
+/// are none to take.
+fn check_joints(
+    c: &TargetCheck<'_>,
+    k: usize,
+    t: &ReadTarget,
+    pose: &paths::Pose,
+    (eye, q): (Point3<f64>, UnitQuaternion<f64>),
+    path_config: &mut Option<Config>,
+    out: &mut Vec<Finding>,
+) -> Option<paths::arm::Joints6> {
+    let arm = c.arm;
+    let config = t.config.arm_config(arm).or(match pose.joints {
+        paths::ArmJoints::SixAxis { joints, .. } => Some(arm.kind.config_of(&joints)),
+        paths::ArmJoints::Irb62(_) => None,
+    })?;
+    if let Some(previous) = *path_config
+        && previous != config
+    {
+        out.push(finding(
+            t,
+            format!(
+                "target {} changes the configuration from {previous} to {config} (one per path)",
+                k + 1
+            ),
+        ));
+    }
+    path_config.get_or_insert(config);
+    let joints = match paths::arm::winding::joints_for_tool(arm, &eye, &q, config) {
+        Ok(j) => j,
+        Err(fault) => {
+            out.push(finding(
+                t,
+                format!("target {}: the arm cannot take it: {fault}", k + 1),
+            ));
+            return None;
+        }
+    };
+    // The controller's joints: the plan's, where the solution is the same pose (the turn
+    // numbers pick among equal angles 360° apart).
+    let joints = match pose.joints {
+        paths::ArmJoints::SixAxis {
+            joints: planned, ..
+        } => std::array::from_fn(|i| unwrap_near(joints[i], planned[i])),
+        paths::ArmJoints::Irb62(_) => joints,
+    };
+    for (i, q) in joints.iter().enumerate() {
+        let (lo, hi) = (arm.limits.min_rad[i], arm.limits.max_rad[i]);
+        if !(lo..=hi).contains(q) {
+            out.push(finding(
+                t,
+                format!(
+                    "target {}: axis {} at {}° is outside its range {}..{}°",
+                    k + 1,
+                    i + 1,
+                    shown(q.to_degrees()),
+                    shown(lo.to_degrees()),
+                    shown(hi.to_degrees())
+                ),
+            ));
+        }
+    }
+    let expected = ConfigData::of(c.format, arm, &joints.map(f64::to_degrees));
+    if !matches!(t.config, ConfigData::None) && t.config != expected {
+        out.push(finding(
+            t,
+            format!(
+                "target {}: configuration data {:?} do not match the joints (expected {:?})",
+                k + 1,
+                t.config,
+                expected
+            ),
+        ));
+    }
+    Some(joints)
+}
+
+/// Target `k`'s TCP speed against the controller's, and its joints' rates from the previous
+/// target's (`previous`) against their limits.
+fn check_speeds(
+    c: &TargetCheck<'_>,
+    k: usize,
+    t: &ReadTarget,
+    joints: &paths::arm::Joints6,
+    previous: Option<(paths::arm::Joints6, &ReadTarget)>,
+    out: &mut Vec<Finding>,
+) {
+    let max_speed_mm_s = c.speeds.max_speed_mm_s;
+    if let Some(v) = t.speed_mm_s
+        && v > max_speed_mm_s * (1.0 + 1e-9)
+    {
+        out.push(finding(
+            t,
+            format!(
+                "target {}: TCP speed {} mm/s above the controller's {} mm/s",
+                k + 1,
+                shown(v),
+                shown(max_speed_mm_s)
+            ),
+        ));
+    }
+    let (Some((prev, from)), Some(limit)) = (previous, c.arm.limits.speed_rad_s) else {
+        return;
+    };
+    let Some(time) = move_time_s(t, Some(from)).filter(|t| *t > 0.0) else {
+        return;
+    };
+    for i in 0..6 {
+        let rate = (joints[i] - prev[i]).abs() / time;
+        if rate > limit[i] * (1.0 + 1e-9) {
+            out.push(finding(
+                t,
+                format!(
+                    "target {}: axis {} turns at {}°/s, above its {}°/s",
+                    k + 1,
+                    i + 1,
+                    shown(rate.to_degrees()),
+                    shown(limit[i].to_degrees())
+                ),
+            ));
+        }
     }
 }
 

@@ -327,41 +327,9 @@ fn instruction(
     body: &mut Vec<Item>,
     pending: &mut Vec<PendingMove>,
 ) -> Result<(), Error> {
-    // `   12:  instruction ;` — the number and colon first.
-    let start = line.len() - line.trim_start().len();
-    let digits = line[start..]
-        .chars()
-        .take_while(char::is_ascii_digit)
-        .count();
-    if digits == 0 {
-        return Err(Error::at(
-            line_no,
-            start + 1,
-            "expected the line number of a /MN line",
-        ));
-    }
-    let after = start + digits;
-    let Some(rest) = line[after..].strip_prefix(':') else {
-        return Err(Error::at(
-            line_no,
-            after + 1,
-            "expected `:` after the line number",
-        ));
-    };
-    let col0 = after + 1;
-    let content = rest.trim_start();
-    let ccol = col0 + (rest.len() - content.len());
-    if content.starts_with('!') || content.starts_with("//") {
+    let Some((toks, ccol)) = instruction_tokens(line, line_no)? else {
         return Ok(()); // a comment or a commented-out line
-    }
-    let toks = lex(rest, line_no, None)?;
-    let toks: Vec<Tok> = toks
-        .into_iter()
-        .map(|mut t| {
-            t.column += col0;
-            t
-        })
-        .collect();
+    };
     let mut c = Cursor::new(&toks);
     let t = c.peek();
     if c.eat_punct(";") {
@@ -374,96 +342,23 @@ fn instruction(
             format!("expected an instruction, found {}", t.shown()),
         )
     })?;
+    let too_large = |what: &str| Error::at(line_no, ccol, format!("{what} number too large"));
     match word.to_ascii_uppercase().as_str() {
         w @ ("J" | "L") => {
-            if !c.eat_ident("P") {
-                let t = c.peek();
-                return Err(t.error(format!("expected P[n], found {}", t.shown())));
-            }
-            let p = index(&mut c)?;
-            let st = c.peek();
-            let v = c.number()?;
-            let (speed_mm_s, duration_s) = if c.eat_punct("%") {
-                if w == "L" {
-                    return Err(st.error("a linear move's speed is in mm/sec"));
-                }
-                (None, None)
-            } else if c.eat_ident("mm") {
-                c.expect_punct("/")?;
-                c.expect_ident_word("sec")?;
-                (Some(v), None)
-            } else if c.eat_ident("sec") {
-                (None, Some(v))
-            } else {
-                let t = c.peek();
-                return Err(t.error(format!("expected %, mm/sec or sec, found {}", t.shown())));
-            };
-            if v <= 0.0 {
-                return Err(st.error("the speed must be positive"));
-            }
-            let zt = c.peek();
-            let (z, _) = c.ident()?;
-            let zu = z.to_ascii_uppercase();
-            let zone = if zu == "FINE" {
-                Zone::Fine
-            } else if let Some(n) = zu.strip_prefix("CNT") {
-                match n.parse::<u8>() {
-                    Ok(k) if k <= 100 => Zone::Cnt(k),
-                    _ => return Err(zt.error("expected CNT0 … CNT100")),
-                }
-            } else {
-                return Err(zt.error(format!("expected FINE or CNTn, found `{z}`")));
-            };
-            // Motion options the reader knows change nothing it reports.
-            while let Kind::Ident(o) = &c.peek().kind {
-                let ou = o.to_ascii_uppercase();
-                if ou.starts_with("ACC") || ou == "PTH" {
-                    c.next();
-                    if matches!(c.peek().kind, Kind::Number(_)) {
-                        c.next();
-                    }
-                } else {
-                    let t = c.peek();
-                    return Err(t.error(format!(
-                        "motion option {o} is not one a winding program uses"
-                    )));
-                }
-            }
-            c.expect_punct(";")?;
-            c.newline()?;
+            let (p, target) = move_instruction(&mut c, w, line_no)?;
             pending.push(PendingMove {
                 item: body.len(),
                 p,
                 at: (line_no, ccol),
             });
-            body.push(Item::Step(Step::Move(ReadTarget {
-                file: String::new(),
-                line: line_no,
-                motion: if w == "J" {
-                    Motion::Joint
-                } else {
-                    Motion::Linear
-                },
-                position_mm: [0.0; 3],
-                orientation: [1.0, 0.0, 0.0, 0.0],
-                config: ConfigData::None,
-                external_deg: None,
-                speed_mm_s,
-                duration_s,
-                zone,
-            })));
+            body.push(Item::Step(Step::Move(target)));
         }
         "DO" => {
-            let n = index(&mut c)?;
-            c.expect_punct("=")?;
-            let on = on_off(&mut c)?;
-            c.expect_punct(";")?;
-            c.newline()?;
+            let (n, on) = signal_state(&mut c)?;
             body.push(Item::Step(Step::Output {
                 file: String::new(),
                 line: line_no,
-                number: u16::try_from(n)
-                    .map_err(|_| Error::at(line_no, ccol, "output number too large"))?,
+                number: u16::try_from(n).map_err(|_| too_large("output"))?,
                 on,
             }));
         }
@@ -471,16 +366,11 @@ fn instruction(
             let wt = c.peek();
             c.expect_ident_word("DI")
                 .map_err(|_| wt.error("expected WAIT DI[n]=ON|OFF"))?;
-            let n = index(&mut c)?;
-            c.expect_punct("=")?;
-            let on = on_off(&mut c)?;
-            c.expect_punct(";")?;
-            c.newline()?;
+            let (n, on) = signal_state(&mut c)?;
             body.push(Item::Step(Step::Wait {
                 file: String::new(),
                 line: line_no,
-                number: u16::try_from(n)
-                    .map_err(|_| Error::at(line_no, ccol, "input number too large"))?,
+                number: u16::try_from(n).map_err(|_| too_large("input"))?,
                 on,
             }));
         }
@@ -506,6 +396,157 @@ fn instruction(
                 ccol,
                 format!("instruction {word} is not one a winding program uses"),
             ));
+        }
+    }
+    Ok(())
+}
+
+/// The tokens of a `/MN` line `   12:  instruction ;` after its number and colon (columns those
+/// of the line), with the column its instruction starts at; `None` for a comment (`!…`) or a
+/// commented-out line (`//…`).
+fn instruction_tokens(line: &str, line_no: usize) -> Result<Option<(Vec<Tok>, usize)>, Error> {
+    let start = line.len() - line.trim_start().len();
+    let digits = line[start..]
+        .chars()
+        .take_while(char::is_ascii_digit)
+        .count();
+    if digits == 0 {
+        return Err(Error::at(
+            line_no,
+            start + 1,
+            "expected the line number of a /MN line",
+        ));
+    }
+    let after = start + digits;
+    let Some(rest) = line[after..].strip_prefix(':') else {
+        return Err(Error::at(
+            line_no,
+            after + 1,
+            "expected `:` after the line number",
+        ));
+    };
+    let col0 = after + 1;
+    let content = rest.trim_start();
+    let ccol = col0 + (rest.len() - content.len());
+    if content.starts_with('!') || content.starts_with("//") {
+        return Ok(None);
+    }
+    let toks = lex(rest, line_no, None)?
+        .into_iter()
+        .map(|mut t| {
+            t.column += col0;
+            t
+        })
+        .collect();
+    Ok(Some((toks, ccol)))
+}
+
+/// `[n]=ON|OFF;` of a `DO` or `WAIT DI`: the signal's number and state.
+fn signal_state(c: &mut Cursor<'_>) -> Result<(u32, bool), Error> {
+    let n = index(c)?;
+    c.expect_punct("=")?;
+    let on = on_off(c)?;
+    c.expect_punct(";")?;
+    c.newline()?;
+    Ok((n, on))
+}
+
+/// A move `J|L P[n] speed zone [options] ;` (`w` the motion letter) after its letter: the
+/// position register it names and the target, its position resolved once `/POS` is read.
+fn move_instruction(
+    c: &mut Cursor<'_>,
+    w: &str,
+    line_no: usize,
+) -> Result<(u32, ReadTarget), Error> {
+    if !c.eat_ident("P") {
+        let t = c.peek();
+        return Err(t.error(format!("expected P[n], found {}", t.shown())));
+    }
+    let p = index(c)?;
+    let (speed_mm_s, duration_s) = move_speed(c, w)?;
+    let zone = move_zone(c)?;
+    move_options(c)?;
+    c.expect_punct(";")?;
+    c.newline()?;
+    Ok((
+        p,
+        ReadTarget {
+            file: String::new(),
+            line: line_no,
+            motion: if w == "J" {
+                Motion::Joint
+            } else {
+                Motion::Linear
+            },
+            position_mm: [0.0; 3],
+            orientation: [1.0, 0.0, 0.0, 0.0],
+            config: ConfigData::None,
+            external_deg: None,
+            speed_mm_s,
+            duration_s,
+            zone,
+        },
+    ))
+}
+
+/// A move's speed: `n%` (a joint move's, not reported), `n mm/sec` or `n sec` (its time), as
+/// `(speed mm/s, duration s)`.
+fn move_speed(c: &mut Cursor<'_>, w: &str) -> Result<(Option<f64>, Option<f64>), Error> {
+    let st = c.peek();
+    let v = c.number()?;
+    let (speed_mm_s, duration_s) = if c.eat_punct("%") {
+        if w == "L" {
+            return Err(st.error("a linear move's speed is in mm/sec"));
+        }
+        (None, None)
+    } else if c.eat_ident("mm") {
+        c.expect_punct("/")?;
+        c.expect_ident_word("sec")?;
+        (Some(v), None)
+    } else if c.eat_ident("sec") {
+        (None, Some(v))
+    } else {
+        let t = c.peek();
+        return Err(t.error(format!("expected %, mm/sec or sec, found {}", t.shown())));
+    };
+    if v <= 0.0 {
+        return Err(st.error("the speed must be positive"));
+    }
+    Ok((speed_mm_s, duration_s))
+}
+
+/// A move's termination: `FINE` or `CNT0` … `CNT100`.
+fn move_zone(c: &mut Cursor<'_>) -> Result<Zone, Error> {
+    let zt = c.peek();
+    let (z, _) = c.ident()?;
+    let zu = z.to_ascii_uppercase();
+    if zu == "FINE" {
+        Ok(Zone::Fine)
+    } else if let Some(n) = zu.strip_prefix("CNT") {
+        match n.parse::<u8>() {
+            Ok(k) if k <= 100 => Ok(Zone::Cnt(k)),
+            _ => Err(zt.error("expected CNT0 … CNT100")),
+        }
+    } else {
+        Err(zt.error(format!("expected FINE or CNTn, found `{z}`")))
+    }
+}
+
+/// The motion options after a move's termination: those the reader knows change nothing it
+/// reports (`ACCn`, `PTH`); any other is refused.
+fn move_options(c: &mut Cursor<'_>) -> Result<(), Error> {
+    while let Kind::Ident(o) = &c.peek().kind {
+        let ou = o.to_ascii_uppercase();
+        if ou.starts_with("ACC") || ou == "PTH" {
+            c.next();
+            if matches!(c.peek().kind, Kind::Number(_)) {
+                c.next();
+            }
+        } else {
+            let t = c.peek();
+            return Err(t.error(format!(
+                "motion option {o} is not one a winding program uses"
+            )));
         }
     }
     Ok(())

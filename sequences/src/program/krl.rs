@@ -416,32 +416,28 @@ fn boolean(c: &mut Cursor<'_>) -> Result<bool, Error> {
     }
 }
 
+/// The motion settings a routine's moves take from the assignments before them.
+#[derive(Debug, Clone, Copy, Default)]
+struct Settings {
+    /// `$VEL.CP`, mm/s.
+    vel_mm_s: Option<f64>,
+    /// `$APO.CDIS`, mm.
+    cdis_mm: Option<f64>,
+}
+
 fn parse_src(text: &str, points: &HashMap<String, Point>) -> Result<Unit, Error> {
     let toks = lex(text, 1, Some(';'))?;
     let ls = lines(&toks);
     let mut unit = Unit::default();
     let mut current: Option<Routine> = None;
-    let mut vel_mm_s: Option<f64> = None;
-    let mut cdis_mm: Option<f64> = None;
+    let mut settings = Settings::default();
     for line in ls {
         let (v, _) = line_cursor(line);
         let mut c = Cursor::new(&v);
         let t = c.peek();
         let Some(routine) = current.as_mut() else {
-            c.eat_ident("GLOBAL");
-            if !c.eat_ident("DEF") {
-                return Err(t.error(format!("expected DEF, found {}", t.shown())));
-            }
-            let (name, _) = c.ident()?;
-            c.expect_punct("(")?;
-            c.expect_punct(")")?;
-            c.newline()?;
-            current = Some(Routine {
-                name,
-                body: Vec::new(),
-            });
-            vel_mm_s = None;
-            cdis_mm = None;
+            current = Some(definition(&mut c)?);
+            settings = Settings::default();
             continue;
         };
         if c.eat_ident("END") {
@@ -451,167 +447,233 @@ fn parse_src(text: &str, points: &HashMap<String, Point>) -> Result<Unit, Error>
             }
             continue;
         }
-        match &t.kind {
-            Kind::Ident(w) if w.starts_with('$') => {
-                let (var, index) = system_variable(&mut c)?;
-                c.expect_punct("=")?;
-                match (var.as_str(), index) {
-                    ("$VEL.CP", None) => {
-                        let v = c.number()?;
-                        if v <= 0.0 {
-                            return Err(t.error("$VEL.CP must be positive"));
-                        }
-                        vel_mm_s = Some(v * 1000.0);
-                    }
-                    ("$APO.CDIS", None) => {
-                        let v = c.number()?;
-                        if v < 0.0 {
-                            return Err(t.error("$APO.CDIS must not be negative"));
-                        }
-                        cdis_mm = Some(v);
-                    }
-                    ("$OUT", Some(n)) => {
-                        let on = boolean(&mut c)?;
-                        let number =
-                            u16::try_from(n).map_err(|_| t.error("output number too large"))?;
-                        routine.body.push(Item::Step(Step::Output {
-                            file: String::new(),
-                            line: t.line,
-                            number,
-                            on,
-                        }));
-                    }
-                    ("$TOOL", None) => {
-                        let p = frame(&mut c)?;
-                        unit.tool.get_or_insert(p);
-                    }
-                    ("$BASE", None) => {
-                        let p = if c.eat_ident("EK") {
-                            c.expect_punct("(")?;
-                            let mut depth = 0;
-                            while !(c.peek().is_punct("{") && depth == 0) {
-                                if c.peek().kind == Kind::Newline {
-                                    return Err(c.peek().error("expected the EK offset frame"));
-                                }
-                                if c.peek().is_punct("(") {
-                                    depth += 1;
-                                }
-                                if c.peek().is_punct(")") {
-                                    depth -= 1;
-                                }
-                                c.next();
-                            }
-                            let f = frame(&mut c)?;
-                            c.expect_punct(")")?;
-                            f
-                        } else {
-                            frame(&mut c)?
-                        };
-                        unit.work.get_or_insert(p);
-                    }
-                    ("$VEL_AXIS" | "$ACC_AXIS", Some(_))
-                    | (
-                        "$ACC.CP" | "$ADVANCE" | "$VEL.ORI1" | "$VEL.ORI2" | "$ACC.ORI1"
-                        | "$ACC.ORI2" | "$ORI_TYPE",
-                        None,
-                    ) => {
-                        while c.peek().kind != Kind::Newline {
-                            c.next();
-                        }
-                    }
-                    _ => {
-                        return Err(t.error(format!(
-                            "assignment to {var} is not one a winding program uses"
-                        )));
-                    }
-                }
-                c.newline()?;
-            }
-            Kind::Ident(w) if w.eq_ignore_ascii_case("WAIT") => {
-                c.next();
-                if c.eat_ident("SEC") {
-                    c.number()?;
-                    c.newline()?;
-                    continue;
-                }
-                c.expect_ident_word("FOR")?;
-                let mut on = !c.eat_ident("NOT");
-                let (var, index) = system_variable(&mut c)?;
-                let (true, Some(n)) = (var == "$IN", index) else {
-                    return Err(t.error("expected WAIT FOR $IN[n]"));
-                };
-                if c.eat_punct("==") {
-                    on = on == boolean(&mut c)?;
-                }
-                c.newline()?;
-                routine.body.push(Item::Step(Step::Wait {
-                    file: String::new(),
-                    line: t.line,
-                    number: u16::try_from(n).map_err(|_| t.error("input number too large"))?,
-                    on,
-                }));
-            }
-            Kind::Ident(w) if w.eq_ignore_ascii_case("LIN") || w.eq_ignore_ascii_case("PTP") => {
-                c.next();
-                let joint = w.eq_ignore_ascii_case("PTP");
-                let p = match &c.peek().kind {
-                    Kind::Punct("{") => point(&mut c)?,
-                    _ => {
-                        let (name, nt) = c.ident()?;
-                        *points.get(&name.to_ascii_uppercase()).ok_or_else(|| {
-                            nt.error(format!("point {name} is not declared in the module's .dat"))
-                        })?
-                    }
-                };
-                let zone = if c.eat_ident("C_DIS") {
-                    Zone::Distance(cdis_mm.ok_or_else(|| t.error("C_DIS before $APO.CDIS is set"))?)
-                } else if c.eat_ident("C_PTP") {
-                    Zone::Distance(cdis_mm.unwrap_or(0.0))
-                } else {
-                    Zone::Fine
-                };
-                c.newline()?;
-                routine.body.push(Item::Step(Step::Move(ReadTarget {
-                    file: String::new(),
-                    line: t.line,
-                    motion: if joint { Motion::Joint } else { Motion::Linear },
-                    position_mm: p.frame.position_mm,
-                    orientation: p.frame.orientation,
-                    config: p.status.map_or(ConfigData::None, ConfigData::Kuka),
-                    external_deg: p.e1,
-                    speed_mm_s: if joint { None } else { vel_mm_s },
-                    duration_s: None,
-                    zone,
-                })));
-            }
-            Kind::Ident(w) if w.eq_ignore_ascii_case("BAS") => {
-                // KUKA's initialisation (BAS.SRC): velocities and accelerations, no motion.
-                while c.peek().kind != Kind::Newline {
-                    c.next();
-                }
-            }
-            Kind::Ident(w) if w.eq_ignore_ascii_case("HALT") => {
-                c.next();
-                c.newline()?;
-            }
-            Kind::Ident(_) => {
-                let (name, _) = c.ident()?;
-                c.expect_punct("(")?;
-                c.expect_punct(")")?;
-                c.newline()?;
-                routine.body.push(Item::Call {
-                    name,
-                    line: t.line,
-                    column: t.column,
-                });
-            }
-            _ => return Err(t.error(format!("expected a statement, found {}", t.shown()))),
+        if let Some(item) = statement(&mut c, t, points, &mut settings, &mut unit)? {
+            routine.body.push(item);
         }
     }
     if current.is_some() {
         return Err(Error::at(text.lines().count().max(1), 1, "END is missing"));
     }
     Ok(unit)
+}
+
+/// `[GLOBAL] DEF name()`: the routine it opens.
+fn definition(c: &mut Cursor<'_>) -> Result<Routine, Error> {
+    let t = c.peek();
+    c.eat_ident("GLOBAL");
+    if !c.eat_ident("DEF") {
+        return Err(t.error(format!("expected DEF, found {}", t.shown())));
+    }
+    let (name, _) = c.ident()?;
+    c.expect_punct("(")?;
+    c.expect_punct(")")?;
+    c.newline()?;
+    Ok(Routine {
+        name,
+        body: Vec::new(),
+    })
+}
+
+/// One statement of a routine body, its first token `t`: the item it adds to the body, if any
+/// (assignments set `settings` or the unit's frames).
+fn statement(
+    c: &mut Cursor<'_>,
+    t: &Tok,
+    points: &HashMap<String, Point>,
+    settings: &mut Settings,
+    unit: &mut Unit,
+) -> Result<Option<Item>, Error> {
+    match &t.kind {
+        Kind::Ident(w) if w.starts_with('$') => assignment(c, t, settings, unit),
+        Kind::Ident(w) if w.eq_ignore_ascii_case("WAIT") => wait_statement(c, t),
+        Kind::Ident(w) if w.eq_ignore_ascii_case("LIN") || w.eq_ignore_ascii_case("PTP") => {
+            let joint = w.eq_ignore_ascii_case("PTP");
+            move_statement(c, t, joint, points, settings).map(Some)
+        }
+        Kind::Ident(w) if w.eq_ignore_ascii_case("BAS") => {
+            // KUKA's initialisation (BAS.SRC): velocities and accelerations, no motion.
+            while c.peek().kind != Kind::Newline {
+                c.next();
+            }
+            Ok(None)
+        }
+        Kind::Ident(w) if w.eq_ignore_ascii_case("HALT") => {
+            c.next();
+            c.newline()?;
+            Ok(None)
+        }
+        Kind::Ident(_) => {
+            let (name, _) = c.ident()?;
+            c.expect_punct("(")?;
+            c.expect_punct(")")?;
+            c.newline()?;
+            Ok(Some(Item::Call {
+                name,
+                line: t.line,
+                column: t.column,
+            }))
+        }
+        _ => Err(t.error(format!("expected a statement, found {}", t.shown()))),
+    }
+}
+
+/// An assignment to a system variable (`$VEL.CP = …`, `$OUT[n] = TRUE`, `$TOOL = {…}`, …), at
+/// `t`: an output is an item; the others set `settings` or the unit's frames, or are passed over.
+fn assignment(
+    c: &mut Cursor<'_>,
+    t: &Tok,
+    settings: &mut Settings,
+    unit: &mut Unit,
+) -> Result<Option<Item>, Error> {
+    let (var, index) = system_variable(c)?;
+    c.expect_punct("=")?;
+    let mut item = None;
+    match (var.as_str(), index) {
+        ("$VEL.CP", None) => {
+            let v = c.number()?;
+            if v <= 0.0 {
+                return Err(t.error("$VEL.CP must be positive"));
+            }
+            settings.vel_mm_s = Some(v * 1000.0);
+        }
+        ("$APO.CDIS", None) => {
+            let v = c.number()?;
+            if v < 0.0 {
+                return Err(t.error("$APO.CDIS must not be negative"));
+            }
+            settings.cdis_mm = Some(v);
+        }
+        ("$OUT", Some(n)) => {
+            let on = boolean(c)?;
+            let number = u16::try_from(n).map_err(|_| t.error("output number too large"))?;
+            item = Some(Item::Step(Step::Output {
+                file: String::new(),
+                line: t.line,
+                number,
+                on,
+            }));
+        }
+        ("$TOOL", None) => {
+            let p = frame(c)?;
+            unit.tool.get_or_insert(p);
+        }
+        ("$BASE", None) => {
+            let p = base_frame(c)?;
+            unit.work.get_or_insert(p);
+        }
+        ("$VEL_AXIS" | "$ACC_AXIS", Some(_))
+        | (
+            "$ACC.CP" | "$ADVANCE" | "$VEL.ORI1" | "$VEL.ORI2" | "$ACC.ORI1" | "$ACC.ORI2"
+            | "$ORI_TYPE",
+            None,
+        ) => {
+            while c.peek().kind != Kind::Newline {
+                c.next();
+            }
+        }
+        _ => {
+            return Err(t.error(format!(
+                "assignment to {var} is not one a winding program uses"
+            )));
+        }
+    }
+    c.newline()?;
+    Ok(item)
+}
+
+/// The value of `$BASE`: a frame, or `EK(…, {offset}, …)` whose offset frame is the work frame.
+fn base_frame(c: &mut Cursor<'_>) -> Result<Frame, Error> {
+    if !c.eat_ident("EK") {
+        return frame(c);
+    }
+    c.expect_punct("(")?;
+    let mut depth = 0;
+    while !(c.peek().is_punct("{") && depth == 0) {
+        if c.peek().kind == Kind::Newline {
+            return Err(c.peek().error("expected the EK offset frame"));
+        }
+        if c.peek().is_punct("(") {
+            depth += 1;
+        }
+        if c.peek().is_punct(")") {
+            depth -= 1;
+        }
+        c.next();
+    }
+    let f = frame(c)?;
+    c.expect_punct(")")?;
+    Ok(f)
+}
+
+/// `WAIT SEC t` (passed over) or `WAIT FOR [NOT] $IN[n] [== TRUE|FALSE]`, at `t`.
+fn wait_statement(c: &mut Cursor<'_>, t: &Tok) -> Result<Option<Item>, Error> {
+    c.next();
+    if c.eat_ident("SEC") {
+        c.number()?;
+        c.newline()?;
+        return Ok(None);
+    }
+    c.expect_ident_word("FOR")?;
+    let mut on = !c.eat_ident("NOT");
+    let (var, index) = system_variable(c)?;
+    let (true, Some(n)) = (var == "$IN", index) else {
+        return Err(t.error("expected WAIT FOR $IN[n]"));
+    };
+    if c.eat_punct("==") {
+        on = on == boolean(c)?;
+    }
+    c.newline()?;
+    Ok(Some(Item::Step(Step::Wait {
+        file: String::new(),
+        line: t.line,
+        number: u16::try_from(n).map_err(|_| t.error("input number too large"))?,
+        on,
+    })))
+}
+
+/// `LIN` or `PTP` (`joint`), at `t`, to an inline point or one of the module's `.dat`
+/// (`points`), with its approximation (`C_DIS`, `C_PTP`) from `settings`.
+fn move_statement(
+    c: &mut Cursor<'_>,
+    t: &Tok,
+    joint: bool,
+    points: &HashMap<String, Point>,
+    settings: &Settings,
+) -> Result<Item, Error> {
+    c.next();
+    let p = match &c.peek().kind {
+        Kind::Punct("{") => point(c)?,
+        _ => {
+            let (name, nt) = c.ident()?;
+            *points.get(&name.to_ascii_uppercase()).ok_or_else(|| {
+                nt.error(format!("point {name} is not declared in the module's .dat"))
+            })?
+        }
+    };
+    let zone = if c.eat_ident("C_DIS") {
+        Zone::Distance(
+            settings
+                .cdis_mm
+                .ok_or_else(|| t.error("C_DIS before $APO.CDIS is set"))?,
+        )
+    } else if c.eat_ident("C_PTP") {
+        Zone::Distance(settings.cdis_mm.unwrap_or(0.0))
+    } else {
+        Zone::Fine
+    };
+    c.newline()?;
+    Ok(Item::Step(Step::Move(ReadTarget {
+        file: String::new(),
+        line: t.line,
+        motion: if joint { Motion::Joint } else { Motion::Linear },
+        position_mm: p.frame.position_mm,
+        orientation: p.frame.orientation,
+        config: p.status.map_or(ConfigData::None, ConfigData::Kuka),
+        external_deg: p.e1,
+        speed_mm_s: if joint { None } else { settings.vel_mm_s },
+        duration_s: None,
+        zone,
+    })))
 }
 
 fn frame(c: &mut Cursor<'_>) -> Result<Frame, Error> {

@@ -22,7 +22,7 @@
 
 use std::fmt::Write as _;
 
-use super::lex::{Cursor, Kind, lex};
+use super::lex::{Cursor, Kind, Tok, lex};
 use super::{
     ConfigData, Frame, Item, MandrelCoupling, Motion, ProgramPath, ReadTarget, Routine, Step, Unit,
     Zone, fixed, identifier, quaternion_rotation_vector, rotation_vector_quaternion,
@@ -173,194 +173,231 @@ pub(crate) fn parse(text: &str) -> Result<Unit, Error> {
         }
         let t = c.peek();
         let Some(routine) = current.as_mut() else {
-            if !c.eat_ident("def") {
-                // A top-level call of the program (`name()`) after its definition.
-                let (name, _) = c
-                    .ident()
-                    .map_err(|_| t.error(format!("expected def, found {}", t.shown())))?;
-                c.expect_punct("(")?;
-                c.expect_punct(")")?;
-                c.newline()?;
-                let _ = name;
-                continue;
-            }
-            let (name, _) = c.ident()?;
-            c.expect_punct("(")?;
-            c.expect_punct(")")?;
-            c.expect_punct(":")?;
-            c.newline()?;
-            current = Some(Routine {
-                name,
-                body: Vec::new(),
-            });
+            current = top_level(&mut c)?;
             continue;
         };
         let (word, _) = c
             .ident()
             .map_err(|_| t.error(format!("expected a statement, found {}", t.shown())))?;
-        match word.as_str() {
-            "end" => {
-                c.newline()?;
-                if let Some(r) = current.take() {
-                    unit.routines.push(r);
-                }
+        if word == "end" {
+            c.newline()?;
+            if let Some(r) = current.take() {
+                unit.routines.push(r);
             }
-            "movel" | "movej" => {
-                c.expect_punct("(")?;
-                let frame = if c.eat_ident("pose_trans") {
-                    c.expect_punct("(")?;
-                    let w = c.peek();
-                    if !c.eat_ident("wc_work") {
-                        return Err(w.error(format!("expected wc_work, found {}", w.shown())));
-                    }
-                    c.expect_punct(",")?;
-                    let f = pose(&mut c)?;
-                    c.expect_punct(")")?;
-                    f
-                } else {
-                    pose(&mut c)?
-                };
-                let (mut v, mut time, mut r) = (None, None, None);
-                while c.eat_punct(",") {
-                    let (name, nt) = c.ident()?;
-                    c.expect_punct("=")?;
-                    let x = c.number()?;
-                    let slot = match name.as_str() {
-                        "a" => None,
-                        "v" => Some(&mut v),
-                        "t" => Some(&mut time),
-                        "r" => Some(&mut r),
-                        _ => return Err(nt.error(format!("{word} has no argument {name}"))),
-                    };
-                    if x < 0.0 {
-                        return Err(nt.error(format!("{name} must not be negative")));
-                    }
-                    if let Some(s) = slot {
-                        *s = Some(x);
-                    }
-                }
-                c.expect_punct(")")?;
-                c.newline()?;
-                let linear = word == "movel";
-                routine.body.push(Item::Step(Step::Move(ReadTarget {
-                    file: String::new(),
-                    line: t.line,
-                    motion: if linear {
-                        Motion::Linear
-                    } else {
-                        Motion::Joint
-                    },
-                    position_mm: frame.position_mm,
-                    orientation: frame.orientation,
-                    config: ConfigData::None,
-                    external_deg: None,
-                    speed_mm_s: if linear { v.map(|x| x * 1000.0) } else { None },
-                    duration_s: time.filter(|x| *x > 0.0),
-                    zone: match r {
-                        Some(x) if x > 0.0 => Zone::Distance(x * 1000.0),
-                        _ => Zone::Fine,
-                    },
-                })));
-            }
-            "set_standard_digital_out" => {
-                c.expect_punct("(")?;
-                let n = c.integer()?;
-                c.expect_punct(",")?;
-                let b = c.peek();
-                let on = if c.eat_ident("True") {
-                    true
-                } else if c.eat_ident("False") {
-                    false
-                } else {
-                    return Err(b.error(format!("expected True or False, found {}", b.shown())));
-                };
-                c.expect_punct(")")?;
-                c.newline()?;
-                routine.body.push(Item::Step(Step::Output {
-                    file: String::new(),
-                    line: t.line,
-                    number: u16::try_from(n).map_err(|_| t.error("output number too large"))?,
-                    on,
-                }));
-            }
-            "while" => {
-                let on = c.eat_ident("not");
-                let g = c.peek();
-                if !c.eat_ident("get_standard_digital_in") {
-                    return Err(g.error("expected get_standard_digital_in (the sync wait)"));
-                }
-                c.expect_punct("(")?;
-                let n = c.integer()?;
-                c.expect_punct(")")?;
-                c.expect_punct(":")?;
-                c.newline()?;
-                // The loop body: sync() or sleep(…) only, then `end`.
-                loop {
-                    c.skip_newlines();
-                    let s = c.peek();
-                    if c.eat_ident("end") {
-                        c.newline()?;
-                        break;
-                    }
-                    if c.eat_ident("sync") || c.eat_ident("sleep") {
-                        skip_call(&mut c)?;
-                        c.newline()?;
-                        continue;
-                    }
-                    return Err(s.error(format!(
-                        "expected sync() or end in the wait loop, found {}",
-                        s.shown()
-                    )));
-                }
-                routine.body.push(Item::Step(Step::Wait {
-                    file: String::new(),
-                    line: t.line,
-                    number: u16::try_from(n).map_err(|_| t.error("input number too large"))?,
-                    on,
-                }));
-            }
-            "set_tcp" => {
-                c.expect_punct("(")?;
-                let f = pose(&mut c)?;
-                c.expect_punct(")")?;
-                c.newline()?;
-                unit.tool.get_or_insert(f);
-            }
-            "global" | "wc_work" => {
-                if word == "global" {
-                    let w = c.peek();
-                    if !c.eat_ident("wc_work") {
-                        return Err(w.error(format!("expected wc_work, found {}", w.shown())));
-                    }
-                }
-                c.expect_punct("=")?;
-                let f = pose(&mut c)?;
-                c.newline()?;
-                unit.work.get_or_insert(f);
-            }
-            w if IGNORED.contains(&w) => {
-                skip_call(&mut c)?;
-                c.newline()?;
-            }
-            _ => {
-                if c.peek().is_punct("(") && c.peek_at(1).is_punct(")") {
-                    c.pos += 2;
-                    c.newline()?;
-                    routine.body.push(Item::Call {
-                        name: word,
-                        line: t.line,
-                        column: t.column,
-                    });
-                } else {
-                    return Err(t.error(format!(
-                        "statement {word} is not one a winding program uses"
-                    )));
-                }
-            }
+            continue;
+        }
+        if let Some(item) = statement(&mut c, word, t, &mut unit)? {
+            routine.body.push(item);
         }
     }
     if current.is_some() {
         return Err(Error::at(text.lines().count().max(1), 1, "end is missing"));
     }
     Ok(unit)
+}
+
+/// A line outside a definition: `def name():` opens a routine (returned); a top-level call of
+/// the program (`name()`) after its definition is passed over.
+fn top_level(c: &mut Cursor<'_>) -> Result<Option<Routine>, Error> {
+    let t = c.peek();
+    if !c.eat_ident("def") {
+        c.ident()
+            .map_err(|_| t.error(format!("expected def, found {}", t.shown())))?;
+        c.expect_punct("(")?;
+        c.expect_punct(")")?;
+        c.newline()?;
+        return Ok(None);
+    }
+    let (name, _) = c.ident()?;
+    c.expect_punct("(")?;
+    c.expect_punct(")")?;
+    c.expect_punct(":")?;
+    c.newline()?;
+    Ok(Some(Routine {
+        name,
+        body: Vec::new(),
+    }))
+}
+
+/// One statement of a routine body after its first word `word` (the token `t`): the item it adds
+/// to the body, if any (`set_tcp` and the work frame go to `unit`).
+fn statement(
+    c: &mut Cursor<'_>,
+    word: String,
+    t: &Tok,
+    unit: &mut Unit,
+) -> Result<Option<Item>, Error> {
+    match word.as_str() {
+        "movel" | "movej" => return move_statement(c, &word, t).map(Some),
+        "set_standard_digital_out" => return output_statement(c, t).map(Some),
+        "while" => return wait_loop(c, t).map(Some),
+        "set_tcp" => {
+            c.expect_punct("(")?;
+            let f = pose(c)?;
+            c.expect_punct(")")?;
+            c.newline()?;
+            unit.tool.get_or_insert(f);
+        }
+        "global" | "wc_work" => {
+            if word == "global" {
+                let w = c.peek();
+                if !c.eat_ident("wc_work") {
+                    return Err(w.error(format!("expected wc_work, found {}", w.shown())));
+                }
+            }
+            c.expect_punct("=")?;
+            let f = pose(c)?;
+            c.newline()?;
+            unit.work.get_or_insert(f);
+        }
+        w if IGNORED.contains(&w) => {
+            skip_call(c)?;
+            c.newline()?;
+        }
+        _ => {
+            if c.peek().is_punct("(") && c.peek_at(1).is_punct(")") {
+                c.pos += 2;
+                c.newline()?;
+                return Ok(Some(Item::Call {
+                    name: word,
+                    line: t.line,
+                    column: t.column,
+                }));
+            }
+            return Err(t.error(format!(
+                "statement {word} is not one a winding program uses"
+            )));
+        }
+    }
+    Ok(None)
+}
+
+/// `movel(…)` or `movej(…)` (`word`, at `t`) after its name: the target, in the work frame
+/// (`pose_trans(wc_work, p[…])`) or as a bare pose.
+fn move_statement(c: &mut Cursor<'_>, word: &str, t: &Tok) -> Result<Item, Error> {
+    c.expect_punct("(")?;
+    let frame = if c.eat_ident("pose_trans") {
+        c.expect_punct("(")?;
+        let w = c.peek();
+        if !c.eat_ident("wc_work") {
+            return Err(w.error(format!("expected wc_work, found {}", w.shown())));
+        }
+        c.expect_punct(",")?;
+        let f = pose(c)?;
+        c.expect_punct(")")?;
+        f
+    } else {
+        pose(c)?
+    };
+    let (v, time, r) = move_arguments(c, word)?;
+    c.expect_punct(")")?;
+    c.newline()?;
+    let linear = word == "movel";
+    Ok(Item::Step(Step::Move(ReadTarget {
+        file: String::new(),
+        line: t.line,
+        motion: if linear {
+            Motion::Linear
+        } else {
+            Motion::Joint
+        },
+        position_mm: frame.position_mm,
+        orientation: frame.orientation,
+        config: ConfigData::None,
+        external_deg: None,
+        speed_mm_s: if linear { v.map(|x| x * 1000.0) } else { None },
+        duration_s: time.filter(|x| *x > 0.0),
+        zone: match r {
+            Some(x) if x > 0.0 => Zone::Distance(x * 1000.0),
+            _ => Zone::Fine,
+        },
+    })))
+}
+
+/// A move's `v` (m/s), `t` (s) and `r` (m), each as given.
+type MoveArguments = (Option<f64>, Option<f64>, Option<f64>);
+
+/// The named arguments of a move after its pose (`, a=…, v=…, t=…, r=…`); `a` is read and left.
+fn move_arguments(c: &mut Cursor<'_>, word: &str) -> Result<MoveArguments, Error> {
+    let (mut v, mut time, mut r) = (None, None, None);
+    while c.eat_punct(",") {
+        let (name, nt) = c.ident()?;
+        c.expect_punct("=")?;
+        let x = c.number()?;
+        let slot = match name.as_str() {
+            "a" => None,
+            "v" => Some(&mut v),
+            "t" => Some(&mut time),
+            "r" => Some(&mut r),
+            _ => return Err(nt.error(format!("{word} has no argument {name}"))),
+        };
+        if x < 0.0 {
+            return Err(nt.error(format!("{name} must not be negative")));
+        }
+        if let Some(s) = slot {
+            *s = Some(x);
+        }
+    }
+    Ok((v, time, r))
+}
+
+/// `set_standard_digital_out(n, True|False)` (at `t`) after its name.
+fn output_statement(c: &mut Cursor<'_>, t: &Tok) -> Result<Item, Error> {
+    c.expect_punct("(")?;
+    let n = c.integer()?;
+    c.expect_punct(",")?;
+    let b = c.peek();
+    let on = if c.eat_ident("True") {
+        true
+    } else if c.eat_ident("False") {
+        false
+    } else {
+        return Err(b.error(format!("expected True or False, found {}", b.shown())));
+    };
+    c.expect_punct(")")?;
+    c.newline()?;
+    Ok(Item::Step(Step::Output {
+        file: String::new(),
+        line: t.line,
+        number: u16::try_from(n).map_err(|_| t.error("output number too large"))?,
+        on,
+    }))
+}
+
+/// The sync wait `while [not] get_standard_digital_in(n): sync() … end` (at `t`) after `while`.
+fn wait_loop(c: &mut Cursor<'_>, t: &Tok) -> Result<Item, Error> {
+    let on = c.eat_ident("not");
+    let g = c.peek();
+    if !c.eat_ident("get_standard_digital_in") {
+        return Err(g.error("expected get_standard_digital_in (the sync wait)"));
+    }
+    c.expect_punct("(")?;
+    let n = c.integer()?;
+    c.expect_punct(")")?;
+    c.expect_punct(":")?;
+    c.newline()?;
+    // The loop body: sync() or sleep(…) only, then `end`.
+    loop {
+        c.skip_newlines();
+        let s = c.peek();
+        if c.eat_ident("end") {
+            c.newline()?;
+            break;
+        }
+        if c.eat_ident("sync") || c.eat_ident("sleep") {
+            skip_call(c)?;
+            c.newline()?;
+            continue;
+        }
+        return Err(s.error(format!(
+            "expected sync() or end in the wait loop, found {}",
+            s.shown()
+        )));
+    }
+    Ok(Item::Step(Step::Wait {
+        file: String::new(),
+        line: t.line,
+        number: u16::try_from(n).map_err(|_| t.error("input number too large"))?,
+        on,
+    }))
 }
