@@ -31,6 +31,8 @@ fn plan_examples(c: &mut Criterion) {
         let job_path = examples.join(format!("{name}.toml"));
         group.bench_function(name, |b| {
             b.iter(|| {
+                // As a fresh `windcell plan` process: no mesh kept from the last iteration.
+                cell::plan::mesh::forget_ready();
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
                 cell::plan::tool::plan(&job, &text, &job_path).unwrap()
             })
@@ -43,6 +45,8 @@ fn plan_examples(c: &mut Criterion) {
         let out = tempfile::tempdir().unwrap();
         group.bench_function(name, |b| {
             b.iter(|| {
+                // As a fresh `windcell plan` process: no mesh kept from the last iteration.
+                cell::plan::mesh::forget_ready();
                 let (job, text) = sequences::Job::load(&job_path).unwrap();
                 let plan = cell::plan::tool::plan(&job, &text, &job_path).unwrap();
                 let files = cell::plan::files::control_files(&job, &plan).unwrap();

@@ -275,6 +275,12 @@ pub fn keep_ready(file: &Path, key: Key, ready: Ready) {
     *kept = Some((file.to_path_buf(), key, ready));
 }
 
+/// Forgets the mesh mandrel kept by [`keep_ready`]: the next plan prepares its mesh as a fresh
+/// process does (the `plan` benchmarks measure a `windcell plan` run so).
+pub fn forget_ready() {
+    *LAST_READY.lock().unwrap_or_else(|p| p.into_inner()) = None;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
