@@ -141,6 +141,11 @@ fn plan_steps(d: &Path) -> Vec<Vec<i64>> {
 /// What one kill trial saw.
 #[derive(Debug)]
 struct Trial {
+    /// How the interrupted run ended: its exit code (`None`: killed by a signal).
+    interrupted_exit: Option<i32>,
+    /// Both simulators received a stop command (a robot STOP telegram, an indexer `S`) after
+    /// the signal was sent.
+    both_stopped: bool,
     /// The resume completed the batch (exit 0, journal done).
     completed: bool,
     /// The mandrel's travel (steps without sign, every move the indexer simulator logged)
@@ -152,23 +157,20 @@ struct Trial {
     targets_once_in_order: bool,
 }
 
-/// One trial: the cut cylinder's discrete batch over ptys, `kill -9` of `windcell run` `kill_after`
-/// after it started, `--resume` `resume_after` later. Expected values come from the plan's
-/// control files: every robot target once and in order, the mandrel's travel the two syncs
-/// (from the journal's sync records) plus every instruction's steps once.
-fn kill_trial(kill_after: Duration, resume_after: Duration) -> Trial {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let cell = pty_cell(d, 4);
-    let child = start_run(d);
-    std::thread::sleep(kill_after);
-    nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(child.id() as i32),
-        nix::sys::signal::Signal::SIGKILL,
-    )
-    .unwrap();
-    let _ = child.wait_with_output();
-    std::thread::sleep(resume_after);
+impl Trial {
+    /// The batch finished on the resume, every target once and in order, the plan's travel, no
+    /// reversal.
+    fn resumed_cleanly(&self) -> bool {
+        self.completed
+            && self.travel.0 == self.travel.1
+            && !self.reversed
+            && self.targets_once_in_order
+    }
+}
+
+/// The arguments of `windcell run` resuming the batch of `d` (or starting it over when the
+/// journal holds no record: a kill before the first record leaves nothing to resume).
+fn resume_args(d: &Path) -> Vec<String> {
     let jp = d.join("CYL.journal");
     let seq = d.join("CYL.SEQ");
     let cellfile = d.join("cell.toml");
@@ -181,13 +183,61 @@ fn kill_trial(kill_after: Duration, resume_after: Duration) -> Trial {
         cellfile.display().to_string(),
         "--force".into(),
     ];
-    // A kill before the journal's first record leaves nothing to resume: the run starts over.
     let resumable = journal::read(&jp).is_ok_and(|r| !r.is_empty());
     if resumable {
         args.extend(["--resume".into(), jp.display().to_string()]);
     } else {
         args.push("--restart".into());
     }
+    args
+}
+
+/// Sends `signal` to `child`.
+fn signal(child: &std::process::Child, signal: nix::sys::signal::Signal) {
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), signal).unwrap();
+}
+
+/// The first stop each simulator of `cell` received at or after `t0` (Unix s): a STOP telegram
+/// at the robot, an `S` at the indexer (`cell::sim::wiretap`).
+fn stops_after(robot_log: &Path, indexer_log: &Path, t0: f64) -> (Option<f64>, Option<f64>) {
+    let first = |p: &Path| {
+        log_records(p)
+            .iter()
+            .filter(|r| r["stop_received"] == true)
+            .filter_map(|r| r["unix_s"].as_f64())
+            .find(|t| *t >= t0)
+    };
+    (first(robot_log), first(indexer_log))
+}
+
+/// One trial: the cut cylinder's discrete batch over ptys, `sig` sent to `windcell run`
+/// `kill_after` after it started, `--resume` `resume_after` after it exited. Expected values
+/// come from the plan's control files: every robot target once and in order, the mandrel's
+/// travel the two syncs (from the journal's sync records) plus every instruction's steps once.
+fn interrupted_trial(
+    sig: nix::sys::signal::Signal,
+    kill_after: Duration,
+    resume_after: Duration,
+) -> Trial {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = pty_cell(d, 4);
+    let child = start_run(d);
+    std::thread::sleep(kill_after);
+    let t0 = cell::sim::wiretap::unix_now_s();
+    signal(&child, sig);
+    let interrupted = child.wait_with_output().unwrap();
+    if sig != nix::sys::signal::Signal::SIGKILL && interrupted.status.code() != Some(130) {
+        eprintln!(
+            "the interrupted run: {:?}: {}",
+            interrupted.status,
+            stderr(&interrupted)
+        );
+    }
+    std::thread::sleep(resume_after);
+    // The simulators' log threads have had at least 0.1 s to write the stops.
+    let (r, i) = stops_after(&cell.robot_log, &cell.indexer_log, t0);
+    let args = resume_args(d);
     let a: Vec<&str> = args.iter().map(String::as_str).collect();
     let o = windcell(&a);
     let PtyCell {
@@ -201,10 +251,21 @@ fn kill_trial(kill_after: Duration, resume_after: Duration) -> Trial {
     if !o.status.success() {
         eprintln!("resume failed: {}", stderr(&o));
     }
+    let mut t = judge(d, o.status.success(), &robot_log, &indexer_log);
+    t.interrupted_exit = interrupted.status.code();
+    t.both_stopped = r.is_some() && i.is_some();
+    t
+}
+
+/// What the batch of `d` left once its last run ended (`succeeded`: exit 0): the journal, the
+/// robot simulator's completed targets and the indexer simulator's moves, against the plan's
+/// control files.
+fn judge(d: &Path, succeeded: bool, robot_log: &Path, indexer_log: &Path) -> Trial {
+    let jp = d.join("CYL.journal");
     let records = journal::read(&jp).unwrap_or_default();
-    let completed = o.status.success() && records.last().and_then(journal::kind) == Some("done");
+    let completed = succeeded && records.last().and_then(journal::kind) == Some("done");
     let want = plan_targets(d);
-    let done: Vec<Vec<f64>> = completed_targets(&robot_log);
+    let done: Vec<Vec<f64>> = completed_targets(robot_log);
     let targets_once_in_order = done.len() == want.len()
         && done
             .iter()
@@ -227,37 +288,47 @@ fn kill_trial(kill_after: Duration, resume_after: Duration) -> Trial {
         plan_travel += (sync - at).abs() + s.iter().map(|x| x.abs()).sum::<i64>();
         at = sync + s.iter().sum::<i64>();
     }
-    let moves: Vec<i64> = log_records(&indexer_log)
+    let moves: Vec<i64> = log_records(indexer_log)
         .iter()
         .filter_map(|r| r["steps"].as_i64())
         .collect();
     let travel: i64 = moves.iter().map(|s| s.abs()).sum();
-    // Winding direction: the sign of each path's segment steps; a move of the other sign that
-    // is not a sync (a sync is the first move of its path) is a reversal.
-    let signs: Vec<i64> = steps
-        .iter()
-        .map(|s| s.iter().sum::<i64>().signum())
-        .collect();
+    // Direction: each path is a sync (from where the mandrel stands to the journal's sync
+    // counter) and then its winding (the sign of its segment steps). A stopped move and its
+    // remainder are two moves of the same sign; a move of the other sign within either is a
+    // reversal.
     let mut reversed = false;
+    let mut pos = 0;
     let mut k = 0;
-    let mut left_in_path: i64 = steps[0].iter().map(|x| x.abs()).sum::<i64>();
-    let mut first = true;
-    for m in &moves {
-        if first {
-            first = false; // the sync of path 1
-            continue;
+    let mut in_sync = true;
+    let mut sync_at = syncs[0].unwrap_or(0);
+    let mut sync_sign = sync_at.signum();
+    for m in moves.iter().filter(|m| **m != 0) {
+        if in_sync && pos == sync_at {
+            in_sync = false;
         }
-        if left_in_path <= 0 && k + 1 < steps.len() {
-            k += 1;
-            left_in_path = steps[k].iter().map(|x| x.abs()).sum();
-            continue; // the sync of the next path
-        }
-        if m.signum() != signs[k] && *m != 0 {
+        let want = if in_sync {
+            sync_sign
+        } else {
+            steps[k].iter().sum::<i64>().signum()
+        };
+        if m.signum() != want {
             reversed = true;
         }
-        left_in_path -= m.abs();
+        pos += m;
+        if !in_sync && pos == sync_at + steps[k].iter().sum::<i64>() && k + 1 < steps.len() {
+            k += 1;
+            in_sync = true;
+            sync_at = syncs[k].unwrap_or(pos);
+            sync_sign = (sync_at - pos).signum();
+        }
+    }
+    if reversed || travel != plan_travel {
+        eprintln!("indexer moves {moves:?}; plan steps {steps:?}; syncs {syncs:?}");
     }
     Trial {
+        interrupted_exit: None,
+        both_stopped: false,
         completed,
         travel: (travel, plan_travel),
         reversed,
@@ -268,42 +339,64 @@ fn kill_trial(kill_after: Duration, resume_after: Duration) -> Trial {
 /// Kill moments spread over a run (seeded, reproducible): from the attach and homing to the
 /// last segments, `n` of them.
 fn kill_moments(n: usize, seed: u64) -> Vec<Duration> {
+    seeded_moments(n, seed, 300, 4_000)
+}
+
+/// `n` moments between `from_ms` and `to_ms` from a linear congruential generator (Knuth's
+/// MMIX constants) seeded with `seed`: the same seed gives the same moments.
+fn seeded_moments(n: usize, seed: u64, from_ms: u64, to_ms: u64) -> Vec<Duration> {
     let mut x = seed;
     (0..n)
         .map(|_| {
             x = x
                 .wrapping_mul(6_364_136_223_846_793_005)
                 .wrapping_add(1_442_695_040_888_963_407);
-            Duration::from_millis(300 + (x >> 33) % 3_700)
+            Duration::from_millis(from_ms + (x >> 33) % (to_ms - from_ms))
         })
         .collect()
 }
 
-fn kill_trials(per_wait: usize, seed: u64) {
+/// `per_wait` trials for each resume delay (0.1 s, 0.5 s, 5 s) with `sig`, the moments from
+/// `seed`. `WINDCELL_TRIAL=k` runs trial `k` alone (its moment and delay as in the full run),
+/// to replay a failure.
+fn interrupted_trials(sig: nix::sys::signal::Signal, per_wait: usize, seed: u64) {
     let _one = one_pty_cell_at_a_time();
     let waits = [
         Duration::from_millis(100),
         Duration::from_millis(500),
         Duration::from_secs(5),
     ];
+    let only: Option<usize> = std::env::var("WINDCELL_TRIAL")
+        .ok()
+        .and_then(|v| v.parse().ok());
     let moments = kill_moments(per_wait * waits.len(), seed);
     let mut failed = Vec::new();
+    let mut ran = 0;
     let t0 = Instant::now();
     for (i, kill_after) in moments.iter().enumerate() {
+        if only.is_some_and(|k| k != i) {
+            continue;
+        }
         let wait = waits[i % waits.len()];
-        let t = kill_trial(*kill_after, wait);
-        eprintln!("kill at {kill_after:?}, resume after {wait:?}: {t:?}");
-        if !(t.completed && t.travel.0 == t.travel.1 && !t.reversed && t.targets_once_in_order) {
-            failed.push((kill_after, wait, t));
+        let t = interrupted_trial(sig, *kill_after, wait);
+        ran += 1;
+        eprintln!("trial {i}: {sig} at {kill_after:?}, resume after {wait:?}: {t:?}");
+        let stopped = sig == nix::sys::signal::Signal::SIGKILL
+            || (t.interrupted_exit == Some(130) && t.both_stopped);
+        if !(stopped && t.resumed_cleanly()) {
+            failed.push((i, kill_after, wait, t));
         }
     }
     eprintln!(
-        "{} kill trials in {:.0} s, {} failed",
-        moments.len(),
+        "{ran} {sig} trials (seed {seed}) in {:.0} s, {} failed",
         t0.elapsed().as_secs_f64(),
         failed.len()
     );
     assert!(failed.is_empty(), "{failed:#?}");
+}
+
+fn kill_trials(per_wait: usize, seed: u64) {
+    interrupted_trials(nix::sys::signal::Signal::SIGKILL, per_wait, seed);
 }
 
 /// `kill -9` of `windcell run` at six moments of the batch over ptys, `--resume` 0.1 s, 0.5 s
@@ -321,6 +414,98 @@ fn kill_9_at_random_moments_then_resume_completes_without_turning_back() {
 #[ignore = "measurement: about 60 trials of real time"]
 fn kill_9_sixty_trials_then_resume_completes_without_turning_back() {
     kill_trials(20, 2026);
+}
+
+/// The SIGINT measurement: 20 Ctrl-Cs for each resume delay (60 trials). Each
+/// interrupted run stops both axes (each simulator logs its stop command after the signal) and
+/// exits 130; each resume completes the batch as after `kill -9`.
+/// `cargo test -p cell --test it -- --ignored --nocapture sigint_sixty`
+#[test]
+#[ignore = "measurement: about 60 trials of real time"]
+fn sigint_sixty_trials_stop_both_axes_then_resume_completes_without_turning_back() {
+    interrupted_trials(nix::sys::signal::Signal::SIGINT, 20, 2027);
+}
+
+/// The chain: `kill -9` of `windcell run` 0.3–3 s (seeded) after each start, the batch
+/// resumed each time, `WINDCELL_KILLS` kills in a row (default 50), then the last resume runs
+/// to its end. The batch is the cylinder cut to 50 instructions per path, long enough that it
+/// is still under way at the last kill. It must finish, every robot target once and in order,
+/// the mandrel's travel the plan's, no reversal.
+/// `cargo test -p cell --test it -- --ignored --nocapture fifty_kills`
+#[test]
+#[ignore = "measurement: about 50 kills of real time"]
+fn fifty_kills_in_a_row_still_end_in_a_finished_batch() {
+    let _one = one_pty_cell_at_a_time();
+    let kills: usize = std::env::var("WINDCELL_KILLS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(50);
+    let seed: u64 = std::env::var("WINDCELL_SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(5050);
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = pty_cell(d, 50);
+    let t0 = Instant::now();
+    let mut child = start_run(d);
+    let mut killed = 0;
+    let mut finished_early = None;
+    for (k, after) in seeded_moments(kills, seed, 300, 3_000).iter().enumerate() {
+        std::thread::sleep(*after);
+        if let Some(status) = child.try_wait().unwrap() {
+            // The run ended before its kill: the batch is done (or the run failed).
+            let mut err = String::new();
+            if let Some(mut e) = child.stderr.take() {
+                let _ = std::io::Read::read_to_string(&mut e, &mut err);
+            }
+            eprintln!("start {k} ended by itself ({status:?}): {err}");
+            finished_early = Some((k, status));
+            break;
+        }
+        signal(&child, nix::sys::signal::Signal::SIGKILL);
+        let _ = child.wait_with_output();
+        killed += 1;
+        let args = resume_args(d);
+        child = Command::new(env!("CARGO_BIN_EXE_windcell"))
+            .args(&args)
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+    }
+    let succeeded = match finished_early {
+        Some((_, status)) => status.success(),
+        None => {
+            let o = child.wait_with_output().unwrap();
+            if !o.status.success() {
+                eprintln!("the last resume failed: {}", stderr(&o));
+            }
+            o.status.success()
+        }
+    };
+    let PtyCell {
+        robot,
+        indexer,
+        robot_log,
+        indexer_log,
+    } = cell;
+    common::stop_cleanly(robot);
+    common::stop_cleanly(indexer);
+    let t = judge(d, succeeded, &robot_log, &indexer_log);
+    let resumes = journal::read(&d.join("CYL.journal"))
+        .unwrap_or_default()
+        .iter()
+        .filter(|r| journal::kind(r) == Some("resume"))
+        .count();
+    eprintln!(
+        "{killed} kills in a row (seed {seed}) in {:.0} s, {} targets: {t:?}, {resumes} resume records",
+        t0.elapsed().as_secs_f64(),
+        plan_targets(d).len()
+    );
+    assert!(t.resumed_cleanly(), "{t:?}");
+    assert_eq!(killed, kills, "the batch ended before the last kill");
 }
 
 /// A simulated indexer killed mid-run (power loss) and started again on a new pty, its counter
