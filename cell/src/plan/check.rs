@@ -195,13 +195,7 @@ pub fn summary(checked: &Checked) -> String {
     let tow = least(&|s| s.tow_mm);
     let arm = least(&|s| s.arm_mm);
     let segments: usize = r.paths.iter().map(|p| p.len() - 1).sum();
-    let fmt = |v: f64| {
-        if v.is_finite() {
-            format!("{v:.3} mm")
-        } else {
-            "—".to_string()
-        }
-    };
+    let fmt = clearance_shown;
     match r.findings.first() {
         None => format!(
             "check: clear over {} paths, {segments} segments: eye ≥ {}, free fibre ≥ {}, arm ≥ {}",
@@ -216,6 +210,18 @@ pub fn summary(checked: &Checked) -> String {
             if r.findings.len() == 1 { "" } else { "s" },
             finding_line(checked, f)
         ),
+    }
+}
+
+/// A least clearance for the summary line, mm to three decimals; one that rounds to zero reads
+/// `0.000`, not `-0.000` (a free fibre touching the mandrel at its contact point, within the
+/// solver's 1e-6 mm); none (no such segment) reads `—`.
+fn clearance_shown(v: f64) -> String {
+    if v.is_finite() {
+        let shown = (v * 1000.0).round() / 1000.0;
+        format!("{:.3} mm", if shown == 0.0 { 0.0 } else { shown })
+    } else {
+        "—".to_string()
     }
 }
 
@@ -305,4 +311,19 @@ pub fn json(checked: &Checked) -> serde_json::Value {
         "paths": paths,
         "findings": findings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    /// The summary's clearances: rounded to the micrometre, a tiny negative shown as zero, a
+    /// real one kept with its sign.
+    #[test]
+    fn clearances_read_to_the_micrometre_without_a_negative_zero() {
+        assert_eq!(super::clearance_shown(-0.0004), "0.000 mm");
+        assert_eq!(super::clearance_shown(-1e-9), "0.000 mm");
+        assert_eq!(super::clearance_shown(0.0016), "0.002 mm");
+        assert_eq!(super::clearance_shown(-0.0016), "-0.002 mm");
+        assert_eq!(super::clearance_shown(17.2394), "17.239 mm");
+        assert_eq!(super::clearance_shown(f64::INFINITY), "—");
+    }
 }
