@@ -762,6 +762,62 @@ mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
 
+    /// The controller's decision, by cases worked from the arm's own geometry: a pose the
+    /// forward model makes from joints inside the ranges is taken; the same eye with its roll
+    /// axis yawed 20° out of the arm's plane (a wrist yaw the five axes lack) is not, nor 0.5°
+    /// out (above the wire's 0.057° allowance) while 0.02° is; a quaternion of no direction and
+    /// an eye beyond both links are not; joints outside a range make a pose that is refused.
+    #[test]
+    fn takes_pose_accepts_the_arms_own_poses_and_nothing_a_five_axis_wrist_cannot_reach() {
+        let arm = Arm::default();
+        let j = Joints {
+            base_yaw_rad: 0.3,
+            shoulder_rad: 0.2,
+            elbow_rad: 0.1,
+            pitch_rad: -0.4,
+            roll_rad: 0.0,
+        };
+        let pose = arm.forward(&j);
+        let eye = [pose.eye_mm.x, pose.eye_mm.y, pose.eye_mm.z];
+        let wxyz = |q: UnitQuaternion<f64>| [q.w, q.i, q.j, q.k];
+        assert!(arm.takes_pose(eye, wxyz(pose.orientation)));
+        // A yaw about the vertical through the eye turns the roll axis out of the arm's plane.
+        let yawed = |deg: f64| {
+            wxyz(
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians())
+                    * pose.orientation,
+            )
+        };
+        assert!(!arm.takes_pose(eye, yawed(20.0)));
+        assert!(!arm.takes_pose(eye, yawed(0.5)));
+        assert!(arm.takes_pose(eye, yawed(0.02)));
+        assert!(!arm.takes_pose(eye, [0.0; 4]));
+        assert!(!arm.takes_pose(eye, [f64::NAN, 0.0, 0.0, 1.0]));
+        // Beyond reach: the eye pushed out along its radius by both links' length.
+        let far = arm.upper_arm_mm + arm.forearm_mm;
+        let out = [
+            eye[0] + far * 0.3f64.cos(),
+            eye[1] + far * 0.3f64.sin(),
+            eye[2],
+        ];
+        assert!(!arm.takes_pose(out, wxyz(pose.orientation)));
+        // A pose whose only solutions put a joint outside its range: the pitch far past its
+        // limit on a roll axis pointing back at the base.
+        let limit = arm.joints[3].max_rad;
+        let past = Joints {
+            pitch_rad: limit + 0.3,
+            ..j
+        };
+        let p = arm.forward(&past);
+        let e = [p.eye_mm.x, p.eye_mm.y, p.eye_mm.z];
+        assert!(arm.check_joints(&past).is_err());
+        assert!([ElbowBranch::Up, ElbowBranch::Down].iter().all(|&b| {
+            arm.inverse(&p.eye_mm, &p.roll_axis, 0.0, b)
+                .map_or(true, |k| arm.check_joints(&k).is_err())
+        }));
+        assert!(!arm.takes_pose(e, wxyz(p.orientation)));
+    }
+
     /// Every figure of the arm is checked, and the one that is wrong is named: each length and
     /// the jump limit at 0, below 0, infinite and NaN; the eye mechanism below 0, above the
     /// longest the arm carries (and exactly that longest, which is taken); each joint's range
