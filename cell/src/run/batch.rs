@@ -257,37 +257,21 @@ pub fn not_runnable(job: &sequences::Job, text: &str, job_path: &Path, source: E
 }
 
 /// The job-file value behind a pre-run refusal, as its span in the job's text: every figure of a
-/// planned control file that the devices can refuse comes from one `[cell]` value. A mandrel move's
+/// planned control file that the devices can refuse comes from one `[cell]` value, so the
+/// control-file value the refusal is about ([`Error::control_value`]) names it. A mandrel move's
 /// acceleration is `[cell.drive] accel_rps2`; its top speed and pulse rate are
 /// `mandrel_speed_rps`; its start/stop speed is `[cell.drive] start_stop_rps`; the header's speeds
 /// are `base_speed_mm_s` and `max_speed_mm_s`; an instruction's speed is a fraction of
-/// `base_speed_mm_s`. `None` for a refusal no single value causes (the robot's memory).
+/// `base_speed_mm_s`. `None` for a refusal no single job value causes (the robot's memory, a
+/// position, the steps).
 fn job_field(job: &sequences::Job, refusal: &Error) -> Option<std::ops::Range<usize>> {
     let c = &job.cell;
-    match refusal {
-        Error::ControlFile { source, .. } => job_field(job, source),
-        Error::IndexerTransfer { source, .. } => match source {
-            mandrel_drive::Error::OutOfRange { name, .. } if name.starts_with("accel") => {
-                Some(c.drive.accel_rps2.span())
-            }
-            mandrel_drive::Error::OutOfRange { name, .. } if name.starts_with("start") => {
-                Some(c.drive.start_stop_rps.span())
-            }
-            mandrel_drive::Error::Unsupported { .. } => Some(c.drive.start_stop_rps.span()),
-            mandrel_drive::Error::OutOfRange { .. } | mandrel_drive::Error::PulseRate { .. } => {
-                Some(c.mandrel_speed_rps.span())
-            }
-            _ => None,
-        },
-        Error::RobotTransfer {
-            instruction,
-            source: asea_protocol::EncodeError::OutOfRange { name, .. },
-            ..
-        } => match (instruction, *name) {
-            (None, "max_speed") => Some(c.max_speed_mm_s.span()),
-            (None, _) | (Some(_), "speed") => Some(c.base_speed_mm_s.span()),
-            _ => None,
-        },
+    match refusal.control_value()?.field {
+        "accel_rps2" => Some(c.drive.accel_rps2.span()),
+        "start_rps" => Some(c.drive.start_stop_rps.span()),
+        "max_rps" => Some(c.mandrel_speed_rps.span()),
+        "max_speed_mm_s" => Some(c.max_speed_mm_s.span()),
+        "base_speed_mm_s" | "speed_pct" => Some(c.base_speed_mm_s.span()),
         _ => None,
     }
 }
