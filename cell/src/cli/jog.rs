@@ -94,14 +94,10 @@ pub fn run(args: JogArgs) -> Result<(), Failure> {
         telegram_speed("--max-speed-mm-s", args.max_speed_mm_s, 1000.0, "mm/s")?,
     );
     let mandrel = mandrel_move(&args, &cell)?;
-    if !args.rel {
-        let r = x.hypot(y);
-        let reach = Reach::default();
-        if r > reach.max_radius_mm || z < reach.z_range_mm.0 || z > reach.z_range_mm.1 {
-            return Err(Failure::input(format!(
-                "jog: the eye at ({x:.1}, {y:.1}, {z:.1}) mm is out of the arm's reach"
-            )));
-        }
+    if !args.rel && !Reach::default().holds([x, y, z]) {
+        return Err(Failure::input(format!(
+            "jog: the eye at ({x:.1}, {y:.1}, {z:.1}) mm is out of the arm's reach"
+        )));
     }
     let (devices, _sim) =
         super::run::devices(&cell, None, &cell::record::linktap::RecordSlot::default())?;
